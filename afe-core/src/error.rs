@@ -1,0 +1,53 @@
+//! The error type shared by every crate of the workspace.
+
+use thiserror::Error;
+
+/// Everything that can go wrong when building or running an AFE graph.
+///
+/// Each message names the offending request, parameter or input and says what would be
+/// accepted, so that a user can act on it without reading the source.
+#[derive(Debug, Error, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum Error {
+    /// A request name that no processor produces.
+    #[error("unknown request '{name}' (known requests: {known})")]
+    UnknownRequest {
+        /// The name as given.
+        name: String,
+        /// Comma-separated list of the accepted names.
+        known: String,
+    },
+    /// A parameter name that no processor declares.
+    #[error("unknown parameter '{name}'{hint}")]
+    UnknownParameter {
+        /// The name as given.
+        name: String,
+        /// Either empty or ` (did you mean 'x'?)`.
+        hint: String,
+    },
+    /// A parameter value of the wrong type or outside its accepted range.
+    #[error("invalid value {value} for parameter '{name}': {reason}")]
+    InvalidParameter {
+        /// AFE parameter name, e.g. `fb_nChannels`.
+        name: String,
+        /// The value as given, rendered as JSON.
+        value: String,
+        /// What is accepted instead.
+        reason: String,
+    },
+    /// The input signal cannot be processed (shape, channel count, content).
+    #[error("invalid input: {0}")]
+    InvalidInput(String),
+    /// A binaural representation was requested on a single-channel input.
+    #[error("request '{0}' needs a binaural (two-channel) input, but the input is mono")]
+    BinauralOnMono(String),
+    /// An invalid sampling rate.
+    #[error("invalid sampling rate {0} Hz: it must be a finite number > 0")]
+    InvalidSampleRate(f64),
+    /// A request handle that does not belong to this manager (or was removed).
+    #[error("unknown request handle {0}")]
+    UnknownHandle(usize),
+}
+
+/// Shorthand for results carrying [`Error`].
+pub type Result<T> = std::result::Result<T, Error>;

@@ -1,0 +1,82 @@
+//! Frequency-sampling FIR design, MATLAB's `fir2(n, f, m)` (spec 01-P14).
+
+use std::f64::consts::PI;
+
+use rustfft::num_complex::Complex64;
+use rustfft::FftPlanner;
+
+/// Coefficients (`n + 1` taps) of MATLAB's `fir2(n, f, m)` with its default grid
+/// and a symmetric Hamming window.
+///
+/// `f` are breakpoints normalised to Nyquist, starting at 0 and ending at 1,
+/// non-decreasing; `m` the magnitudes at them.
+pub fn fir2(n: usize, f: &[f64], m: &[f64]) -> Vec<f64> {
+    let nn = n + 1;
+    let npt: usize = if nn < 1024 {
+        512
+    } else {
+        nn.next_power_of_two()
+    };
+    let lap = npt / 25;
+    let p = npt + 1;
+    // 1-based grid H[1..=P] stored 0-based.
+    let mut h = vec![0.0; p];
+    let mut nb: i64 = 1;
+    h[0] = m[0];
+    for i in 0..f.len() - 1 {
+        let ne: i64 = if f[i + 1] == f[i] {
+            nb = (nb as f64 - lap as f64 / 2.0).ceil() as i64;
+            nb + lap as i64
+        } else {
+            (f[i + 1] * p as f64).trunc() as i64
+        };
+        for j in nb..=ne {
+            if j < 1 || j as usize > p {
+                continue;
+            }
+            let inc = if nb == ne {
+                0.0
+            } else {
+                (j - nb) as f64 / (ne - nb) as f64
+            };
+            h[(j - 1) as usize] = inc * m[i + 1] + (1.0 - inc) * m[i];
+        }
+        nb = ne + 1;
+    }
+    let dt = 0.5 * (nn as f64 - 1.0);
+    let mut full = vec![Complex64::new(0.0, 0.0); 2 * npt];
+    for (j, hv) in h.iter().enumerate() {
+        let phase = -PI * dt * j as f64 / (p as f64 - 1.0);
+        full[j] = Complex64::new(0.0, phase).exp() * hv;
+    }
+    for j in 1..npt {
+        full[2 * npt - j] = full[j].conj();
+    }
+    let ifft = FftPlanner::new().plan_fft_inverse(2 * npt);
+    ifft.process(&mut full);
+    let scale = 1.0 / (2 * npt) as f64;
+    let win = crate::window::window("hamming", nn, "fir2").unwrap_or_default();
+    (0..nn).map(|k| full[k].re * scale * win[k]).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lowpass_design_is_linear_phase_with_the_asked_gain() {
+        let b = fir2(64, &[0.0, 0.3, 0.4, 1.0], &[1.0, 1.0, 0.0, 0.0]);
+        assert_eq!(b.len(), 65);
+        for k in 0..65 {
+            assert!((b[k] - b[64 - k]).abs() < 1e-12, "not symmetric");
+        }
+        let dc: f64 = b.iter().sum();
+        assert!((dc - 1.0).abs() < 0.01, "DC gain {dc}");
+        let nyq: f64 = b
+            .iter()
+            .enumerate()
+            .map(|(k, v)| if k % 2 == 0 { *v } else { -v })
+            .sum();
+        assert!(nyq.abs() < 0.01, "Nyquist gain {nyq}");
+    }
+}

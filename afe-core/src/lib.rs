@@ -1,0 +1,21 @@
+//! Core types of `afe`: time-major signal blocks, the [`Processor`] contract, AFE
+//! parameters, the error type, and the DSP primitives the processors are built from
+//! (DF2T filtering, Butterworth and `fir2` design, windows, the ERB scale, framing, the
+//! analytic signal). Nothing here knows a processor by name.
+
+pub mod block;
+pub mod butter;
+pub mod erb;
+pub mod error;
+pub mod filter;
+pub mod fir2;
+pub mod framing;
+pub mod hilbert;
+pub mod params;
+pub mod processor;
+pub mod window;
+
+pub use block::{Block, SignalInfo, SignalKind};
+pub use error::{Error, Result};
+pub use params::{ParamKind, ParamMap, ParamSpec, Params};
+pub use processor::Processor;

@@ -1,0 +1,257 @@
+//! AFE parameters: the flat name → value map of a request, and typed parameter structs.
+//!
+//! A request carries one map of AFE parameter names (`fb_nChannels`, `ihc_method`, ...) to
+//! JSON-like values. Each processor keeps the names it declares, fills in its defaults for
+//! absent, empty (`[]`, `""`) or `'n-a'` values, as the AFE does, and type-checks the rest.
+
+use std::collections::BTreeMap;
+
+use serde::de::DeserializeOwned;
+use serde::Serialize;
+use serde_json::Value;
+
+use crate::error::{Error, Result};
+
+/// A request's parameters: AFE parameter name → value.
+pub type ParamMap = BTreeMap<String, Value>;
+
+/// The type of value a parameter accepts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ParamKind {
+    /// A finite real number.
+    Number,
+    /// A positive integer.
+    Count,
+    /// A flag: `true`/`false` or `1`/`0`, as in MATLAB.
+    Flag,
+    /// One string out of the listed choices.
+    Choice(&'static [&'static str]),
+    /// A vector of finite numbers (a scalar is taken as a vector of one).
+    Numbers,
+}
+
+impl ParamKind {
+    /// A short human description of what is accepted, for error messages and `afe list`.
+    pub fn describe(&self) -> String {
+        match self {
+            ParamKind::Number => "a number".into(),
+            ParamKind::Count => "a positive integer".into(),
+            ParamKind::Flag => "a flag (true/false or 1/0)".into(),
+            ParamKind::Choice(c) => format!("one of {}", quoted(c)),
+            ParamKind::Numbers => "a number or an array of numbers".into(),
+        }
+    }
+
+    /// A short name of the type, for listings.
+    pub fn type_name(&self) -> &'static str {
+        match self {
+            ParamKind::Number => "number",
+            ParamKind::Count => "integer",
+            ParamKind::Flag => "flag",
+            ParamKind::Choice(_) => "string",
+            ParamKind::Numbers => "numbers",
+        }
+    }
+}
+
+fn quoted(items: &[&str]) -> String {
+    items
+        .iter()
+        .map(|s| format!("'{s}'"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Declaration of one AFE parameter: its name, type, unit and meaning.
+#[derive(Debug, Clone, Copy)]
+pub struct ParamSpec {
+    /// The AFE name, e.g. `rm_wSizeSec`.
+    pub name: &'static str,
+    /// Accepted values.
+    pub kind: ParamKind,
+    /// Unit (`"s"`, `"Hz"`, `"dB"`, or `""` when dimensionless).
+    pub unit: &'static str,
+    /// One-line meaning.
+    pub description: &'static str,
+}
+
+/// True for the values the AFE treats as "use the default": `[]`, `""`, `null`, `'n-a'`.
+fn is_default_marker(v: &Value) -> bool {
+    match v {
+        Value::Null => true,
+        Value::String(s) => s.is_empty() || s == "n-a",
+        Value::Array(a) => a.is_empty(),
+        _ => false,
+    }
+}
+
+impl ParamSpec {
+    /// Checks `value` against this parameter's kind and returns its canonical form,
+    /// or `None` when the value asks for the default.
+    pub fn normalize(&self, value: &Value) -> Result<Option<Value>> {
+        if is_default_marker(value) {
+            return Ok(None);
+        }
+        let bad = || Error::InvalidParameter {
+            name: self.name.to_string(),
+            value: value.to_string(),
+            reason: format!("expected {}", self.kind.describe()),
+        };
+        let finite = |v: &Value| v.as_f64().filter(|x| x.is_finite());
+        let out = match self.kind {
+            ParamKind::Number => Value::from(finite(value).ok_or_else(bad)?),
+            ParamKind::Count => {
+                let x = finite(value).ok_or_else(bad)?;
+                if x < 1.0 || x.fract() != 0.0 || x > u32::MAX as f64 {
+                    return Err(bad());
+                }
+                Value::from(x as u64)
+            }
+            ParamKind::Flag => match value {
+                Value::Bool(b) => Value::Bool(*b),
+                Value::Number(_) => match finite(value) {
+                    Some(x) if x == 0.0 => Value::Bool(false),
+                    Some(x) if x == 1.0 => Value::Bool(true),
+                    _ => return Err(bad()),
+                },
+                _ => return Err(bad()),
+            },
+            ParamKind::Choice(choices) => match value.as_str() {
+                Some(s) if choices.contains(&s) => Value::from(s),
+                _ => return Err(bad()),
+            },
+            ParamKind::Numbers => match value {
+                Value::Array(items) => Value::Array(
+                    items
+                        .iter()
+                        .map(|v| finite(v).map(Value::from).ok_or_else(bad))
+                        .collect::<Result<_>>()?,
+                ),
+                _ => Value::Array(vec![Value::from(finite(value).ok_or_else(bad)?)]),
+            },
+        };
+        Ok(Some(out))
+    }
+}
+
+/// A processor's typed parameter struct, (de)serialised under the AFE names.
+///
+/// `Default` must equal the AFE defaults; `SPECS` lists every field under its AFE name.
+pub trait Params: Serialize + DeserializeOwned + Default + Clone + PartialEq {
+    /// Declarations of the parameters, in listing order.
+    const SPECS: &'static [ParamSpec];
+
+    /// Builds the struct from a request's map: keeps the declared names, fills defaults,
+    /// type-checks every given value. Names this struct does not declare are ignored.
+    fn from_map(map: &ParamMap) -> Result<Self> {
+        let mut obj = match serde_json::to_value(Self::default()) {
+            Ok(Value::Object(o)) => o,
+            _ => unreachable!("parameter structs serialise to objects"),
+        };
+        for spec in Self::SPECS {
+            if let Some(v) = map.get(spec.name) {
+                if let Some(v) = spec.normalize(v)? {
+                    obj.insert(spec.name.to_string(), v);
+                }
+            }
+        }
+        serde_json::from_value(Value::Object(obj)).map_err(|e| Error::InvalidParameter {
+            name: Self::SPECS
+                .iter()
+                .map(|s| s.name)
+                .collect::<Vec<_>>()
+                .join("/"),
+            value: "(combination)".into(),
+            reason: e.to_string(),
+        })
+    }
+
+    /// The parameters as an AFE name → value map.
+    fn to_map(&self) -> ParamMap {
+        match serde_json::to_value(self) {
+            Ok(Value::Object(o)) => o.into_iter().collect(),
+            _ => unreachable!("parameter structs serialise to objects"),
+        }
+    }
+}
+
+/// Test helper: checks that `P::SPECS` and the serialised default name the same parameters
+/// and that every default passes its own declaration.
+pub fn check_param_specs<P: Params>() {
+    let defaults = P::default().to_map();
+    let mut declared: Vec<&str> = P::SPECS.iter().map(|s| s.name).collect();
+    declared.sort_unstable();
+    let serialised: Vec<&str> = defaults.keys().map(String::as_str).collect();
+    assert_eq!(declared, serialised, "SPECS and struct fields differ");
+    for spec in P::SPECS {
+        let v = &defaults[spec.name];
+        spec.normalize(v)
+            .unwrap_or_else(|e| panic!("default of {} rejected: {e}", spec.name));
+    }
+    assert!(P::from_map(&defaults).is_ok_and(|p| p == P::default()));
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    const FLAG: ParamSpec = ParamSpec {
+        name: "x_bFlag",
+        kind: ParamKind::Flag,
+        unit: "",
+        description: "",
+    };
+
+    #[test]
+    fn flags_accept_matlab_numbers() {
+        assert_eq!(FLAG.normalize(&json!(1)).ok(), Some(Some(json!(true))));
+        assert_eq!(FLAG.normalize(&json!(false)).ok(), Some(Some(json!(false))));
+        assert!(FLAG.normalize(&json!(2)).is_err());
+        assert!(FLAG.normalize(&json!("yes")).is_err());
+    }
+
+    #[test]
+    fn empty_and_na_mean_default() {
+        for v in [json!([]), json!(""), json!("n-a"), Value::Null] {
+            assert_eq!(FLAG.normalize(&v).ok(), Some(None));
+        }
+    }
+
+    #[test]
+    fn choice_error_lists_accepted_values() {
+        let spec = ParamSpec {
+            name: "ihc_method",
+            kind: ParamKind::Choice(&["dau", "none"]),
+            unit: "",
+            description: "",
+        };
+        let err = spec.normalize(&json!("daux")).unwrap_err().to_string();
+        assert!(err.contains("ihc_method") && err.contains("'dau', 'none'"), "{err}");
+    }
+
+    #[test]
+    fn counts_reject_fractions_and_zero() {
+        let spec = ParamSpec {
+            name: "fb_nChannels",
+            kind: ParamKind::Count,
+            unit: "",
+            description: "",
+        };
+        assert_eq!(spec.normalize(&json!(16.0)).ok(), Some(Some(json!(16))));
+        assert!(spec.normalize(&json!(1.5)).is_err());
+        assert!(spec.normalize(&json!(0)).is_err());
+    }
+
+    #[test]
+    fn numbers_accept_scalars() {
+        let spec = ParamSpec {
+            name: "pp_refSPLdB",
+            kind: ParamKind::Numbers,
+            unit: "dB",
+            description: "",
+        };
+        assert_eq!(spec.normalize(&json!(80)).ok(), Some(Some(json!([80.0]))));
+        assert!(spec.normalize(&json!([1, "a"])).is_err());
+    }
+}

@@ -1,0 +1,93 @@
+//! Window functions by MATLAB name (spec 01-P3): symmetric, built as a first half mirrored.
+
+use std::f64::consts::PI;
+
+use crate::error::{Error, Result};
+
+/// Window names accepted by the `*_wname` parameters.
+pub const WINDOW_NAMES: &[&str] = &[
+    "hann", "hanning", "hamming", "rectwin", "blackman", "triang", "bartlett",
+];
+
+/// The symmetric window `name` of length `n`.
+///
+/// `param` names the parameter the window came from, for the error message.
+pub fn window(name: &str, n: usize, param: &str) -> Result<Vec<f64>> {
+    let half_mirrored = |f: &dyn Fn(f64) -> f64| {
+        let half = n.div_ceil(2);
+        let mut w: Vec<f64> = (0..half).map(|k| f(k as f64)).collect();
+        let mirror: Vec<f64> = w[..n / 2].iter().rev().copied().collect();
+        w.extend(mirror);
+        w
+    };
+    let denom = (n as f64 - 1.0).max(1.0);
+    let w = match name {
+        _ if n == 1 && name != "hanning" && WINDOW_NAMES.contains(&name) => vec![1.0],
+        "rectwin" => vec![1.0; n],
+        "hann" => half_mirrored(&|k| 0.5 - 0.5 * (2.0 * PI * (k / denom)).cos()),
+        "hanning" => half_mirrored(&|k| 0.5 * (1.0 - (2.0 * PI * (k + 1.0) / (n as f64 + 1.0)).cos())),
+        "hamming" => half_mirrored(&|k| 0.54 - 0.46 * (2.0 * PI * (k / denom)).cos()),
+        "blackman" => half_mirrored(&|k| {
+            let x = k / denom;
+            0.42 - 0.5 * (2.0 * PI * x).cos() + 0.08 * (4.0 * PI * x).cos()
+        }),
+        "triang" => half_mirrored(&|k| {
+            if n % 2 == 1 {
+                2.0 * (k + 1.0) / (n as f64 + 1.0)
+            } else {
+                (2.0 * k + 1.0) / n as f64
+            }
+        }),
+        "bartlett" => half_mirrored(&|k| 1.0 - (2.0 * k / denom - 1.0).abs()),
+        _ => {
+            return Err(Error::InvalidParameter {
+                name: param.to_string(),
+                value: format!("\"{name}\""),
+                reason: format!(
+                    "unknown window; accepted: {}",
+                    WINDOW_NAMES
+                        .iter()
+                        .map(|s| format!("'{s}'"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            })
+        }
+    };
+    Ok(w)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hann_has_zero_ends_and_is_symmetric() {
+        let w = window("hann", 8, "x").unwrap_or_default();
+        assert_eq!(w.len(), 8);
+        assert_eq!(w[0], 0.0);
+        assert_eq!(w[7], 0.0);
+        for k in 0..8 {
+            assert_eq!(w[k], w[7 - k]);
+            let f = 0.5 * (1.0 - (2.0 * PI * k as f64 / 7.0).cos());
+            assert!((w[k] - f).abs() < 1e-15);
+        }
+    }
+
+    #[test]
+    fn odd_lengths_and_other_shapes() {
+        let w = window("triang", 5, "x").unwrap_or_default();
+        assert_eq!(w, vec![1.0 / 3.0, 2.0 / 3.0, 1.0, 2.0 / 3.0, 1.0 / 3.0]);
+        let w = window("bartlett", 5, "x").unwrap_or_default();
+        assert_eq!(w, vec![0.0, 0.5, 1.0, 0.5, 0.0]);
+        let w = window("hanning", 3, "x").unwrap_or_default();
+        assert!((w[0] - 0.5).abs() < 1e-15 && (w[1] - 1.0).abs() < 1e-15);
+        assert_eq!(window("hamming", 1, "x").unwrap_or_default(), vec![1.0]);
+    }
+
+    #[test]
+    fn unknown_window_names_the_parameter() {
+        let e = window("kaiserr", 8, "rm_wname").unwrap_err().to_string();
+        assert!(e.contains("rm_wname") && e.contains("'hann'"), "{e}");
+    }
+}
