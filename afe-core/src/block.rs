@@ -22,6 +22,9 @@ pub struct SignalInfo {
     pub cf_hz: Vec<f64>,
     /// Lag of each correlation column in seconds (empty unless `kind` is `Correlation`).
     pub lags_s: Vec<f64>,
+    /// Rate in Hz of the audio this signal was computed from (equal to `fs_hz` for
+    /// full-rate signals; framed signals keep the rate their frames were cut at).
+    pub audio_fs_hz: f64,
 }
 
 impl SignalInfo {
@@ -32,16 +35,29 @@ impl SignalInfo {
             fs_hz,
             cf_hz: Vec::new(),
             lags_s: Vec::new(),
+            audio_fs_hz: fs_hz,
         }
     }
 
-    /// A time-frequency signal at `fs_hz` with the given channel centre frequencies.
+    /// A full-rate time-frequency signal at `fs_hz` with the given centre frequencies.
     pub fn time_frequency(fs_hz: f64, cf_hz: Vec<f64>) -> Self {
         SignalInfo {
             kind: SignalKind::TimeFrequency,
             fs_hz,
             cf_hz,
             lags_s: Vec::new(),
+            audio_fs_hz: fs_hz,
+        }
+    }
+
+    /// The same channels framed at nominal rate `frame_rate_hz` (audio rate kept).
+    pub fn framed(&self, frame_rate_hz: f64) -> Self {
+        SignalInfo {
+            kind: SignalKind::TimeFrequency,
+            fs_hz: frame_rate_hz,
+            cf_hz: self.cf_hz.clone(),
+            lags_s: Vec::new(),
+            audio_fs_hz: self.audio_fs_hz,
         }
     }
 
@@ -187,6 +203,7 @@ mod tests {
             fs_hz: 100.0,
             cf_hz: vec![100.0, 200.0],
             lags_s: vec![-1.0, 0.0, 1.0],
+            audio_fs_hz: 1000.0,
         };
         assert_eq!(info.width(), 6);
         assert_eq!(info.frame_shape(), vec![2, 3]);

@@ -1,1 +1,20 @@
-//! placeholder
+//! The Two!Ears AFE processors, one module each, and the registry that maps a request
+//! name to its processor, dependency, parameters and constructor.
+//!
+//! Each module holds the processor's parameter struct (AFE names, AFE defaults), its
+//! design code and its tests; nothing here knows about graphs or threads.
+
+pub mod butterworth;
+pub mod crosscorrelation;
+mod framed;
+pub mod gammatone;
+pub mod ic;
+pub mod ihc;
+pub mod ild;
+pub mod itd;
+pub mod middle_ear;
+pub mod pre_proc;
+pub mod ratemap;
+mod registry;
+
+pub use registry::{find_request, requests, Built, Ears, RequestDef};

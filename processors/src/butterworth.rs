@@ -1,0 +1,157 @@
+//! `butterworth` (not in the AFE): a Butterworth low/high/band-pass/band-stop filter of
+//! free order on the time-domain signal of each ear, with the design shared with the IHC.
+
+use afe_core::butter::{butter, ButterType};
+use afe_core::filter::Df2t;
+use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
+use serde::{Deserialize, Serialize};
+
+/// Parameters of the Butterworth filter (`bw_` prefix, in the AFE naming style).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ButterworthParams {
+    /// `'low'`, `'high'`, `'bandpass'` or `'stop'`, as MATLAB's `butter` (`bw_type`).
+    #[serde(rename = "bw_type")]
+    pub kind: String,
+    /// Prototype order; band designs have twice this order (`bw_order`).
+    #[serde(rename = "bw_order")]
+    pub order: u32,
+    /// Cut-off(s) in Hz: one for low/high, two for bandpass/stop (`bw_cutoffHz`).
+    #[serde(rename = "bw_cutoffHz")]
+    pub cutoff_hz: Vec<f64>,
+}
+
+impl Default for ButterworthParams {
+    fn default() -> Self {
+        ButterworthParams {
+            kind: "low".into(),
+            order: 4,
+            cutoff_hz: vec![1000.0],
+        }
+    }
+}
+
+impl Params for ButterworthParams {
+    const SPECS: &'static [ParamSpec] = &[
+        ParamSpec {
+            name: "bw_type",
+            kind: ParamKind::Choice(&["low", "high", "bandpass", "stop"]),
+            unit: "",
+            description: "response type of the Butterworth filter",
+        },
+        ParamSpec {
+            name: "bw_order",
+            kind: ParamKind::Count,
+            unit: "",
+            description: "filter order (band designs have twice this order)",
+        },
+        ParamSpec {
+            name: "bw_cutoffHz",
+            kind: ParamKind::Numbers,
+            unit: "Hz",
+            description: "cut-off frequency, or [low, high] for bandpass/stop",
+        },
+    ];
+}
+
+impl ButterworthParams {
+    /// The `(b, a)` design at `fs` Hz, after checking the cut-offs.
+    pub fn design(&self, fs: f64) -> Result<(Vec<f64>, Vec<f64>)> {
+        let kind = match self.kind.as_str() {
+            "high" => ButterType::High,
+            "bandpass" => ButterType::BandPass,
+            "stop" => ButterType::BandStop,
+            _ => ButterType::Low,
+        };
+        let want = if matches!(kind, ButterType::Low | ButterType::High) {
+            1
+        } else {
+            2
+        };
+        let nyq = fs / 2.0;
+        let fc = &self.cutoff_hz;
+        let bad = |reason: String| Error::InvalidParameter {
+            name: "bw_cutoffHz".into(),
+            value: format!("{fc:?}"),
+            reason,
+        };
+        if fc.len() != want {
+            return Err(bad(format!(
+                "bw_type '{}' takes {want} cut-off frequenc{}",
+                self.kind,
+                if want == 1 { "y" } else { "ies" }
+            )));
+        }
+        if fc.iter().any(|f| !(*f > 0.0 && *f < nyq)) || (want == 2 && fc[0] >= fc[1]) {
+            return Err(bad(format!(
+                "cut-offs must be increasing and lie strictly between 0 and the Nyquist frequency ({nyq} Hz)"
+            )));
+        }
+        if self.order > 32 {
+            return Err(Error::InvalidParameter {
+                name: "bw_order".into(),
+                value: self.order.to_string(),
+                reason: "orders above 32 are numerically meaningless in direct form".into(),
+            });
+        }
+        let wn: Vec<f64> = fc.iter().map(|f| f / nyq).collect();
+        Ok(butter(self.order as usize, &wn, kind))
+    }
+}
+
+/// The Butterworth filter of one ear: time-domain in and out.
+#[derive(Debug, Clone)]
+pub struct Butterworth {
+    filter: Df2t,
+}
+
+impl Butterworth {
+    /// Designs the filter for a time-domain input at `fs` Hz.
+    pub fn new(params: &ButterworthParams, fs: f64) -> Result<(Self, SignalInfo)> {
+        let (b, a) = params.design(fs)?;
+        Ok((
+            Butterworth {
+                filter: Df2t::new(&b, &a, 1),
+            },
+            SignalInfo::time_domain(fs),
+        ))
+    }
+}
+
+impl Processor for Butterworth {
+    fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
+        let out = &mut outputs[0];
+        out.reset_to(0);
+        out.extend_from(inputs[0]);
+        self.filter.process(out.as_mut_slice());
+    }
+
+    fn reset(&mut self) {
+        self.filter.reset();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn specs_match_struct() {
+        afe_core::params::check_param_specs::<ButterworthParams>();
+    }
+
+    #[test]
+    fn cutoff_count_and_range_are_checked() {
+        let p = ButterworthParams {
+            kind: "bandpass".into(),
+            ..Default::default()
+        };
+        let e = p.design(16000.0).expect_err("one cut-off for a band");
+        assert!(e.to_string().contains("takes 2 cut-off frequencies"), "{e}");
+        let p = ButterworthParams {
+            cutoff_hz: vec![9000.0],
+            ..Default::default()
+        };
+        assert!(p.design(16000.0).is_err());
+    }
+}

@@ -1,0 +1,30 @@
+//! Checks shared by the window/hop processors.
+
+use afe_core::framing::{hop_samples, window_samples};
+use afe_core::{Error, Result};
+
+/// Window and hop lengths in samples at `fs`, checked: `0 < H ≤ W`.
+///
+/// `w` and `h` are `(AFE parameter name, value in s)`.
+pub fn check_framing(w: (&str, f64), h: (&str, f64), fs: f64) -> Result<(usize, usize)> {
+    let ws = window_samples(w.1, fs);
+    let hs = hop_samples(h.1, fs);
+    if !(w.1 > 0.0) || ws < 2 {
+        return Err(Error::InvalidParameter {
+            name: w.0.into(),
+            value: w.1.to_string(),
+            reason: format!("the window must span at least 2 samples at {fs} Hz"),
+        });
+    }
+    if !(h.1 > 0.0) || hs == 0 || hs > ws {
+        return Err(Error::InvalidParameter {
+            name: h.0.into(),
+            value: h.1.to_string(),
+            reason: format!(
+                "the hop must be at least one sample at {fs} Hz and at most the window ({} = {} s)",
+                w.0, w.1
+            ),
+        });
+    }
+    Ok((ws, hs))
+}

@@ -1,0 +1,101 @@
+//! `itd`: interaural time difference per channel and frame, the lag of the
+//! cross-correlation maximum refined by a parabola (spec 19-itd). Positive = right leads.
+
+use afe_core::{Block, Processor, Result, SignalInfo, SignalKind};
+
+/// Peak of a correlation function: `(index, δ)` with the first maximum (NaN ignored, as
+/// MATLAB's `max`) and the parabolic offset δ (0 at the lag-range edges).
+pub(crate) fn parabolic_peak(y: &[f64]) -> (usize, f64, f64) {
+    let mut best: Option<usize> = None;
+    for (i, v) in y.iter().enumerate() {
+        if !v.is_nan() && best.is_none_or(|b| *v > y[b]) {
+            best = Some(i);
+        }
+    }
+    let i = best.unwrap_or(0);
+    if i > 0 && i + 1 < y.len() {
+        let (yl, yc, yu) = (y[i - 1], y[i], y[i + 1]);
+        let delta = 0.5 * (yl - yu) / (yl - 2.0 * yc + yu);
+        (i, delta, yc - 0.25 * (yl - yu) * delta)
+    } else {
+        (i, 0.0, y[i])
+    }
+}
+
+/// Checks that a binaural cue is built on a correlation signal.
+pub(crate) fn correlation_input(input: &SignalInfo, what: &str) -> Result<()> {
+    if input.kind != SignalKind::Correlation || input.lags_s.is_empty() {
+        return Err(afe_core::Error::InvalidInput(format!(
+            "{what} needs a cross-correlation input"
+        )));
+    }
+    Ok(())
+}
+
+/// The ITD extractor: `[frame][channel][lag]` in, `[frame][channel]` seconds out.
+#[derive(Debug, Clone)]
+pub struct Itd {
+    lags: usize,
+    audio_fs_hz: f64,
+}
+
+impl Itd {
+    /// Builds the ITD for the cross-correlation signal `input`.
+    pub fn new(input: &SignalInfo) -> Result<(Self, SignalInfo)> {
+        correlation_input(input, "itd")?;
+        let itd = Itd {
+            lags: input.lags_s.len(),
+            audio_fs_hz: input.audio_fs_hz,
+        };
+        Ok((itd, input.framed(input.fs_hz)))
+    }
+}
+
+impl Processor for Itd {
+    fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
+        let ccf = inputs[0].as_slice();
+        let half = (self.lags - 1) as f64 / 2.0;
+        let frames = ccf.len() / (self.lags * outputs[0].width()).max(1);
+        let out = outputs[0].reset_to(frames);
+        for (o, y) in out.iter_mut().zip(ccf.chunks_exact(self.lags)) {
+            let (i, delta, _) = parabolic_peak(y);
+            *o = (i as f64 - half + delta) / self.audio_fs_hz;
+        }
+    }
+
+    fn reset(&mut self) {}
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parabola_vertex_and_edges() {
+        let (i, d, v) = parabolic_peak(&[0.0, 1.0, 0.5]);
+        assert_eq!(i, 1);
+        // parabola through (−1, 0), (0, 1), (1, 0.5): δ = 0.5·(−0.5)/(−1.5) = 1/6
+        assert!((d - 1.0 / 6.0).abs() < 1e-15);
+        assert!((v - (1.0 + 0.25 * 0.5 / 6.0)).abs() < 1e-15);
+        assert_eq!(parabolic_peak(&[3.0, 1.0, 2.0]), (0, 0.0, 3.0));
+        assert_eq!(parabolic_peak(&[f64::NAN, 1.0, 2.0]).0, 2);
+        assert!(parabolic_peak(&[0.0, 1.0, 1.0, 1.0, 0.0]).1.is_finite());
+        assert!(parabolic_peak(&[1.0, 1.0, 1.0]).0 == 0);
+    }
+
+    #[test]
+    fn silent_frame_gives_minus_max_lag() {
+        let info = SignalInfo {
+            kind: SignalKind::Correlation,
+            fs_hz: 100.0,
+            cf_hz: vec![500.0],
+            lags_s: vec![-2e-3, -1e-3, 0.0, 1e-3, 2e-3],
+            audio_fs_hz: 1000.0,
+        };
+        let (mut itd, _) = Itd::new(&info).expect("valid");
+        let ccf = Block::from_vec(vec![0.0; 5], 5);
+        let mut out = vec![Block::new(1)];
+        itd.process(&[&ccf], &mut out);
+        assert_eq!(out[0].as_slice(), &[-2e-3]);
+    }
+}

@@ -1,0 +1,362 @@
+//! `time` (preProc): DC removal, pre-emphasis, RMS normalisation (AGC), level scaling and
+//! middle-ear filtering, in that order (spec 10-preProc). All off by default (identity).
+//!
+//! One instance serves both ears, because the AGC can link their gains.
+
+use afe_core::butter::{butter, ButterType};
+use afe_core::filter::Df2t;
+use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
+use serde::{Deserialize, Serialize};
+
+use crate::middle_ear;
+
+/// Parameters of the pre-processor, under their AFE names.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PreProcParams {
+    /// Enable the DC-removal high-pass (AFE `pp_bRemoveDC`).
+    #[serde(rename = "pp_bRemoveDC")]
+    pub remove_dc: bool,
+    /// DC-removal cut-off in Hz (AFE `pp_cutoffHzDC`).
+    #[serde(rename = "pp_cutoffHzDC")]
+    pub cutoff_hz_dc: f64,
+    /// Enable pre-emphasis (AFE `pp_bPreEmphasis`).
+    #[serde(rename = "pp_bPreEmphasis")]
+    pub pre_emphasis: bool,
+    /// Pre-emphasis coefficient; its absolute value is used (AFE `pp_coefPreEmphasis`).
+    #[serde(rename = "pp_coefPreEmphasis")]
+    pub coef_pre_emphasis: f64,
+    /// Enable the running RMS normalisation (AFE `pp_bNormalizeRMS`).
+    #[serde(rename = "pp_bNormalizeRMS")]
+    pub normalize_rms: bool,
+    /// Link both ears' AGC gains (AFE `pp_bBinauralRMS`).
+    #[serde(rename = "pp_bBinauralRMS")]
+    pub binaural_rms: bool,
+    /// AGC integration time constant in s (AFE `pp_intTimeSecRMS`).
+    #[serde(rename = "pp_intTimeSecRMS")]
+    pub int_time_sec_rms: f64,
+    /// Enable level scaling (AFE `pp_bLevelScaling`).
+    #[serde(rename = "pp_bLevelScaling")]
+    pub level_scaling: bool,
+    /// dB SPL of a signal of RMS 1, one value or [left, right] (AFE `pp_refSPLdB`).
+    #[serde(rename = "pp_refSPLdB")]
+    pub ref_spl_db: Vec<f64>,
+    /// Enable the middle-ear filter (AFE `pp_bMiddleEarFiltering`).
+    #[serde(rename = "pp_bMiddleEarFiltering")]
+    pub middle_ear_filtering: bool,
+    /// Middle-ear model (AFE `pp_middleEarModel`).
+    #[serde(rename = "pp_middleEarModel")]
+    pub middle_ear_model: String,
+    /// Bring the middle-ear peak gain to about 0 dB (AFE `pp_bUnityComp`).
+    #[serde(rename = "pp_bUnityComp")]
+    pub unity_comp: bool,
+}
+
+impl Default for PreProcParams {
+    fn default() -> Self {
+        PreProcParams {
+            remove_dc: false,
+            cutoff_hz_dc: 20.0,
+            pre_emphasis: false,
+            coef_pre_emphasis: 0.97,
+            normalize_rms: false,
+            binaural_rms: true,
+            int_time_sec_rms: 0.5,
+            level_scaling: false,
+            ref_spl_db: vec![100.0],
+            middle_ear_filtering: false,
+            middle_ear_model: "jepsen".into(),
+            unity_comp: true,
+        }
+    }
+}
+
+const fn flag(name: &'static str, description: &'static str) -> ParamSpec {
+    ParamSpec {
+        name,
+        kind: ParamKind::Flag,
+        unit: "",
+        description,
+    }
+}
+
+impl Params for PreProcParams {
+    const SPECS: &'static [ParamSpec] = &[
+        flag("pp_bRemoveDC", "remove DC with a 4th-order Butterworth high-pass"),
+        ParamSpec {
+            name: "pp_cutoffHzDC",
+            kind: ParamKind::Number,
+            unit: "Hz",
+            description: "cut-off of the DC-removal high-pass",
+        },
+        flag("pp_bPreEmphasis", "apply the pre-emphasis FIR y[n] = x[n] − |c|·x[n−1]"),
+        ParamSpec {
+            name: "pp_coefPreEmphasis",
+            kind: ParamKind::Number,
+            unit: "",
+            description: "pre-emphasis coefficient c",
+        },
+        flag("pp_bNormalizeRMS", "normalise by the running RMS (AGC)"),
+        flag("pp_bBinauralRMS", "link the AGC gains of both ears"),
+        ParamSpec {
+            name: "pp_intTimeSecRMS",
+            kind: ParamKind::Number,
+            unit: "s",
+            description: "AGC integration time constant",
+        },
+        flag("pp_bLevelScaling", "scale the level so that RMS 1 is pp_refSPLdB"),
+        ParamSpec {
+            name: "pp_refSPLdB",
+            kind: ParamKind::Numbers,
+            unit: "dB",
+            description: "dB SPL of a signal of RMS 1 (one value, or [left, right])",
+        },
+        flag("pp_bMiddleEarFiltering", "apply the middle-ear FIR"),
+        ParamSpec {
+            name: "pp_middleEarModel",
+            kind: ParamKind::Choice(&["jepsen", "lopezpoveda"]),
+            unit: "",
+            description: "middle-ear filter model",
+        },
+        flag("pp_bUnityComp", "compensate the middle-ear filter to a 0 dB peak"),
+    ];
+}
+
+/// The per-ear state of the pre-processor.
+#[derive(Debug, Clone)]
+struct Ear {
+    dc: Option<Df2t>,
+    emphasis: Option<Df2t>,
+    agc: Df2t,
+    agc_seeded: bool,
+    level_gain: f64,
+    middle_ear: Option<Df2t>,
+}
+
+/// The pre-processor of both ears (or the single ear of a mono input).
+#[derive(Debug, Clone)]
+pub struct PreProc {
+    params: PreProcParams,
+    ears: Vec<Ear>,
+    /// AGC: α and the number of seeding samples `round(τ·fs)`.
+    alpha: f64,
+    seed_len: usize,
+    middle_ear_gain: f64,
+    /// Per-ear normaliser scratch.
+    norm: [Vec<f64>; 2],
+}
+
+fn invalid(name: &str, value: impl std::fmt::Display, reason: impl Into<String>) -> Error {
+    Error::InvalidParameter {
+        name: name.into(),
+        value: value.to_string(),
+        reason: reason.into(),
+    }
+}
+
+impl PreProc {
+    /// Builds the pre-processor for `ears` (1 or 2) input signals at `fs` Hz.
+    pub fn new(params: &PreProcParams, fs: f64, ears: usize) -> Result<(Self, Vec<SignalInfo>)> {
+        let p = params;
+        if p.remove_dc && !(p.cutoff_hz_dc > 0.0 && p.cutoff_hz_dc < fs / 2.0) {
+            return Err(invalid(
+                "pp_cutoffHzDC",
+                p.cutoff_hz_dc,
+                format!("must lie between 0 and the Nyquist frequency ({} Hz)", fs / 2.0),
+            ));
+        }
+        if p.normalize_rms && !(p.int_time_sec_rms > 0.0) {
+            return Err(invalid("pp_intTimeSecRMS", p.int_time_sec_rms, "must be > 0 s"));
+        }
+        if !(1..=2).contains(&p.ref_spl_db.len()) {
+            return Err(invalid(
+                "pp_refSPLdB",
+                format!("{:?}", p.ref_spl_db),
+                "expected one value or two ([left, right])",
+            ));
+        }
+        let dc = p.remove_dc.then(|| {
+            let (b, a) = butter(4, &[p.cutoff_hz_dc / (fs / 2.0)], ButterType::High);
+            Df2t::new(&b, &a, 1)
+        });
+        let emphasis = p
+            .pre_emphasis
+            .then(|| Df2t::new(&[1.0, -p.coef_pre_emphasis.abs()], &[1.0], 1));
+        let alpha = (-1.0 / (p.int_time_sec_rms * fs)).exp();
+        let middle_ear = p.middle_ear_filtering.then(|| {
+            let b = if p.middle_ear_model == "lopezpoveda" {
+                middle_ear::lopezpoveda(fs)
+            } else {
+                middle_ear::jepsen(fs)
+            };
+            Df2t::new(&b, &[1.0], 1)
+        });
+        let middle_ear_gain = if p.unity_comp {
+            10f64.powf(middle_ear::unity_comp_db(&p.middle_ear_model) / 20.0)
+        } else {
+            1.0
+        };
+        let ear_states = (0..ears)
+            .map(|e| Ear {
+                dc: dc.clone(),
+                emphasis: emphasis.clone(),
+                agc: Df2t::new(&[1.0 + (-alpha)], &[1.0, -alpha], 1),
+                agc_seeded: false,
+                level_gain: 10f64.powf((100.0 - p.ref_spl_db[e.min(p.ref_spl_db.len() - 1)]) / 20.0),
+                middle_ear: middle_ear.clone(),
+            })
+            .collect();
+        let pre = PreProc {
+            params: p.clone(),
+            ears: ear_states,
+            alpha,
+            seed_len: (p.int_time_sec_rms * fs).round().max(0.0) as usize,
+            middle_ear_gain,
+            norm: [Vec::new(), Vec::new()],
+        };
+        Ok((pre, vec![SignalInfo::time_domain(fs); ears]))
+    }
+
+    /// Computes the AGC normaliser `sqrt(m[n]) + 1e−8` of ear `e` into `self.norm[e]`.
+    fn agc_normaliser(&mut self, e: usize, x: &[f64]) {
+        let ear = &mut self.ears[e];
+        let norm = &mut self.norm[e];
+        norm.clear();
+        norm.extend(x.iter().map(|v| v * v));
+        if !ear.agc_seeded && !x.is_empty() {
+            let k = x.len().min(self.seed_len).max(1);
+            let ms0 = norm[..k].iter().sum::<f64>() / k as f64;
+            ear.agc.set_first_state(0, self.alpha * ms0);
+            ear.agc_seeded = true;
+        }
+        ear.agc.process(norm);
+        for v in norm.iter_mut() {
+            *v = v.sqrt() + 1e-8;
+        }
+    }
+}
+
+impl Processor for PreProc {
+    fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
+        let n_ears = self.ears.len();
+        for e in 0..n_ears {
+            let out = &mut outputs[e];
+            out.reset_to(0);
+            out.extend_from(inputs[e]);
+            let x = out.as_mut_slice();
+            let ear = &mut self.ears[e];
+            if let Some(f) = &mut ear.dc {
+                f.process(x);
+            }
+            if let Some(f) = &mut ear.emphasis {
+                f.process(x);
+            }
+            if self.params.normalize_rms {
+                self.agc_normaliser(e, x);
+            }
+        }
+        if self.params.normalize_rms {
+            if self.params.binaural_rms && n_ears == 2 {
+                let [l, r] = &mut self.norm;
+                for (a, b) in l.iter_mut().zip(r.iter_mut()) {
+                    let m = a.max(*b);
+                    *a = m;
+                    *b = m;
+                }
+            }
+            for (out, norm) in outputs.iter_mut().zip(&self.norm) {
+                for (x, g) in out.as_mut_slice().iter_mut().zip(norm) {
+                    *x /= g;
+                }
+            }
+        }
+        for (out, ear) in outputs.iter_mut().zip(&mut self.ears) {
+            let x = out.as_mut_slice();
+            if self.params.level_scaling {
+                x.iter_mut().for_each(|v| *v *= ear.level_gain);
+            }
+            if let Some(f) = &mut ear.middle_ear {
+                f.process(x);
+                x.iter_mut().for_each(|v| *v *= self.middle_ear_gain);
+            }
+        }
+    }
+
+    /// Resets every filter; the AGC is seeded again from the next chunk (the port's
+    /// documented choice, where MATLAB would start a re-used manager's AGC from zero).
+    fn reset(&mut self) {
+        for ear in &mut self.ears {
+            for f in [&mut ear.dc, &mut ear.emphasis, &mut ear.middle_ear]
+                .into_iter()
+                .flatten()
+            {
+                f.reset();
+            }
+            ear.agc.reset();
+            ear.agc_seeded = false;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(p: &PreProcParams, ears: &[Vec<f64>], fs: f64) -> Vec<Vec<f64>> {
+        let (mut pre, _) = PreProc::new(p, fs, ears.len()).expect("valid");
+        let inputs: Vec<Block> = ears.iter().map(|x| Block::from_vec(x.clone(), 1)).collect();
+        let refs: Vec<&Block> = inputs.iter().collect();
+        let mut outs = vec![Block::new(1); ears.len()];
+        pre.process(&refs, &mut outs);
+        outs.into_iter().map(Block::into_vec).collect()
+    }
+
+    #[test]
+    fn specs_match_struct() {
+        afe_core::params::check_param_specs::<PreProcParams>();
+    }
+
+    #[test]
+    fn defaults_are_identity() {
+        let x = vec![0.1, -0.5, 0.25, 1.0];
+        let y = run(&PreProcParams::default(), &[x.clone(), x.clone()], 16000.0);
+        assert_eq!(y, vec![x.clone(), x]);
+    }
+
+    #[test]
+    fn pre_emphasis_and_level_scaling() {
+        let p = PreProcParams {
+            pre_emphasis: true,
+            level_scaling: true,
+            ref_spl_db: vec![80.0, 100.0],
+            ..Default::default()
+        };
+        let y = run(&p, &[vec![1.0, 1.0], vec![1.0, 1.0]], 16000.0);
+        assert!((y[0][0] - 10.0).abs() < 1e-12 && (y[0][1] - 0.3).abs() < 1e-12);
+        assert!((y[1][1] - 0.03).abs() < 1e-15);
+    }
+
+    #[test]
+    fn agc_brings_a_steady_tone_to_unit_rms() {
+        let fs = 8000.0;
+        let x: Vec<f64> = (0..16000).map(|t| 0.01 * (0.3 * t as f64).sin()).collect();
+        let p = PreProcParams {
+            normalize_rms: true,
+            ..Default::default()
+        };
+        let y = run(&p, &[x], fs);
+        let tail = &y[0][8000..];
+        let rms = (tail.iter().map(|v| v * v).sum::<f64>() / tail.len() as f64).sqrt();
+        assert!((rms - 1.0).abs() < 0.02, "{rms}");
+    }
+
+    #[test]
+    fn invalid_ref_spl_is_rejected() {
+        let p = PreProcParams {
+            ref_spl_db: vec![1.0, 2.0, 3.0],
+            ..Default::default()
+        };
+        let e = PreProc::new(&p, 16000.0, 2).expect_err("three values");
+        assert!(e.to_string().contains("pp_refSPLdB"));
+    }
+}
