@@ -1,1 +1,9 @@
-//! placeholder
+//! Request resolution and execution for `afe`: the [`Manager`] turns AFE requests into
+//! a DAG of processors shared between requests, and runs it chunk by chunk. The
+//! sequential executor here is the reference for every scheduler.
+
+mod graph;
+mod manager;
+
+pub use graph::{Channel, OutputRef};
+pub use manager::{check_parameter_names, Manager, RequestHandle, Signal};

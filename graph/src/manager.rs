@@ -1,0 +1,446 @@
+//! The request manager: resolves AFE requests into a shared processor graph and runs it
+//! chunk by chunk (spec 00-overview §3–§6).
+
+use afe_core::{Block, Error, ParamMap, Result, SignalInfo};
+use afe_processors::{find_request, requests, Ears, RequestDef};
+
+use crate::graph::{Channel, Graph, Node, OutputRef};
+
+/// Handle of a placed request, returned by [`Manager::add_request`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct RequestHandle(usize);
+
+/// One output signal of the graph, as seen after the last processed chunk.
+#[derive(Debug, Clone, Copy)]
+pub struct Signal<'a> {
+    /// Request name of the signal, e.g. `ratemap`.
+    pub name: &'static str,
+    /// 1-based instance among the signals of the same name (requests with different
+    /// parameters make several instances).
+    pub instance: usize,
+    /// Ear of the signal.
+    pub channel: Channel,
+    /// Rate, channel centre frequencies and lags.
+    pub info: &'a SignalInfo,
+    /// The new values computed by the last `process_chunk` / `process_signal`,
+    /// time-major (`[frame][channel]` or `[frame][channel][lag]`).
+    pub new: &'a Block,
+    /// Where the signal lives in the graph.
+    pub source: OutputRef,
+}
+
+impl Signal<'_> {
+    /// The output name used by the CLI and Python: `<name>_<channel>`, or
+    /// `<name>_<k>_<channel>` for the k-th instance (k ≥ 2), as in the AFE oracle.
+    pub fn key(&self) -> String {
+        if self.instance > 1 {
+            format!("{}_{}_{}", self.name, self.instance, self.channel.as_str())
+        } else {
+            format!("{}_{}", self.name, self.channel.as_str())
+        }
+    }
+}
+
+struct Request {
+    outputs: Vec<OutputRef>,
+}
+
+/// Resolves requests into a processor graph shared between them and runs it.
+///
+/// ```
+/// use afe_graph::Manager;
+/// let mut mgr = Manager::new(16000.0, 2)?;
+/// let ild = mgr.add_request("ild", &Default::default())?;
+/// let left = vec![0.1; 1600];
+/// let right = vec![0.2; 1600];
+/// mgr.process_signal(&[&left, &right])?;
+/// let out = &mgr.request_signals(ild)?[0];
+/// assert_eq!(out.key(), "ild_mono");
+/// assert_eq!(out.new.frames(), 9); // 100 ms, 20-ms windows every 10 ms
+/// # Ok::<(), afe_core::Error>(())
+/// ```
+pub struct Manager {
+    fs: f64,
+    ears: usize,
+    graph: Graph,
+    requests: Vec<Request>,
+}
+
+impl std::fmt::Debug for Manager {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Manager")
+            .field("fs", &self.fs)
+            .field("ears", &self.ears)
+            .field("nodes", &self.graph.nodes.len())
+            .finish()
+    }
+}
+
+/// Checks that every parameter name is declared by some processor.
+pub fn check_parameter_names(params: &ParamMap) -> Result<()> {
+    let known: Vec<&str> = requests()
+        .iter()
+        .flat_map(|r| r.params.iter().map(|p| p.name))
+        .collect();
+    for name in params.keys() {
+        if !known.contains(&name.as_str()) {
+            let hint = known
+                .iter()
+                .map(|k| (edit_distance(&k.to_lowercase(), &name.to_lowercase()), *k))
+                .min()
+                .filter(|(d, _)| *d <= 2 + name.len() / 4)
+                .map(|(_, k)| format!(" (did you mean '{k}'?)"))
+                .unwrap_or_default();
+            return Err(Error::UnknownParameter {
+                name: name.clone(),
+                hint,
+            });
+        }
+    }
+    Ok(())
+}
+
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut prev = row[0];
+        row[0] = i + 1;
+        for (j, cb) in b.iter().enumerate() {
+            let cur = row[j + 1];
+            row[j + 1] = (prev + usize::from(ca != *cb)).min(row[j] + 1).min(cur + 1);
+            prev = cur;
+        }
+    }
+    row[b.len()]
+}
+
+impl Manager {
+    /// A manager for input at `fs` Hz with `ears` channels (1 = mono, 2 = binaural).
+    pub fn new(fs: f64, ears: usize) -> Result<Self> {
+        if !(fs.is_finite() && fs > 0.0) {
+            return Err(Error::InvalidSampleRate(fs));
+        }
+        if !(1..=2).contains(&ears) {
+            return Err(Error::InvalidInput(format!(
+                "{ears} input channels: expected 1 (mono) or 2 (left, right)"
+            )));
+        }
+        Ok(Manager {
+            fs,
+            ears,
+            graph: Graph::new(fs, ears),
+            requests: Vec::new(),
+        })
+    }
+
+    /// Input sampling rate in Hz.
+    pub fn fs(&self) -> f64 {
+        self.fs
+    }
+
+    /// Number of input channels (1 or 2).
+    pub fn ears(&self) -> usize {
+        self.ears
+    }
+
+    /// Number of processor instances in the graph (the input node excluded).
+    pub fn processor_count(&self) -> usize {
+        self.graph.nodes.len() - 1
+    }
+
+    /// Places request `name` (an AFE request name such as `ratemap`) with the AFE
+    /// parameters `params` (absent names take their defaults). Processors whose whole
+    /// chain has equal parameters are shared with earlier requests.
+    pub fn add_request(&mut self, name: &str, params: &ParamMap) -> Result<RequestHandle> {
+        check_parameter_names(params)?;
+        let def = find_request(name)?;
+        let mut chain: Vec<&'static RequestDef> = vec![def];
+        while chain[chain.len() - 1].dependency != "input" {
+            chain.push(find_request(chain[chain.len() - 1].dependency)?);
+        }
+        let rollback = self.graph.nodes.len();
+        match self.resolve(&chain, params, name) {
+            Ok(outputs) => {
+                self.requests.push(Request { outputs });
+                Ok(RequestHandle(self.requests.len() - 1))
+            }
+            Err(e) => {
+                self.graph.nodes.truncate(rollback);
+                Err(e)
+            }
+        }
+    }
+
+    fn resolve(
+        &mut self,
+        chain: &[&'static RequestDef],
+        params: &ParamMap,
+        request: &str,
+    ) -> Result<Vec<OutputRef>> {
+        let mut level: Vec<OutputRef> = (0..self.ears)
+            .map(|output| OutputRef { node: 0, output })
+            .collect();
+        for def in chain.iter().rev() {
+            let own = (def.canonical)(params)?;
+            let groups: Vec<Vec<OutputRef>> = match def.ears {
+                Ears::All => vec![level.clone()],
+                Ears::PerEar => level.iter().map(|r| vec![*r]).collect(),
+                Ears::Binaural => {
+                    let single_binaural = level.len() == 1
+                        && self.graph.nodes[level[0].node].parents.len() == 2
+                        && self.graph.nodes[level[0].node].outputs.len() == 1;
+                    if level.len() == 1 && !single_binaural {
+                        return Err(Error::BinauralOnMono(request.to_string()));
+                    }
+                    vec![level.clone()]
+                }
+            };
+            let instance = self.instance_for(def.name, &own, &groups);
+            let mut next = Vec::new();
+            for parents in groups {
+                let node = match self.find_node(def.name, &own, &parents) {
+                    Some(n) => n,
+                    None => self.add_node(def, own.clone(), parents, instance)?,
+                };
+                next.extend(
+                    (0..self.graph.nodes[node].outputs.len()).map(|output| OutputRef { node, output }),
+                );
+            }
+            level = next;
+        }
+        Ok(level)
+    }
+
+    fn find_node(&self, name: &str, params: &ParamMap, parents: &[OutputRef]) -> Option<usize> {
+        self.graph
+            .nodes
+            .iter()
+            .position(|n| n.name == name && &n.params == params && n.parents == parents)
+    }
+
+    /// The instance number for a new node of `name`: the one of an existing node with the
+    /// same parameters (the other ear of the same request), or one more than the largest.
+    fn instance_for(&self, name: &str, params: &ParamMap, groups: &[Vec<OutputRef>]) -> usize {
+        if let Some(n) = groups
+            .iter()
+            .find_map(|parents| self.find_node(name, params, parents))
+        {
+            return self.graph.nodes[n].instance;
+        }
+        1 + self
+            .graph
+            .nodes
+            .iter()
+            .filter(|n| n.name == name)
+            .map(|n| n.instance)
+            .max()
+            .unwrap_or(0)
+    }
+
+    fn add_node(
+        &mut self,
+        def: &'static RequestDef,
+        params: ParamMap,
+        parents: Vec<OutputRef>,
+        instance: usize,
+    ) -> Result<usize> {
+        let inputs: Vec<SignalInfo> = parents
+            .iter()
+            .map(|p| self.graph.nodes[p.node].infos[p.output].clone())
+            .collect();
+        let built = (def.build)(&params, &inputs)?;
+        let channels = match def.ears {
+            Ears::All => parents
+                .iter()
+                .map(|p| self.graph.nodes[p.node].channels[p.output])
+                .collect(),
+            Ears::PerEar => vec![self.graph.nodes[parents[0].node].channels[parents[0].output]],
+            Ears::Binaural => vec![Channel::Mono],
+        };
+        let outputs = built
+            .outputs
+            .iter()
+            .map(|info| Block::new(info.width()))
+            .collect();
+        self.graph.nodes.push(Node {
+            name: def.name,
+            instance,
+            params,
+            parents,
+            processor: Some(built.processor),
+            outputs,
+            infos: built.outputs,
+            channels,
+        });
+        Ok(self.graph.nodes.len() - 1)
+    }
+
+    fn check_chunk(&self, chunk: &[&[f64]]) -> Result<()> {
+        if chunk.len() != self.ears {
+            return Err(Error::InvalidInput(format!(
+                "got {} channel(s), but this manager was made for {} ({})",
+                chunk.len(),
+                self.ears,
+                if self.ears == 2 { "left, right" } else { "mono" }
+            )));
+        }
+        if chunk.iter().any(|c| c.len() != chunk[0].len()) {
+            return Err(Error::InvalidInput(format!(
+                "left and right have different lengths ({} and {} samples)",
+                chunk[0].len(),
+                chunk[chunk.len() - 1].len()
+            )));
+        }
+        let names = ["left", "right"];
+        for (e, ear) in chunk.iter().enumerate() {
+            if let Some(i) = ear.iter().position(|v| !v.is_finite()) {
+                let which = if self.ears == 2 { names[e] } else { "mono" };
+                return Err(Error::InvalidInput(format!(
+                    "sample {i} of the {which} channel is {} (the input must be finite)",
+                    ear[i]
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// Processes the next chunk of a stream (one slice per ear, equal lengths), carrying
+    /// every processor's state over from the previous chunk. The new output of every
+    /// signal is then available through [`Manager::signals`].
+    pub fn process_chunk(&mut self, chunk: &[&[f64]]) -> Result<()> {
+        self.check_chunk(chunk)?;
+        self.graph.load_input(chunk);
+        self.graph.run_sequential();
+        Ok(())
+    }
+
+    /// Processes a whole signal from a fresh state (every processor is reset first), as
+    /// the AFE's `processSignal`.
+    pub fn process_signal(&mut self, signal: &[&[f64]]) -> Result<()> {
+        self.check_chunk(signal)?;
+        if signal[0].is_empty() {
+            return Err(Error::InvalidInput("the signal is empty".into()));
+        }
+        self.reset();
+        self.process_chunk(signal)
+    }
+
+    /// Returns every processor to its initial state.
+    pub fn reset(&mut self) {
+        self.graph.reset();
+    }
+
+    /// The output signals of a request: one per ear for per-ear representations, one
+    /// (`mono`) for binaural cues.
+    pub fn request_signals(&self, handle: RequestHandle) -> Result<Vec<Signal<'_>>> {
+        let req = self
+            .requests
+            .get(handle.0)
+            .ok_or(Error::UnknownHandle(handle.0))?;
+        Ok(req.outputs.iter().map(|r| self.signal(*r)).collect())
+    }
+
+    /// Signals of the graph: the requested ones, or (`all`) every processor output,
+    /// including intermediate ones (time, filterbank, innerhaircell, ...).
+    pub fn signals(&self, all: bool) -> Vec<Signal<'_>> {
+        let mut refs: Vec<OutputRef> = if all {
+            self.graph
+                .nodes
+                .iter()
+                .enumerate()
+                .skip(1)
+                .flat_map(|(node, n)| (0..n.outputs.len()).map(move |output| OutputRef { node, output }))
+                .collect()
+        } else {
+            self.requests.iter().flat_map(|r| r.outputs.clone()).collect()
+        };
+        let mut seen = std::collections::HashSet::new();
+        refs.retain(|r| seen.insert(*r));
+        refs.into_iter().map(|r| self.signal(r)).collect()
+    }
+
+    fn signal(&self, r: OutputRef) -> Signal<'_> {
+        let node = &self.graph.nodes[r.node];
+        Signal {
+            name: node.name,
+            instance: node.instance,
+            channel: node.channels[r.output],
+            info: &node.infos[r.output],
+            new: &node.outputs[r.output],
+            source: r,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn params(pairs: &[(&str, serde_json::Value)]) -> ParamMap {
+        pairs.iter().map(|(k, v)| (k.to_string(), v.clone())).collect()
+    }
+
+    #[test]
+    fn requests_share_their_common_chain() {
+        // input ─ time ─┬─ filterbank L ─ ihc L ─┬─ ratemap L
+        //               └─ filterbank R ─ ihc R ─┼─ ratemap R
+        //                                        ├─ ild
+        //                                        └─ crosscorrelation ─┬─ itd
+        //                                                             └─ ic
+        let mut m = Manager::new(16000.0, 2).expect("valid");
+        m.add_request("ratemap", &ParamMap::new()).expect("ok");
+        assert_eq!(m.processor_count(), 1 + 2 + 2 + 2);
+        m.add_request("ild", &ParamMap::new()).expect("ok");
+        m.add_request("itd", &ParamMap::new()).expect("ok");
+        m.add_request("ic", &ParamMap::new()).expect("ok");
+        assert_eq!(m.processor_count(), 7 + 1 + 1 + 1 + 1);
+        // differing only in ild_* keeps the filterbank shared
+        m.add_request("ild", &params(&[("ild_wSizeSec", json!(0.04))]))
+            .expect("ok");
+        assert_eq!(m.processor_count(), 12);
+        // a different filterbank duplicates everything above time
+        let h = m
+            .add_request("ratemap", &params(&[("fb_nChannels", json!(16))]))
+            .expect("ok");
+        assert_eq!(m.processor_count(), 12 + 6);
+        let keys: Vec<String> = m.request_signals(h).expect("ok").iter().map(Signal::key).collect();
+        assert_eq!(keys, vec!["ratemap_2_left", "ratemap_2_right"]);
+    }
+
+    #[test]
+    fn binaural_request_on_mono_input_is_rejected_and_leaves_nothing() {
+        let mut m = Manager::new(16000.0, 1).expect("valid");
+        let e = m.add_request("itd", &ParamMap::new()).expect_err("mono");
+        assert!(matches!(e, Error::BinauralOnMono(ref r) if r == "itd"));
+        assert_eq!(m.processor_count(), 0);
+        let h = m.add_request("ratemap", &ParamMap::new()).expect("mono ok");
+        assert_eq!(m.request_signals(h).expect("ok")[0].key(), "ratemap_mono");
+    }
+
+    #[test]
+    fn unknown_names_and_bad_input_are_clear_errors() {
+        let mut m = Manager::new(16000.0, 2).expect("valid");
+        let e = m
+            .add_request("ratemap", &params(&[("rm_wSizeSeconds", json!(0.1))]))
+            .expect_err("unknown");
+        assert!(e.to_string().contains("did you mean 'rm_wSizeSec'"), "{e}");
+        let e = m.add_request("ratemapp", &ParamMap::new()).expect_err("unknown");
+        assert!(e.to_string().contains("unknown request 'ratemapp'"), "{e}");
+        let e = m
+            .add_request("ratemap", &params(&[("fb_nChannels", json!("many"))]))
+            .expect_err("ill-typed");
+        assert!(e.to_string().contains("fb_nChannels"), "{e}");
+        m.add_request("ratemap", &ParamMap::new()).expect("ok");
+        let x = [0.0, f64::NAN];
+        let e = m.process_chunk(&[&x, &x]).expect_err("NaN");
+        assert!(e.to_string().contains("sample 1 of the left channel is NaN"), "{e}");
+        let e = m.process_chunk(&[&x]).expect_err("mono chunk");
+        assert!(e.to_string().contains("got 1 channel(s)"), "{e}");
+        let e = m.process_signal(&[&[], &[]]).expect_err("empty");
+        assert!(e.to_string().contains("empty"), "{e}");
+        assert!(Manager::new(f64::NAN, 2).is_err());
+        assert!(Manager::new(16000.0, 3).is_err());
+    }
+}
