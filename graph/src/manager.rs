@@ -201,7 +201,7 @@ impl Manager {
             for parents in groups {
                 let node = match self.find_node(def.name, &own, &parents) {
                     Some(n) => n,
-                    None => self.add_node(def, own.clone(), parents, instance)?,
+                    None => self.add_node(def, params, own.clone(), parents, instance)?,
                 };
                 next.extend(
                     (0..self.graph.nodes[node].outputs.len()).map(|output| OutputRef { node, output }),
@@ -238,10 +238,12 @@ impl Manager {
             .unwrap_or(0)
     }
 
+    /// Builds a node from the request's `params`; `own` is its canonical parameter map.
     fn add_node(
         &mut self,
         def: &'static RequestDef,
-        params: ParamMap,
+        params: &ParamMap,
+        own: ParamMap,
         parents: Vec<OutputRef>,
         instance: usize,
     ) -> Result<usize> {
@@ -249,7 +251,7 @@ impl Manager {
             .iter()
             .map(|p| self.graph.nodes[p.node].infos[p.output].clone())
             .collect();
-        let built = (def.build)(&params, &inputs)?;
+        let built = (def.build)(params, &inputs)?;
         let channels = match def.ears {
             Ears::All => parents
                 .iter()
@@ -266,7 +268,7 @@ impl Manager {
         self.graph.nodes.push(Node {
             name: def.name,
             instance,
-            params,
+            params: own,
             parents,
             processor: Some(built.processor),
             outputs,

@@ -1,0 +1,170 @@
+//! Chunk invariance: wherever the AFE is chunk-invariant, any chunking of the input gives
+//! output bit-identical to one call, including a first chunk shorter than W − H and
+//! chunks of a single sample (spec 00-overview §9, §11).
+
+use afe::{Manager, ParamMap, Recorder};
+use proptest::prelude::*;
+use serde_json::json;
+
+/// A deterministic binaural test signal: a tone and a pseudo-random noise, the right
+/// ear delayed and softer.
+fn signal(fs: f64, len: usize) -> (Vec<f64>, Vec<f64>) {
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let mut noise = || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    let x: Vec<f64> = (0..len + 8)
+        .map(|t| 0.3 * (2.0 * std::f64::consts::PI * 440.0 * t as f64 / fs).sin() + 0.2 * noise())
+        .collect();
+    (x[8..].to_vec(), x[..len].iter().map(|v| 0.5 * v).collect())
+}
+
+fn run(fs: f64, requests: &[&str], params: &ParamMap, left: &[f64], right: &[f64], chunks: Option<&[usize]>) -> Recorder {
+    let mut mgr = Manager::new(fs, 2).expect("manager");
+    for r in requests {
+        mgr.add_request(r, params).expect("request");
+    }
+    let mut rec = Recorder::new(true);
+    match chunks {
+        None => {
+            mgr.process_signal(&[left, right]).expect("process");
+            rec.record(&mgr);
+        }
+        Some(sizes) => {
+            let mut start = 0;
+            let mut k = 0;
+            while start < left.len() {
+                let end = (start + sizes[k % sizes.len()]).min(left.len());
+                mgr.process_chunk(&[&left[start..end], &right[start..end]])
+                    .expect("process");
+                rec.record(&mgr);
+                start = end;
+                k += 1;
+            }
+        }
+    }
+    rec
+}
+
+fn assert_identical(a: &Recorder, b: &Recorder) {
+    assert_eq!(a.signals().len(), b.signals().len());
+    for (x, y) in a.signals().iter().zip(b.signals()) {
+        assert_eq!(x.key, y.key);
+        assert_eq!(x.shape(), y.shape(), "{}", x.key);
+        let same = x
+            .data
+            .as_slice()
+            .iter()
+            .zip(y.data.as_slice())
+            .all(|(p, q)| p.to_bits() == q.to_bits() || (p.is_nan() && q.is_nan()));
+        assert!(same, "{} differs between chunkings", x.key);
+    }
+}
+
+fn params(pairs: &[(&str, serde_json::Value)]) -> ParamMap {
+    pairs.iter().map(|(k, v)| (k.to_string(), v.clone())).collect()
+}
+
+/// Parameter sets covering every chunk-invariant option of the core processors.
+fn configurations() -> Vec<(Vec<&'static str>, ParamMap)> {
+    vec![
+        (vec!["ratemap", "ild", "itd", "ic"], ParamMap::new()),
+        (
+            vec!["ratemap", "crosscorrelation"],
+            params(&[
+                ("rm_scaling", json!("magnitude")),
+                ("rm_wname", json!("hamming")),
+                ("cc_wSizeSec", json!(0.04)),
+                ("cc_hSizeSec", json!(0.02)),
+                ("fb_nChannels", json!(8)),
+                ("fb_bAlign", json!(true)),
+            ]),
+        ),
+        (
+            vec!["innerhaircell", "ild"],
+            params(&[
+                ("ihc_method", json!("breebart")),
+                ("pp_bRemoveDC", json!(1)),
+                ("pp_bPreEmphasis", json!(1)),
+                ("pp_bLevelScaling", json!(1)),
+                ("pp_refSPLdB", json!([90, 95])),
+                ("pp_bMiddleEarFiltering", json!(1)),
+                ("fb_nERBs", json!(3)),
+            ]),
+        ),
+        (
+            vec!["innerhaircell", "butterworth"],
+            params(&[
+                ("ihc_method", json!("halfwave")),
+                ("bw_type", json!("bandpass")),
+                ("bw_cutoffHz", json!([300, 3000])),
+                ("fb_cfHz", json!([250, 1000, 4000])),
+            ]),
+        ),
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 24, failure_persistence: None, ..ProptestConfig::default() })]
+
+    /// Random chunk sizes, the first often shorter than W − H, single samples included.
+    #[test]
+    fn any_chunking_is_bit_identical(
+        first in 1usize..500,
+        sizes in prop::collection::vec(prop_oneof![Just(1usize), 1usize..64, 64usize..1200], 1..24),
+        fs in prop_oneof![Just(16000.0), Just(22050.0), Just(44100.0)],
+    ) {
+        let (left, right) = signal(fs, 4000);
+        let mut chunking = vec![first];
+        chunking.extend(sizes);
+        for (requests, p) in configurations() {
+            let whole = run(fs, &requests, &p, &left, &right, None);
+            let chunked = run(fs, &requests, &p, &left, &right, Some(&chunking));
+            assert_identical(&whole, &chunked);
+        }
+    }
+
+    /// The AGC is chunk-invariant once it has been seeded from a first chunk at least
+    /// `round(pp_intTimeSecRMS·fs)` samples long.
+    #[test]
+    fn agc_after_seeding_is_bit_identical(
+        sizes in prop::collection::vec(1usize..700, 1..16),
+    ) {
+        let fs = 16000.0;
+        let (left, right) = signal(fs, 6000);
+        let p = params(&[("pp_bNormalizeRMS", json!(true)), ("pp_intTimeSecRMS", json!(0.1))]);
+        let mut chunking = vec![1600];
+        chunking.extend(sizes);
+        let whole = run(fs, &["ratemap"], &p, &left, &right, None);
+        let chunked = run(fs, &["ratemap"], &p, &left, &right, Some(&chunking));
+        assert_identical(&whole, &chunked);
+    }
+}
+
+#[test]
+fn hilbert_methods_depend_on_the_chunking_as_in_the_afe() {
+    let fs = 16000.0;
+    let (left, right) = signal(fs, 3200);
+    let p = params(&[("ihc_method", json!("hilbert"))]);
+    let whole = run(fs, &["innerhaircell"], &p, &left, &right, None);
+    let chunked = run(fs, &["innerhaircell"], &p, &left, &right, Some(&[1000]));
+    let a = whole.get("innerhaircell_left").expect("recorded");
+    let b = chunked.get("innerhaircell_left").expect("recorded");
+    assert_eq!(a.shape(), b.shape());
+    assert_ne!(a.data, b.data, "a per-chunk FFT must show at chunk boundaries");
+}
+
+#[test]
+fn process_signal_resets_state_between_calls() {
+    let fs = 16000.0;
+    let (left, right) = signal(fs, 3000);
+    let mut mgr = Manager::new(fs, 2).expect("manager");
+    mgr.add_request("ratemap", &ParamMap::new()).expect("request");
+    mgr.process_signal(&[&left, &right]).expect("process");
+    let first = mgr.signals(false)[0].new.clone();
+    mgr.process_signal(&[&left, &right]).expect("process");
+    assert_eq!(&first, mgr.signals(false)[0].new);
+}
