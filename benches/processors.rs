@@ -1,1 +1,149 @@
-fn main(){}
+//! Criterion benchmarks of the processing cost of each AFE request and of a typical
+//! request set, on 1 s of the binaural example signal (`data/example_binaural.wav`,
+//! 44.1 kHz, made by `tools/make_example_wav.py`).
+//!
+//! * One group per request (`time`, `filterbank`, `innerhaircell`, `ratemap`, `ild`,
+//!   `crosscorrelation`, `itd`, `ic`, `butterworth`): the manager holds that request alone,
+//!   i.e. its whole chain from the input, which is what placing the request costs; the
+//!   whole signal goes through `process_signal`. `time` runs with `pp_bNormalizeRMS = 1`
+//!   so that the pre-processing has work to do.
+//! * Group `chain`: `ratemap`, `ild`, `itd` and `ic` together at default parameters, fed
+//!   whole and in chunks of 441 (10 ms) and 2205 (50 ms) samples through `process_chunk`.
+//!
+//! Only processing is timed: the managers are built and the input read beforehand.
+//!
+//! Throughput is in elements = audio samples per ear (sample frames), so criterion
+//! reports samples/s; divide by 44100 to get seconds of audio processed per second of
+//! wall time (the real-time factor: above 1 is faster than real time).
+//!
+//! ```text
+//! cargo bench --bench processors -- --warm-up-time 1 --measurement-time 2
+//! ```
+
+use std::hint::black_box;
+use std::path::Path;
+use std::time::Duration;
+
+use afe::{Manager, ParamMap, RequestHandle};
+use criterion::{criterion_main, BenchmarkId, Criterion, Throughput};
+
+/// The per-request groups, with their extra parameters.
+const REQUESTS: &[&str] = &[
+    "time",
+    "filterbank",
+    "innerhaircell",
+    "ratemap",
+    "ild",
+    "crosscorrelation",
+    "itd",
+    "ic",
+    "butterworth",
+];
+
+/// The request set of the `chain` group.
+const CHAIN: &[&str] = &["ratemap", "ild", "itd", "ic"];
+
+/// Chunk lengths of the `chain` group, in samples.
+const CHUNKS: &[usize] = &[441, 2205];
+
+/// The example signal: sampling rate and (left, right).
+fn example() -> (f64, Vec<f64>, Vec<f64>) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/example_binaural.wav");
+    let audio = afe::wav::read_wav(&path).unwrap_or_else(|e| {
+        panic!("{e} (run `python3 tools/make_example_wav.py` to make the example signal)")
+    });
+    let mut channels = audio.channels.into_iter();
+    let (Some(left), Some(right), None) = (channels.next(), channels.next(), channels.next())
+    else {
+        panic!("{} must have exactly 2 channels", path.display());
+    };
+    (audio.fs, left, right)
+}
+
+/// A binaural manager holding `requests`, all with `params`.
+fn manager(fs: f64, requests: &[&str], params: &ParamMap) -> (Manager, Vec<RequestHandle>) {
+    let mut mgr = Manager::new(fs, 2).expect("44.1 kHz binaural manager");
+    let handles = requests
+        .iter()
+        .map(|r| {
+            mgr.add_request(r, params)
+                .unwrap_or_else(|e| panic!("placing request '{r}': {e}"))
+        })
+        .collect();
+    (mgr, handles)
+}
+
+/// Number of output frames of the last call, kept alive against dead-code elimination.
+fn frames(mgr: &Manager, handles: &[RequestHandle]) -> usize {
+    handles
+        .iter()
+        .flat_map(|h| mgr.request_signals(*h).expect("placed request"))
+        .map(|s| s.new.frames())
+        .sum()
+}
+
+fn per_request(c: &mut Criterion) {
+    let (fs, left, right) = example();
+    for &name in REQUESTS {
+        let mut params = ParamMap::new();
+        if name == "time" {
+            params.insert("pp_bNormalizeRMS".into(), serde_json::Value::Bool(true));
+        }
+        let (mut mgr, handles) = manager(fs, &[name], &params);
+        let mut group = c.benchmark_group(name);
+        group.sample_size(10);
+        group.warm_up_time(Duration::from_secs(1));
+        group.measurement_time(Duration::from_secs(3));
+        group.throughput(Throughput::Elements(left.len() as u64));
+        group.bench_function("whole", |b| {
+            b.iter(|| {
+                mgr.process_signal(&[black_box(&left), black_box(&right)])
+                    .expect("processing the example");
+                black_box(frames(&mgr, &handles))
+            })
+        });
+        group.finish();
+    }
+}
+
+fn chain(c: &mut Criterion) {
+    let (fs, left, right) = example();
+    let (mut mgr, handles) = manager(fs, CHAIN, &ParamMap::new());
+    let mut group = c.benchmark_group("chain");
+    group.sample_size(10);
+    group.warm_up_time(Duration::from_secs(1));
+    group.measurement_time(Duration::from_secs(4));
+    group.throughput(Throughput::Elements(left.len() as u64));
+    group.bench_function("whole", |b| {
+        b.iter(|| {
+            mgr.process_signal(&[black_box(&left), black_box(&right)])
+                .expect("processing the example");
+            black_box(frames(&mgr, &handles))
+        })
+    });
+    for &chunk in CHUNKS {
+        group.bench_with_input(BenchmarkId::new("chunk", chunk), &chunk, |b, &chunk| {
+            b.iter(|| {
+                mgr.reset();
+                let mut out = 0;
+                for (l, r) in left.chunks(chunk).zip(right.chunks(chunk)) {
+                    mgr.process_chunk(&[black_box(l), black_box(r)])
+                        .expect("processing a chunk");
+                    out += frames(&mgr, &handles);
+                }
+                black_box(out)
+            })
+        });
+    }
+    group.finish();
+}
+
+/// The benchmark list (in a private module: the macro makes an undocumented `pub fn`).
+mod list {
+    use super::{chain, per_request};
+    use criterion::criterion_group;
+
+    criterion_group!(benches, per_request, chain);
+}
+
+criterion_main!(list::benches);

@@ -53,8 +53,12 @@ pub fn decode(bytes: &[u8]) -> Result<Array, NpyError> {
         ),
         _ => return Err(bad("unknown version")),
     };
-    let header = std::str::from_utf8(bytes.get(start..start + hlen).ok_or_else(|| bad("short header"))?)
-        .map_err(|_| bad("header is not text"))?;
+    let header = std::str::from_utf8(
+        bytes
+            .get(start..start + hlen)
+            .ok_or_else(|| bad("short header"))?,
+    )
+    .map_err(|_| bad("header is not text"))?;
     if header.contains("'fortran_order': True") {
         return Err(bad("Fortran order"));
     }

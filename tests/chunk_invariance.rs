@@ -22,7 +22,14 @@ fn signal(fs: f64, len: usize) -> (Vec<f64>, Vec<f64>) {
     (x[8..].to_vec(), x[..len].iter().map(|v| 0.5 * v).collect())
 }
 
-fn run(fs: f64, requests: &[&str], params: &ParamMap, left: &[f64], right: &[f64], chunks: Option<&[usize]>) -> Recorder {
+fn run(
+    fs: f64,
+    requests: &[&str],
+    params: &ParamMap,
+    left: &[f64],
+    right: &[f64],
+    chunks: Option<&[usize]>,
+) -> Recorder {
     let mut mgr = Manager::new(fs, 2).expect("manager");
     for r in requests {
         mgr.add_request(r, params).expect("request");
@@ -65,7 +72,10 @@ fn assert_identical(a: &Recorder, b: &Recorder) {
 }
 
 fn params(pairs: &[(&str, serde_json::Value)]) -> ParamMap {
-    pairs.iter().map(|(k, v)| (k.to_string(), v.clone())).collect()
+    pairs
+        .iter()
+        .map(|(k, v)| (k.to_string(), v.clone()))
+        .collect()
 }
 
 /// Parameter sets covering every chunk-invariant option of the core processors.
@@ -154,7 +164,10 @@ fn hilbert_methods_depend_on_the_chunking_as_in_the_afe() {
     let a = whole.get("innerhaircell_left").expect("recorded");
     let b = chunked.get("innerhaircell_left").expect("recorded");
     assert_eq!(a.shape(), b.shape());
-    assert_ne!(a.data, b.data, "a per-chunk FFT must show at chunk boundaries");
+    assert_ne!(
+        a.data, b.data,
+        "a per-chunk FFT must show at chunk boundaries"
+    );
 }
 
 #[test]
@@ -162,7 +175,8 @@ fn process_signal_resets_state_between_calls() {
     let fs = 16000.0;
     let (left, right) = signal(fs, 3000);
     let mut mgr = Manager::new(fs, 2).expect("manager");
-    mgr.add_request("ratemap", &ParamMap::new()).expect("request");
+    mgr.add_request("ratemap", &ParamMap::new())
+        .expect("request");
     mgr.process_signal(&[&left, &right]).expect("process");
     let first = mgr.signals(false)[0].new.clone();
     mgr.process_signal(&[&left, &right]).expect("process");

@@ -56,7 +56,11 @@ fn npz_arrays(path: &Path) -> Vec<(String, Vec<usize>, Vec<f64>)> {
 fn assert_clear_error(out: &Output, needle: &str, output_file: &Path) {
     assert!(!out.status.success(), "should fail: {needle}");
     let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(err.trim().lines().count(), 1, "one line expected, got: {err}");
+    assert_eq!(
+        err.trim().lines().count(),
+        1,
+        "one line expected, got: {err}"
+    );
     assert!(err.contains(needle), "'{needle}' not in: {err}");
     assert!(!err.contains("panicked"), "{err}");
     assert!(!output_file.exists(), "no output file on error");
@@ -67,25 +71,70 @@ fn extract_writes_the_oracle_layout_and_chunking_does_not_change_it() {
     let wav = tmp("tone.wav");
     write_wav(&wav, 2, 16000, 4000, tone);
     let whole = tmp("whole.npz");
-    let out = afe(&["extract", wav.to_str().expect("path"), "-r", "ratemap,ild,crosscorrelation", "-p", "fb_nChannels=8", "-o", whole.to_str().expect("path")]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = afe(&[
+        "extract",
+        wav.to_str().expect("path"),
+        "-r",
+        "ratemap,ild,crosscorrelation",
+        "-p",
+        "fb_nChannels=8",
+        "-o",
+        whole.to_str().expect("path"),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let arrays = npz_arrays(&whole);
     let names: Vec<&str> = arrays.iter().map(|a| a.0.as_str()).collect();
-    assert_eq!(names, ["ratemap_left", "ratemap_right", "ild_mono", "crosscorrelation_mono"]);
+    assert_eq!(
+        names,
+        [
+            "ratemap_left",
+            "ratemap_right",
+            "ild_mono",
+            "crosscorrelation_mono"
+        ]
+    );
     // 4000 samples, W = 320, H = 160: 24 frames; 8 channels; ceil(1.1e-3·16000) = 18 → 37 lags
     assert_eq!(arrays[0].1, vec![24, 8]);
     assert_eq!(arrays[3].1, vec![24, 8, 37]);
 
     let chunked = tmp("chunked.npz");
-    let out = afe(&["extract", wav.to_str().expect("path"), "-r", "ratemap,ild,crosscorrelation", "-p", "fb_nChannels=8", "--chunk", "77", "-o", chunked.to_str().expect("path")]);
+    let out = afe(&[
+        "extract",
+        wav.to_str().expect("path"),
+        "-r",
+        "ratemap,ild,crosscorrelation",
+        "-p",
+        "fb_nChannels=8",
+        "--chunk",
+        "77",
+        "-o",
+        chunked.to_str().expect("path"),
+    ]);
     assert!(out.status.success());
     assert_eq!(npz_arrays(&chunked), arrays);
 
     let all = tmp("all.npz");
-    let out = afe(&["extract", wav.to_str().expect("path"), "-r", "ild", "--all", "-o", all.to_str().expect("path")]);
+    let out = afe(&[
+        "extract",
+        wav.to_str().expect("path"),
+        "-r",
+        "ild",
+        "--all",
+        "-o",
+        all.to_str().expect("path"),
+    ]);
     assert!(out.status.success());
     let names: Vec<String> = npz_arrays(&all).into_iter().map(|a| a.0).collect();
-    for n in ["time_left", "filterbank_right", "innerhaircell_left", "ild_mono"] {
+    for n in [
+        "time_left",
+        "filterbank_right",
+        "innerhaircell_left",
+        "ild_mono",
+    ] {
         assert!(names.iter().any(|k| k == n), "{n} missing from {names:?}");
     }
 }
@@ -97,8 +146,21 @@ fn params_file_takes_oracle_style_json() {
     let params = tmp("params.json");
     std::fs::write(&params, r#"{"fb_nChannels": 16, "fb_lowFreqHz": 100, "fb_highFreqHz": 6000, "ihc_method": "halfwave", "rm_scaling": "magnitude"}"#).expect("write");
     let out_file = tmp("p.npz");
-    let out = afe(&["extract", wav.to_str().expect("path"), "-r", "ratemap", "--params", params.to_str().expect("path"), "-o", out_file.to_str().expect("path")]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = afe(&[
+        "extract",
+        wav.to_str().expect("path"),
+        "-r",
+        "ratemap",
+        "--params",
+        params.to_str().expect("path"),
+        "-o",
+        out_file.to_str().expect("path"),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert_eq!(npz_arrays(&out_file)[0].1, vec![19, 16]);
 }
 
@@ -110,34 +172,162 @@ fn every_bad_input_is_one_clear_line() {
     let o = tmp("never.npz");
     let os = o.to_str().expect("path");
 
-    assert_clear_error(&afe(&["extract", g, "-r", "ratemapp", "-o", os]), "unknown request 'ratemapp'", &o);
-    assert_clear_error(&afe(&["extract", g, "-r", "ratemap", "-p", "rm_wsize=0.1", "-o", os]), "unknown parameter 'rm_wsize'", &o);
-    assert_clear_error(&afe(&["extract", g, "-r", "ratemap", "-p", "ihc_method=daux", "-o", os]), "'dau'", &o);
-    assert_clear_error(&afe(&["extract", g, "-r", "ratemap", "-p", "fb_nChannels=abc", "-o", os]), "fb_nChannels", &o);
-    assert_clear_error(&afe(&["extract", g, "-r", "ratemap", "-p", "rm_hSizeSec=1", "-o", os]), "rm_hSizeSec", &o);
-    assert_clear_error(&afe(&["extract", "/nonexistent/x.wav", "-r", "ratemap", "-o", os]), "cannot open '/nonexistent/x.wav'", &o);
+    assert_clear_error(
+        &afe(&["extract", g, "-r", "ratemapp", "-o", os]),
+        "unknown request 'ratemapp'",
+        &o,
+    );
+    assert_clear_error(
+        &afe(&[
+            "extract",
+            g,
+            "-r",
+            "ratemap",
+            "-p",
+            "rm_wsize=0.1",
+            "-o",
+            os,
+        ]),
+        "unknown parameter 'rm_wsize'",
+        &o,
+    );
+    assert_clear_error(
+        &afe(&[
+            "extract",
+            g,
+            "-r",
+            "ratemap",
+            "-p",
+            "ihc_method=daux",
+            "-o",
+            os,
+        ]),
+        "'dau'",
+        &o,
+    );
+    assert_clear_error(
+        &afe(&[
+            "extract",
+            g,
+            "-r",
+            "ratemap",
+            "-p",
+            "fb_nChannels=abc",
+            "-o",
+            os,
+        ]),
+        "fb_nChannels",
+        &o,
+    );
+    assert_clear_error(
+        &afe(&[
+            "extract",
+            g,
+            "-r",
+            "ratemap",
+            "-p",
+            "rm_hSizeSec=1",
+            "-o",
+            os,
+        ]),
+        "rm_hSizeSec",
+        &o,
+    );
+    assert_clear_error(
+        &afe(&["extract", "/nonexistent/x.wav", "-r", "ratemap", "-o", os]),
+        "cannot open '/nonexistent/x.wav'",
+        &o,
+    );
 
     let text = tmp("notwav.wav");
     std::fs::write(&text, "this is not audio").expect("write");
-    assert_clear_error(&afe(&["extract", text.to_str().expect("path"), "-r", "ratemap", "-o", os]), "as WAV", &o);
+    assert_clear_error(
+        &afe(&[
+            "extract",
+            text.to_str().expect("path"),
+            "-r",
+            "ratemap",
+            "-o",
+            os,
+        ]),
+        "as WAV",
+        &o,
+    );
 
     let three = tmp("three.wav");
     write_wav(&three, 3, 16000, 100, tone);
-    assert_clear_error(&afe(&["extract", three.to_str().expect("path"), "-r", "ratemap", "-o", os]), "3 channels", &o);
+    assert_clear_error(
+        &afe(&[
+            "extract",
+            three.to_str().expect("path"),
+            "-r",
+            "ratemap",
+            "-o",
+            os,
+        ]),
+        "3 channels",
+        &o,
+    );
 
     let nan = tmp("nan.wav");
-    write_wav(&nan, 2, 16000, 100, |i| if i == 51 { f32::NAN } else { 0.1 });
-    assert_clear_error(&afe(&["extract", nan.to_str().expect("path"), "-r", "ratemap", "-o", os]), "sample 25 of the right channel is NaN", &o);
+    write_wav(
+        &nan,
+        2,
+        16000,
+        100,
+        |i| if i == 51 { f32::NAN } else { 0.1 },
+    );
+    assert_clear_error(
+        &afe(&[
+            "extract",
+            nan.to_str().expect("path"),
+            "-r",
+            "ratemap",
+            "-o",
+            os,
+        ]),
+        "sample 25 of the right channel is NaN",
+        &o,
+    );
 
     let empty = tmp("empty.wav");
     write_wav(&empty, 2, 16000, 0, tone);
-    assert_clear_error(&afe(&["extract", empty.to_str().expect("path"), "-r", "ratemap", "-o", os]), "holds no samples", &o);
+    assert_clear_error(
+        &afe(&[
+            "extract",
+            empty.to_str().expect("path"),
+            "-r",
+            "ratemap",
+            "-o",
+            os,
+        ]),
+        "holds no samples",
+        &o,
+    );
 
     let mono = tmp("mono.wav");
     write_wav(&mono, 1, 16000, 1000, tone);
-    assert_clear_error(&afe(&["extract", mono.to_str().expect("path"), "-r", "itd", "-o", os]), "needs a binaural", &o);
+    assert_clear_error(
+        &afe(&[
+            "extract",
+            mono.to_str().expect("path"),
+            "-r",
+            "itd",
+            "-o",
+            os,
+        ]),
+        "needs a binaural",
+        &o,
+    );
     let mono_out = tmp("mono.npz");
-    let ok = afe(&["extract", mono.to_str().expect("path"), "-r", "ratemap", "-o", mono_out.to_str().expect("path")]);
+    let ok = afe(&[
+        "extract",
+        mono.to_str().expect("path"),
+        "-r",
+        "ratemap",
+        "-o",
+        mono_out.to_str().expect("path"),
+    ]);
     assert!(ok.status.success());
     assert_eq!(npz_arrays(&mono_out)[0].0, "ratemap_mono");
 }
@@ -161,7 +351,10 @@ fn list_json_names_every_request_with_defaults() {
         .expect("rm_wSizeSec");
     assert_eq!(w["default"], 0.02);
     assert_eq!(w["unit"], "s");
-    assert_eq!(ratemap["chain"], serde_json::json!(["ratemap", "innerhaircell", "filterbank", "time"]));
+    assert_eq!(
+        ratemap["chain"],
+        serde_json::json!(["ratemap", "innerhaircell", "filterbank", "time"])
+    );
     let text = afe(&["list"]);
     assert!(String::from_utf8_lossy(&text.stdout).contains("fb_nChannels"));
 }

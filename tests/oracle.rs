@@ -36,14 +36,28 @@ fn golden_dir() -> PathBuf {
 }
 
 fn supported(meta: &Value) -> bool {
-    let known = ["time", "filterbank", "innerhaircell", "ratemap", "ild", "crosscorrelation", "itd", "ic"];
+    let known = [
+        "time",
+        "filterbank",
+        "innerhaircell",
+        "ratemap",
+        "ild",
+        "crosscorrelation",
+        "itd",
+        "ic",
+    ];
     meta["requests"]
         .as_array()
         .is_some_and(|r| r.iter().all(|x| known.contains(&x.as_str().unwrap_or(""))))
         && meta["nondefault_params"]["fb_type"] != "drnl"
 }
 
-fn case_from(meta: &Value, input: PathBuf, file_root: &Path, signal_list: &[(String, String, Vec<usize>)]) -> Case {
+fn case_from(
+    meta: &Value,
+    input: PathBuf,
+    file_root: &Path,
+    signal_list: &[(String, String, Vec<usize>)],
+) -> Case {
     Case {
         name: meta["case"].as_str().unwrap_or("?").to_string(),
         input,
@@ -123,7 +137,8 @@ fn oracle_cases(oracle: &Path) -> Vec<Case> {
         cases.sort();
         for meta_path in cases {
             let meta: Value =
-                serde_json::from_str(&std::fs::read_to_string(&meta_path).expect("meta")).expect("json");
+                serde_json::from_str(&std::fs::read_to_string(&meta_path).expect("meta"))
+                    .expect("json");
             if !supported(&meta) {
                 continue;
             }
@@ -139,7 +154,11 @@ fn oracle_cases(oracle: &Path) -> Vec<Case> {
                         s["name"].as_str().expect("name"),
                         s["channel"].as_str().expect("channel")
                     );
-                    (key, s["file"].as_str().expect("file").to_string(), shape(&s["shape"]))
+                    (
+                        key,
+                        s["file"].as_str().expect("file").to_string(),
+                        shape(&s["shape"]),
+                    )
                 })
                 .filter(|(k, _, _)| seen.insert(k.clone()))
                 .collect();
@@ -221,7 +240,11 @@ fn check(cases: &[Case]) {
                 continue;
             };
             if &out.shape() != full_shape {
-                failures.push(format!("{}: {key} shape {:?} != {full_shape:?}", case.name, out.shape()));
+                failures.push(format!(
+                    "{}: {key} shape {:?} != {full_shape:?}",
+                    case.name,
+                    out.shape()
+                ));
                 continue;
             }
             let bytes = std::fs::read(file).unwrap_or_else(|e| panic!("{}: {e}", file.display()));
@@ -236,14 +259,22 @@ fn check(cases: &[Case]) {
             };
             report.insert(format!("{}/{key}", case.name), rel);
             if !ok {
-                failures.push(format!("{}: {key} rel {rel:.3e} ({:.4}% over {TOL})", case.name, 100.0 * frac));
+                failures.push(format!(
+                    "{}: {key} rel {rel:.3e} ({:.4}% over {TOL})",
+                    case.name,
+                    100.0 * frac
+                ));
             }
         }
     }
     for (k, v) in &report {
         println!("{k:<55} rel {v:.3e}");
     }
-    assert!(failures.is_empty(), "oracle mismatches:\n{}", failures.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "oracle mismatches:\n{}",
+        failures.join("\n")
+    );
 }
 
 #[test]

@@ -78,13 +78,15 @@ pub fn butter(order: usize, wn: &[f64], kind: ButterType) -> (Vec<f64>, Vec<f64>
     let zpoles: Vec<Complex64> = poles.into_iter().map(bilinear).collect();
     let a = real_poly(&zpoles);
     let b0 = real_poly(&zeros);
+    // Unity gain at w_norm: Re(A/B0) there, evaluated from the roots (∏(1 − r·e^{−iw})),
+    // which stays accurate where the expanded polynomial cancels (clustered poles at DC).
     let e = Complex64::new(0.0, -w_norm).exp();
-    let eval = |c: &[f64]| {
-        c.iter()
-            .rev()
-            .fold(Complex64::new(0.0, 0.0), |acc, &v| acc * e + v)
+    let from_roots = |roots: &[Complex64]| {
+        roots
+            .iter()
+            .fold(Complex64::new(1.0, 0.0), |acc, r| acc * (1.0 - r * e))
     };
-    let gain = (eval(&a) / eval(&b0)).re;
+    let gain = (from_roots(&zpoles) / from_roots(&zeros)).re;
     (b0.iter().map(|v| v * gain).collect(), a)
 }
 

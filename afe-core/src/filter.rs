@@ -21,7 +21,10 @@ impl Df2t {
     /// # Panics
     /// If `b` or `a` is empty or `a[0]` is zero.
     pub fn new(b: &[f64], a: &[f64], channels: usize) -> Self {
-        assert!(!b.is_empty() && !a.is_empty() && a[0] != 0.0, "invalid filter");
+        assert!(
+            !b.is_empty() && !a.is_empty() && a[0] != 0.0,
+            "invalid filter"
+        );
         let m = b.len().max(a.len());
         let mut bn = vec![0.0; m];
         let mut an = vec![0.0; m];
@@ -61,8 +64,7 @@ impl Df2t {
                 let xin = *x;
                 let y = self.z[c] + b[0] * xin;
                 for i in 0..m - 1 {
-                    self.z[i * nc + c] =
-                        (self.z[(i + 1) * nc + c] - a[i + 1] * y) + b[i + 1] * xin;
+                    self.z[i * nc + c] = (self.z[(i + 1) * nc + c] - a[i + 1] * y) + b[i + 1] * xin;
                 }
                 self.z[(m - 1) * nc + c] = b[m] * xin - a[m] * y;
                 *x = y;

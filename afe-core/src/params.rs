@@ -110,8 +110,8 @@ impl ParamSpec {
             ParamKind::Flag => match value {
                 Value::Bool(b) => Value::Bool(*b),
                 Value::Number(_) => match finite(value) {
-                    Some(x) if x == 0.0 => Value::Bool(false),
-                    Some(x) if x == 1.0 => Value::Bool(true),
+                    Some(0.0) => Value::Bool(false),
+                    Some(1.0) => Value::Bool(true),
                     _ => return Err(bad()),
                 },
                 _ => return Err(bad()),
@@ -227,7 +227,10 @@ mod tests {
             description: "",
         };
         let err = spec.normalize(&json!("daux")).unwrap_err().to_string();
-        assert!(err.contains("ihc_method") && err.contains("'dau', 'none'"), "{err}");
+        assert!(
+            err.contains("ihc_method") && err.contains("'dau', 'none'"),
+            "{err}"
+        );
     }
 
     #[test]

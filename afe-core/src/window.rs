@@ -25,7 +25,9 @@ pub fn window(name: &str, n: usize, param: &str) -> Result<Vec<f64>> {
         _ if n == 1 && name != "hanning" && WINDOW_NAMES.contains(&name) => vec![1.0],
         "rectwin" => vec![1.0; n],
         "hann" => half_mirrored(&|k| 0.5 - 0.5 * (2.0 * PI * (k / denom)).cos()),
-        "hanning" => half_mirrored(&|k| 0.5 * (1.0 - (2.0 * PI * (k + 1.0) / (n as f64 + 1.0)).cos())),
+        "hanning" => {
+            half_mirrored(&|k| 0.5 * (1.0 - (2.0 * PI * (k + 1.0) / (n as f64 + 1.0)).cos()))
+        }
         "hamming" => half_mirrored(&|k| 0.54 - 0.46 * (2.0 * PI * (k / denom)).cos()),
         "blackman" => half_mirrored(&|k| {
             let x = k / denom;

@@ -204,7 +204,8 @@ impl Manager {
                     None => self.add_node(def, params, own.clone(), parents, instance)?,
                 };
                 next.extend(
-                    (0..self.graph.nodes[node].outputs.len()).map(|output| OutputRef { node, output }),
+                    (0..self.graph.nodes[node].outputs.len())
+                        .map(|output| OutputRef { node, output }),
                 );
             }
             level = next;
@@ -284,7 +285,11 @@ impl Manager {
                 "got {} channel(s), but this manager was made for {} ({})",
                 chunk.len(),
                 self.ears,
-                if self.ears == 2 { "left, right" } else { "mono" }
+                if self.ears == 2 {
+                    "left, right"
+                } else {
+                    "mono"
+                }
             )));
         }
         if chunk.iter().any(|c| c.len() != chunk[0].len()) {
@@ -352,10 +357,15 @@ impl Manager {
                 .iter()
                 .enumerate()
                 .skip(1)
-                .flat_map(|(node, n)| (0..n.outputs.len()).map(move |output| OutputRef { node, output }))
+                .flat_map(|(node, n)| {
+                    (0..n.outputs.len()).map(move |output| OutputRef { node, output })
+                })
                 .collect()
         } else {
-            self.requests.iter().flat_map(|r| r.outputs.clone()).collect()
+            self.requests
+                .iter()
+                .flat_map(|r| r.outputs.clone())
+                .collect()
         };
         let mut seen = std::collections::HashSet::new();
         refs.retain(|r| seen.insert(*r));
@@ -381,7 +391,10 @@ mod tests {
     use serde_json::json;
 
     fn params(pairs: &[(&str, serde_json::Value)]) -> ParamMap {
-        pairs.iter().map(|(k, v)| (k.to_string(), v.clone())).collect()
+        pairs
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.clone()))
+            .collect()
     }
 
     #[test]
@@ -407,7 +420,12 @@ mod tests {
             .add_request("ratemap", &params(&[("fb_nChannels", json!(16))]))
             .expect("ok");
         assert_eq!(m.processor_count(), 12 + 6);
-        let keys: Vec<String> = m.request_signals(h).expect("ok").iter().map(Signal::key).collect();
+        let keys: Vec<String> = m
+            .request_signals(h)
+            .expect("ok")
+            .iter()
+            .map(Signal::key)
+            .collect();
         assert_eq!(keys, vec!["ratemap_2_left", "ratemap_2_right"]);
     }
 
@@ -428,7 +446,9 @@ mod tests {
             .add_request("ratemap", &params(&[("rm_wSizeSeconds", json!(0.1))]))
             .expect_err("unknown");
         assert!(e.to_string().contains("did you mean 'rm_wSizeSec'"), "{e}");
-        let e = m.add_request("ratemapp", &ParamMap::new()).expect_err("unknown");
+        let e = m
+            .add_request("ratemapp", &ParamMap::new())
+            .expect_err("unknown");
         assert!(e.to_string().contains("unknown request 'ratemapp'"), "{e}");
         let e = m
             .add_request("ratemap", &params(&[("fb_nChannels", json!("many"))]))
@@ -437,7 +457,11 @@ mod tests {
         m.add_request("ratemap", &ParamMap::new()).expect("ok");
         let x = [0.0, f64::NAN];
         let e = m.process_chunk(&[&x, &x]).expect_err("NaN");
-        assert!(e.to_string().contains("sample 1 of the left channel is NaN"), "{e}");
+        assert!(
+            e.to_string()
+                .contains("sample 1 of the left channel is NaN"),
+            "{e}"
+        );
         let e = m.process_chunk(&[&x]).expect_err("mono chunk");
         assert!(e.to_string().contains("got 1 channel(s)"), "{e}");
         let e = m.process_signal(&[&[], &[]]).expect_err("empty");

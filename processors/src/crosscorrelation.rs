@@ -110,7 +110,7 @@ impl Crosscorrelation {
             ("cc_hSizeSec", params.h_size_sec),
             fs,
         )?;
-        if !(params.max_delay_sec >= 0.0) {
+        if params.max_delay_sec < 0.0 {
             return Err(Error::InvalidParameter {
                 name: "cc_maxDelaySec".into(),
                 value: params.max_delay_sec.to_string(),
@@ -156,7 +156,14 @@ impl Crosscorrelation {
 
 impl Engine {
     /// Correlates channel `c` of the current frames into `out` (one value per lag).
-    fn correlate(&mut self, frame_l: &[f64], frame_r: &[f64], c: usize, nc: usize, out: &mut [f64]) {
+    fn correlate(
+        &mut self,
+        frame_l: &[f64],
+        frame_r: &[f64],
+        c: usize,
+        nc: usize,
+        out: &mut [f64],
+    ) {
         let w = self.win.len();
         let nfft = self.time_l.len();
         let (mut el, mut er) = (0.0, 0.0);
@@ -171,21 +178,21 @@ impl Engine {
         self.time_l[w..].fill(0.0);
         self.time_r[w..].fill(0.0);
         // Lengths match by construction, so the FFTs cannot fail.
-        let _ = self
-            .fft
-            .process_with_scratch(&mut self.time_l, &mut self.spec_l, &mut self.scratch);
-        let _ = self
-            .fft
-            .process_with_scratch(&mut self.time_r, &mut self.spec_r, &mut self.scratch);
+        let _ =
+            self.fft
+                .process_with_scratch(&mut self.time_l, &mut self.spec_l, &mut self.scratch);
+        let _ =
+            self.fft
+                .process_with_scratch(&mut self.time_r, &mut self.spec_r, &mut self.scratch);
         for (a, b) in self.spec_l.iter_mut().zip(&self.spec_r) {
             *a *= b.conj();
         }
         let last = self.spec_l.len() - 1;
         self.spec_l[0].im = 0.0;
         self.spec_l[last].im = 0.0;
-        let _ = self
-            .ifft
-            .process_with_scratch(&mut self.spec_l, &mut self.time_l, &mut self.scratch);
+        let _ =
+            self.ifft
+                .process_with_scratch(&mut self.spec_l, &mut self.time_l, &mut self.scratch);
         let norm = f64::EPSILON + (el * er).sqrt();
         let scale = nfft as f64;
         let m = self.max_lag as isize;

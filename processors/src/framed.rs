@@ -9,14 +9,14 @@ use afe_core::{Error, Result};
 pub fn check_framing(w: (&str, f64), h: (&str, f64), fs: f64) -> Result<(usize, usize)> {
     let ws = window_samples(w.1, fs);
     let hs = hop_samples(h.1, fs);
-    if !(w.1 > 0.0) || ws < 2 {
+    if w.1 <= 0.0 || ws < 2 {
         return Err(Error::InvalidParameter {
             name: w.0.into(),
             value: w.1.to_string(),
             reason: format!("the window must span at least 2 samples at {fs} Hz"),
         });
     }
-    if !(h.1 > 0.0) || hs == 0 || hs > ws {
+    if h.1 <= 0.0 || hs == 0 || hs > ws {
         return Err(Error::InvalidParameter {
             name: h.0.into(),
             value: h.1.to_string(),

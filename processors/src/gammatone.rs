@@ -9,7 +9,9 @@
 use std::f64::consts::PI;
 
 use afe_core::erb::{colon_range, erb2freq, freq2erb, linspace};
-use afe_core::{Block, Error, ParamKind, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo};
+use afe_core::{
+    Block, Error, ParamKind, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo,
+};
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
 
@@ -196,7 +198,11 @@ impl GammatoneParams {
         map.insert("fb_lowFreqHz".into(), json!(low));
         map.insert("fb_highFreqHz".into(), json!(high));
         map.insert("fb_delaySec".into(), json!(delay_s));
-        Ok(GammatoneGrid { cf_hz: cf, delay_s, map })
+        Ok(GammatoneGrid {
+            cf_hz: cf,
+            delay_s,
+            map,
+        })
     }
 }
 
@@ -309,7 +315,7 @@ impl Gammatone {
         let m = self.order;
         for (t, &xin) in x.iter().enumerate() {
             let row = &mut out[t * nc..(t + 1) * nc];
-            for c in 0..nc {
+            for (c, out) in row.iter_mut().enumerate() {
                 // y = z0 + b0·x, with x taken as x + 0i
                 let yr = self.z_re[c] + self.b_re[c] * xin;
                 let yi = self.z_im[c] + self.b_im[c] * xin;
@@ -323,7 +329,7 @@ impl Gammatone {
                 let (ar, ai) = (self.a_re[last], self.a_im[last]);
                 self.z_re[last] = -(ar * yr - ai * yi);
                 self.z_im[last] = -(ar * yi + ai * yr);
-                row[c] = 2.0 * yr;
+                *out = 2.0 * yr;
             }
         }
     }

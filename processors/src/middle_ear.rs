@@ -176,7 +176,9 @@ mod tests {
     fn peak_db(b: &[f64]) -> f64 {
         let mut padded = b.to_vec();
         padded.resize(8192, 0.0);
-        let peak = spectrum(&padded).iter().fold(0.0f64, |a, v| a.max(v.norm()));
+        let peak = spectrum(&padded)
+            .iter()
+            .fold(0.0f64, |a, v| a.max(v.norm()));
         20.0 * peak.log10()
     }
 

@@ -82,14 +82,20 @@ const fn flag(name: &'static str, description: &'static str) -> ParamSpec {
 
 impl Params for PreProcParams {
     const SPECS: &'static [ParamSpec] = &[
-        flag("pp_bRemoveDC", "remove DC with a 4th-order Butterworth high-pass"),
+        flag(
+            "pp_bRemoveDC",
+            "remove DC with a 4th-order Butterworth high-pass",
+        ),
         ParamSpec {
             name: "pp_cutoffHzDC",
             kind: ParamKind::Number,
             unit: "Hz",
             description: "cut-off of the DC-removal high-pass",
         },
-        flag("pp_bPreEmphasis", "apply the pre-emphasis FIR y[n] = x[n] − |c|·x[n−1]"),
+        flag(
+            "pp_bPreEmphasis",
+            "apply the pre-emphasis FIR y[n] = x[n] − |c|·x[n−1]",
+        ),
         ParamSpec {
             name: "pp_coefPreEmphasis",
             kind: ParamKind::Number,
@@ -104,7 +110,10 @@ impl Params for PreProcParams {
             unit: "s",
             description: "AGC integration time constant",
         },
-        flag("pp_bLevelScaling", "scale the level so that RMS 1 is pp_refSPLdB"),
+        flag(
+            "pp_bLevelScaling",
+            "scale the level so that RMS 1 is pp_refSPLdB",
+        ),
         ParamSpec {
             name: "pp_refSPLdB",
             kind: ParamKind::Numbers,
@@ -118,7 +127,10 @@ impl Params for PreProcParams {
             unit: "",
             description: "middle-ear filter model",
         },
-        flag("pp_bUnityComp", "compensate the middle-ear filter to a 0 dB peak"),
+        flag(
+            "pp_bUnityComp",
+            "compensate the middle-ear filter to a 0 dB peak",
+        ),
     ];
 }
 
@@ -162,11 +174,18 @@ impl PreProc {
             return Err(invalid(
                 "pp_cutoffHzDC",
                 p.cutoff_hz_dc,
-                format!("must lie between 0 and the Nyquist frequency ({} Hz)", fs / 2.0),
+                format!(
+                    "must lie between 0 and the Nyquist frequency ({} Hz)",
+                    fs / 2.0
+                ),
             ));
         }
-        if p.normalize_rms && !(p.int_time_sec_rms > 0.0) {
-            return Err(invalid("pp_intTimeSecRMS", p.int_time_sec_rms, "must be > 0 s"));
+        if p.normalize_rms && p.int_time_sec_rms <= 0.0 {
+            return Err(invalid(
+                "pp_intTimeSecRMS",
+                p.int_time_sec_rms,
+                "must be > 0 s",
+            ));
         }
         if !(1..=2).contains(&p.ref_spl_db.len()) {
             return Err(invalid(
@@ -202,7 +221,8 @@ impl PreProc {
                 emphasis: emphasis.clone(),
                 agc: Df2t::new(&[1.0 + (-alpha)], &[1.0, -alpha], 1),
                 agc_seeded: false,
-                level_gain: 10f64.powf((100.0 - p.ref_spl_db[e.min(p.ref_spl_db.len() - 1)]) / 20.0),
+                level_gain: 10f64
+                    .powf((100.0 - p.ref_spl_db[e.min(p.ref_spl_db.len() - 1)]) / 20.0),
                 middle_ear: middle_ear.clone(),
             })
             .collect();

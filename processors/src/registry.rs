@@ -79,7 +79,11 @@ fn built(processor: impl Processor + 'static, outputs: Vec<SignalInfo>) -> Built
 }
 
 fn build_time(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
-    let (p, outs) = PreProc::new(&PreProcParams::from_map(map)?, inputs[0].fs_hz, inputs.len())?;
+    let (p, outs) = PreProc::new(
+        &PreProcParams::from_map(map)?,
+        inputs[0].fs_hz,
+        inputs.len(),
+    )?;
     Ok(built(p, outs))
 }
 
@@ -272,6 +276,9 @@ mod tests {
     #[test]
     fn unknown_request_lists_the_known_ones() {
         let e = find_request("ratemapp").unwrap_err().to_string();
-        assert!(e.contains("'ratemapp'") && e.contains("ratemap, ild"), "{e}");
+        assert!(
+            e.contains("'ratemapp'") && e.contains("ratemap, ild"),
+            "{e}"
+        );
     }
 }

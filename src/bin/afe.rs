@@ -65,7 +65,15 @@ fn main() -> ExitCode {
             chunk,
             all,
             output,
-        } => extract(&input, requests, &params, params_file.as_deref(), chunk, all, &output),
+        } => extract(
+            &input,
+            requests,
+            &params,
+            params_file.as_deref(),
+            chunk,
+            all,
+            &output,
+        ),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -125,7 +133,11 @@ fn list(as_json: bool) {
         println!(
             "{}  ({}; from {})\n    {}",
             e["name"].as_str().unwrap_or_default(),
-            if e["binaural"] == json!(true) { "binaural" } else { "per ear" },
+            if e["binaural"] == json!(true) {
+                "binaural"
+            } else {
+                "per ear"
+            },
             e["depends_on"].as_str().unwrap_or_default(),
             e["description"].as_str().unwrap_or_default()
         );
@@ -169,7 +181,12 @@ fn load_params(file: Option<&Path>, args: &[String]) -> Result<ParamMap, String>
                     path.display()
                 ))
             }
-            Err(e) => return Err(format!("parameter file '{}' is not valid JSON: {e}", path.display())),
+            Err(e) => {
+                return Err(format!(
+                    "parameter file '{}' is not valid JSON: {e}",
+                    path.display()
+                ))
+            }
         }
     }
     for a in args {
