@@ -269,7 +269,7 @@ mod tests {
             for p in r.params {
                 assert!(names.insert(p.name), "{} declared twice", p.name);
             }
-            assert_eq!((r.canonical)(&(r.defaults)()).is_ok(), true);
+            assert!((r.canonical)(&(r.defaults)()).is_ok());
         }
     }
 
