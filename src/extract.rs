@@ -19,6 +19,17 @@ pub struct Job {
 }
 
 /// Computes `job` on `channels` (one slice per ear) at `fs` Hz.
+///
+/// ```
+/// use afe::extract::{run, Job};
+/// let x: Vec<f64> = (0..4410).map(|t| (0.2 * t as f64).sin()).collect();
+/// let job = Job { requests: vec!["ratemap".into(), "ild".into()], chunk: Some(441), ..Job::default() };
+/// let rec = run(&job, 44100.0, &[&x, &x])?;
+/// let ild = rec.get("ild_mono").expect("recorded");
+/// assert_eq!(ild.shape(), vec![9, 31]);
+/// assert!(ild.data.as_slice().iter().all(|v| v.abs() < 1e-9)); // identical ears
+/// # Ok::<(), afe::Error>(())
+/// ```
 pub fn run(job: &Job, fs: f64, channels: &[&[f64]]) -> Result<Recorder> {
     let mut mgr = Manager::new(fs, channels.len())?;
     for r in &job.requests {

@@ -35,6 +35,14 @@ pub enum WavError {
 }
 
 /// Reads a PCM (8/16/24/32-bit) or IEEE-float WAV file, scaling integers to ±1.0.
+///
+/// ```
+/// let path = concat!(env!("CARGO_MANIFEST_DIR"), "/data/example_binaural.wav");
+/// let audio = afe::wav::read_wav(std::path::Path::new(path))?;
+/// assert_eq!((audio.fs, audio.channels.len()), (44100.0, 2));
+/// assert!(afe::wav::read_wav(std::path::Path::new("missing.wav")).is_err());
+/// # Ok::<(), afe::wav::WavError>(())
+/// ```
 pub fn read_wav(path: &Path) -> Result<Audio, WavError> {
     let shown = path.display().to_string();
     let file = std::fs::File::open(path).map_err(|source| WavError::Open {

@@ -49,5 +49,5 @@ pub enum Error {
     UnknownHandle(usize),
 }
 
-/// Shorthand for results carrying [`Error`].
+/// Shorthand for results carrying [`enum@Error`].
 pub type Result<T> = std::result::Result<T, Error>;

@@ -152,6 +152,18 @@ impl Manager {
     /// Places request `name` (an AFE request name such as `ratemap`) with the AFE
     /// parameters `params` (absent names take their defaults). Processors whose whole
     /// chain has equal parameters are shared with earlier requests.
+    ///
+    /// ```
+    /// use afe_graph::Manager;
+    /// use serde_json::json;
+    /// let mut mgr = Manager::new(44100.0, 2)?;
+    /// let params = [("fb_nChannels".to_string(), json!(16))].into_iter().collect();
+    /// mgr.add_request("ratemap", &params)?;
+    /// mgr.add_request("ild", &params)?; // shares time, filterbank and IHC with ratemap
+    /// assert_eq!(mgr.processor_count(), 1 + 2 + 2 + 2 + 1);
+    /// assert!(mgr.add_request("ratemap", &[("rm_wSizeSecs".to_string(), json!(1))].into_iter().collect()).is_err());
+    /// # Ok::<(), afe_core::Error>(())
+    /// ```
     pub fn add_request(&mut self, name: &str, params: &ParamMap) -> Result<RequestHandle> {
         check_parameter_names(params)?;
         let def = find_request(name)?;
@@ -315,6 +327,21 @@ impl Manager {
     /// Processes the next chunk of a stream (one slice per ear, equal lengths), carrying
     /// every processor's state over from the previous chunk. The new output of every
     /// signal is then available through [`Manager::signals`].
+    ///
+    /// ```
+    /// use afe_graph::Manager;
+    /// let mut mgr = Manager::new(16000.0, 1)?;
+    /// let h = mgr.add_request("ratemap", &Default::default())?;
+    /// let x = vec![0.1; 1600];
+    /// let mut frames = 0;
+    /// for chunk in x.chunks(160) {
+    ///     // 10-ms chunks; the 20-ms window needs two of them before the first frame
+    ///     mgr.process_chunk(&[chunk])?;
+    ///     frames += mgr.request_signals(h)?[0].new.frames();
+    /// }
+    /// assert_eq!(frames, 9);
+    /// # Ok::<(), afe_core::Error>(())
+    /// ```
     pub fn process_chunk(&mut self, chunk: &[&[f64]]) -> Result<()> {
         self.check_chunk(chunk)?;
         self.graph.load_input(chunk);
@@ -340,6 +367,19 @@ impl Manager {
 
     /// The output signals of a request: one per ear for per-ear representations, one
     /// (`mono`) for binaural cues.
+    ///
+    /// ```
+    /// use afe_graph::Manager;
+    /// let mut mgr = Manager::new(16000.0, 2)?;
+    /// let h = mgr.add_request("crosscorrelation", &Default::default())?;
+    /// mgr.process_signal(&[&[0.1; 800], &[0.2; 800]])?;
+    /// let cc = &mgr.request_signals(h)?[0];
+    /// assert_eq!(cc.key(), "crosscorrelation_mono");
+    /// assert_eq!(cc.info.lags_s.len(), 37); // ±ceil(1.1 ms · 16 kHz) lags
+    /// assert_eq!(cc.info.cf_hz.len(), 31);
+    /// assert_eq!(cc.new.width(), 31 * 37); // [frame][channel][lag]
+    /// # Ok::<(), afe_core::Error>(())
+    /// ```
     pub fn request_signals(&self, handle: RequestHandle) -> Result<Vec<Signal<'_>>> {
         let req = self
             .requests
