@@ -118,7 +118,10 @@ impl Crosscorrelation {
             });
         }
         let max_lag = (params.max_delay_sec * fs).ceil() as usize;
-        let nfft = (2 * w - 1).next_power_of_two();
+        // The AFE transforms 2^nextpow2(2W − 1) points; only lags up to L = min(maxLag,
+        // W − 1) are kept, and a circular correlation of N ≥ W + L points has no wrap-around
+        // there, so the smaller transform gives the same values (to rounding) at half the cost.
+        let nfft = (w + max_lag.min(w - 1)).next_power_of_two();
         let mut planner = RealFftPlanner::<f64>::new();
         let fft = planner.plan_fft_forward(nfft);
         let ifft = planner.plan_fft_inverse(nfft);
