@@ -124,7 +124,7 @@ fn chain(c: &mut Criterion) {
     for &chunk in CHUNKS {
         group.bench_with_input(BenchmarkId::new("chunk", chunk), &chunk, |b, &chunk| {
             b.iter(|| {
-                mgr.reset();
+                mgr.reset().expect("reset");
                 let mut out = 0;
                 for (l, r) in left.chunks(chunk).zip(right.chunks(chunk)) {
                     mgr.process_chunk(&[black_box(l), black_box(r)])

@@ -16,6 +16,8 @@ pub struct Job {
     pub chunk: Option<usize>,
     /// Record every intermediate signal too.
     pub all: bool,
+    /// Worker threads of the concurrent scheduler (0: sequential executor).
+    pub threads: usize,
 }
 
 /// Computes `job` on `channels` (one slice per ear) at `fs` Hz.
@@ -31,7 +33,14 @@ pub struct Job {
 /// # Ok::<(), afe::Error>(())
 /// ```
 pub fn run(job: &Job, fs: f64, channels: &[&[f64]]) -> Result<Recorder> {
-    let mut mgr = Manager::new(fs, channels.len())?;
+    let mut mgr = Manager::with_threads(fs, channels.len(), job.threads)?;
+    run_with(&mut mgr, job, channels)
+}
+
+/// Computes `job` with an existing manager (e.g. one recording a scheduler trace); the
+/// requests of `job` are added to it. Chunks are pipelined: chunk k+1 is submitted before
+/// the output of chunk k is collected, so the concurrent scheduler can overlap them.
+pub fn run_with(mgr: &mut Manager, job: &Job, channels: &[&[f64]]) -> Result<Recorder> {
     for r in &job.requests {
         mgr.add_request(r, &job.params)?;
     }
@@ -40,7 +49,7 @@ pub fn run(job: &Job, fs: f64, channels: &[&[f64]]) -> Result<Recorder> {
     match job.chunk {
         None => {
             mgr.process_signal(channels)?;
-            rec.record(&mgr);
+            rec.record(mgr);
         }
         Some(n) => {
             if len == 0 {
@@ -51,9 +60,16 @@ pub fn run(job: &Job, fs: f64, channels: &[&[f64]]) -> Result<Recorder> {
             while start < len {
                 let end = (start + n).min(len);
                 let part: Vec<&[f64]> = channels.iter().map(|c| &c[start..end]).collect();
-                mgr.process_chunk(&part)?;
-                rec.record(&mgr);
+                mgr.submit_chunk(&part)?;
+                if mgr.in_flight() >= mgr.pipeline_depth() {
+                    mgr.collect_chunk()?;
+                    rec.record(mgr);
+                }
                 start = end;
+            }
+            while mgr.in_flight() > 0 {
+                mgr.collect_chunk()?;
+                rec.record(mgr);
             }
         }
     }

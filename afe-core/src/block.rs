@@ -99,6 +99,14 @@ pub struct Block {
 }
 
 impl Block {
+    /// A block of width 0 and no rows (usable in statics).
+    pub const fn empty() -> Self {
+        Block {
+            data: Vec::new(),
+            width: 0,
+        }
+    }
+
     /// An empty block whose rows hold `width` values.
     pub fn new(width: usize) -> Self {
         Block {

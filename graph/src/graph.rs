@@ -1,6 +1,7 @@
 //! The processor DAG and its sequential executor (the reference for every scheduler).
 
 use afe_core::{Block, ParamMap, Processor, SignalInfo};
+use afe_processors::RequestDef;
 
 /// Which ear a node output belongs to, named as in the AFE's output signals.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -37,6 +38,10 @@ pub struct OutputRef {
 pub(crate) struct Node {
     /// Request name of what the node computes (`input` for the source node).
     pub name: &'static str,
+    /// What the node computes (`None` for the source node).
+    pub def: Option<&'static RequestDef>,
+    /// The request parameters the node was built from (to rebuild it after an edit).
+    pub build_params: ParamMap,
     /// 1-based instance number among the nodes of the same name and channel.
     pub instance: usize,
     /// Canonical own parameters (used to share nodes between requests).
@@ -69,6 +74,8 @@ impl Graph {
         };
         let input = Node {
             name: "input",
+            def: None,
+            build_params: ParamMap::new(),
             instance: 1,
             params: ParamMap::new(),
             parents: Vec::new(),

@@ -2,8 +2,14 @@
 //! a DAG of processors shared between requests, and runs it chunk by chunk. The
 //! sequential executor here is the reference for every scheduler.
 
+mod engine;
 mod graph;
 mod manager;
+mod protocol;
+mod sync;
+mod trace;
 
+pub use engine::{is_worker_thread, MAX_THREADS};
 pub use graph::{Channel, OutputRef};
 pub use manager::{check_parameter_names, Manager, RequestHandle, Signal};
+pub use trace::{chrome_trace, TraceEvent};

@@ -3,8 +3,20 @@
 
 use afe_core::{Block, Error, ParamMap, Result, SignalInfo};
 use afe_processors::{find_request, requests, Ears, RequestDef};
+use serde_json::Value;
 
+use crate::engine::Engine;
 use crate::graph::{Channel, Graph, Node, OutputRef};
+
+/// Parameters the AFE does not allow to change at run time (they define the filterbank's
+/// channel grid, which every representation above it is laid out on).
+const FIXED_PARAMETERS: &[&str] = &[
+    "fb_type",
+    "fb_lowFreqHz",
+    "fb_highFreqHz",
+    "fb_nERBs",
+    "fb_cfHz",
+];
 
 /// Handle of a placed request, returned by [`Manager::add_request`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -43,6 +55,7 @@ impl Signal<'_> {
 
 struct Request {
     outputs: Vec<OutputRef>,
+    params: ParamMap,
 }
 
 /// Resolves requests into a processor graph shared between them and runs it.
@@ -63,7 +76,12 @@ pub struct Manager {
     fs: f64,
     ears: usize,
     graph: Graph,
-    requests: Vec<Request>,
+    /// Placed requests by handle; `None` once removed.
+    requests: Vec<Option<Request>>,
+    /// The concurrent executor, or `None` for the sequential one.
+    engine: Option<Engine>,
+    /// Chunks processed by the sequential executor and not yet collected (0 or 1).
+    pending: u64,
 }
 
 impl std::fmt::Debug for Manager {
@@ -72,6 +90,7 @@ impl std::fmt::Debug for Manager {
             .field("fs", &self.fs)
             .field("ears", &self.ears)
             .field("nodes", &self.graph.nodes.len())
+            .field("threads", &self.threads())
             .finish()
     }
 }
@@ -131,7 +150,73 @@ impl Manager {
             ears,
             graph: Graph::new(fs, ears),
             requests: Vec::new(),
+            engine: None,
+            pending: 0,
         })
+    }
+
+    /// A manager that runs its graph on a pool of `threads` workers (the concurrent
+    /// scheduler); `threads = 0` selects the sequential executor. Outputs are the same,
+    /// bit for bit, whatever the choice.
+    pub fn with_threads(fs: f64, ears: usize, threads: usize) -> Result<Self> {
+        Self::with_engine(fs, ears, threads, 0)
+    }
+
+    /// As [`Manager::with_threads`], recording up to `trace_capacity` scheduler events per
+    /// worker for [`Manager::trace`].
+    pub fn with_engine(
+        fs: f64,
+        ears: usize,
+        threads: usize,
+        trace_capacity: usize,
+    ) -> Result<Self> {
+        let mut m = Self::new(fs, ears)?;
+        if threads > 0 {
+            let mut engine = Engine::new(threads, trace_capacity)?;
+            engine.install(&mut m.graph);
+            m.engine = Some(engine);
+        }
+        Ok(m)
+    }
+
+    /// With the concurrent scheduler: fail with a dump of every node's state, instead of
+    /// waiting longer than `timeout` for a chunk (default 30 s).
+    pub fn set_stall_timeout(&mut self, timeout: std::time::Duration) {
+        if let Some(e) = self.engine.as_mut() {
+            e.set_stall_timeout(timeout);
+        }
+    }
+
+    /// The scheduler trace recorded so far, in the Chrome trace-event format (`None` for
+    /// the sequential executor). Finishes the chunks in flight first.
+    pub fn trace(&mut self) -> Result<Option<Value>> {
+        let Some(e) = self.engine.as_mut() else {
+            return Ok(None);
+        };
+        e.quiesce()?;
+        let (labels, events) = e.trace();
+        Ok(Some(crate::trace::chrome_trace(&labels, &events)))
+    }
+
+    /// Worker threads of the concurrent scheduler (0: sequential executor).
+    pub fn threads(&self) -> usize {
+        self.engine.as_ref().map_or(0, Engine::threads)
+    }
+
+    /// Applies a change to the graph between chunks: the pool finishes what is in flight,
+    /// hands the processors back, and gets the edited graph (unchanged nodes keep their
+    /// state; everything is built and freed on this thread).
+    fn edit<R>(&mut self, f: impl FnOnce(&mut Self) -> Result<R>) -> Result<R> {
+        if let Some(e) = self.engine.as_mut() {
+            e.quiesce()?;
+            e.uninstall(&mut self.graph);
+        }
+        self.pending = 0;
+        let r = f(self);
+        if let Some(e) = self.engine.as_mut() {
+            e.install(&mut self.graph);
+        }
+        r
     }
 
     /// Input sampling rate in Hz.
@@ -166,6 +251,10 @@ impl Manager {
     /// ```
     pub fn add_request(&mut self, name: &str, params: &ParamMap) -> Result<RequestHandle> {
         check_parameter_names(params)?;
+        self.edit(|m| m.add_request_now(name, params))
+    }
+
+    fn add_request_now(&mut self, name: &str, params: &ParamMap) -> Result<RequestHandle> {
         let def = find_request(name)?;
         let mut chain: Vec<&'static RequestDef> = vec![def];
         while chain[chain.len() - 1].dependency != "input" {
@@ -174,7 +263,10 @@ impl Manager {
         let rollback = self.graph.nodes.len();
         match self.resolve(&chain, params, name) {
             Ok(outputs) => {
-                self.requests.push(Request { outputs });
+                self.requests.push(Some(Request {
+                    outputs,
+                    params: params.clone(),
+                }));
                 Ok(RequestHandle(self.requests.len() - 1))
             }
             Err(e) => {
@@ -280,6 +372,8 @@ impl Manager {
             .collect();
         self.graph.nodes.push(Node {
             name: def.name,
+            def: Some(def),
+            build_params: params.clone(),
             instance,
             params: own,
             parents,
@@ -343,10 +437,85 @@ impl Manager {
     /// # Ok::<(), afe_core::Error>(())
     /// ```
     pub fn process_chunk(&mut self, chunk: &[&[f64]]) -> Result<()> {
+        while self.in_flight() > 0 {
+            self.collect_chunk()?;
+        }
+        self.submit_chunk(chunk)?;
+        self.collect_chunk()
+    }
+
+    /// Starts processing the next chunk without waiting for it: with the concurrent
+    /// scheduler, chunk k+1 enters the graph while chunk k is still in its deeper nodes.
+    /// Collect each chunk's output, in order, with [`Manager::collect_chunk`]; keep at most
+    /// [`Manager::pipeline_depth`] chunks in flight (more waits for the oldest to drain).
+    ///
+    /// ```
+    /// use afe_graph::Manager;
+    /// let mut mgr = Manager::with_threads(16000.0, 2, 2)?;
+    /// mgr.add_request("ild", &Default::default())?;
+    /// let (l, r) = (vec![0.1; 1600], vec![0.2; 1600]);
+    /// let mut frames = 0;
+    /// for (a, b) in l.chunks(160).zip(r.chunks(160)) {
+    ///     mgr.submit_chunk(&[a, b])?;
+    ///     if mgr.in_flight() == mgr.pipeline_depth() {
+    ///         mgr.collect_chunk()?;
+    ///         frames += mgr.signals(false)[0].new.frames();
+    ///     }
+    /// }
+    /// while mgr.in_flight() > 0 {
+    ///     mgr.collect_chunk()?;
+    ///     frames += mgr.signals(false)[0].new.frames();
+    /// }
+    /// assert_eq!(frames, 9);
+    /// # Ok::<(), afe_core::Error>(())
+    /// ```
+    pub fn submit_chunk(&mut self, chunk: &[&[f64]]) -> Result<()> {
         self.check_chunk(chunk)?;
-        self.graph.load_input(chunk);
-        self.graph.run_sequential();
-        Ok(())
+        match self.engine.as_mut() {
+            Some(e) => e.submit(chunk),
+            None => {
+                if self.pending > 0 {
+                    return Err(Error::InvalidInput(
+                        "the sequential executor holds one chunk: collect it before submitting the next".into(),
+                    ));
+                }
+                self.graph.load_input(chunk);
+                self.graph.run_sequential();
+                self.pending = 1;
+                Ok(())
+            }
+        }
+    }
+
+    /// Waits for the oldest submitted chunk and makes its output the one
+    /// [`Manager::signals`] shows.
+    pub fn collect_chunk(&mut self) -> Result<()> {
+        match self.engine.as_mut() {
+            Some(e) => e.collect().map(|_| ()),
+            None if self.pending > 0 => {
+                self.pending = 0;
+                Ok(())
+            }
+            None => Err(Error::InvalidInput("no chunk in flight to collect".into())),
+        }
+    }
+
+    /// Chunks submitted and not yet collected.
+    pub fn in_flight(&self) -> usize {
+        match &self.engine {
+            Some(e) => e.in_flight() as usize,
+            None => self.pending as usize,
+        }
+    }
+
+    /// How many chunks may usefully be in flight: 1 for the sequential executor, 2 for
+    /// the concurrent one (each node double-buffers its output).
+    pub fn pipeline_depth(&self) -> usize {
+        if self.engine.is_some() {
+            2
+        } else {
+            1
+        }
     }
 
     /// Processes a whole signal from a fresh state (every processor is reset first), as
@@ -356,13 +525,185 @@ impl Manager {
         if signal[0].is_empty() {
             return Err(Error::InvalidInput("the signal is empty".into()));
         }
-        self.reset();
+        self.reset()?;
         self.process_chunk(signal)
     }
 
-    /// Returns every processor to its initial state.
-    pub fn reset(&mut self) {
-        self.graph.reset();
+    /// Returns every processor to its initial state (chunks in flight are finished and
+    /// dropped first).
+    pub fn reset(&mut self) -> Result<()> {
+        self.edit(|m| {
+            m.graph.reset();
+            Ok(())
+        })
+    }
+
+    /// Removes a request. Its processors go when no other request uses them; the others
+    /// keep their state.
+    pub fn remove_request(&mut self, handle: RequestHandle) -> Result<()> {
+        match self.requests.get(handle.0) {
+            Some(Some(_)) => {}
+            _ => return Err(Error::UnknownHandle(handle.0)),
+        }
+        self.edit(|m| {
+            m.requests[handle.0] = None;
+            m.prune();
+            Ok(())
+        })
+    }
+
+    /// Drops the nodes that no remaining request needs, renumbering the others.
+    fn prune(&mut self) {
+        let n = self.graph.nodes.len();
+        let mut keep = vec![false; n];
+        keep[0] = true;
+        let mut stack: Vec<usize> = self
+            .requests
+            .iter()
+            .flatten()
+            .flat_map(|r| r.outputs.iter().map(|o| o.node))
+            .collect();
+        while let Some(i) = stack.pop() {
+            if !keep[i] {
+                keep[i] = true;
+                stack.extend(self.graph.nodes[i].parents.iter().map(|p| p.node));
+            }
+        }
+        let mut new_index = vec![usize::MAX; n];
+        let mut next = 0;
+        for (i, k) in keep.iter().enumerate() {
+            if *k {
+                new_index[i] = next;
+                next += 1;
+            }
+        }
+        let old = std::mem::take(&mut self.graph.nodes);
+        self.graph.nodes = old
+            .into_iter()
+            .zip(&keep)
+            .filter(|(_, k)| **k)
+            .map(|(mut node, _)| {
+                for p in &mut node.parents {
+                    p.node = new_index[p.node];
+                }
+                node
+            })
+            .collect();
+        for r in self.requests.iter_mut().flatten() {
+            for o in &mut r.outputs {
+                o.node = new_index[o.node];
+            }
+        }
+    }
+
+    /// Changes parameter `name` of the processors of request `handle` that declare it,
+    /// between chunks, with the AFE's semantics: those processors are rebuilt and reset,
+    /// and so is everything computed from them (in every request sharing them). The
+    /// parameters that fix the channel grid cannot be changed.
+    pub fn modify_parameter(
+        &mut self,
+        handle: RequestHandle,
+        name: &str,
+        value: Value,
+    ) -> Result<()> {
+        let single: ParamMap = [(name.to_string(), value)].into_iter().collect();
+        check_parameter_names(&single)?;
+        if FIXED_PARAMETERS.contains(&name) {
+            return Err(Error::InvalidParameter {
+                name: name.into(),
+                value: single[name].to_string(),
+                reason: "this parameter cannot be changed at run time (as in the AFE); place a new request instead".into(),
+            });
+        }
+        let Some(Some(req)) = self.requests.get(handle.0) else {
+            return Err(Error::UnknownHandle(handle.0));
+        };
+        let mut params = req.params.clone();
+        params.extend(single);
+        let chain = self.ancestors(&req.outputs);
+        self.edit(|m| m.modify_now(handle, &chain, name, params))
+    }
+
+    /// Every node a set of outputs is computed from, the outputs' nodes included.
+    fn ancestors(&self, outputs: &[OutputRef]) -> Vec<usize> {
+        let mut seen = vec![false; self.graph.nodes.len()];
+        let mut stack: Vec<usize> = outputs.iter().map(|o| o.node).collect();
+        while let Some(i) = stack.pop() {
+            if !seen[i] {
+                seen[i] = true;
+                stack.extend(self.graph.nodes[i].parents.iter().map(|p| p.node));
+            }
+        }
+        (0..seen.len()).filter(|i| seen[*i]).collect()
+    }
+
+    fn modify_now(
+        &mut self,
+        handle: RequestHandle,
+        chain: &[usize],
+        name: &str,
+        params: ParamMap,
+    ) -> Result<()> {
+        let n = self.graph.nodes.len();
+        let mut dirty = vec![false; n];
+        let mut rebuilt: Vec<(usize, ParamMap, ParamMap)> = Vec::new();
+        for &i in chain {
+            let node = &self.graph.nodes[i];
+            if let Some(def) = node.def {
+                if def.params.iter().any(|p| p.name == name) {
+                    let own = (def.canonical)(&params)?;
+                    let mut build = node.build_params.clone();
+                    build.insert(name.to_string(), params[name].clone());
+                    rebuilt.push((i, build, own));
+                    dirty[i] = true;
+                }
+            }
+        }
+        for i in 1..n {
+            if !dirty[i] && self.graph.nodes[i].parents.iter().any(|p| dirty[p.node]) {
+                dirty[i] = true;
+            }
+        }
+        // Build every replacement first, so that a rejected value changes nothing.
+        let mut infos: Vec<Vec<SignalInfo>> =
+            self.graph.nodes.iter().map(|n| n.infos.clone()).collect();
+        let mut built = Vec::new();
+        for i in (1..n).filter(|i| dirty[*i]) {
+            let node = &self.graph.nodes[i];
+            let def = node
+                .def
+                .ok_or_else(|| Error::InvalidInput("the input node cannot be rebuilt".into()))?;
+            let (build, own) = match rebuilt.iter().find(|r| r.0 == i) {
+                Some((_, b, o)) => (b.clone(), Some(o.clone())),
+                None => (node.build_params.clone(), None),
+            };
+            let inputs: Vec<SignalInfo> = node
+                .parents
+                .iter()
+                .map(|p| infos[p.node][p.output].clone())
+                .collect();
+            let b = (def.build)(&build, &inputs)?;
+            infos[i] = b.outputs.clone();
+            built.push((i, b, build, own));
+        }
+        for (i, b, build, own) in built {
+            let node = &mut self.graph.nodes[i];
+            node.outputs = b
+                .outputs
+                .iter()
+                .map(|info| Block::new(info.width()))
+                .collect();
+            node.infos = b.outputs;
+            node.processor = Some(b.processor);
+            node.build_params = build;
+            if let Some(own) = own {
+                node.params = own;
+            }
+        }
+        if let Some(Some(req)) = self.requests.get_mut(handle.0) {
+            req.params.insert(name.to_string(), params[name].clone());
+        }
+        Ok(())
     }
 
     /// The output signals of a request: one per ear for per-ear representations, one
@@ -384,6 +725,7 @@ impl Manager {
         let req = self
             .requests
             .get(handle.0)
+            .and_then(Option::as_ref)
             .ok_or(Error::UnknownHandle(handle.0))?;
         Ok(req.outputs.iter().map(|r| self.signal(*r)).collect())
     }
@@ -404,6 +746,7 @@ impl Manager {
         } else {
             self.requests
                 .iter()
+                .flatten()
                 .flat_map(|r| r.outputs.clone())
                 .collect()
         };
@@ -419,7 +762,10 @@ impl Manager {
             instance: node.instance,
             channel: node.channels[r.output],
             info: &node.infos[r.output],
-            new: &node.outputs[r.output],
+            new: match &self.engine {
+                Some(e) => e.block(r),
+                None => &node.outputs[r.output],
+            },
             source: r,
         }
     }

@@ -3,9 +3,11 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use afe::extract::{run, Job};
-use afe::wav::read_wav;
-use afe::{requests, ParamMap};
+use std::time::Instant;
+
+use afe::extract::{run_with, Job};
+use afe::wav::{read_wav, Audio};
+use afe::{requests, Manager, ParamMap};
 use clap::{Parser, Subcommand};
 use serde_json::{json, Value};
 
@@ -44,10 +46,57 @@ enum Command {
         /// Also save every intermediate signal (time, filterbank, innerhaircell, ...).
         #[arg(long)]
         all: bool,
+        #[command(flatten)]
+        threads: Threads,
+        /// Write the scheduler's per-node, per-chunk timing as a Chrome trace (Perfetto).
+        #[arg(long, value_name = "trace.json")]
+        trace: Option<PathBuf>,
         /// Output .npz file.
         #[arg(short = 'o', long = "output", value_name = "OUT.npz")]
         output: PathBuf,
     },
+    /// Measure processing speed on a WAV file: median wall time of K runs.
+    Bench {
+        /// Input WAV file (mono or two-channel binaural).
+        input: PathBuf,
+        /// Requests, comma-separated.
+        #[arg(short = 'r', long = "requests", value_delimiter = ',', required = true)]
+        requests: Vec<String>,
+        /// An AFE parameter, NAME=VALUE. Repeatable.
+        #[arg(short = 'p', long = "param", value_name = "NAME=VALUE")]
+        params: Vec<String>,
+        /// A JSON object of AFE parameter names to values.
+        #[arg(long = "params", value_name = "FILE.json")]
+        params_file: Option<PathBuf>,
+        /// Feed the input in chunks of N samples (default: one call).
+        #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+        chunk: Option<u64>,
+        #[command(flatten)]
+        threads: Threads,
+        /// Number of timed runs (the median is reported).
+        #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u64).range(1..))]
+        repeat: u64,
+        /// Print the result as one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+/// The executor choice shared by `extract` and `bench`.
+#[derive(clap::Args)]
+struct Threads {
+    /// Worker threads of the concurrent scheduler (default: the number of cores;
+    /// 0 = the sequential executor). Every choice gives the same numbers.
+    #[arg(long, value_name = "N")]
+    threads: Option<usize>,
+}
+
+impl Threads {
+    fn count(&self) -> usize {
+        self.threads.unwrap_or_else(|| {
+            std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
+        })
+    }
 }
 
 fn main() -> ExitCode {
@@ -64,16 +113,38 @@ fn main() -> ExitCode {
             params_file,
             chunk,
             all,
+            threads,
+            trace,
             output,
-        } => extract(
-            &input,
+        } => load_params(params_file.as_deref(), &params).and_then(|p| {
+            let job = Job {
+                requests: clean(requests),
+                params: p,
+                chunk: chunk.map(|n| n as usize),
+                all,
+                threads: threads.count(),
+            };
+            extract(&input, job, trace.as_deref(), &output)
+        }),
+        Command::Bench {
+            input,
             requests,
-            &params,
-            params_file.as_deref(),
+            params,
+            params_file,
             chunk,
-            all,
-            &output,
-        ),
+            threads,
+            repeat,
+            json,
+        } => load_params(params_file.as_deref(), &params).and_then(|p| {
+            let job = Job {
+                requests: clean(requests),
+                params: p,
+                chunk: chunk.map(|n| n as usize),
+                all: false,
+                threads: threads.count(),
+            };
+            bench(&input, &job, repeat as usize, json)
+        }),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -196,16 +267,16 @@ fn load_params(file: Option<&Path>, args: &[String]) -> Result<ParamMap, String>
     Ok(map)
 }
 
-fn extract(
-    input: &Path,
-    request_names: Vec<String>,
-    param_args: &[String],
-    params_file: Option<&Path>,
-    chunk: Option<u64>,
-    all: bool,
-    output: &Path,
-) -> Result<(), String> {
-    let params = load_params(params_file, param_args)?;
+fn clean(requests: Vec<String>) -> Vec<String> {
+    requests
+        .iter()
+        .map(|r| r.trim().to_string())
+        .filter(|r| !r.is_empty())
+        .collect()
+}
+
+/// Reads a WAV file that afe can process: mono or two channels, not empty.
+fn read_input(input: &Path) -> Result<Audio, String> {
     let audio = read_wav(input).map_err(|e| e.to_string())?;
     if audio.channels.len() > 2 {
         return Err(format!(
@@ -217,35 +288,30 @@ fn extract(
     if audio.channels[0].is_empty() {
         return Err(format!("'{}' holds no samples", input.display()));
     }
-    let job = Job {
-        requests: request_names
-            .iter()
-            .map(|r| r.trim().to_string())
-            .filter(|r| !r.is_empty())
-            .collect(),
-        params,
-        chunk: chunk.map(|n| n as usize),
-        all,
-    };
+    Ok(audio)
+}
+
+fn extract(input: &Path, job: Job, trace: Option<&Path>, output: &Path) -> Result<(), String> {
+    let audio = read_input(input)?;
     let refs: Vec<&[f64]> = audio.channels.iter().map(Vec::as_slice).collect();
-    let rec = run(&job, audio.fs, &refs).map_err(|e| e.to_string())?;
+    let capacity = if trace.is_some() { 1 << 20 } else { 0 };
+    let mut mgr = Manager::with_engine(audio.fs, refs.len(), job.threads, capacity)
+        .map_err(|e| e.to_string())?;
+    let rec = run_with(&mut mgr, &job, &refs).map_err(|e| e.to_string())?;
     let arrays: Vec<(String, Vec<usize>, &[f64])> = rec
         .signals()
         .iter()
         .map(|s| (s.key.clone(), s.shape(), s.data.as_slice()))
         .collect();
-    let mut tmp = output.as_os_str().to_owned();
-    tmp.push(".partial");
-    let tmp = PathBuf::from(tmp);
-    let write = || -> std::io::Result<()> {
-        let file = std::fs::File::create(&tmp)?;
-        afe::npy::write_npz(std::io::BufWriter::new(file), &arrays)?;
-        std::fs::rename(&tmp, output)
-    };
-    write().map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        format!("cannot write '{}': {e}", output.display())
-    })?;
+    write_atomically(output, |file| afe::npy::write_npz(file, &arrays))?;
+    if let Some(path) = trace {
+        let Some(t) = mgr.trace().map_err(|e| e.to_string())? else {
+            return Err("--trace needs the concurrent scheduler (--threads 1 or more)".into());
+        };
+        write_atomically(path, |mut file| {
+            std::io::Write::write_all(&mut file, t.to_string().as_bytes())
+        })?;
+    }
     eprintln!(
         "wrote {} array(s) to {}: {}",
         arrays.len(),
@@ -256,5 +322,75 @@ fn extract(
             .collect::<Vec<_>>()
             .join(", ")
     );
+    Ok(())
+}
+
+/// Writes `path` through a temporary file renamed into place, so that a failure leaves
+/// no partial output.
+fn write_atomically(
+    path: &Path,
+    write: impl FnOnce(std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+) -> Result<(), String> {
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".partial");
+    let tmp = PathBuf::from(tmp);
+    let result = std::fs::File::create(&tmp)
+        .and_then(|f| write(std::io::BufWriter::new(f)))
+        .and_then(|()| std::fs::rename(&tmp, path));
+    result.map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        format!("cannot write '{}': {e}", path.display())
+    })
+}
+
+fn bench(input: &Path, job: &Job, repeat: usize, as_json: bool) -> Result<(), String> {
+    let audio = read_input(input)?;
+    let refs: Vec<&[f64]> = audio.channels.iter().map(Vec::as_slice).collect();
+    let seconds = refs[0].len() as f64 / audio.fs;
+    let mut times = Vec::with_capacity(repeat);
+    for _ in 0..repeat {
+        let mut mgr =
+            Manager::with_threads(audio.fs, refs.len(), job.threads).map_err(|e| e.to_string())?;
+        for r in &job.requests {
+            mgr.add_request(r, &job.params).map_err(|e| e.to_string())?;
+        }
+        let start = Instant::now();
+        let rec = run_with(
+            &mut mgr,
+            &Job {
+                requests: Vec::new(),
+                ..job.clone()
+            },
+            &refs,
+        )
+        .map_err(|e| e.to_string())?;
+        times.push(start.elapsed().as_secs_f64());
+        std::hint::black_box(rec);
+    }
+    times.sort_by(f64::total_cmp);
+    let median = times[times.len() / 2];
+    let result = json!({
+        "input": input.display().to_string(),
+        "requests": job.requests,
+        "audio_seconds": seconds,
+        "wall_seconds_median": median,
+        "wall_seconds_min": times[0],
+        "x_realtime": seconds / median,
+        "threads": job.threads,
+        "chunk": job.chunk,
+        "repeat": repeat,
+    });
+    if as_json {
+        println!("{result}");
+    } else {
+        println!(
+            "{:.3} s of audio in {:.4} s (median of {repeat}): {:.1}x real time, threads {}, chunk {}",
+            seconds,
+            median,
+            seconds / median,
+            job.threads,
+            job.chunk.map_or("whole signal".to_string(), |c| format!("{c} samples"))
+        );
+    }
     Ok(())
 }

@@ -1,0 +1,612 @@
+//! The concurrent executor: a fixed pool of worker threads runs the graph's nodes through
+//! the token protocol of [`crate::protocol`] (Ready → Process → Wait → Release), with
+//! vertical concurrency (a parent computes chunk k+1 while its children read chunk k) and
+//! horizontal concurrency (siblings run at once).
+//!
+//! The calling thread plays two roles outside the pool: it is the source (it publishes
+//! each input chunk into node 0) and the sink (it reads every other node's output of a
+//! chunk, holding one reader token on each until its next `collect`). Workers never lock,
+//! allocate (beyond what a processor's first chunks of a new size need) or free: the node
+//! table is built and dropped by the caller, and swapped only while the pool is idle.
+
+use std::cell::UnsafeCell;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::atomic::AtomicUsize;
+use std::sync::Arc;
+use std::thread::{self, JoinHandle, Thread};
+use std::time::{Duration, Instant};
+
+use afe_core::{Block, Error, Processor, Result};
+
+use crate::graph::{Graph, OutputRef};
+use crate::protocol::{consumed, is_ready, next_chunk, release, try_claim, Links, NodeSync};
+use crate::sync::{fence, AtomicBool, AtomicU64, Ordering};
+use crate::trace::{TraceEvent, Tracer};
+
+/// How long an idle worker spins on the ready set before parking.
+const SPIN_ROUNDS: u32 = 200;
+/// Safety net for a missed unpark: parked threads re-check this often.
+const PARK_TIMEOUT: Duration = Duration::from_millis(2);
+/// Largest pool: one bit per worker in the idle mask.
+pub const MAX_THREADS: usize = 64;
+
+thread_local! {
+    static IS_WORKER: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// True on the scheduler's worker threads (used by allocation-counting tests).
+pub fn is_worker_thread() -> bool {
+    IS_WORKER.with(std::cell::Cell::get)
+}
+
+/// Lock-free set of claimed nodes waiting for a worker: one bit per node.
+struct ReadySet {
+    words: Box<[AtomicU64]>,
+}
+
+impl ReadySet {
+    fn new(nodes: usize) -> Self {
+        ReadySet {
+            words: (0..nodes.div_ceil(64)).map(|_| AtomicU64::new(0)).collect(),
+        }
+    }
+
+    fn push(&self, n: usize) {
+        self.words[n / 64].fetch_or(1 << (n % 64), Ordering::AcqRel);
+    }
+
+    /// Takes the deepest ready node (highest index: children before parents drains the
+    /// pipeline and frees slots first).
+    fn pop(&self) -> Option<usize> {
+        for (w, word) in self.words.iter().enumerate().rev() {
+            let mut bits = word.load(Ordering::Acquire);
+            while bits != 0 {
+                let b = 63 - bits.leading_zeros() as usize;
+                let prev = word.fetch_and(!(1 << b), Ordering::AcqRel);
+                if prev & (1 << b) != 0 {
+                    return Some(w * 64 + b);
+                }
+                bits = prev & !(1 << b);
+            }
+        }
+        None
+    }
+
+    fn is_empty(&self) -> bool {
+        self.words.iter().all(|w| w.load(Ordering::Acquire) == 0)
+    }
+}
+
+/// One node as the pool sees it.
+struct NodeRt {
+    label: String,
+    /// `None` for the source (node 0).
+    processor: UnsafeCell<Option<Box<dyn Processor>>>,
+    /// Output blocks of chunk `k` live in `slots[k % 2]`.
+    slots: [UnsafeCell<Vec<Block>>; 2],
+    inputs: Box<[OutputRef]>,
+    claimed_at_ns: AtomicU64,
+}
+
+/// The compiled graph: synchronisation state, links, processors and slots.
+struct Table {
+    sync: Vec<NodeSync>,
+    links: Vec<Links>,
+    rt: Vec<NodeRt>,
+    ready: ReadySet,
+}
+
+struct Shared {
+    table: UnsafeCell<Table>,
+    /// Set by the caller while it swaps the table; workers stay out.
+    swapping: AtomicBool,
+    /// Workers currently using the table.
+    active: AtomicUsize,
+    idle: AtomicU64,
+    shutdown: AtomicBool,
+    poisoned: AtomicBool,
+    workers: std::sync::OnceLock<Box<[Thread]>>,
+    caller: UnsafeCell<Thread>,
+    epoch: Instant,
+    tracer: Tracer,
+}
+
+// SAFETY: the `UnsafeCell`s are accessed under the token protocol: a node's processor
+// and its slot `k % 2` only by the holder of its claim while `readers_left[k % 2] == 0`;
+// a published slot only by its readers while their consumed-token is pending; the table
+// and the caller handle only by the caller while `swapping` is set and `active == 0`.
+#[allow(unsafe_code)]
+unsafe impl Sync for Shared {}
+
+impl Shared {
+    fn now_ns(&self) -> u64 {
+        self.epoch.elapsed().as_nanos() as u64
+    }
+
+    fn caller(&self) -> &Thread {
+        // SAFETY: replaced only while no worker is active (see `Engine::adopt_caller`).
+        #[allow(unsafe_code)]
+        unsafe {
+            &*self.caller.get()
+        }
+    }
+
+    /// Offers node `n` to the scheduler: claims it if READY and queues it. Returns whether
+    /// it was queued. Offering the source wakes the caller instead.
+    fn offer(&self, table: &Table, n: usize) -> bool {
+        if n == 0 {
+            self.caller().unpark();
+            return false;
+        }
+        if try_claim(&table.sync, &table.links, n) {
+            table.rt[n]
+                .claimed_at_ns
+                .store(self.now_ns(), Ordering::Relaxed);
+            table.ready.push(n);
+            return true;
+        }
+        false
+    }
+
+    /// Wakes up to `count` parked workers.
+    fn wake(&self, mut count: usize) {
+        fence(Ordering::SeqCst);
+        let Some(workers) = self.workers.get() else {
+            return;
+        };
+        let mut idle = self.idle.load(Ordering::Acquire);
+        while count > 0 && idle != 0 {
+            let w = idle.trailing_zeros() as usize;
+            idle &= !(1 << w);
+            workers[w].unpark();
+            count -= 1;
+        }
+    }
+
+    fn worker_loop(&self, id: usize) {
+        IS_WORKER.with(|w| w.set(true));
+        let bit = 1u64 << id;
+        while !self.shutdown.load(Ordering::Acquire) {
+            self.active.fetch_add(1, Ordering::SeqCst);
+            if self.swapping.load(Ordering::SeqCst) {
+                self.active.fetch_sub(1, Ordering::SeqCst);
+                thread::park_timeout(PARK_TIMEOUT);
+                continue;
+            }
+            // SAFETY: `active > 0` and `swapping` unset: the caller does not touch the table.
+            #[allow(unsafe_code)]
+            let table = unsafe { &*self.table.get() };
+            let mut spins = 0;
+            loop {
+                if let Some(n) = table.ready.pop() {
+                    self.run(table, n, id);
+                    spins = 0;
+                } else if spins < SPIN_ROUNDS {
+                    spins += 1;
+                    std::hint::spin_loop();
+                } else {
+                    break;
+                }
+            }
+            self.idle.fetch_or(bit, Ordering::SeqCst);
+            let nothing = table.ready.is_empty();
+            self.active.fetch_sub(1, Ordering::SeqCst);
+            if nothing && !self.shutdown.load(Ordering::Acquire) {
+                thread::park_timeout(PARK_TIMEOUT);
+            }
+            self.idle.fetch_and(!bit, Ordering::SeqCst);
+        }
+    }
+
+    /// Process and Release of one claimed node.
+    fn run(&self, table: &Table, n: usize, worker: usize) {
+        let k = next_chunk(&table.sync, n);
+        let slot = (k % 2) as usize;
+        let rt = &table.rt[n];
+        let start = self.now_ns();
+        // SAFETY: we hold the claim of `n`, so its processor and its slot `k % 2` (free:
+        // READY checked `readers_left == 0`) are ours alone; every parent has published
+        // chunk `k` into its slot `k % 2`, which stays untouched until we return our
+        // consumed-token in `release` below.
+        #[allow(unsafe_code)]
+        let ok = unsafe {
+            let first = rt.inputs[0];
+            let first_block = &(&*table.rt[first.node].slots[slot].get())[first.output];
+            let mut inputs: [&Block; 2] = [first_block, first_block];
+            for (dst, p) in inputs.iter_mut().zip(rt.inputs.iter()).skip(1) {
+                *dst = &(&*table.rt[p.node].slots[slot].get())[p.output];
+            }
+            let outputs = &mut *rt.slots[slot].get();
+            let processor = &mut *rt.processor.get();
+            catch_unwind(AssertUnwindSafe(|| {
+                if let Some(p) = processor.as_mut() {
+                    p.process(&inputs[..rt.inputs.len()], outputs);
+                }
+            }))
+            .is_ok()
+        };
+        if !ok {
+            self.poisoned.store(true, Ordering::SeqCst);
+            self.caller().unpark();
+            return;
+        }
+        let end = self.now_ns();
+        let mut queued = 0;
+        release(&table.sync, &table.links, n, k, |x| {
+            queued += usize::from(self.offer(table, x));
+        });
+        // This worker takes one of the newly ready nodes itself; wake others for the rest.
+        self.wake(queued.saturating_sub(1));
+        self.caller().unpark();
+        self.tracer.record(
+            worker,
+            TraceEvent {
+                node: n as u32,
+                chunk: k,
+                ready_ns: rt.claimed_at_ns.load(Ordering::Relaxed),
+                start_ns: start,
+                end_ns: end,
+                released_ns: self.now_ns(),
+            },
+        );
+    }
+}
+
+/// The worker pool and the graph it runs.
+pub struct Engine {
+    shared: Arc<Shared>,
+    handles: Vec<JoinHandle<()>>,
+    /// Chunks published into the source.
+    submitted: u64,
+    /// Chunks collected by the caller; the caller holds reader tokens on chunk
+    /// `collected − 1` of every non-source node while `holding` is set.
+    collected: u64,
+    holding: bool,
+    stall_timeout: Duration,
+}
+
+impl std::fmt::Debug for Engine {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Engine")
+            .field("threads", &self.handles.len())
+            .field("submitted", &self.submitted)
+            .field("collected", &self.collected)
+            .finish()
+    }
+}
+
+fn empty_table() -> Table {
+    Table {
+        sync: Vec::new(),
+        links: Vec::new(),
+        rt: Vec::new(),
+        ready: ReadySet::new(0),
+    }
+}
+
+impl Engine {
+    /// Starts `threads` workers (1..=64) with an empty graph; `trace_capacity` events per
+    /// worker are preallocated for tracing (0 = no tracing).
+    pub fn new(threads: usize, trace_capacity: usize) -> Result<Self> {
+        if !(1..=MAX_THREADS).contains(&threads) {
+            return Err(Error::InvalidInput(format!(
+                "{threads} worker threads: choose between 1 and {MAX_THREADS} (0 selects the sequential executor)"
+            )));
+        }
+        let shared = Arc::new(Shared {
+            table: UnsafeCell::new(empty_table()),
+            swapping: AtomicBool::new(false),
+            active: AtomicUsize::new(0),
+            idle: AtomicU64::new(0),
+            shutdown: AtomicBool::new(false),
+            poisoned: AtomicBool::new(false),
+            workers: std::sync::OnceLock::new(),
+            caller: UnsafeCell::new(thread::current()),
+            epoch: Instant::now(),
+            tracer: Tracer::new(threads, trace_capacity),
+        });
+        let mut handles = Vec::with_capacity(threads);
+        for id in 0..threads {
+            let s = Arc::clone(&shared);
+            let h = thread::Builder::new()
+                .name(format!("afe-worker-{id}"))
+                .spawn(move || s.worker_loop(id))
+                .map_err(|e| Error::InvalidInput(format!("cannot start worker thread: {e}")))?;
+            handles.push(h);
+        }
+        let threads_list: Box<[Thread]> = handles.iter().map(|h| h.thread().clone()).collect();
+        let _ = shared.workers.set(threads_list);
+        Ok(Engine {
+            shared,
+            handles,
+            submitted: 0,
+            collected: 0,
+            holding: false,
+            stall_timeout: Duration::from_secs(30),
+        })
+    }
+
+    /// Number of worker threads.
+    pub fn threads(&self) -> usize {
+        self.handles.len()
+    }
+
+    /// Fails with a dump of every node's state instead of waiting longer than this.
+    pub fn set_stall_timeout(&mut self, timeout: Duration) {
+        self.stall_timeout = timeout;
+    }
+
+    fn table(&self) -> &Table {
+        // SAFETY: the caller only reads the table's shared parts here; it is replaced only
+        // through `&mut self` in `swap_table`.
+        #[allow(unsafe_code)]
+        unsafe {
+            &*self.shared.table.get()
+        }
+    }
+
+    /// Waits (parked) until `done` holds, failing on a poisoned pool or a stall.
+    fn wait_until(&self, what: &str, mut done: impl FnMut(&Table) -> bool) -> Result<()> {
+        let began = Instant::now();
+        loop {
+            if self.shared.poisoned.load(Ordering::SeqCst) {
+                return Err(Error::InvalidInput(
+                    "a processor panicked on a worker thread; this manager can no longer be used"
+                        .into(),
+                ));
+            }
+            if done(self.table()) {
+                return Ok(());
+            }
+            if began.elapsed() > self.stall_timeout {
+                return Err(Error::InvalidInput(format!(
+                    "scheduler stalled while waiting for {what}:\n{}",
+                    self.dump()
+                )));
+            }
+            thread::park_timeout(PARK_TIMEOUT);
+        }
+    }
+
+    /// Every node's protocol state, for stall reports.
+    pub fn dump(&self) -> String {
+        let t = self.table();
+        t.sync
+            .iter()
+            .zip(&t.rt)
+            .enumerate()
+            .map(|(i, (s, rt))| {
+                format!(
+                    "  node {i} {}: produced {} readers_left {:?} claimed {} ready {}",
+                    rt.label,
+                    s.produced.load(Ordering::SeqCst),
+                    [
+                        s.readers_left[0].load(Ordering::SeqCst),
+                        s.readers_left[1].load(Ordering::SeqCst)
+                    ],
+                    s.claimed.load(Ordering::SeqCst),
+                    is_ready(&t.sync, &t.links, i)
+                )
+            })
+            .collect::<Vec<_>>()
+            .join("\n")
+    }
+
+    /// Makes the current thread the one workers wake (the manager may move threads).
+    fn adopt_caller(&mut self) -> Result<()> {
+        if self.shared.caller().id() == thread::current().id() {
+            return Ok(());
+        }
+        self.quiesce()?;
+        self.with_table_swapped(|shared| {
+            // SAFETY: no worker is active (`with_table_swapped`).
+            #[allow(unsafe_code)]
+            unsafe {
+                *shared.caller.get() = thread::current();
+            }
+        });
+        Ok(())
+    }
+
+    /// Publishes the next input chunk (one slice per ear) into the source node, waiting
+    /// while the source's previous use of that slot is still being read.
+    pub fn submit(&mut self, chunk: &[&[f64]]) -> Result<()> {
+        self.adopt_caller()?;
+        let k = self.submitted;
+        let slot = (k % 2) as usize;
+        self.wait_until("the input slot", |t| {
+            t.sync[0].readers_left[slot].load(Ordering::Acquire) == 0
+        })?;
+        let table = self.table();
+        // SAFETY: the source's slot `k % 2` has no reader left, and only the caller
+        // writes the source.
+        #[allow(unsafe_code)]
+        let outputs = unsafe { &mut *table.rt[0].slots[slot].get() };
+        for (block, ear) in outputs.iter_mut().zip(chunk) {
+            block.reset_to(ear.len()).copy_from_slice(ear);
+        }
+        let mut queued = 0;
+        release(&table.sync, &table.links, 0, k, |x| {
+            queued += usize::from(self.shared.offer(table, x));
+        });
+        self.shared.wake(queued);
+        self.submitted += 1;
+        Ok(())
+    }
+
+    /// Chunks submitted and not yet collected.
+    pub fn in_flight(&self) -> u64 {
+        self.submitted - self.collected
+    }
+
+    fn release_lease(&mut self) {
+        if !self.holding {
+            return;
+        }
+        let k = self.collected - 1;
+        let table = self.table();
+        let mut queued = 0;
+        for n in 1..table.sync.len() {
+            consumed(&table.sync, n, k, |x| {
+                queued += usize::from(self.shared.offer(table, x));
+            });
+        }
+        self.shared.wake(queued);
+        self.holding = false;
+    }
+
+    /// Waits for every node to finish the oldest uncollected chunk and returns its index;
+    /// its outputs stay readable through [`Engine::block`] until the next call.
+    pub fn collect(&mut self) -> Result<u64> {
+        if self.collected == self.submitted {
+            return Err(Error::InvalidInput("no chunk in flight to collect".into()));
+        }
+        self.adopt_caller()?;
+        self.release_lease();
+        let k = self.collected;
+        self.wait_until("the outputs of a chunk", |t| {
+            t.sync
+                .iter()
+                .all(|s| s.produced.load(Ordering::Acquire) > k)
+        })?;
+        self.collected += 1;
+        self.holding = true;
+        Ok(k)
+    }
+
+    /// Output `r` of the last collected chunk.
+    pub fn block(&self, r: OutputRef) -> &Block {
+        static EMPTY: Block = Block::empty();
+        if !self.holding {
+            return &EMPTY;
+        }
+        let slot = ((self.collected - 1) % 2) as usize;
+        // SAFETY: the caller holds a reader token on this slot until its next `collect`,
+        // `quiesce` or table swap, all of which need `&mut self`.
+        #[allow(unsafe_code)]
+        unsafe {
+            &(&*self.table().rt[r.node].slots[slot].get())[r.output]
+        }
+    }
+
+    /// Collects every chunk in flight, gives back the caller's tokens and waits until no
+    /// node is claimed: the pool is idle and the table may be swapped.
+    pub fn quiesce(&mut self) -> Result<()> {
+        while self.in_flight() > 0 {
+            self.collect()?;
+        }
+        self.release_lease();
+        self.wait_until("the pool to go idle", |t| {
+            t.ready.is_empty() && t.sync.iter().all(|s| !s.claimed.load(Ordering::Acquire))
+        })
+    }
+
+    fn with_table_swapped<R>(&mut self, f: impl FnOnce(&Shared) -> R) -> R {
+        self.shared.swapping.store(true, Ordering::SeqCst);
+        while self.shared.active.load(Ordering::SeqCst) != 0 {
+            std::hint::spin_loop();
+        }
+        let r = f(&self.shared);
+        self.shared.swapping.store(false, Ordering::SeqCst);
+        r
+    }
+
+    /// Moves the processors of `graph` into a freshly compiled table (the pool must be
+    /// quiescent: call [`Engine::quiesce`] first). Chunk counting restarts at 0.
+    pub(crate) fn install(&mut self, graph: &mut Graph) {
+        let n = graph.nodes.len();
+        let mut children: Vec<Vec<usize>> = vec![Vec::new(); n];
+        for (i, node) in graph.nodes.iter().enumerate() {
+            for p in &node.parents {
+                if !children[p.node].contains(&i) {
+                    children[p.node].push(i);
+                }
+            }
+        }
+        let links: Vec<Links> = graph
+            .nodes
+            .iter()
+            .enumerate()
+            .map(|(i, node)| {
+                let mut parents: Vec<usize> = node.parents.iter().map(|p| p.node).collect();
+                parents.dedup();
+                let sink = u32::from(i != 0);
+                Links {
+                    parents: parents.into(),
+                    children: children[i].clone().into(),
+                    readers: children[i].len() as u32 + sink,
+                }
+            })
+            .collect();
+        let rt: Vec<NodeRt> = graph
+            .nodes
+            .iter_mut()
+            .map(|node| NodeRt {
+                label: format!("{}#{}", node.name, node.instance),
+                processor: UnsafeCell::new(node.processor.take()),
+                slots: [
+                    UnsafeCell::new(node.outputs.iter().map(|b| Block::new(b.width())).collect()),
+                    UnsafeCell::new(node.outputs.iter().map(|b| Block::new(b.width())).collect()),
+                ],
+                inputs: node.parents.clone().into(),
+                claimed_at_ns: AtomicU64::new(0),
+            })
+            .collect();
+        let table = Table {
+            sync: (0..n).map(|_| NodeSync::new()).collect(),
+            links,
+            rt,
+            ready: ReadySet::new(n),
+        };
+        let old = self.with_table_swapped(|shared| {
+            // SAFETY: no worker is active and the pool is quiescent.
+            #[allow(unsafe_code)]
+            unsafe {
+                std::mem::replace(&mut *shared.table.get(), table)
+            }
+        });
+        drop(old);
+        self.submitted = 0;
+        self.collected = 0;
+        self.holding = false;
+    }
+
+    /// Gives the processors back to `graph` (the pool must be quiescent) and leaves an
+    /// empty table.
+    pub(crate) fn uninstall(&mut self, graph: &mut Graph) {
+        let old = self.with_table_swapped(|shared| {
+            // SAFETY: no worker is active and the pool is quiescent.
+            #[allow(unsafe_code)]
+            unsafe {
+                std::mem::replace(&mut *shared.table.get(), empty_table())
+            }
+        });
+        for (node, rt) in graph.nodes.iter_mut().zip(old.rt) {
+            node.processor = rt.processor.into_inner();
+        }
+        self.submitted = 0;
+        self.collected = 0;
+        self.holding = false;
+    }
+
+    /// The node labels and the trace recorded so far (the pool should be quiescent).
+    pub fn trace(&self) -> (Vec<String>, Vec<(usize, TraceEvent)>) {
+        let labels = self.table().rt.iter().map(|r| r.label.clone()).collect();
+        (labels, self.shared.tracer.events())
+    }
+}
+
+impl Drop for Engine {
+    fn drop(&mut self) {
+        let _ = self.quiesce();
+        self.shared.shutdown.store(true, Ordering::SeqCst);
+        if let Some(ws) = self.shared.workers.get() {
+            for w in ws.iter() {
+                w.unpark();
+            }
+        }
+        for h in self.handles.drain(..) {
+            let _ = h.join();
+        }
+    }
+}
