@@ -6,6 +6,8 @@ mod engine;
 mod graph;
 mod manager;
 mod protocol;
+#[cfg(test)]
+mod stress;
 mod sync;
 mod trace;
 
