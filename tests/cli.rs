@@ -358,3 +358,102 @@ fn list_json_names_every_request_with_defaults() {
     let text = afe(&["list"]);
     assert!(String::from_utf8_lossy(&text.stdout).contains("fb_nChannels"));
 }
+
+#[test]
+fn threads_trace_and_bench() {
+    let wav = tmp("threads.wav");
+    write_wav(&wav, 2, 16000, 8000, tone);
+    let w = wav.to_str().expect("path");
+    let seq = tmp("seq.npz");
+    let par = tmp("par.npz");
+    let trace = tmp("trace.json");
+    let out = afe(&[
+        "extract",
+        w,
+        "-r",
+        "ratemap,itd",
+        "--chunk",
+        "160",
+        "--threads",
+        "0",
+        "-o",
+        seq.to_str().expect("path"),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = afe(&[
+        "extract",
+        w,
+        "-r",
+        "ratemap,itd",
+        "--chunk",
+        "160",
+        "--threads",
+        "2",
+        "--trace",
+        trace.to_str().expect("path"),
+        "-o",
+        par.to_str().expect("path"),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(
+        npz_arrays(&seq),
+        npz_arrays(&par),
+        "threads change no number"
+    );
+
+    let t: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&trace).expect("trace written")).expect("json");
+    let events = t["traceEvents"].as_array().expect("events");
+    let processed: Vec<&serde_json::Value> =
+        events.iter().filter(|e| e["cat"] == "process").collect();
+    // 50 chunks × (time, 2 filterbanks, 2 IHC, 2 ratemaps, crosscorrelation, itd)
+    assert_eq!(processed.len(), 50 * 9);
+    assert!(processed.iter().any(|e| e["name"] == "crosscorrelation#1"));
+    let never = tmp("never-traced.npz");
+    let out = afe(&[
+        "extract",
+        w,
+        "-r",
+        "ild",
+        "--threads",
+        "0",
+        "--trace",
+        trace.to_str().expect("path"),
+        "-o",
+        never.to_str().expect("path"),
+    ]);
+    assert_clear_error(&out, "--threads 1 or more", &never);
+
+    let out = afe(&[
+        "bench",
+        w,
+        "-r",
+        "ild",
+        "--chunk",
+        "441",
+        "--threads",
+        "1",
+        "--repeat",
+        "2",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let b: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert_eq!(b["audio_seconds"], 0.5);
+    assert_eq!(b["threads"], 1);
+    assert_eq!(b["chunk"], 441);
+    assert!(b["x_realtime"].as_f64().expect("number") > 0.0);
+    assert!(b["wall_seconds_median"].as_f64().expect("number") > 0.0);
+}

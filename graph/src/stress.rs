@@ -30,7 +30,9 @@ impl Processor for Mix {
                 h = h.wrapping_mul(0x9e37_79b9_7f4a_7c15);
             }
             for _ in 0..self.work {
-                h = h.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+                h = h
+                    .wrapping_mul(6_364_136_223_846_793_005)
+                    .wrapping_add(1_442_695_040_888_963_407);
             }
             self.state = h;
             *o = (h >> 11) as f64 / (1u64 << 53) as f64;
@@ -67,7 +69,11 @@ fn random_graph(seed: u64, nodes: usize) -> Graph {
         for _ in 0..fan_in {
             // favour recent nodes for depth, but reach back for long edges too
             let back = 1 + rng.below(i.min(8) as u64) as usize;
-            let p = if rng.below(4) == 0 { rng.below(i as u64) as usize } else { i - back };
+            let p = if rng.below(4) == 0 {
+                rng.below(i as u64) as usize
+            } else {
+                i - back
+            };
             let r = OutputRef { node: p, output: 0 };
             if !parents.contains(&r) {
                 parents.push(r);
@@ -94,7 +100,9 @@ fn random_graph(seed: u64, nodes: usize) -> Graph {
 }
 
 fn chunk_input(k: usize, len: usize) -> Vec<f64> {
-    (0..len).map(|t| ((k * 131 + t * 7) % 97) as f64 / 97.0).collect()
+    (0..len)
+        .map(|t| ((k * 131 + t * 7) % 97) as f64 / 97.0)
+        .collect()
 }
 
 /// Every node's output of every chunk, sequentially.

@@ -292,6 +292,9 @@ fn read_input(input: &Path) -> Result<Audio, String> {
 }
 
 fn extract(input: &Path, job: Job, trace: Option<&Path>, output: &Path) -> Result<(), String> {
+    if trace.is_some() && job.threads == 0 {
+        return Err("--trace records the concurrent scheduler: use --threads 1 or more".into());
+    }
     let audio = read_input(input)?;
     let refs: Vec<&[f64]> = audio.channels.iter().map(Vec::as_slice).collect();
     let capacity = if trace.is_some() { 1 << 20 } else { 0 };
@@ -305,9 +308,7 @@ fn extract(input: &Path, job: Job, trace: Option<&Path>, output: &Path) -> Resul
         .collect();
     write_atomically(output, |file| afe::npy::write_npz(file, &arrays))?;
     if let Some(path) = trace {
-        let Some(t) = mgr.trace().map_err(|e| e.to_string())? else {
-            return Err("--trace needs the concurrent scheduler (--threads 1 or more)".into());
-        };
+        let t = mgr.trace().map_err(|e| e.to_string())?.unwrap_or_default();
         write_atomically(path, |mut file| {
             std::io::Write::write_all(&mut file, t.to_string().as_bytes())
         })?;

@@ -1,0 +1,170 @@
+//! Model check (loom) of the scheduler's token protocol: the very `protocol.rs` the engine
+//! runs, compiled here against loom's atomics, on a 3-node chain and on a 1-parent /
+//! 2-child fan-out, over three chunks (two in flight, and a slot reused) and three
+//! threads. Loom explores the interleavings (bounded preemptions) and fails on a data
+//! race on a slot, a lost wake-up (work left undone), or a wrong value.
+//!
+//! No thread spins (loom cannot explore spin loops): the source is a node like the
+//! others, READY while chunks remain and its slot is free, and every thread runs ready
+//! nodes until the ready set is empty, then stops. Whoever makes a node READY offers
+//! it, so if the protocol never loses a wake-up, all work gets done.
+
+#![allow(dead_code, unsafe_code)]
+
+mod sync {
+    pub(crate) use loom::sync::atomic::{fence, AtomicBool, AtomicU32, AtomicU64, Ordering};
+}
+
+#[path = "../src/protocol.rs"]
+mod protocol;
+
+use loom::cell::UnsafeCell;
+use loom::sync::atomic::{AtomicU64, Ordering};
+use loom::sync::Arc;
+use protocol::{next_chunk, release, try_claim, Links, NodeSync};
+
+struct Model {
+    sync: Vec<NodeSync>,
+    links: Vec<Links>,
+    slots: Vec<[UnsafeCell<u64>; 2]>,
+    ready: AtomicU64,
+    chunks: u64,
+}
+
+impl Model {
+    fn new(parents: &[&[usize]], chunks: u64) -> Self {
+        let n = parents.len();
+        let mut children = vec![Vec::new(); n];
+        for (i, ps) in parents.iter().enumerate() {
+            for &p in ps.iter() {
+                children[p].push(i);
+            }
+        }
+        Model {
+            sync: (0..n).map(|_| NodeSync::new()).collect(),
+            links: (0..n)
+                .map(|i| Links {
+                    parents: parents[i].to_vec().into(),
+                    children: children[i].clone().into(),
+                    readers: children[i].len() as u32,
+                })
+                .collect(),
+            slots: (0..n)
+                .map(|_| [UnsafeCell::new(0), UnsafeCell::new(0)])
+                .collect(),
+            ready: AtomicU64::new(0),
+            chunks,
+        }
+    }
+
+    fn offer(&self, n: usize) {
+        let budget_left = n != 0 || next_chunk(&self.sync, 0) < self.chunks;
+        if budget_left && try_claim(&self.sync, &self.links, n) {
+            if n == 0 && next_chunk(&self.sync, 0) >= self.chunks {
+                // the claim raced with the last chunk: give it back untouched
+                self.sync[0].claimed.store(false, Ordering::Release);
+                return;
+            }
+            self.ready.fetch_or(1 << n, Ordering::AcqRel);
+        }
+    }
+
+    /// What node `n` must hold for chunk `k`: the source holds k + 1; every other node
+    /// the sum of its parents plus its own index.
+    fn expected(&self, n: usize, k: u64) -> u64 {
+        if n == 0 {
+            return k + 1;
+        }
+        self.links[n]
+            .parents
+            .iter()
+            .map(|&p| self.expected(p, k))
+            .sum::<u64>()
+            + n as u64
+    }
+
+    /// Process + Release of a claimed node (the source publishes k + 1).
+    fn run(&self, n: usize) {
+        let k = next_chunk(&self.sync, n);
+        let slot = (k % 2) as usize;
+        // SAFETY (checked by loom): parents' slots are published and pinned, ours is free.
+        let value = if n == 0 {
+            k + 1
+        } else {
+            self.links[n]
+                .parents
+                .iter()
+                .map(|&p| self.slots[p][slot].with(|v| unsafe { *v }))
+                .sum::<u64>()
+                + n as u64
+        };
+        self.slots[n][slot].with_mut(|v| unsafe { *v = value });
+        release(&self.sync, &self.links, n, k, |x| self.offer(x));
+    }
+
+    /// Runs ready nodes until there are none.
+    fn drain(&self) {
+        loop {
+            let bits = self.ready.load(Ordering::Acquire);
+            if bits == 0 {
+                return;
+            }
+            let b = bits.trailing_zeros() as usize;
+            if self.ready.fetch_and(!(1 << b), Ordering::AcqRel) & (1 << b) != 0 {
+                self.run(b);
+            }
+        }
+    }
+}
+
+/// Threads besides the main one (which also runs nodes).
+const WORKERS: usize = 1;
+/// Chunks through the graph: the 4th reuses the slot of the 2nd, which a reader may still
+/// have been consuming concurrently (the WAIT state).
+const CHUNKS: u64 = 4;
+
+fn check(parents: &'static [&'static [usize]]) {
+    let mut builder = loom::model::Builder::new();
+    builder.preemption_bound = Some(2);
+    builder.check(move || {
+        let m = Arc::new(Model::new(parents, CHUNKS));
+        m.offer(0);
+        let workers: Vec<_> = (0..WORKERS)
+            .map(|_| {
+                let m = Arc::clone(&m);
+                loom::thread::spawn(move || m.drain())
+            })
+            .collect();
+        m.drain();
+        for w in workers {
+            w.join().expect("worker");
+        }
+        m.drain();
+        for (n, s) in m.sync.iter().enumerate() {
+            assert_eq!(
+                s.produced.load(Ordering::Acquire),
+                m.chunks,
+                "node {n}: work lost"
+            );
+        }
+        let last = m.chunks - 1;
+        for n in 0..parents.len() {
+            let got = m.slots[n][(last % 2) as usize].with(|v| unsafe { *v });
+            assert_eq!(got, m.expected(n, last), "node {n}");
+            let prev = m.slots[n][((last - 1) % 2) as usize].with(|v| unsafe { *v });
+            assert_eq!(prev, m.expected(n, last - 1), "node {n}, chunk before");
+        }
+    });
+}
+
+/// input → a → b
+#[test]
+fn chain_of_three() {
+    check(&[&[], &[0], &[1]]);
+}
+
+/// input → a → {b, c}
+#[test]
+fn fan_out_to_two_children() {
+    check(&[&[], &[0], &[1], &[1]]);
+}
