@@ -19,6 +19,7 @@
 //! # Ok::<(), afe::Error>(())
 //! ```
 
+pub mod catalog;
 pub mod extract;
 pub mod npy;
 mod recorder;

@@ -22,6 +22,18 @@ const FIXED_PARAMETERS: &[&str] = &[
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct RequestHandle(usize);
 
+impl RequestHandle {
+    /// The handle's number (for bindings that pass handles as integers).
+    pub fn index(self) -> usize {
+        self.0
+    }
+
+    /// The handle numbered `index`; a manager rejects numbers it did not hand out.
+    pub fn from_index(index: usize) -> Self {
+        RequestHandle(index)
+    }
+}
+
 /// One output signal of the graph, as seen after the last processed chunk.
 #[derive(Debug, Clone, Copy)]
 pub struct Signal<'a> {
@@ -227,6 +239,15 @@ impl Manager {
     /// Number of input channels (1 or 2).
     pub fn ears(&self) -> usize {
         self.ears
+    }
+
+    /// Handles of the requests in place, in the order they were added.
+    pub fn handles(&self) -> impl Iterator<Item = RequestHandle> + '_ {
+        self.requests
+            .iter()
+            .enumerate()
+            .filter(|(_, r)| r.is_some())
+            .map(|(i, _)| RequestHandle(i))
     }
 
     /// Number of processor instances in the graph (the input node excluded).
@@ -621,6 +642,18 @@ impl Manager {
         let mut params = req.params.clone();
         params.extend(single);
         let chain = self.ancestors(&req.outputs);
+        let used = chain.iter().any(|&i| {
+            self.graph.nodes[i]
+                .def
+                .is_some_and(|d| d.params.iter().any(|p| p.name == name))
+        });
+        if !used {
+            return Err(Error::InvalidParameter {
+                name: name.into(),
+                value: params[name].to_string(),
+                reason: format!("no processor of request {} uses this parameter", handle.0),
+            });
+        }
         self.edit(|m| m.modify_now(handle, &chain, name, params))
     }
 

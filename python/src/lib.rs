@@ -1,2 +1,313 @@
-//! Python bindings of `afe`. Not implemented yet (its own issue); the crate exists so that
-//! the workspace has its final shape.
+//! `afe._afe`: the compiled core of the Python package `afe`. The pure-Python layer
+//! (`python/afe/__init__.py`) normalises arguments (paths, array-likes, parameter dicts)
+//! and documents the API; this module does the work, with the GIL released while
+//! processing.
+
+use std::path::PathBuf;
+use std::sync::Mutex;
+
+use afe::{Manager, ParamMap, Recorder, RequestHandle};
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyFileNotFoundError, PyKeyError, PyOSError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+/// Maps a core error to the Python exception a user expects.
+fn to_py(e: afe::Error) -> PyErr {
+    match e {
+        afe::Error::UnknownHandle(_) => PyKeyError::new_err(e.to_string()),
+        _ => PyValueError::new_err(e.to_string()),
+    }
+}
+
+fn parse_params(json: &str) -> PyResult<ParamMap> {
+    match serde_json::from_str::<serde_json::Value>(json) {
+        Ok(serde_json::Value::Object(o)) => Ok(o.into_iter().collect()),
+        Ok(serde_json::Value::Null) => Ok(ParamMap::new()),
+        _ => Err(PyValueError::new_err(
+            "params must be a dict of AFE parameter names to values",
+        )),
+    }
+}
+
+/// Columns of a `[samples, channels]` float64 array, as owned per-ear signals.
+fn columns(x: &PyReadonlyArray2<'_, f64>) -> Vec<Vec<f64>> {
+    let shape = x.shape();
+    let (n, ch) = (shape[0], shape[1]);
+    let view = x.as_array();
+    (0..ch)
+        .map(|c| (0..n).map(|t| view[[t, c]]).collect())
+        .collect()
+}
+
+/// A float64 numpy array of `shape` from row-major `data`.
+fn array<'py>(py: Python<'py>, shape: &[usize], data: &[f64]) -> PyResult<Bound<'py, PyAny>> {
+    let flat = PyArray1::from_slice(py, data);
+    Ok(flat.reshape(shape.to_vec())?.into_any())
+}
+
+fn signals_dict<'py, 'a>(
+    py: Python<'py>,
+    items: impl Iterator<Item = (String, Vec<usize>, &'a [f64])>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    for (key, shape, data) in items {
+        d.set_item(key, array(py, &shape, data)?)?;
+    }
+    Ok(d)
+}
+
+/// What a Python `Manager` holds.
+struct State {
+    manager: Manager,
+    /// Everything computed since creation, the last reset or `process_signal`.
+    history: Recorder,
+    keep_history: bool,
+}
+
+impl State {
+    /// The new output of the requested signals after the last chunk, as owned arrays.
+    fn new_output(&self) -> Vec<(String, Vec<usize>, Vec<f64>)> {
+        self.manager
+            .signals(false)
+            .iter()
+            .map(|s| {
+                let mut shape = vec![s.new.frames()];
+                shape.extend(s.info.frame_shape());
+                (s.key(), shape, s.new.as_slice().to_vec())
+            })
+            .collect()
+    }
+}
+
+/// Streaming front-end: requests placed by name, chunks in, numpy arrays out. The state
+/// sits behind a mutex (Python objects may be shared between threads); it is locked
+/// only while a call runs, with the GIL released.
+#[pyclass(name = "Manager", module = "afe._afe")]
+struct PyManager {
+    state: Mutex<State>,
+}
+
+impl PyManager {
+    /// Runs `f` on the state with the GIL released.
+    fn with<R: Send>(
+        &self,
+        py: Python<'_>,
+        f: impl FnOnce(&mut State) -> afe::Result<R> + Send,
+    ) -> PyResult<R> {
+        py.allow_threads(|| {
+            let mut st = self.state.lock().map_err(|_| {
+                PyValueError::new_err("this Manager was left broken by an earlier error")
+            })?;
+            f(&mut st).map_err(to_py)
+        })
+    }
+}
+
+#[pymethods]
+impl PyManager {
+    #[new]
+    #[pyo3(signature = (fs, channels, threads, keep_history))]
+    fn new(fs: f64, channels: usize, threads: usize, keep_history: bool) -> PyResult<Self> {
+        Ok(PyManager {
+            state: Mutex::new(State {
+                manager: Manager::with_threads(fs, channels, threads).map_err(to_py)?,
+                history: Recorder::new(false),
+                keep_history,
+            }),
+        })
+    }
+
+    #[getter]
+    fn fs(&self, py: Python<'_>) -> PyResult<f64> {
+        self.with(py, |st| Ok(st.manager.fs()))
+    }
+
+    #[getter]
+    fn channels(&self, py: Python<'_>) -> PyResult<usize> {
+        self.with(py, |st| Ok(st.manager.ears()))
+    }
+
+    #[getter]
+    fn threads(&self, py: Python<'_>) -> PyResult<usize> {
+        self.with(py, |st| Ok(st.manager.threads()))
+    }
+
+    fn add_request(&self, py: Python<'_>, name: &str, params_json: &str) -> PyResult<usize> {
+        let params = parse_params(params_json)?;
+        self.with(py, |st| {
+            st.manager.add_request(name, &params).map(|h| h.index())
+        })
+    }
+
+    fn remove_request(&self, py: Python<'_>, handle: usize) -> PyResult<()> {
+        self.with(py, |st| {
+            st.manager.remove_request(RequestHandle::from_index(handle))
+        })
+    }
+
+    fn modify_parameter(
+        &self,
+        py: Python<'_>,
+        handle: usize,
+        name: &str,
+        value_json: &str,
+    ) -> PyResult<()> {
+        let value: serde_json::Value = serde_json::from_str(value_json)
+            .map_err(|e| PyValueError::new_err(format!("value of {name}: {e}")))?;
+        self.with(py, |st| {
+            st.manager
+                .modify_parameter(RequestHandle::from_index(handle), name, value)
+        })
+    }
+
+    fn handles(&self, py: Python<'_>) -> PyResult<Vec<usize>> {
+        self.with(py, |st| {
+            Ok(st.manager.handles().map(|h| h.index()).collect())
+        })
+    }
+
+    fn process_chunk<'py>(
+        &self,
+        py: Python<'py>,
+        x: PyReadonlyArray2<'py, f64>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let ears = columns(&x);
+        let out = self.with(py, |st| {
+            let refs: Vec<&[f64]> = ears.iter().map(Vec::as_slice).collect();
+            st.manager.process_chunk(&refs)?;
+            if st.keep_history {
+                st.history.record(&st.manager);
+            }
+            Ok(st.new_output())
+        })?;
+        signals_dict(
+            py,
+            out.iter()
+                .map(|(k, s, d)| (k.clone(), s.clone(), d.as_slice())),
+        )
+    }
+
+    fn process_signal<'py>(
+        &self,
+        py: Python<'py>,
+        x: PyReadonlyArray2<'py, f64>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let ears = columns(&x);
+        let out = self.with(py, |st| {
+            let refs: Vec<&[f64]> = ears.iter().map(Vec::as_slice).collect();
+            st.manager.process_signal(&refs)?;
+            st.history = Recorder::new(false);
+            if st.keep_history {
+                st.history.record(&st.manager);
+            }
+            Ok(st.new_output())
+        })?;
+        signals_dict(
+            py,
+            out.iter()
+                .map(|(k, s, d)| (k.clone(), s.clone(), d.as_slice())),
+        )
+    }
+
+    fn reset(&self, py: Python<'_>) -> PyResult<()> {
+        self.with(py, |st| {
+            st.manager.reset()?;
+            st.history = Recorder::new(false);
+            Ok(())
+        })
+    }
+
+    fn outputs<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let all = self.with(py, |st| {
+            Ok(st
+                .history
+                .signals()
+                .iter()
+                .map(|s| (s.key.clone(), s.shape(), s.data.as_slice().to_vec()))
+                .collect::<Vec<_>>())
+        })?;
+        signals_dict(
+            py,
+            all.iter()
+                .map(|(k, s, d)| (k.clone(), s.clone(), d.as_slice())),
+        )
+    }
+
+    fn info_json(&self, py: Python<'_>) -> PyResult<String> {
+        self.with(py, |st| {
+            let map: serde_json::Map<String, serde_json::Value> = st
+                .manager
+                .signals(false)
+                .iter()
+                .map(|s| {
+                    let kind = match s.info.kind {
+                        afe::SignalKind::TimeDomain => "time-domain",
+                        afe::SignalKind::TimeFrequency => "time-frequency",
+                        afe::SignalKind::Correlation => "correlation",
+                    };
+                    let value = serde_json::json!({
+                        "kind": kind,
+                        "fs_hz": s.info.fs_hz,
+                        "audio_fs_hz": s.info.audio_fs_hz,
+                        "cf_hz": s.info.cf_hz,
+                        "lags_s": s.info.lags_s,
+                        "frame_shape": s.info.frame_shape(),
+                    });
+                    (s.key(), value)
+                })
+                .collect();
+            Ok(serde_json::Value::Object(map).to_string())
+        })
+    }
+
+    fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
+        self.with(py, |st| {
+            Ok(format!(
+                "afe.Manager(fs={}, channels={}, threads={})",
+                st.manager.fs(),
+                st.manager.ears(),
+                st.manager.threads()
+            ))
+        })
+    }
+}
+
+/// The catalogue of requests and parameters, as JSON text (`afe list --json`).
+#[pyfunction]
+fn catalog_json() -> String {
+    afe::catalog::listing().to_string()
+}
+
+/// Reads a WAV file: `(samples as a [samples, channels] float64 array, fs in Hz)`.
+#[pyfunction]
+fn read_wav<'py>(py: Python<'py>, path: PathBuf) -> PyResult<(Bound<'py, PyAny>, f64)> {
+    let audio = py
+        .allow_threads(|| afe::wav::read_wav(&path))
+        .map_err(|e| match &e {
+            afe::wav::WavError::Open { source, .. }
+                if source.kind() == std::io::ErrorKind::NotFound =>
+            {
+                PyFileNotFoundError::new_err(e.to_string())
+            }
+            afe::wav::WavError::Open { .. } => PyOSError::new_err(e.to_string()),
+            afe::wav::WavError::Format { .. } => PyValueError::new_err(e.to_string()),
+        })?;
+    let ch = audio.channels.len();
+    let n = audio.channels.first().map_or(0, Vec::len);
+    let mut interleaved = Vec::with_capacity(n * ch);
+    for t in 0..n {
+        interleaved.extend(audio.channels.iter().map(|c| c[t]));
+    }
+    Ok((array(py, &[n, ch], &interleaved)?, audio.fs))
+}
+
+/// The compiled core of the `afe` package.
+#[pymodule]
+fn _afe(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyManager>()?;
+    m.add_function(wrap_pyfunction!(catalog_json, m)?)?;
+    m.add_function(wrap_pyfunction!(read_wav, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

@@ -1,0 +1,249 @@
+"""afe: a real-time binaural Auditory Front-End, the Two!Ears AFE from Python.
+
+Place requests by their AFE names (``ratemap``, ``ild``, ``itd``, ``ic``,
+``crosscorrelation``, ``innerhaircell``, ``filterbank``, ``time``, ``butterworth``),
+set parameters by their AFE names (``fb_nChannels``, ``ihc_method``, ``rm_wSizeSec``, ...),
+and get numpy arrays named ``<request>_<left|right|mono>`` in the layouts of the MATLAB
+AFE: ``[time]``, ``[frame, channel]`` or ``[frame, channel, lag]``, float64.
+
+>>> import afe, numpy as np
+>>> fs = 16000
+>>> t = np.arange(fs) / fs
+>>> left = np.sin(2 * np.pi * 500 * t)
+>>> out = afe.process(np.column_stack([left, 0.5 * left]), fs, ["ild"])
+>>> out["ild_mono"].shape
+(99, 31)
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from . import _afe
+
+__all__ = ["Manager", "parameters", "process", "read_wav", "requests", "__version__"]
+__version__ = _afe.__version__
+
+Signal = Union[np.ndarray, Sequence[float], Sequence[Sequence[float]], str, os.PathLike]
+
+
+def _catalog() -> List[Dict[str, Any]]:
+    return json.loads(_afe.catalog_json())
+
+
+def requests() -> List[str]:
+    """The request names afe knows, in dependency order."""
+    return [r["name"] for r in _catalog()]
+
+
+def parameters(request: Optional[str] = None) -> List[Dict[str, Any]]:
+    """The AFE parameters with their defaults, units and meanings (as ``afe list``).
+
+    Without ``request``: every parameter. With a request name: the parameters of every
+    processor that request is computed through (e.g. ``ratemap`` → ratemap, IHC,
+    filterbank and pre-processing parameters). Each entry is a dict with ``name``,
+    ``processor``, ``type``, ``accepts``, ``default``, ``unit`` and ``description``.
+
+    Raises ``ValueError`` for an unknown request name.
+    """
+    catalog = {r["name"]: r for r in _catalog()}
+    if request is None:
+        names = list(catalog)
+    elif request in catalog:
+        names = catalog[request]["chain"]
+    else:
+        raise ValueError(
+            f"unknown request '{request}' (known requests: {', '.join(catalog)})"
+        )
+    return [dict(p, processor=n) for n in names for p in catalog[n]["parameters"]]
+
+
+def read_wav(path: Union[str, os.PathLike]) -> Tuple[np.ndarray, float]:
+    """Reads a WAV file (PCM 8/16/24/32-bit or float; full scale = 1.0).
+
+    Returns ``(samples, fs)``: a float64 array, 1-D for a mono file and ``[samples, 2]``
+    for a binaural one, and the sampling rate in Hz. Raises ``FileNotFoundError`` for a
+    missing file and ``ValueError`` for a file that is not a readable WAV.
+    """
+    x, fs = _afe.read_wav(os.fspath(path))
+    return (x[:, 0].copy() if x.shape[1] == 1 else x), fs
+
+
+def _as_channels(signal: Signal, channels: Optional[int] = None) -> np.ndarray:
+    """A C-contiguous float64 ``[samples, channels]`` array, with clear errors."""
+    x = np.asarray(signal, dtype=np.float64)
+    if x.ndim == 1:
+        x = x[:, None]
+    if x.ndim != 2 or x.shape[1] not in (1, 2):
+        raise ValueError(
+            f"signal of shape {x.shape}: expected [samples] (mono) or [samples, 2] (left, right)"
+        )
+    if channels is not None and x.shape[1] != channels:
+        raise ValueError(
+            f"signal has {x.shape[1]} channel(s), but this manager was made for {channels}"
+        )
+    return np.ascontiguousarray(x)
+
+
+def _json(value: Any) -> str:
+    def default(v: Any) -> Any:
+        if isinstance(v, np.ndarray):
+            return v.tolist()
+        if isinstance(v, np.generic):
+            return v.item()
+        raise ValueError(f"parameter value {v!r} of type {type(v).__name__} is not supported")
+
+    return json.dumps(value, default=default)
+
+
+def _params_json(params: Optional[Mapping[str, Any]]) -> str:
+    if params is None:
+        return "{}"
+    if not isinstance(params, Mapping):
+        raise ValueError("params must be a dict of AFE parameter names to values")
+    return _json(dict(params))
+
+
+class Manager:
+    """A streaming front-end, as the AFE's ``manager``: place requests, feed chunks.
+
+    ``fs``: input sampling rate in Hz. ``channels``: 1 (mono) or 2 (left, right).
+    ``threads``: worker threads of the concurrent scheduler (``None`` or 0: sequential;
+    the numbers are the same either way). ``keep_history``: keep every output for
+    :meth:`outputs` (turn off for endless streams).
+
+    Processing releases the GIL, so managers in several Python threads run in parallel.
+    """
+
+    def __init__(
+        self,
+        fs: float,
+        channels: int = 2,
+        threads: Optional[int] = None,
+        keep_history: bool = True,
+    ) -> None:
+        self._m = _afe.Manager(float(fs), int(channels), int(threads or 0), bool(keep_history))
+
+    @property
+    def fs(self) -> float:
+        """Input sampling rate in Hz."""
+        return self._m.fs
+
+    @property
+    def channels(self) -> int:
+        """Number of input channels (1 or 2)."""
+        return self._m.channels
+
+    @property
+    def threads(self) -> int:
+        """Worker threads of the concurrent scheduler (0: sequential executor)."""
+        return self._m.threads
+
+    def add_request(self, name: str, params: Optional[Mapping[str, Any]] = None) -> int:
+        """Places request ``name`` with AFE parameters ``params``; returns its handle.
+
+        Processors whose whole chain has equal parameters are shared with earlier
+        requests. Raises ``ValueError`` for an unknown request or parameter, an ill-typed
+        value (the message lists what is accepted), or a binaural request on mono input.
+        """
+        return self._m.add_request(str(name), _params_json(params))
+
+    def remove_request(self, handle: int) -> None:
+        """Removes a request; its processors go when no other request uses them.
+        Raises ``KeyError`` for an unknown handle."""
+        self._m.remove_request(int(handle))
+
+    def modify_parameter(self, name: str, value: Any, handle: Optional[int] = None) -> None:
+        """Changes AFE parameter ``name`` between chunks, as the AFE's ``modifyParameter``:
+        the processors that use it are rebuilt and reset, and so is everything computed
+        from them. ``handle`` limits the change to one request's processors; by default
+        every request using the parameter is changed. Raises ``ValueError`` if no request
+        uses it or the value is invalid."""
+        targets = [int(handle)] if handle is not None else self._m.handles()
+        errors = []
+        changed = False
+        for h in targets:
+            try:
+                self._m.modify_parameter(h, str(name), _json(value))
+                changed = True
+            except ValueError as e:
+                errors.append(e)
+        if not changed:
+            if errors:
+                raise errors[0]
+            raise ValueError(f"no request in place uses parameter '{name}'")
+
+    def process_chunk(self, x: Signal) -> Dict[str, np.ndarray]:
+        """Processes the next chunk (``[samples]`` or ``[samples, 2]``), keeping every
+        processor's state; returns the new output of every request since the last call."""
+        return self._m.process_chunk(_as_channels(x, self.channels))
+
+    def process_signal(self, x: Signal) -> Dict[str, np.ndarray]:
+        """Processes a whole signal from a fresh state (as the AFE's ``processSignal``)
+        and returns the output of every request."""
+        return self._m.process_signal(_as_channels(x, self.channels))
+
+    def reset(self) -> None:
+        """Returns every processor to its initial state and clears the history."""
+        self._m.reset()
+
+    def outputs(self) -> Dict[str, np.ndarray]:
+        """Everything computed since creation, the last reset or ``process_signal``."""
+        return self._m.outputs()
+
+    def info(self) -> Dict[str, Dict[str, Any]]:
+        """For each output name: ``kind``, ``fs_hz`` (output rate; frame rate of framed
+        signals), ``audio_fs_hz``, ``cf_hz`` (channel centre frequencies), ``lags_s``
+        (correlation lags, s) and ``frame_shape`` (shape of one time step)."""
+        return json.loads(self._m.info_json())
+
+    def __repr__(self) -> str:
+        return repr(self._m)
+
+
+def process(
+    signal: Signal,
+    fs: Optional[float],
+    requests: Union[str, Sequence[str]],
+    params: Optional[Mapping[str, Any]] = None,
+    chunk: Optional[int] = None,
+    threads: Optional[int] = None,
+) -> Dict[str, np.ndarray]:
+    """Computes ``requests`` on a whole signal and returns ``{name: array}``.
+
+    ``signal``: ``[samples]`` (mono), ``[samples, 2]`` (left, right), or the path of a WAV
+    file (then ``fs`` may be ``None``; if given it must match the file's). ``params``:
+    AFE parameter names to values, shared by every request. ``chunk``: feed the signal in
+    chunks of this many samples, as a stream would (same result wherever the AFE is
+    chunk-invariant). ``threads``: worker threads (``None``/0: sequential).
+
+    The arrays are those of ``afe extract``: ``ratemap_left``, ``ild_mono``, ... float64.
+    """
+    if isinstance(signal, (str, os.PathLike)):
+        x, file_fs = read_wav(signal)
+        if fs is not None and float(fs) != file_fs:
+            raise ValueError(f"fs = {fs} Hz, but '{os.fspath(signal)}' is sampled at {file_fs} Hz")
+        fs = file_fs
+    else:
+        x = signal
+        if fs is None:
+            raise ValueError("fs is required when the signal is an array")
+    x = _as_channels(x)
+    if x.shape[0] == 0:
+        raise ValueError("the signal is empty")
+    if isinstance(requests, str):
+        requests = [r for r in requests.split(",") if r.strip()]
+    m = Manager(fs, x.shape[1], threads)
+    for r in requests:
+        m.add_request(r.strip(), params)
+    if chunk is None:
+        return m.process_signal(x)
+    if int(chunk) < 1:
+        raise ValueError(f"chunk = {chunk}: expected a positive number of samples")
+    for start in range(0, x.shape[0], int(chunk)):
+        m.process_chunk(x[start : start + int(chunk)])
+    return m.outputs()

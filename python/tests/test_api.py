@@ -1,0 +1,158 @@
+"""The Python API: catalogue, WAV reading, streaming, run-time edits, errors."""
+import os
+import threading
+import time
+import wave
+
+import numpy as np
+import pytest
+
+import afe
+
+
+def signal(n=8000, fs=16000):
+    rng = np.random.default_rng(1)
+    t = np.arange(n) / fs
+    left = 0.3 * np.sin(2 * np.pi * 440 * t) + 0.05 * rng.standard_normal(n)
+    right = np.concatenate([np.zeros(6), left[:-6]]) * 0.5
+    return np.column_stack([left, right])
+
+
+def test_catalogue_matches_the_afe_names():
+    assert afe.requests()[:5] == ["time", "butterworth", "filterbank", "innerhaircell", "ratemap"]
+    names = {p["name"]: p for p in afe.parameters("ratemap")}
+    assert names["rm_wSizeSec"]["default"] == 0.02 and names["rm_wSizeSec"]["unit"] == "s"
+    assert names["ihc_method"]["default"] == "dau"
+    assert names["fb_nChannels"]["processor"] == "filterbank"
+    assert "ild_wSizeSec" not in names
+    assert len(afe.parameters()) > len(afe.parameters("ratemap"))
+    with pytest.raises(ValueError, match="unknown request 'nope'"):
+        afe.parameters("nope")
+
+
+def test_read_wav_mono_and_stereo(tmp_path, example_wav):
+    x, fs = afe.read_wav(example_wav)
+    assert x.shape == (44100, 2) and fs == 44100.0 and x.dtype == np.float64
+    mono = tmp_path / "mono.wav"
+    with wave.open(str(mono), "wb") as w:
+        w.setnchannels(1)
+        w.setsampwidth(2)
+        w.setframerate(8000)
+        w.writeframes(np.array([0, 16384, -32768], dtype="<i2").tobytes())
+    y, fs = afe.read_wav(mono)
+    assert fs == 8000.0 and y.tolist() == [0.0, 0.5, -1.0]
+
+
+def test_chunked_stream_equals_whole_signal():
+    x = signal()
+    whole = afe.process(x, 16000, ["ratemap", "ild", "itd", "ic"])
+    for threads in (None, 2):
+        m = afe.Manager(16000, 2, threads=threads)
+        for r in ["ratemap", "ild", "itd", "ic"]:
+            m.add_request(r)
+        parts = {}
+        start = 0
+        for n in [1, 100, 17, 441, 3000, 999, 160] * 3:
+            out = m.process_chunk(x[start : start + n])
+            for k, v in out.items():
+                parts.setdefault(k, []).append(v)
+            start += n
+        out = m.process_chunk(x[start:])
+        for k, v in out.items():
+            parts[k].append(v)
+        for k in whole:
+            np.testing.assert_array_equal(np.concatenate(parts[k]), whole[k], err_msg=k)
+            np.testing.assert_array_equal(m.outputs()[k], whole[k], err_msg=k)
+    assert afe.process(x, 16000, "ild", chunk=333)["ild_mono"].tolist() == whole["ild_mono"].tolist()
+
+
+def test_metadata_and_layouts():
+    m = afe.Manager(16000, 2)
+    m.add_request("crosscorrelation", {"fb_nChannels": 8})
+    out = m.process_signal(signal(3200))
+    assert out["crosscorrelation_mono"].shape == (19, 8, 37)
+    info = m.info()["crosscorrelation_mono"]
+    assert info["fs_hz"] == 100.0 and len(info["cf_hz"]) == 8 and len(info["lags_s"]) == 37
+    assert info["lags_s"][0] == pytest.approx(-18 / 16000)
+
+
+def test_run_time_edits():
+    x = signal()
+    m = afe.Manager(16000, 2, threads=2)
+    rm = m.add_request("ratemap")
+    ild = m.add_request("ild")
+    m.process_chunk(x[:3200])
+    m.modify_parameter("rm_scaling", "magnitude")
+    m.remove_request(ild)
+    out = m.process_chunk(x[3200:])
+    assert set(out) == {"ratemap_left", "ratemap_right"}
+    with pytest.raises(KeyError):
+        m.remove_request(ild)
+    with pytest.raises(ValueError, match="cannot be changed at run time"):
+        m.modify_parameter("fb_lowFreqHz", 100, handle=rm)
+    with pytest.raises(ValueError, match="uses this parameter"):
+        m.modify_parameter("ild_wSizeSec", 0.04)
+
+
+def test_errors_are_python_exceptions_with_clear_messages(tmp_path):
+    x = signal(1600)
+    cases = [
+        (lambda: afe.process(x, 16000, ["ratemapp"]), ValueError, "unknown request 'ratemapp'"),
+        (lambda: afe.process(x, 16000, ["ratemap"], {"rm_wSizeSecs": 1}), ValueError, "did you mean 'rm_wSizeSec'"),
+        (lambda: afe.process(x, 16000, ["ratemap"], {"ihc_method": "daux"}), ValueError, "'dau'"),
+        (lambda: afe.process(x, 16000, ["ratemap"], {"fb_nChannels": "many"}), ValueError, "fb_nChannels"),
+        (lambda: afe.process(np.zeros((10, 3)), 16000, ["ratemap"]), ValueError, r"\[samples, 2\]"),
+        (lambda: afe.process(np.zeros((0, 2)), 16000, ["ratemap"]), ValueError, "empty"),
+        (lambda: afe.process(np.full((10, 2), np.nan), 16000, ["ratemap"]), ValueError, "NaN"),
+        (lambda: afe.process(x[:, 0], 16000, ["itd"]), ValueError, "binaural"),
+        (lambda: afe.process(x, -5, ["ratemap"]), ValueError, "sampling rate"),
+        (lambda: afe.process(x, None, ["ratemap"]), ValueError, "fs is required"),
+        (lambda: afe.process(x, 16000, ["ratemap"], chunk=0), ValueError, "chunk"),
+        (lambda: afe.process("/nonexistent.wav", None, ["ratemap"]), FileNotFoundError, "nonexistent"),
+        (lambda: afe.Manager(16000, 2).process_chunk(x[:, 0]), ValueError, "made for 2"),
+        (lambda: afe.Manager(16000, 3), ValueError, "3 input channels"),
+        (lambda: afe.Manager(16000, 2, threads=100), ValueError, "worker threads"),
+    ]
+    bad = tmp_path / "bad.wav"
+    bad.write_bytes(b"RIFF not really")
+    cases.append((lambda: afe.read_wav(bad), ValueError, "as WAV"))
+    for call, exc, msg in cases:
+        with pytest.raises(exc, match=msg):
+            call()
+
+
+def test_two_managers_run_in_parallel_threads():
+    x = np.tile(signal(16000), (3, 1))
+    reqs = ["ratemap", "ild", "itd", "ic"]
+
+    def work(results, i):
+        results[i] = afe.process(x, 16000, reqs)
+
+    alone = {}
+    t0 = time.perf_counter()
+    work(alone, 0)
+    work(alone, 1)
+    sequential = time.perf_counter() - t0
+    both = {}
+    threads = [threading.Thread(target=work, args=(both, i)) for i in range(2)]
+    t0 = time.perf_counter()
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    parallel = time.perf_counter() - t0
+    for i in range(2):
+        for k in alone[0]:
+            np.testing.assert_array_equal(both[i][k], alone[0][k])
+    if (os.cpu_count() or 1) >= 2:
+        assert parallel < 0.8 * sequential, f"parallel {parallel:.3f}s vs sequential {sequential:.3f}s"
+
+
+def test_example_script_writes_its_figure(root, tmp_path):
+    import subprocess
+    import sys
+
+    png = tmp_path / "cues.png"
+    script = os.path.join(root, "examples", "plot_cues.py")
+    subprocess.run([sys.executable, script, os.path.join(root, "data", "example_binaural.wav"), str(png)], check=True)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10000
