@@ -5,6 +5,11 @@ use afe_graph::Manager;
 
 use crate::recorder::Recorder;
 
+/// Block length in samples in which a whole signal goes through a chunk-invariant graph:
+/// bit-identical to one call, and the intermediate signals stay in cache instead of
+/// being held, full rate, for the whole file.
+pub const WHOLE_SIGNAL_BLOCK: usize = 4096;
+
 /// What to compute and how to feed the input.
 #[derive(Debug, Clone, Default)]
 pub struct Job {
@@ -12,7 +17,8 @@ pub struct Job {
     pub requests: Vec<String>,
     /// AFE parameter name → value, shared by every request.
     pub params: ParamMap,
-    /// Feed the input in chunks of this many samples (`None`: in one call).
+    /// Feed the input in chunks of this many samples (`None`: the whole signal, as the
+    /// AFE's `processSignal`; run in internal blocks where that is bit-identical).
     pub chunk: Option<usize>,
     /// Record every intermediate signal too.
     pub all: bool,
@@ -46,7 +52,16 @@ pub fn run_with(mgr: &mut Manager, job: &Job, channels: &[&[f64]]) -> Result<Rec
     }
     let mut rec = Recorder::new(job.all);
     let len = channels.first().map_or(0, |c| c.len());
-    match job.chunk {
+    let block = match job.chunk {
+        Some(n) => Some(n.max(1)),
+        // a whole signal: one call where the AFE depends on chunk boundaries
+        None if !mgr.is_chunk_invariant() => None,
+        None => {
+            mgr.reset()?;
+            Some(WHOLE_SIGNAL_BLOCK)
+        }
+    };
+    match block {
         None => {
             mgr.process_signal(channels)?;
             rec.record(mgr);
@@ -55,7 +70,6 @@ pub fn run_with(mgr: &mut Manager, job: &Job, channels: &[&[f64]]) -> Result<Rec
             if len == 0 {
                 return Err(afe_core::Error::InvalidInput("the signal is empty".into()));
             }
-            let n = n.max(1);
             let mut start = 0;
             while start < len {
                 let end = (start + n).min(len);

@@ -250,6 +250,15 @@ impl Manager {
             .map(|(i, _)| RequestHandle(i))
     }
 
+    /// Whether every processor gives the same output for any chunking (false with the
+    /// Hilbert-based IHC methods or the AGC, whose output depends on chunk boundaries).
+    pub fn is_chunk_invariant(&self) -> bool {
+        self.graph
+            .nodes
+            .iter()
+            .all(|n| n.def.is_none_or(|d| (d.chunk_invariant)(&n.build_params)))
+    }
+
     /// Number of processor instances in the graph (the input node excluded).
     pub fn processor_count(&self) -> usize {
         self.graph.nodes.len() - 1

@@ -53,6 +53,9 @@ pub struct RequestDef {
     pub canonical: fn(&ParamMap) -> Result<ParamMap>,
     /// Builds the processor for parent outputs `inputs` (one per ear for preProc).
     pub build: fn(&ParamMap, &[SignalInfo]) -> Result<Built>,
+    /// Whether, with these request parameters, any chunking gives the output of one call
+    /// (false where the AFE itself depends on chunk boundaries).
+    pub chunk_invariant: fn(&ParamMap) -> bool,
 }
 
 impl std::fmt::Debug for RequestDef {
@@ -135,6 +138,21 @@ fn no_params(_: &ParamMap) -> Result<ParamMap> {
     Ok(ParamMap::new())
 }
 
+fn always(_: &ParamMap) -> bool {
+    true
+}
+
+/// The AGC seeds its running mean from the first chunk.
+fn time_chunk_invariant(map: &ParamMap) -> bool {
+    PreProcParams::from_map(map).is_ok_and(|p| !p.normalize_rms)
+}
+
+/// The Hilbert-based IHC methods transform each chunk on its own.
+fn ihc_chunk_invariant(map: &ParamMap) -> bool {
+    IhcParams::from_map(map)
+        .is_ok_and(|p| !matches!(p.method.as_str(), "hilbert" | "joergensen" | "bernstein"))
+}
+
 static REQUESTS: &[RequestDef] = &[
     RequestDef {
         name: "time",
@@ -146,6 +164,7 @@ static REQUESTS: &[RequestDef] = &[
         defaults: defaults::<PreProcParams>,
         canonical: canonical::<PreProcParams>,
         build: build_time,
+        chunk_invariant: time_chunk_invariant,
     },
     RequestDef {
         name: "butterworth",
@@ -157,6 +176,7 @@ static REQUESTS: &[RequestDef] = &[
         defaults: defaults::<ButterworthParams>,
         canonical: canonical::<ButterworthParams>,
         build: build_butterworth,
+        chunk_invariant: always,
     },
     RequestDef {
         name: "filterbank",
@@ -168,6 +188,7 @@ static REQUESTS: &[RequestDef] = &[
         defaults: defaults::<GammatoneParams>,
         canonical: canonical_filterbank,
         build: build_filterbank,
+        chunk_invariant: always,
     },
     RequestDef {
         name: "innerhaircell",
@@ -179,6 +200,7 @@ static REQUESTS: &[RequestDef] = &[
         defaults: defaults::<IhcParams>,
         canonical: canonical::<IhcParams>,
         build: build_ihc,
+        chunk_invariant: ihc_chunk_invariant,
     },
     RequestDef {
         name: "ratemap",
@@ -190,6 +212,7 @@ static REQUESTS: &[RequestDef] = &[
         defaults: defaults::<RatemapParams>,
         canonical: canonical::<RatemapParams>,
         build: build_ratemap,
+        chunk_invariant: always,
     },
     RequestDef {
         name: "ild",
@@ -201,6 +224,7 @@ static REQUESTS: &[RequestDef] = &[
         defaults: defaults::<IldParams>,
         canonical: canonical::<IldParams>,
         build: build_ild,
+        chunk_invariant: always,
     },
     RequestDef {
         name: "crosscorrelation",
@@ -212,6 +236,7 @@ static REQUESTS: &[RequestDef] = &[
         defaults: defaults::<CrosscorrelationParams>,
         canonical: canonical::<CrosscorrelationParams>,
         build: build_crosscorrelation,
+        chunk_invariant: always,
     },
     RequestDef {
         name: "itd",
@@ -223,6 +248,7 @@ static REQUESTS: &[RequestDef] = &[
         defaults: ParamMap::new,
         canonical: no_params,
         build: build_itd,
+        chunk_invariant: always,
     },
     RequestDef {
         name: "ic",
@@ -234,6 +260,7 @@ static REQUESTS: &[RequestDef] = &[
         defaults: ParamMap::new,
         canonical: no_params,
         build: build_ic,
+        chunk_invariant: always,
     },
 ];
 

@@ -237,13 +237,13 @@ def process(
         raise ValueError("the signal is empty")
     if isinstance(requests, str):
         requests = [r for r in requests.split(",") if r.strip()]
-    m = Manager(fs, x.shape[1], threads)
-    for r in requests:
-        m.add_request(r.strip(), params)
-    if chunk is None:
-        return m.process_signal(x)
-    if int(chunk) < 1:
+    if chunk is not None and int(chunk) < 1:
         raise ValueError(f"chunk = {chunk}: expected a positive number of samples")
-    for start in range(0, x.shape[0], int(chunk)):
-        m.process_chunk(x[start : start + int(chunk)])
-    return m.outputs()
+    return _afe.process(
+        x,
+        float(fs),
+        [str(r).strip() for r in requests],
+        _params_json(params),
+        None if chunk is None else int(chunk),
+        int(threads or 0),
+    )

@@ -273,6 +273,40 @@ impl PyManager {
     }
 }
 
+/// Computes `requests` on a whole signal (`afe extract`'s code path): `{name: array}`.
+#[pyfunction]
+#[pyo3(signature = (x, fs, requests, params_json, chunk, threads))]
+fn process<'py>(
+    py: Python<'py>,
+    x: PyReadonlyArray2<'py, f64>,
+    fs: f64,
+    requests: Vec<String>,
+    params_json: &str,
+    chunk: Option<usize>,
+    threads: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    let job = afe::extract::Job {
+        requests,
+        params: parse_params(params_json)?,
+        chunk,
+        all: false,
+        threads,
+    };
+    let ears = columns(&x);
+    let rec = py
+        .allow_threads(|| {
+            let refs: Vec<&[f64]> = ears.iter().map(Vec::as_slice).collect();
+            afe::extract::run(&job, fs, &refs)
+        })
+        .map_err(to_py)?;
+    signals_dict(
+        py,
+        rec.signals()
+            .iter()
+            .map(|s| (s.key.clone(), s.shape(), s.data.as_slice())),
+    )
+}
+
 /// The catalogue of requests and parameters, as JSON text (`afe list --json`).
 #[pyfunction]
 fn catalog_json() -> String {
@@ -307,6 +341,7 @@ fn read_wav<'py>(py: Python<'py>, path: PathBuf) -> PyResult<(Bound<'py, PyAny>,
 fn _afe(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyManager>()?;
     m.add_function(wrap_pyfunction!(catalog_json, m)?)?;
+    m.add_function(wrap_pyfunction!(process, m)?)?;
     m.add_function(wrap_pyfunction!(read_wav, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
