@@ -138,12 +138,52 @@ fn chain(c: &mut Criterion) {
     group.finish();
 }
 
+/// The gammatone filterbank alone, one ear, in channel-samples per second (one core):
+/// 16/32/64 channels, chunks of 441 (10 ms), 2205 (BASS default) and the whole signal.
+fn gammatone(c: &mut Criterion) {
+    use afe_core::{Block, Processor};
+    use afe_processors::gammatone::{Gammatone, GammatoneParams};
+    let (fs, left, _) = example();
+    let mut group = c.benchmark_group("gammatone");
+    group.sample_size(10);
+    group.warm_up_time(Duration::from_secs(1));
+    group.measurement_time(Duration::from_secs(2));
+    for channels in [16u32, 32, 64] {
+        let params = GammatoneParams {
+            n_channels: Some(channels),
+            ..GammatoneParams::default()
+        };
+        let (mut fb, _, _) = Gammatone::new(&params, fs).expect("filterbank");
+        group.throughput(Throughput::Elements(
+            left.len() as u64 * u64::from(channels),
+        ));
+        for chunk in [441, 2205, left.len()] {
+            let blocks: Vec<Block> = left
+                .chunks(chunk)
+                .map(|c| Block::from_vec(c.to_vec(), 1))
+                .collect();
+            let mut out = vec![Block::new(channels as usize)];
+            let id = BenchmarkId::new(format!("{channels}ch"), chunk);
+            group.bench_function(id, |b| {
+                b.iter(|| {
+                    fb.reset();
+                    for x in &blocks {
+                        fb.process(&[black_box(x)], &mut out);
+                    }
+                    black_box(out[0].frames())
+                })
+            });
+        }
+    }
+    group.finish();
+}
+
 /// The benchmark list (in a private module: the macro makes an undocumented `pub fn`).
 mod list {
-    use super::{chain, per_request};
+    use super::{chain, gammatone, per_request};
     use criterion::criterion_group;
 
-    criterion_group!(benches, per_request, chain);
+    criterion_group!(benches, per_request, chain, gammatone);
 }
 
 criterion_main!(list::benches);

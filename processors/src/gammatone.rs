@@ -254,20 +254,31 @@ fn design_channel(cf: f64, bw_erbs: f64, n: usize, fs: f64, align: bool) -> Chan
     }
 }
 
+/// Channels processed together, one per SIMD lane.
+const LANES: usize = 4;
+/// Largest supported `fb_nGamma` (the expanded polynomial is numerically useless beyond).
+pub const MAX_ORDER: usize = 8;
+
+/// Coefficients and state of `LANES` channels, lane-major so that every operation of the
+/// recursion runs across the channels (unused lanes of the last group have zero
+/// coefficients and produce zeros that are never written out).
+#[derive(Debug, Clone)]
+struct Group {
+    b_re: [f64; LANES],
+    b_im: [f64; LANES],
+    /// `a[1..=order]`.
+    a_re: [[f64; LANES]; MAX_ORDER],
+    a_im: [[f64; LANES]; MAX_ORDER],
+    z_re: [[f64; LANES]; MAX_ORDER],
+    z_im: [[f64; LANES]; MAX_ORDER],
+}
+
 /// The gammatone filterbank of one ear: time-domain in, `[time][channel]` out.
 #[derive(Debug, Clone)]
 pub struct Gammatone {
     channels: usize,
     order: usize,
-    /// Numerator per channel.
-    b_re: Vec<f64>,
-    b_im: Vec<f64>,
-    /// Denominator, `[k][channel]` for k = 1..=order.
-    a_re: Vec<f64>,
-    a_im: Vec<f64>,
-    /// State, `[k][channel]` for k = 0..order.
-    z_re: Vec<f64>,
-    z_im: Vec<f64>,
+    groups: Vec<Group>,
 }
 
 impl Gammatone {
@@ -284,54 +295,116 @@ impl Gammatone {
                 ),
             ));
         }
-        let nc = grid.cf_hz.len();
         let order = params.n_gamma as usize;
-        let mut g = Gammatone {
-            channels: nc,
-            order,
-            b_re: Vec::with_capacity(nc),
-            b_im: Vec::with_capacity(nc),
-            a_re: vec![0.0; order * nc],
-            a_im: vec![0.0; order * nc],
-            z_re: vec![0.0; order * nc],
-            z_im: vec![0.0; order * nc],
+        if order > MAX_ORDER {
+            return Err(invalid(
+                "fb_nGamma",
+                order,
+                format!("orders up to {MAX_ORDER} are supported"),
+            ));
+        }
+        let nc = grid.cf_hz.len();
+        let empty = Group {
+            b_re: [0.0; LANES],
+            b_im: [0.0; LANES],
+            a_re: [[0.0; LANES]; MAX_ORDER],
+            a_im: [[0.0; LANES]; MAX_ORDER],
+            z_re: [[0.0; LANES]; MAX_ORDER],
+            z_im: [[0.0; LANES]; MAX_ORDER],
         };
+        let mut groups = vec![empty; nc.div_ceil(LANES)];
         for (c, &cf) in grid.cf_hz.iter().enumerate() {
             let d = design_channel(cf, params.bw_erbs, order, fs, params.align);
-            g.b_re.push(d.b0.0);
-            g.b_im.push(d.b0.1);
+            let (g, l) = (&mut groups[c / LANES], c % LANES);
+            g.b_re[l] = d.b0.0;
+            g.b_im[l] = d.b0.1;
             for (k, ak) in d.a.iter().enumerate() {
-                g.a_re[k * nc + c] = ak.0;
-                g.a_im[k * nc + c] = ak.1;
+                g.a_re[k][l] = ak.0;
+                g.a_im[k][l] = ak.1;
             }
         }
         let info = SignalInfo::time_frequency(fs, grid.cf_hz);
-        Ok((g, info, grid.map))
+        Ok((
+            Gammatone {
+                channels: nc,
+                order,
+                groups,
+            },
+            info,
+            grid.map,
+        ))
     }
 
     /// Filters `x` (time-domain) into `out` (`x.len()` rows of one value per channel).
     pub fn filter(&mut self, x: &[f64], out: &mut [f64]) {
         let nc = self.channels;
-        let m = self.order;
-        for (t, &xin) in x.iter().enumerate() {
-            let row = &mut out[t * nc..(t + 1) * nc];
-            for (c, out) in row.iter_mut().enumerate() {
-                // y = z0 + b0·x, with x taken as x + 0i
-                let yr = self.z_re[c] + self.b_re[c] * xin;
-                let yi = self.z_im[c] + self.b_im[c] * xin;
-                for k in 0..m - 1 {
-                    let (ar, ai) = (self.a_re[k * nc + c], self.a_im[k * nc + c]);
-                    let next = (k + 1) * nc + c;
-                    self.z_re[k * nc + c] = self.z_re[next] - (ar * yr - ai * yi);
-                    self.z_im[k * nc + c] = self.z_im[next] - (ar * yi + ai * yr);
-                }
-                let last = (m - 1) * nc + c;
-                let (ar, ai) = (self.a_re[last], self.a_im[last]);
-                self.z_re[last] = -(ar * yr - ai * yi);
-                self.z_im[last] = -(ar * yi + ai * yr);
-                *out = 2.0 * yr;
+        for (gi, g) in self.groups.iter_mut().enumerate() {
+            let c0 = gi * LANES;
+            let lanes = LANES.min(nc - c0);
+            match self.order {
+                1 => run_group::<1>(g, x, out, nc, c0, lanes),
+                2 => run_group::<2>(g, x, out, nc, c0, lanes),
+                3 => run_group::<3>(g, x, out, nc, c0, lanes),
+                4 => run_group::<4>(g, x, out, nc, c0, lanes),
+                5 => run_group::<5>(g, x, out, nc, c0, lanes),
+                6 => run_group::<6>(g, x, out, nc, c0, lanes),
+                7 => run_group::<7>(g, x, out, nc, c0, lanes),
+                _ => run_group::<8>(g, x, out, nc, c0, lanes),
             }
         }
+    }
+}
+
+/// The complex DF2T recursion of one channel group of order `M` over a chunk, state in
+/// registers. Per channel, the operations and their order are exactly the reference's
+/// (`y = z0 + b0·x`, `z[k] = z[k+1] − a[k+1]·y`, textbook complex products, no FMA), so
+/// the output is bit-identical to a channel-by-channel evaluation. Compiled for AVX2
+/// too, chosen at run time, so that the lanes fill a 256-bit register where available.
+#[multiversion::multiversion(targets("x86_64+avx2"))]
+fn run_group<const M: usize>(
+    g: &mut Group,
+    x: &[f64],
+    out: &mut [f64],
+    nc: usize,
+    c0: usize,
+    lanes: usize,
+) {
+    let mut zr = [[0.0; LANES]; M];
+    let mut zi = [[0.0; LANES]; M];
+    let mut ar = [[0.0; LANES]; M];
+    let mut ai = [[0.0; LANES]; M];
+    for k in 0..M {
+        zr[k] = g.z_re[k];
+        zi[k] = g.z_im[k];
+        ar[k] = g.a_re[k];
+        ai[k] = g.a_im[k];
+    }
+    let (br, bi) = (g.b_re, g.b_im);
+    for (t, &xin) in x.iter().enumerate() {
+        let mut yr = [0.0; LANES];
+        let mut yi = [0.0; LANES];
+        for l in 0..LANES {
+            yr[l] = zr[0][l] + br[l] * xin;
+            yi[l] = zi[0][l] + bi[l] * xin;
+        }
+        for k in 0..M - 1 {
+            for l in 0..LANES {
+                zr[k][l] = zr[k + 1][l] - (ar[k][l] * yr[l] - ai[k][l] * yi[l]);
+                zi[k][l] = zi[k + 1][l] - (ar[k][l] * yi[l] + ai[k][l] * yr[l]);
+            }
+        }
+        for l in 0..LANES {
+            zr[M - 1][l] = -(ar[M - 1][l] * yr[l] - ai[M - 1][l] * yi[l]);
+            zi[M - 1][l] = -(ar[M - 1][l] * yi[l] + ai[M - 1][l] * yr[l]);
+        }
+        let row = &mut out[t * nc + c0..t * nc + c0 + lanes];
+        for (o, y) in row.iter_mut().zip(yr) {
+            *o = 2.0 * y;
+        }
+    }
+    for k in 0..M {
+        g.z_re[k] = zr[k];
+        g.z_im[k] = zi[k];
     }
 }
 
@@ -343,8 +416,10 @@ impl Processor for Gammatone {
     }
 
     fn reset(&mut self) {
-        self.z_re.fill(0.0);
-        self.z_im.fill(0.0);
+        for g in &mut self.groups {
+            g.z_re = [[0.0; LANES]; MAX_ORDER];
+            g.z_im = [[0.0; LANES]; MAX_ORDER];
+        }
     }
 }
 
