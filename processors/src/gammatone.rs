@@ -373,12 +373,10 @@ fn run_group<const M: usize>(
     let mut zi = [[0.0; LANES]; M];
     let mut ar = [[0.0; LANES]; M];
     let mut ai = [[0.0; LANES]; M];
-    for k in 0..M {
-        zr[k] = g.z_re[k];
-        zi[k] = g.z_im[k];
-        ar[k] = g.a_re[k];
-        ai[k] = g.a_im[k];
-    }
+    zr.copy_from_slice(&g.z_re[..M]);
+    zi.copy_from_slice(&g.z_im[..M]);
+    ar.copy_from_slice(&g.a_re[..M]);
+    ai.copy_from_slice(&g.a_im[..M]);
     let (br, bi) = (g.b_re, g.b_im);
     for (t, &xin) in x.iter().enumerate() {
         let mut yr = [0.0; LANES];
@@ -402,10 +400,8 @@ fn run_group<const M: usize>(
             *o = 2.0 * y;
         }
     }
-    for k in 0..M {
-        g.z_re[k] = zr[k];
-        g.z_im[k] = zi[k];
-    }
+    g.z_re[..M].copy_from_slice(&zr);
+    g.z_im[..M].copy_from_slice(&zi);
 }
 
 impl Processor for Gammatone {
