@@ -23,8 +23,10 @@ pub mod catalog;
 pub mod extract;
 pub mod npy;
 mod recorder;
+pub mod stream;
 pub mod wav;
 
+pub use afe_bass_source as bass_source;
 pub use afe_core::{Block, Error, ParamMap, Result, SignalInfo, SignalKind};
 pub use afe_graph::{Channel, Manager, RequestHandle, Signal};
 pub use afe_processors::{find_request, requests, RequestDef};

@@ -1,13 +1,17 @@
-//! The `afe` command line: list the representations, extract them from WAV files.
+//! The `afe` command line: list the representations, extract them from WAV files,
+//! stream them from a live source.
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use std::time::Instant;
+use std::io::IsTerminal;
+use std::time::{Duration, Instant};
 
+use afe::bass_source::Pacing;
 use afe::extract::{run_with, Job};
+use afe::stream::{SourceSpec, StreamJob, StreamReport};
 use afe::wav::{read_wav, Audio};
-use afe::{requests, Manager, ParamMap};
+use afe::{Manager, ParamMap};
 use clap::{Parser, Subcommand};
 use serde_json::{json, Value};
 
@@ -80,9 +84,61 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// List the ALSA capture devices (needs a build with `--features alsa`).
+    Devices,
+    /// Run requests on a live stream (BASS port and block reader): WAV replay, a
+    /// synthetic signal or ALSA capture; report compute time per block against its budget.
+    Stream {
+        /// wav:FILE, synth:SPEC (e.g. synth:fs=44100,tone=440,noise=0.1,itd_ms=0.4,
+        /// ild_db=-6,seed=1; keys fs, tone, amp, noise, seed, itd_ms, ild_db, silence) or
+        /// alsa:DEVICE (e.g. alsa:hw:1,0; see `afe devices`).
+        #[arg(long, value_name = "wav:FILE|synth:SPEC|alsa:DEVICE")]
+        source: String,
+        /// Requests, comma-separated (e.g. ratemap,ild,itd,ic).
+        #[arg(short = 'r', long = "requests", value_delimiter = ',', required = true)]
+        requests: Vec<String>,
+        /// An AFE parameter, NAME=VALUE. Repeatable.
+        #[arg(short = 'p', long = "param", value_name = "NAME=VALUE")]
+        params: Vec<String>,
+        /// A JSON object of AFE parameter names to values (-p entries override it).
+        #[arg(long = "params", value_name = "FILE.json")]
+        params_file: Option<PathBuf>,
+        /// Block fed to the graph per step, in ms (round(M·fs/1000) frames): the compute
+        /// budget of each block.
+        #[arg(long, value_name = "M", default_value_t = 10.0)]
+        block_ms: f64,
+        /// Stop after SECONDS of audio (required for synth and alsa sources, and with
+        /// --loop; a wav file plays once by default).
+        #[arg(long = "for", value_name = "SECONDS")]
+        duration: Option<f64>,
+        /// Publish the source at real time (default for synth and alsa).
+        #[arg(long, conflicts_with = "fast")]
+        realtime: bool,
+        /// As fast as the graph computes (default for wav; with alsa, the device is read
+        /// between blocks, in the processing thread).
+        #[arg(long)]
+        fast: bool,
+        /// Replay a wav file from its start again after its end.
+        #[arg(long = "loop")]
+        looping: bool,
+        /// ALSA capture rate in Hz (default 44100).
+        #[arg(long, value_name = "HZ")]
+        rate: Option<u32>,
+        #[command(flatten)]
+        threads: Threads,
+        /// With -o: also save every intermediate signal.
+        #[arg(long)]
+        all: bool,
+        /// Print the final report as one JSON object (and no status line).
+        #[arg(long)]
+        json: bool,
+        /// Save what was computed, as `afe extract` does.
+        #[arg(short = 'o', long = "output", value_name = "OUT.npz")]
+        output: Option<PathBuf>,
+    },
 }
 
-/// The executor choice shared by `extract` and `bench`.
+/// The executor choice shared by `extract`, `bench` and `stream`.
 #[derive(clap::Args)]
 struct Threads {
     /// Worker threads of the concurrent scheduler (default: the number of cores;
@@ -145,6 +201,50 @@ fn main() -> ExitCode {
             };
             bench(&input, &job, repeat as usize, json)
         }),
+        Command::Devices => devices(),
+        Command::Stream {
+            source,
+            requests,
+            params,
+            params_file,
+            block_ms,
+            duration,
+            realtime,
+            fast,
+            looping,
+            rate,
+            threads,
+            all,
+            json,
+            output,
+        } => load_params(params_file.as_deref(), &params).and_then(|p| {
+            let job = StreamJob {
+                requests: clean(requests),
+                params: p,
+                block_ms,
+                duration_s: duration,
+                // --realtime, --fast, or the source's default: set in `stream`
+                pacing: Pacing::Fast,
+                threads: threads.count(),
+                record: output.is_some(),
+                all,
+                looping,
+                alsa_rate: rate.unwrap_or(44_100),
+            };
+            let pacing = match (realtime, fast) {
+                (true, _) => Some(Pacing::Realtime),
+                (_, true) => Some(Pacing::Fast),
+                _ => None,
+            };
+            stream(
+                &source,
+                job,
+                pacing,
+                rate.is_some(),
+                json,
+                output.as_deref(),
+            )
+        }),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -155,51 +255,13 @@ fn main() -> ExitCode {
     }
 }
 
-/// The chain of request names from `name` down to `time`.
-fn chain(name: &str) -> Vec<&'static str> {
-    let mut out = Vec::new();
-    let mut cur = afe::find_request(name).ok();
-    while let Some(def) = cur {
-        out.push(def.name);
-        cur = afe::find_request(def.dependency).ok();
-    }
-    out
-}
-
 fn list(as_json: bool) {
-    let entries: Vec<Value> = requests()
-        .iter()
-        .map(|r| {
-            let defaults = (r.defaults)();
-            let params: Vec<Value> = r
-                .params
-                .iter()
-                .map(|p| {
-                    json!({
-                        "name": p.name,
-                        "type": p.kind.type_name(),
-                        "accepts": p.kind.describe(),
-                        "default": defaults.get(p.name).cloned().unwrap_or(Value::Null),
-                        "unit": p.unit,
-                        "description": p.description,
-                    })
-                })
-                .collect();
-            json!({
-                "name": r.name,
-                "depends_on": r.dependency,
-                "chain": chain(r.name),
-                "binaural": r.ears == afe_processors::Ears::Binaural,
-                "description": r.description,
-                "unit": r.output_unit,
-                "parameters": params,
-            })
-        })
-        .collect();
+    let listing = afe::catalog::listing();
     if as_json {
-        println!("{}", Value::Array(entries));
+        println!("{listing}");
         return;
     }
+    let entries = listing.as_array().cloned().unwrap_or_default();
     for e in &entries {
         println!(
             "{}  ({}; from {})\n    {}",
@@ -301,18 +363,24 @@ fn extract(input: &Path, job: Job, trace: Option<&Path>, output: &Path) -> Resul
     let mut mgr = Manager::with_engine(audio.fs, refs.len(), job.threads, capacity)
         .map_err(|e| e.to_string())?;
     let rec = run_with(&mut mgr, &job, &refs).map_err(|e| e.to_string())?;
-    let arrays: Vec<(String, Vec<usize>, &[f64])> = rec
-        .signals()
-        .iter()
-        .map(|s| (s.key.clone(), s.shape(), s.data.as_slice()))
-        .collect();
-    write_atomically(output, |file| afe::npy::write_npz(file, &arrays))?;
+    save(&rec, output)?;
     if let Some(path) = trace {
         let t = mgr.trace().map_err(|e| e.to_string())?.unwrap_or_default();
         write_atomically(path, |mut file| {
             std::io::Write::write_all(&mut file, t.to_string().as_bytes())
         })?;
     }
+    Ok(())
+}
+
+/// Saves every recorded signal as a float64 array `<request>_<ear>` in an .npz.
+fn save(rec: &afe::Recorder, output: &Path) -> Result<(), String> {
+    let arrays: Vec<(String, Vec<usize>, &[f64])> = rec
+        .signals()
+        .iter()
+        .map(|s| (s.key.clone(), s.shape(), s.data.as_slice()))
+        .collect();
+    write_atomically(output, |file| afe::npy::write_npz(file, &arrays))?;
     eprintln!(
         "wrote {} array(s) to {}: {}",
         arrays.len(),
@@ -394,4 +462,153 @@ fn bench(input: &Path, job: &Job, repeat: usize, as_json: bool) -> Result<(), St
         );
     }
     Ok(())
+}
+
+#[cfg(feature = "alsa")]
+fn devices() -> Result<(), String> {
+    let list = afe::bass_source::list_devices().map_err(|e| e.to_string())?;
+    if list.is_empty() {
+        println!("no ALSA capture device found");
+    }
+    for d in list {
+        println!("{:<24} {}", d.name, d.description);
+    }
+    Ok(())
+}
+
+#[cfg(not(feature = "alsa"))]
+fn devices() -> Result<(), String> {
+    Err(afe::stream::ALSA_OFF.into())
+}
+
+fn stream(
+    source: &str,
+    mut job: StreamJob,
+    pacing: Option<Pacing>,
+    rate_given: bool,
+    as_json: bool,
+    output: Option<&Path>,
+) -> Result<(), String> {
+    let spec: SourceSpec = source
+        .parse()
+        .map_err(|e: afe::stream::StreamError| e.to_string())?;
+    match &spec {
+        SourceSpec::Wav(_) if job.looping && job.duration_s.is_none() => {
+            return Err("--loop replays the file forever: give --for SECONDS".into())
+        }
+        SourceSpec::Synth(_) | SourceSpec::Alsa(_) if job.duration_s.is_none() => {
+            return Err(format!("'{source}' never ends: give --for SECONDS"))
+        }
+        SourceSpec::Synth(_) | SourceSpec::Alsa(_) if job.looping => {
+            return Err("--loop replays wav files only".into())
+        }
+        SourceSpec::Wav(_) | SourceSpec::Synth(_) if rate_given => {
+            return Err(
+                "--rate sets the ALSA capture rate (synth: fs= in the spec; wav: the file's rate)"
+                    .into(),
+            )
+        }
+        _ => {}
+    }
+    job.pacing = pacing.unwrap_or_else(|| spec.default_pacing());
+    let mut status = Status::new(!as_json && std::io::stderr().is_terminal());
+    let out =
+        afe::stream::run_spec(&spec, &job, |t| status.update(t)).map_err(|e| e.to_string())?;
+    status.finish();
+    if let Some(path) = output {
+        save(&out.recorded, path)?;
+    }
+    let r = &out.report;
+    if as_json {
+        let result = json!({
+            "source": source,
+            "requests": job.requests,
+            "pacing": if job.pacing == Pacing::Realtime { "realtime" } else { "fast" },
+            "threads": job.threads,
+            "fs": r.fs,
+            "block_frames": r.block_frames,
+            "frames": r.frames,
+            "seconds": r.frames as f64 / r.fs,
+            "lost_frames": r.lost_frames,
+            "blocks": r.blocks,
+            "deadline_misses": r.deadline_misses,
+            "compute_ms_p50": r.compute_ms_p50,
+            "compute_ms_p99": r.compute_ms_p99,
+            "budget_ms": r.budget_ms,
+            "x_realtime": r.x_realtime,
+            "device_overruns": r.device_overruns,
+        });
+        println!("{result}");
+    } else {
+        println!(
+            "{} frames ({:.2} s at {} Hz) in {} blocks of {} frames: compute per block p50 {:.3} ms, \
+             p99 {:.3} ms, budget {:.2} ms ({:.1}x real time); {} deadline miss(es); {} frame(s) lost{}",
+            r.frames,
+            r.frames as f64 / r.fs,
+            r.fs,
+            r.blocks,
+            r.block_frames,
+            r.compute_ms_p50,
+            r.compute_ms_p99,
+            r.budget_ms,
+            r.x_realtime,
+            r.deadline_misses,
+            r.lost_frames,
+            if r.device_overruns > 0 {
+                format!("; {} device overrun(s)", r.device_overruns)
+            } else {
+                String::new()
+            }
+        );
+    }
+    Ok(())
+}
+
+/// The status line of `afe stream` on a terminal: rewritten in place at most 4 times a
+/// second.
+struct Status {
+    shown: bool,
+    enabled: bool,
+    last: Option<Instant>,
+}
+
+impl Status {
+    const PERIOD: Duration = Duration::from_millis(250);
+
+    fn new(enabled: bool) -> Self {
+        Status {
+            shown: false,
+            enabled,
+            last: None,
+        }
+    }
+
+    fn update(&mut self, timing: &afe::stream::Timing) {
+        if !self.enabled || self.last.is_some_and(|t| t.elapsed() < Self::PERIOD) {
+            return;
+        }
+        self.last = Some(Instant::now());
+        self.shown = true;
+        eprint!("\r{}\x1b[K", status_line(&timing.report()));
+    }
+
+    fn finish(&self) {
+        if self.shown {
+            eprintln!();
+        }
+    }
+}
+
+fn status_line(r: &StreamReport) -> String {
+    format!(
+        "{} frames ({:.1} s) | {:.1}x real time | compute p50 {:.2} ms p99 {:.2} ms / {:.2} ms | misses {} | lost {}",
+        r.frames,
+        r.frames as f64 / r.fs,
+        r.x_realtime,
+        r.compute_ms_p50,
+        r.compute_ms_p99,
+        r.budget_ms,
+        r.deadline_misses,
+        r.lost_frames
+    )
 }

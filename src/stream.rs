@@ -1,0 +1,579 @@
+//! The live runner: source → BASS port → block reader → graph → recorder, with the
+//! compute time of every block measured against the block's duration.
+
+use std::path::PathBuf;
+use std::str::FromStr;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use afe_bass_source::{Feeder, Pacing, Reader, Sample, Source, SynthSpec, WavSource};
+use afe_core::ParamMap;
+use afe_graph::Manager;
+use thiserror::Error;
+
+use crate::recorder::Recorder;
+
+/// How long the reader sleeps when the port has no new frame (real-time pacing).
+const POLL: Duration = Duration::from_micros(500);
+
+/// Where the audio comes from, as written on the command line.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SourceSpec {
+    /// `wav:FILE`: replay of a WAV file.
+    Wav(PathBuf),
+    /// `synth:SPEC`: a synthetic signal (see [`SynthSpec`]).
+    Synth(SynthSpec),
+    /// `alsa:DEVICE`: ALSA capture from a device such as `hw:1,0`.
+    Alsa(String),
+}
+
+impl FromStr for SourceSpec {
+    type Err = StreamError;
+
+    /// Parses `wav:FILE`, `synth:SPEC` or `alsa:DEVICE`.
+    ///
+    /// ```
+    /// use afe::stream::SourceSpec;
+    /// let s: SourceSpec = "alsa:hw:1,0".parse()?;
+    /// assert_eq!(s, SourceSpec::Alsa("hw:1,0".into()));
+    /// assert!("mic:0".parse::<SourceSpec>().is_err());
+    /// # Ok::<(), afe::stream::StreamError>(())
+    /// ```
+    fn from_str(text: &str) -> Result<Self, StreamError> {
+        let bad = || {
+            StreamError::Spec(format!(
+                "unknown source '{text}': expected wav:FILE, synth:SPEC or alsa:DEVICE"
+            ))
+        };
+        let (kind, rest) = text.split_once(':').ok_or_else(bad)?;
+        if rest.is_empty() {
+            return Err(StreamError::Spec(format!(
+                "source '{text}' names no {}",
+                match kind {
+                    "wav" => "file",
+                    "alsa" => "device",
+                    _ => "signal",
+                }
+            )));
+        }
+        match kind {
+            "wav" => Ok(SourceSpec::Wav(PathBuf::from(rest))),
+            "synth" => Ok(SourceSpec::Synth(rest.parse()?)),
+            "alsa" => Ok(SourceSpec::Alsa(rest.to_string())),
+            _ => Err(bad()),
+        }
+    }
+}
+
+impl SourceSpec {
+    /// The pacing a source gets unless told otherwise: files run as fast as possible,
+    /// synthesis and capture at real time.
+    pub fn default_pacing(&self) -> Pacing {
+        match self {
+            SourceSpec::Wav(_) => Pacing::Fast,
+            SourceSpec::Synth(_) | SourceSpec::Alsa(_) => Pacing::Realtime,
+        }
+    }
+}
+
+/// What to compute, and how to run the stream.
+#[derive(Debug, Clone)]
+pub struct StreamJob {
+    /// AFE request names, all placed with the same parameters.
+    pub requests: Vec<String>,
+    /// AFE parameter name → value, shared by every request.
+    pub params: ParamMap,
+    /// Block fed to the graph per step, in ms: `round(block_ms · fs / 1000)` frames.
+    pub block_ms: f64,
+    /// Stop after this many seconds of audio (`None`: at the end of the source).
+    pub duration_s: Option<f64>,
+    /// Real time, or as fast as the graph goes.
+    pub pacing: Pacing,
+    /// Worker threads of the concurrent scheduler (0: sequential executor).
+    pub threads: usize,
+    /// Keep the outputs (for saving them).
+    pub record: bool,
+    /// With `record`: every intermediate signal too.
+    pub all: bool,
+    /// Replay WAV files from the start again after their end.
+    pub looping: bool,
+    /// ALSA capture rate in Hz.
+    pub alsa_rate: u32,
+}
+
+impl Default for StreamJob {
+    fn default() -> Self {
+        StreamJob {
+            requests: Vec::new(),
+            params: ParamMap::new(),
+            block_ms: 10.0,
+            duration_s: None,
+            pacing: Pacing::Fast,
+            threads: 0,
+            record: false,
+            all: false,
+            looping: false,
+            alsa_rate: 44_100,
+        }
+    }
+}
+
+/// Everything that can stop a stream.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum StreamError {
+    /// The port, the reader or the source failed (file, synth spec, ALSA device).
+    #[error(transparent)]
+    Source(#[from] afe_bass_source::Error),
+    /// The graph refused a request, a parameter or the input.
+    #[error(transparent)]
+    Afe(#[from] afe_core::Error),
+    /// A source specification or stream setting that cannot work.
+    #[error("{0}")]
+    Spec(String),
+}
+
+/// The numbers of a stream, so far or at its end.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StreamReport {
+    /// Frames processed by the graph.
+    pub frames: u64,
+    /// Frames the source published that the graph never got: lost by the reader when it
+    /// fell more than the port's length behind, plus the partial block before each gap.
+    pub lost_frames: u64,
+    /// Blocks processed.
+    pub blocks: u64,
+    /// Blocks whose compute time exceeded their duration.
+    pub deadline_misses: u64,
+    /// Median compute time per block, in ms.
+    pub compute_ms_p50: f64,
+    /// 99th-percentile compute time per block, in ms.
+    pub compute_ms_p99: f64,
+    /// Duration of a full block, in ms: the compute budget.
+    pub budget_ms: f64,
+    /// Audio duration processed over total compute time: how many times faster than
+    /// real time the graph runs (0 before the first block).
+    pub x_realtime: f64,
+    /// Device overruns of the source (ALSA), whose frames never reached the port.
+    pub device_overruns: u64,
+    /// Sampling rate of the stream, in Hz.
+    pub fs: f64,
+    /// Frames per full block.
+    pub block_frames: usize,
+}
+
+/// Compute times and counts of a running stream.
+#[derive(Debug, Clone)]
+pub struct Timing {
+    fs: f64,
+    block_frames: usize,
+    compute_s: Vec<f64>,
+    total_s: f64,
+    frames: u64,
+    lost: u64,
+    misses: u64,
+}
+
+impl Timing {
+    fn new(fs: f64, block_frames: usize) -> Self {
+        Timing {
+            fs,
+            block_frames,
+            compute_s: Vec::new(),
+            total_s: 0.0,
+            frames: 0,
+            lost: 0,
+            misses: 0,
+        }
+    }
+
+    fn block(&mut self, frames: usize, compute_s: f64) {
+        self.frames += frames as u64;
+        self.compute_s.push(compute_s);
+        self.total_s += compute_s;
+        if compute_s > frames as f64 / self.fs {
+            self.misses += 1;
+        }
+    }
+
+    /// The report so far (sorts the compute times: call it a few times a second, not
+    /// per block).
+    pub fn report(&self) -> StreamReport {
+        let mut sorted = self.compute_s.clone();
+        sorted.sort_by(f64::total_cmp);
+        let pct = |p: f64| {
+            let rank = ((p * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len().max(1));
+            sorted.get(rank - 1).map_or(0.0, |s| s * 1e3)
+        };
+        StreamReport {
+            frames: self.frames,
+            lost_frames: self.lost,
+            blocks: self.compute_s.len() as u64,
+            deadline_misses: self.misses,
+            compute_ms_p50: pct(0.50),
+            compute_ms_p99: pct(0.99),
+            budget_ms: self.block_frames as f64 / self.fs * 1e3,
+            x_realtime: if self.total_s > 0.0 {
+                self.frames as f64 / self.fs / self.total_s
+            } else {
+                0.0
+            },
+            device_overruns: 0,
+            fs: self.fs,
+            block_frames: self.block_frames,
+        }
+    }
+}
+
+/// The result of a stream: its report and, if asked, its outputs.
+#[derive(Debug, Clone)]
+pub struct Streamed {
+    /// Counts and compute times.
+    pub report: StreamReport,
+    /// The outputs (empty unless [`StreamJob::record`]), as [`crate::extract::run`] gives them.
+    pub recorded: Recorder,
+}
+
+/// Opens the source `spec` names and streams it: see [`run`].
+pub fn run_spec(
+    spec: &SourceSpec,
+    job: &StreamJob,
+    on_block: impl FnMut(&Timing),
+) -> Result<Streamed, StreamError> {
+    match spec {
+        SourceSpec::Wav(path) => match afe_bass_source::open_wav(path, job.looping)? {
+            WavSource::Int(replay) => run(replay, job, on_block),
+            WavSource::Float(replay) => run(replay, job, on_block),
+        },
+        SourceSpec::Synth(s) => run(afe_bass_source::Synth::new(s.clone()), job, on_block),
+        SourceSpec::Alsa(device) => alsa(device, job, on_block),
+    }
+}
+
+#[cfg(feature = "alsa")]
+fn alsa(
+    device: &str,
+    job: &StreamJob,
+    on_block: impl FnMut(&Timing),
+) -> Result<Streamed, StreamError> {
+    let config = afe_bass_source::AlsaConfig {
+        device: device.to_string(),
+        format: afe_bass_source::PortFormat::bass_timing(job.alsa_rate, 2),
+    };
+    run(
+        afe_bass_source::AlsaSource::acquire(&config)?,
+        job,
+        on_block,
+    )
+}
+
+#[cfg(not(feature = "alsa"))]
+fn alsa(
+    _device: &str,
+    _job: &StreamJob,
+    _on_block: impl FnMut(&Timing),
+) -> Result<Streamed, StreamError> {
+    Err(StreamError::Spec(ALSA_OFF.into()))
+}
+
+/// What `afe` says about ALSA when built without it.
+pub const ALSA_OFF: &str = "this afe was built without ALSA support: rebuild it with \
+`cargo build --release --features alsa` (needs the ALSA headers, e.g. libasound2-dev)";
+
+/// Streams `source` through the graph of `job`: the source feeds a BASS port (from its
+/// own thread at real time, or on demand when fast), a block reader takes blocks of
+/// `job.block_ms` from it, and the graph computes each block; `on_block` sees the timing
+/// after every block. When the reader falls behind by more than the port, the frames it
+/// lost (and the partial block before the gap) are counted and the graph restarts from
+/// a reset state; a finite source's last partial block is processed too.
+///
+/// ```
+/// use afe::stream::{run, StreamJob};
+/// use afe_bass_source::{Pacing, Synth};
+/// let job = StreamJob {
+///     requests: vec!["ild".into()],
+///     duration_s: Some(0.5),
+///     pacing: Pacing::Fast,
+///     record: true,
+///     ..StreamJob::default()
+/// };
+/// let out = run(Synth::parse("fs=16000,tone=1000,ild_db=-6")?, &job, |_| {})?;
+/// assert_eq!((out.report.frames, out.report.blocks, out.report.lost_frames), (8000, 50, 0));
+/// let ild = out.recorded.get("ild_mono").expect("recorded");
+/// assert_eq!(ild.shape(), vec![49, 31]);
+/// # Ok::<(), afe::stream::StreamError>(())
+/// ```
+pub fn run<Src: Source>(
+    source: Src,
+    job: &StreamJob,
+    on_block: impl FnMut(&Timing),
+) -> Result<Streamed, StreamError> {
+    let format = source.format();
+    let fs = f64::from(format.sample_rate);
+    if !(job.block_ms.is_finite() && job.block_ms > 0.0) {
+        return Err(StreamError::Spec(format!(
+            "block length {} ms: it must be a number > 0",
+            job.block_ms
+        )));
+    }
+    let block = ((job.block_ms * fs / 1000.0).round() as usize).max(1);
+    let limit = match job.duration_s {
+        Some(d) if d.is_finite() && d > 0.0 => Some((d * fs).round().max(1.0) as u64),
+        Some(d) => {
+            return Err(StreamError::Spec(format!(
+                "duration {d} s: it must be a number > 0"
+            )))
+        }
+        None => None,
+    };
+    let mut mgr = Manager::with_threads(fs, format.channels, job.threads)?;
+    for r in &job.requests {
+        mgr.add_request(r, &job.params)?;
+    }
+    let mut feeder = Feeder::new(source, limit)?;
+    let mut consumer = Consumer {
+        reader: Reader::new(feeder.port(), 0),
+        raw: vec![vec![Src::Sample::default(); block]; format.channels],
+        input: vec![Vec::with_capacity(block); format.channels],
+        filled: 0,
+        mgr,
+        recorder: Recorder::new(job.all),
+        record: job.record,
+        timing: Timing::new(fs, block),
+        on_block,
+    };
+    match job.pacing {
+        Pacing::Fast => loop {
+            if consumer.poll()? == 0 {
+                if consumer.reader.at_end() {
+                    break;
+                }
+                feeder.pump()?;
+            }
+        },
+        Pacing::Realtime => {
+            let stop = AtomicBool::new(false);
+            std::thread::scope(|s| {
+                let writer = s.spawn(|| feeder.run_realtime(&stop));
+                let read = consumer.drain_paced();
+                stop.store(true, Ordering::Relaxed);
+                let fed = writer
+                    .join()
+                    .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+                read.and(fed.map_err(StreamError::from))
+            })?;
+        }
+    }
+    consumer.flush()?;
+    let mut report = consumer.timing.report();
+    report.device_overruns = feeder.source().overruns();
+    Ok(Streamed {
+        report,
+        recorded: consumer.recorder,
+    })
+}
+
+/// The reading side: reader, block assembly, graph, recorder, timing.
+struct Consumer<S: Sample, F> {
+    reader: Reader<S>,
+    /// The block being assembled, as the port stores it.
+    raw: Vec<Vec<S>>,
+    /// The block as AFE input.
+    input: Vec<Vec<f64>>,
+    filled: usize,
+    mgr: Manager,
+    recorder: Recorder,
+    record: bool,
+    timing: Timing,
+    on_block: F,
+}
+
+impl<S: Sample, F: FnMut(&Timing)> Consumer<S, F> {
+    /// Reads what the port has towards the current block, processes the block when it is
+    /// complete, and returns the frames read.
+    fn poll(&mut self) -> Result<usize, StreamError> {
+        let filled = self.filled;
+        let mut dest: Vec<&mut [S]> = self.raw.iter_mut().map(|c| &mut c[filled..]).collect();
+        let got = self.reader.read(&mut dest)?;
+        if got.lost > 0 {
+            // The partial block before the gap cannot be continued: drop it with the
+            // lost frames, and restart the graph as at the start of a stream.
+            self.timing.lost += got.lost + filled as u64;
+            for c in &mut self.raw {
+                c.copy_within(filled..filled + got.frames, 0);
+            }
+            self.filled = 0;
+            self.mgr.reset()?;
+        }
+        self.filled += got.frames;
+        if self.filled == self.raw[0].len() {
+            self.process()?;
+        }
+        Ok(got.frames)
+    }
+
+    /// Reads until the port is closed and read, sleeping while it has nothing new.
+    fn drain_paced(&mut self) -> Result<(), StreamError> {
+        loop {
+            if self.poll()? == 0 {
+                if self.reader.at_end() {
+                    return Ok(());
+                }
+                std::thread::sleep(POLL);
+            }
+        }
+    }
+
+    /// Processes the last, partial block.
+    fn flush(&mut self) -> Result<(), StreamError> {
+        if self.filled > 0 {
+            self.process()?;
+        }
+        Ok(())
+    }
+
+    fn process(&mut self) -> Result<(), StreamError> {
+        let n = self.filled;
+        for (input, raw) in self.input.iter_mut().zip(&self.raw) {
+            input.clear();
+            input.extend(raw[..n].iter().map(|s| s.to_f64()));
+        }
+        let refs: Vec<&[f64]> = self.input.iter().map(Vec::as_slice).collect();
+        let start = Instant::now();
+        self.mgr.submit_chunk(&refs)?;
+        self.mgr.collect_chunk()?;
+        let compute = start.elapsed().as_secs_f64();
+        if self.record {
+            self.recorder.record(&self.mgr);
+        }
+        self.filled = 0;
+        self.timing.block(n, compute);
+        (self.on_block)(&self.timing);
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use afe_bass_source::Replay;
+
+    fn job(pacing: Pacing) -> StreamJob {
+        StreamJob {
+            requests: vec!["ratemap".into(), "ild".into()],
+            params: [("fb_nChannels".to_string(), serde_json::json!(8))]
+                .into_iter()
+                .collect(),
+            pacing,
+            record: true,
+            ..StreamJob::default()
+        }
+    }
+
+    fn signal(frames: usize) -> Vec<Vec<f64>> {
+        let l: Vec<f64> = (0..frames).map(|t| (0.07 * t as f64).sin() * 0.3).collect();
+        let r = l.iter().map(|v| v * 0.5).collect();
+        vec![l, r]
+    }
+
+    #[test]
+    fn a_stream_computes_what_extract_computes() {
+        let x = signal(4321);
+        let mut replay = Replay::new(16000, x.clone(), false).expect("replay");
+        replay.set_chunking(300, 4).expect("chunking");
+        let out = run(replay, &job(Pacing::Fast), |_| {}).expect("stream");
+        let extract = crate::extract::Job {
+            requests: job(Pacing::Fast).requests,
+            params: job(Pacing::Fast).params,
+            chunk: Some(160),
+            ..Default::default()
+        };
+        let refs: Vec<&[f64]> = x.iter().map(Vec::as_slice).collect();
+        let want = crate::extract::run(&extract, 16000.0, &refs).expect("extract");
+        assert_eq!(out.report.frames, 4321);
+        assert_eq!(out.report.blocks, 28, "27 blocks of 160 and one of 1");
+        assert_eq!(out.report.lost_frames, 0);
+        assert_eq!(out.recorded.signals().len(), want.signals().len());
+        for (a, b) in out.recorded.signals().iter().zip(want.signals()) {
+            assert_eq!(a.key, b.key);
+            assert_eq!(a.data.as_slice(), b.data.as_slice(), "{}", a.key);
+        }
+    }
+
+    #[test]
+    fn real_time_takes_the_signal_duration_and_loses_nothing() {
+        let mut replay = Replay::new(16000, signal(3200), false).expect("replay");
+        replay.set_chunking(320, 10).expect("chunking");
+        let start = Instant::now();
+        let mut calls = 0;
+        let out = run(replay, &job(Pacing::Realtime), |_| calls += 1).expect("stream");
+        assert!(start.elapsed() >= Duration::from_millis(200));
+        let r = &out.report;
+        assert_eq!(
+            (r.frames, r.lost_frames, r.blocks, calls),
+            (3200, 0, 20, 20)
+        );
+        assert_eq!(r.budget_ms, 10.0);
+        assert!(r.compute_ms_p50 > 0.0 && r.compute_ms_p50 <= r.compute_ms_p99);
+        assert!(r.x_realtime > 1.0, "{r:?}");
+    }
+
+    #[test]
+    fn a_reader_that_falls_behind_counts_every_lost_frame() {
+        // a port of 2 × 100 frames; the reader sleeps 30 ms per 10 ms block
+        let mut replay = Replay::new(16000, signal(16000), false).expect("replay");
+        replay.set_chunking(100, 2).expect("chunking");
+        let mut j = job(Pacing::Realtime);
+        j.requests = vec!["ild".into()];
+        let out = run(replay, &j, |_| {
+            std::thread::sleep(Duration::from_millis(30))
+        })
+        .expect("stream");
+        let r = &out.report;
+        assert!(r.lost_frames > 0, "{r:?}");
+        assert_eq!(r.frames + r.lost_frames, 16000, "{r:?}");
+    }
+
+    #[test]
+    fn bad_settings_are_clear_errors() {
+        let replay = || Replay::new(16000, signal(100), false).expect("replay");
+        let mut j = job(Pacing::Fast);
+        j.block_ms = 0.0;
+        let e = run(replay(), &j, |_| {}).expect_err("block");
+        assert!(e.to_string().contains("block length 0 ms"), "{e}");
+        let mut j = job(Pacing::Fast);
+        j.duration_s = Some(-1.0);
+        assert!(run(replay(), &j, |_| {}).is_err());
+        let mut j = job(Pacing::Fast);
+        j.requests = vec!["ratemapp".into()];
+        let e = run(replay(), &j, |_| {}).expect_err("request");
+        assert!(e.to_string().contains("unknown request 'ratemapp'"), "{e}");
+        let e = "synth:tone=x".parse::<SourceSpec>().expect_err("spec");
+        assert!(e.to_string().contains("tone=x"), "{e}");
+        assert!("wav:".parse::<SourceSpec>().is_err());
+    }
+
+    #[test]
+    fn the_afe_reads_back_the_synth_itd_and_ild() {
+        let job = StreamJob {
+            requests: vec!["itd".into(), "ild".into()],
+            duration_s: Some(0.3),
+            record: true,
+            ..StreamJob::default()
+        };
+        let synth =
+            afe_bass_source::Synth::parse("fs=44100,noise=0.1,itd_ms=0.4,ild_db=-6").expect("spec");
+        let out = run(synth, &job, |_| {}).expect("stream");
+        let last_frame_mean = |key: &str| {
+            let s = out.recorded.get(key).expect("recorded");
+            let d = s.data.as_slice();
+            let w = s.info.cf_hz.len();
+            d[d.len() - w..].iter().sum::<f64>() / w as f64
+        };
+        // 0.4 ms at 44.1 kHz is a delay of 18 samples: 0.408 ms
+        let itd = last_frame_mean("itd_mono");
+        assert!((itd - 18.0 / 44100.0).abs() < 2e-5, "itd {itd}");
+        let ild = last_frame_mean("ild_mono");
+        assert!((ild + 6.0).abs() < 0.3, "ild {ild}");
+    }
+}

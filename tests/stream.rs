@@ -1,0 +1,388 @@
+//! The `afe stream` and `afe devices` command lines: a replayed file gives what `afe
+//! extract` gives, the JSON report holds exact counts, and bad input is one clear line.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::time::{Duration, Instant};
+
+use afe::npy::decode;
+
+fn afe(args: &[&str]) -> Output {
+    afe_env(args, &[])
+}
+
+fn afe_env(args: &[&str], env: &[(&str, &Path)]) -> Output {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_afe"));
+    cmd.args(args);
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    cmd.output().expect("run afe")
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("afe-stream-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    dir.join(name)
+}
+
+fn example() -> String {
+    concat!(env!("CARGO_MANIFEST_DIR"), "/data/example_binaural.wav").to_string()
+}
+
+fn ok(out: &Output) -> String {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+fn report(out: &Output) -> serde_json::Value {
+    serde_json::from_str(&ok(out)).expect("one JSON object")
+}
+
+fn npz_arrays(path: &Path) -> Vec<(String, Vec<usize>, Vec<f64>)> {
+    let file = std::fs::File::open(path).expect("npz");
+    let mut zip = zip::ZipArchive::new(file).expect("zip");
+    (0..zip.len())
+        .map(|i| {
+            let mut entry = zip.by_index(i).expect("entry");
+            let name = entry.name().trim_end_matches(".npy").to_string();
+            let mut bytes = Vec::new();
+            std::io::Read::read_to_end(&mut entry, &mut bytes).expect("read");
+            let a = decode(&bytes).expect("npy");
+            (name, a.shape, a.data)
+        })
+        .collect()
+}
+
+fn assert_clear_error(out: &Output, needle: &str, output_file: &Path) {
+    assert!(!out.status.success(), "should fail: {needle}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.trim().lines().count(), 1, "one line expected: {err}");
+    assert!(err.starts_with("error: "), "{err}");
+    assert!(err.contains(needle), "'{needle}' not in: {err}");
+    assert!(!output_file.exists(), "no output file on error");
+}
+
+#[test]
+fn a_replayed_file_gives_what_extract_gives_bit_for_bit() {
+    let streamed = tmp("streamed.npz");
+    let extracted = tmp("extracted.npz");
+    let wav = example();
+    let source = format!("wav:{wav}");
+    let out = afe(&[
+        "stream",
+        "--source",
+        &source,
+        "--fast",
+        "--block-ms",
+        "10",
+        "-r",
+        "ratemap,ild",
+        "-o",
+        streamed.to_str().expect("path"),
+    ]);
+    let summary = ok(&out);
+    assert!(summary.contains("44100 frames"), "{summary}");
+    ok(&afe(&[
+        "extract",
+        &wav,
+        "-r",
+        "ratemap,ild",
+        "--chunk",
+        "441",
+        "-o",
+        extracted.to_str().expect("path"),
+    ]));
+    let a = npz_arrays(&streamed);
+    let names: Vec<&str> = a.iter().map(|x| x.0.as_str()).collect();
+    assert_eq!(names, ["ratemap_left", "ratemap_right", "ild_mono"]);
+    assert_eq!(a, npz_arrays(&extracted));
+}
+
+#[test]
+fn the_json_report_counts_frames_blocks_and_losses() {
+    let out = afe(&[
+        "stream",
+        "--source",
+        "synth:fs=44100,tone=440,noise=0.1,itd_ms=0.4,ild_db=-6,seed=1",
+        "--fast",
+        "--for",
+        "0.5",
+        "--block-ms",
+        "20",
+        "-r",
+        "ratemap,ild,itd,ic",
+        "--json",
+    ]);
+    assert!(out.stderr.is_empty(), "no status line with --json");
+    let r = report(&out);
+    assert_eq!(r["frames"], 22050);
+    assert_eq!(r["lost_frames"], 0);
+    assert_eq!(r["blocks"], 25);
+    assert_eq!(r["budget_ms"], 20.0);
+    assert_eq!(r["pacing"], "fast");
+    for key in [
+        "deadline_misses",
+        "compute_ms_p50",
+        "compute_ms_p99",
+        "x_realtime",
+    ] {
+        assert!(r[key].as_f64().is_some(), "{key} missing from {r}");
+    }
+    assert!(r["compute_ms_p50"].as_f64() <= r["compute_ms_p99"].as_f64());
+    assert!(r["x_realtime"].as_f64().expect("number") > 0.0);
+}
+
+#[test]
+fn real_time_takes_the_audio_duration_and_a_loop_replays_the_file() {
+    let start = Instant::now();
+    let r = report(&afe(&[
+        "stream",
+        "--source",
+        "synth:fs=16000,silence",
+        "--for",
+        "0.4",
+        "-r",
+        "ild",
+        "--threads",
+        "0",
+        "--json",
+    ]));
+    assert!(start.elapsed() >= Duration::from_millis(400));
+    assert_eq!(
+        (r["frames"].clone(), r["pacing"].clone()),
+        (6400.into(), "realtime".into())
+    );
+    assert_eq!(r["lost_frames"], 0);
+
+    // the 1-s example, looped for 2.5 s
+    let looped = tmp("looped.npz");
+    let r = report(&afe(&[
+        "stream",
+        "--source",
+        &format!("wav:{}", example()),
+        "--loop",
+        "--for",
+        "2.5",
+        "-r",
+        "ratemap",
+        "--json",
+        "-o",
+        looped.to_str().expect("path"),
+    ]));
+    assert_eq!(r["frames"], 110250);
+    assert_eq!(npz_arrays(&looped)[0].1, vec![249, 31]);
+}
+
+#[test]
+fn every_bad_stream_is_one_clear_line() {
+    let o = tmp("never.npz");
+    let os = o.to_str().expect("path");
+    let wav = format!("wav:{}", example());
+    let run = |args: &[&str]| {
+        let mut all = vec!["stream"];
+        all.extend_from_slice(args);
+        all.extend_from_slice(&["-o", os]);
+        afe(&all)
+    };
+    assert_clear_error(
+        &run(&["--source", "synth:tone=440", "-r", "ild"]),
+        "never ends: give --for SECONDS",
+        &o,
+    );
+    assert_clear_error(
+        &run(&["--source", "mic:1", "-r", "ild"]),
+        "unknown source 'mic:1'",
+        &o,
+    );
+    assert_clear_error(
+        &run(&["--source", "synth:tone=abc", "--for", "1", "-r", "ild"]),
+        "tone=abc: expected a finite number",
+        &o,
+    );
+    assert_clear_error(
+        &run(&["--source", "wav:/nonexistent/x.wav", "-r", "ild"]),
+        "cannot open '/nonexistent/x.wav'",
+        &o,
+    );
+    assert_clear_error(
+        &run(&["--source", &wav, "-r", "ratemapp"]),
+        "unknown request 'ratemapp'",
+        &o,
+    );
+    assert_clear_error(
+        &run(&["--source", &wav, "--loop", "-r", "ild"]),
+        "--loop replays the file forever",
+        &o,
+    );
+    assert_clear_error(
+        &run(&["--source", &wav, "--block-ms", "0", "-r", "ild"]),
+        "block length 0 ms",
+        &o,
+    );
+    assert_clear_error(
+        &run(&["--source", &wav, "--rate", "48000", "-r", "ild"]),
+        "--rate sets the ALSA capture rate",
+        &o,
+    );
+}
+
+#[cfg(not(feature = "alsa"))]
+#[test]
+fn without_alsa_devices_and_capture_say_how_to_get_it() {
+    let o = tmp("never-alsa.npz");
+    assert_clear_error(&afe(&["devices"]), "--features alsa", &o);
+    assert_clear_error(
+        &afe(&[
+            "stream",
+            "--source",
+            "alsa:hw:1,0",
+            "--for",
+            "1",
+            "-r",
+            "ild",
+            "-o",
+            o.to_str().expect("path"),
+        ]),
+        "--features alsa",
+        &o,
+    );
+}
+
+/// ALSA without hardware: a `file` PCM over a `null` slave captures a raw file's frames.
+#[cfg(feature = "alsa")]
+mod alsa {
+    use super::*;
+
+    const FRAMES: usize = 8820;
+
+    fn sample(t: usize, c: usize) -> i32 {
+        let x = (0.031 * t as f64 * (c + 1) as f64).sin() * 0.4;
+        (x * 2_147_483_648.0) as i32
+    }
+
+    /// Writes the raw file, the same samples as a 32-bit WAV, and the ALSA configuration.
+    fn setup() -> (PathBuf, PathBuf) {
+        let raw = tmp("capture.raw");
+        let bytes: Vec<u8> = (0..FRAMES)
+            .flat_map(|t| [sample(t, 0), sample(t, 1)])
+            .flat_map(i32::to_ne_bytes)
+            .collect();
+        std::fs::write(&raw, bytes).expect("raw");
+        let wav = tmp("capture.wav");
+        let spec = hound::WavSpec {
+            channels: 2,
+            sample_rate: 44100,
+            bits_per_sample: 32,
+            sample_format: hound::SampleFormat::Int,
+        };
+        let mut w = hound::WavWriter::create(&wav, spec).expect("wav");
+        for t in 0..FRAMES {
+            w.write_sample(sample(t, 0)).expect("write");
+            w.write_sample(sample(t, 1)).expect("write");
+        }
+        w.finalize().expect("finalize");
+        let conf = tmp("asound.conf");
+        std::fs::write(
+            &conf,
+            format!(
+                "pcm.afetest {{\n  type file\n  slave.pcm {{ type null }}\n  file \"/dev/null\"\n  \
+                 infile \"{}\"\n  format \"raw\"\n  hint {{ show on description \"afe test capture\" }}\n}}\n",
+                raw.display()
+            ),
+        )
+        .expect("conf");
+        (conf, wav)
+    }
+
+    #[test]
+    fn devices_list_the_configured_capture_pcm() {
+        let (conf, _) = setup();
+        let out = afe_env(&["devices"], &[("ALSA_CONFIG_PATH", &conf)]);
+        let text = ok(&out);
+        assert!(
+            text.lines()
+                .any(|l| l.starts_with("afetest") && l.contains("afe test capture")),
+            "{text}"
+        );
+    }
+
+    #[test]
+    fn captured_frames_give_what_extract_gives_on_the_same_samples() {
+        let (conf, wav) = setup();
+        let captured = tmp("captured.npz");
+        let out = afe_env(
+            &[
+                "stream",
+                "--source",
+                "alsa:afetest",
+                "--fast",
+                "--for",
+                "0.2",
+                "-r",
+                "ratemap,ild",
+                "--json",
+                "-o",
+                captured.to_str().expect("path"),
+            ],
+            &[("ALSA_CONFIG_PATH", &conf)],
+        );
+        let r = report(&out);
+        assert_eq!(
+            (r["frames"].clone(), r["lost_frames"].clone()),
+            (8820.into(), 0.into())
+        );
+        let extracted = tmp("capture-extracted.npz");
+        ok(&afe(&[
+            "extract",
+            wav.to_str().expect("path"),
+            "-r",
+            "ratemap,ild",
+            "--chunk",
+            "441",
+            "-o",
+            extracted.to_str().expect("path"),
+        ]));
+        assert_eq!(npz_arrays(&captured), npz_arrays(&extracted));
+
+        // At real time, the null device delivers faster than real time: the port
+        // overflows, and every frame is processed or counted as lost.
+        let r = report(&afe_env(
+            &[
+                "stream",
+                "--source",
+                "alsa:afetest",
+                "--for",
+                "0.2",
+                "-r",
+                "ild",
+                "--json",
+            ],
+            &[("ALSA_CONFIG_PATH", &conf)],
+        ));
+        let frames = r["frames"].as_u64().expect("frames");
+        let lost = r["lost_frames"].as_u64().expect("lost");
+        assert_eq!(frames + lost, 8820, "{r}");
+
+        let o = tmp("never-captured.npz");
+        let out = afe_env(
+            &[
+                "stream",
+                "--source",
+                "alsa:nosuchpcm",
+                "--for",
+                "1",
+                "-r",
+                "ild",
+                "-o",
+                o.to_str().expect("path"),
+            ],
+            &[("ALSA_CONFIG_PATH", &conf)],
+        );
+        assert_clear_error(&out, "cannot open ALSA capture device 'nosuchpcm'", &o);
+    }
+}
