@@ -1,70 +1,9 @@
 //! The `afe` command line contract: outputs, and one clear error line (non-zero exit, no
 //! output file) for every kind of bad input.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-use afe::npy::decode;
-
-fn afe(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_afe"))
-        .args(args)
-        .output()
-        .expect("run afe")
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("afe-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    dir.join(name)
-}
-
-fn write_wav(path: &Path, channels: u16, fs: u32, frames: usize, value: impl Fn(usize) -> f32) {
-    let spec = hound::WavSpec {
-        channels,
-        sample_rate: fs,
-        bits_per_sample: 32,
-        sample_format: hound::SampleFormat::Float,
-    };
-    let mut w = hound::WavWriter::create(path, spec).expect("create wav");
-    for i in 0..frames * usize::from(channels) {
-        w.write_sample(value(i)).expect("write");
-    }
-    w.finalize().expect("finalize");
-}
-
-fn tone(i: usize) -> f32 {
-    (0.05 * i as f32).sin() * 0.3
-}
-
-/// Reads the arrays of an .npz written by afe (stored entries) by scanning for npy headers.
-fn npz_arrays(path: &Path) -> Vec<(String, Vec<usize>, Vec<f64>)> {
-    let file = std::fs::File::open(path).expect("npz");
-    let mut zip = zip::ZipArchive::new(file).expect("zip");
-    (0..zip.len())
-        .map(|i| {
-            let mut entry = zip.by_index(i).expect("entry");
-            let name = entry.name().trim_end_matches(".npy").to_string();
-            let mut bytes = Vec::new();
-            std::io::Read::read_to_end(&mut entry, &mut bytes).expect("read");
-            let a = decode(&bytes).expect("npy");
-            (name, a.shape, a.data)
-        })
-        .collect()
-}
-
-fn assert_clear_error(out: &Output, needle: &str, output_file: &Path) {
-    assert!(!out.status.success(), "should fail: {needle}");
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(
-        err.trim().lines().count(),
-        1,
-        "one line expected, got: {err}"
-    );
-    assert!(err.contains(needle), "'{needle}' not in: {err}");
-    assert!(!err.contains("panicked"), "{err}");
-    assert!(!output_file.exists(), "no output file on error");
-}
+use common::{afe, assert_clear_error, npz_arrays, tmp, tone, write_wav};
 
 #[test]
 fn extract_writes_the_oracle_layout_and_chunking_does_not_change_it() {

@@ -1,30 +1,12 @@
 //! The `afe stream` and `afe devices` command lines: a replayed file gives what `afe
 //! extract` gives, the JSON report holds exact counts, and bad input is one clear line.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
+
+use std::process::Output;
 use std::time::{Duration, Instant};
 
-use afe::npy::decode;
-
-fn afe(args: &[&str]) -> Output {
-    afe_env(args, &[])
-}
-
-fn afe_env(args: &[&str], env: &[(&str, &Path)]) -> Output {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_afe"));
-    cmd.args(args);
-    for (k, v) in env {
-        cmd.env(k, v);
-    }
-    cmd.output().expect("run afe")
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("afe-stream-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    dir.join(name)
-}
+use common::{afe, assert_clear_error, npz_arrays, tmp};
 
 fn example() -> String {
     concat!(env!("CARGO_MANIFEST_DIR"), "/data/example_binaural.wav").to_string()
@@ -41,30 +23,6 @@ fn ok(out: &Output) -> String {
 
 fn report(out: &Output) -> serde_json::Value {
     serde_json::from_str(&ok(out)).expect("one JSON object")
-}
-
-fn npz_arrays(path: &Path) -> Vec<(String, Vec<usize>, Vec<f64>)> {
-    let file = std::fs::File::open(path).expect("npz");
-    let mut zip = zip::ZipArchive::new(file).expect("zip");
-    (0..zip.len())
-        .map(|i| {
-            let mut entry = zip.by_index(i).expect("entry");
-            let name = entry.name().trim_end_matches(".npy").to_string();
-            let mut bytes = Vec::new();
-            std::io::Read::read_to_end(&mut entry, &mut bytes).expect("read");
-            let a = decode(&bytes).expect("npy");
-            (name, a.shape, a.data)
-        })
-        .collect()
-}
-
-fn assert_clear_error(out: &Output, needle: &str, output_file: &Path) {
-    assert!(!out.status.success(), "should fail: {needle}");
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(err.trim().lines().count(), 1, "one line expected: {err}");
-    assert!(err.starts_with("error: "), "{err}");
-    assert!(err.contains(needle), "'{needle}' not in: {err}");
-    assert!(!output_file.exists(), "no output file on error");
 }
 
 #[test]
@@ -256,6 +214,9 @@ fn without_alsa_devices_and_capture_say_how_to_get_it() {
 /// ALSA without hardware: a `file` PCM over a `null` slave captures a raw file's frames.
 #[cfg(feature = "alsa")]
 mod alsa {
+    use std::path::PathBuf;
+
+    use super::common::afe_env;
     use super::*;
 
     const FRAMES: usize = 8820;

@@ -35,15 +35,8 @@ enum Command {
     Extract {
         /// Input WAV file (mono or two-channel binaural).
         input: PathBuf,
-        /// Requests, comma-separated (e.g. ratemap,ild,itd,ic).
-        #[arg(short = 'r', long = "requests", value_delimiter = ',', required = true)]
-        requests: Vec<String>,
-        /// An AFE parameter, NAME=VALUE (VALUE is JSON, or a bare string). Repeatable.
-        #[arg(short = 'p', long = "param", value_name = "NAME=VALUE")]
-        params: Vec<String>,
-        /// A JSON object of AFE parameter names to values (-p entries override it).
-        #[arg(long = "params", value_name = "FILE.json")]
-        params_file: Option<PathBuf>,
+        #[command(flatten)]
+        requests: Requests,
         /// Feed the input in chunks of N samples instead of one call.
         #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
         chunk: Option<u64>,
@@ -63,15 +56,8 @@ enum Command {
     Bench {
         /// Input WAV file (mono or two-channel binaural).
         input: PathBuf,
-        /// Requests, comma-separated.
-        #[arg(short = 'r', long = "requests", value_delimiter = ',', required = true)]
-        requests: Vec<String>,
-        /// An AFE parameter, NAME=VALUE. Repeatable.
-        #[arg(short = 'p', long = "param", value_name = "NAME=VALUE")]
-        params: Vec<String>,
-        /// A JSON object of AFE parameter names to values.
-        #[arg(long = "params", value_name = "FILE.json")]
-        params_file: Option<PathBuf>,
+        #[command(flatten)]
+        requests: Requests,
         /// Feed the input in chunks of N samples (default: one call).
         #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
         chunk: Option<u64>,
@@ -94,15 +80,8 @@ enum Command {
         /// alsa:DEVICE (e.g. alsa:hw:1,0; see `afe devices`).
         #[arg(long, value_name = "wav:FILE|synth:SPEC|alsa:DEVICE")]
         source: String,
-        /// Requests, comma-separated (e.g. ratemap,ild,itd,ic).
-        #[arg(short = 'r', long = "requests", value_delimiter = ',', required = true)]
-        requests: Vec<String>,
-        /// An AFE parameter, NAME=VALUE. Repeatable.
-        #[arg(short = 'p', long = "param", value_name = "NAME=VALUE")]
-        params: Vec<String>,
-        /// A JSON object of AFE parameter names to values (-p entries override it).
-        #[arg(long = "params", value_name = "FILE.json")]
-        params_file: Option<PathBuf>,
+        #[command(flatten)]
+        requests: Requests,
         /// Block fed to the graph per step, in ms (round(M·fs/1000) frames): the compute
         /// budget of each block.
         #[arg(long, value_name = "M", default_value_t = 10.0)]
@@ -138,6 +117,34 @@ enum Command {
     },
 }
 
+/// The requests and their AFE parameters, shared by `extract`, `bench` and `stream`.
+#[derive(clap::Args)]
+struct Requests {
+    /// Requests, comma-separated (e.g. ratemap,ild,itd,ic).
+    #[arg(
+        short = 'r',
+        long = "requests",
+        value_name = "REQ,...",
+        value_delimiter = ',',
+        required = true
+    )]
+    names: Vec<String>,
+    /// An AFE parameter, NAME=VALUE (VALUE is JSON, or a bare string). Repeatable.
+    #[arg(short = 'p', long = "param", value_name = "NAME=VALUE")]
+    params: Vec<String>,
+    /// A JSON object of AFE parameter names to values (-p entries override it).
+    #[arg(long = "params", value_name = "FILE.json")]
+    params_file: Option<PathBuf>,
+}
+
+impl Requests {
+    /// The request names (trimmed, empty ones dropped) and the merged parameters.
+    fn load(self) -> Result<(Vec<String>, ParamMap), String> {
+        let params = load_params(self.params_file.as_deref(), &self.params)?;
+        Ok((clean(self.names), params))
+    }
+}
+
 /// The executor choice shared by `extract`, `bench` and `stream`.
 #[derive(clap::Args)]
 struct Threads {
@@ -165,17 +172,15 @@ fn main() -> ExitCode {
         Command::Extract {
             input,
             requests,
-            params,
-            params_file,
             chunk,
             all,
             threads,
             trace,
             output,
-        } => load_params(params_file.as_deref(), &params).and_then(|p| {
+        } => requests.load().and_then(|(requests, params)| {
             let job = Job {
-                requests: clean(requests),
-                params: p,
+                requests,
+                params,
                 chunk: chunk.map(|n| n as usize),
                 all,
                 threads: threads.count(),
@@ -185,16 +190,14 @@ fn main() -> ExitCode {
         Command::Bench {
             input,
             requests,
-            params,
-            params_file,
             chunk,
             threads,
             repeat,
             json,
-        } => load_params(params_file.as_deref(), &params).and_then(|p| {
+        } => requests.load().and_then(|(requests, params)| {
             let job = Job {
-                requests: clean(requests),
-                params: p,
+                requests,
+                params,
                 chunk: chunk.map(|n| n as usize),
                 all: false,
                 threads: threads.count(),
@@ -205,8 +208,6 @@ fn main() -> ExitCode {
         Command::Stream {
             source,
             requests,
-            params,
-            params_file,
             block_ms,
             duration,
             realtime,
@@ -217,10 +218,10 @@ fn main() -> ExitCode {
             all,
             json,
             output,
-        } => load_params(params_file.as_deref(), &params).and_then(|p| {
+        } => requests.load().and_then(|(requests, params)| {
             let job = StreamJob {
-                requests: clean(requests),
-                params: p,
+                requests,
+                params,
                 block_ms,
                 duration_s: duration,
                 // --realtime, --fast, or the source's default: set in `stream`

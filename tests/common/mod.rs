@@ -1,0 +1,82 @@
+//! Helpers shared by the command-line tests: run the `afe` binary, make inputs, read its
+//! `.npz` outputs, check error lines.
+// Each test binary uses its own subset of these helpers.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use afe::npy::decode;
+
+/// Runs `afe` with `args`.
+pub fn afe(args: &[&str]) -> Output {
+    afe_env(args, &[])
+}
+
+/// Runs `afe` with `args` and extra environment variables.
+pub fn afe_env(args: &[&str], env: &[(&str, &Path)]) -> Output {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_afe"));
+    cmd.args(args);
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    cmd.output().expect("run afe")
+}
+
+/// A path in this test process's own temporary folder.
+pub fn tmp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("afe-tests-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    dir.join(name)
+}
+
+/// Writes a 32-bit float WAV whose interleaved sample `i` is `value(i)`.
+pub fn write_wav(path: &Path, channels: u16, fs: u32, frames: usize, value: impl Fn(usize) -> f32) {
+    let spec = hound::WavSpec {
+        channels,
+        sample_rate: fs,
+        bits_per_sample: 32,
+        sample_format: hound::SampleFormat::Float,
+    };
+    let mut w = hound::WavWriter::create(path, spec).expect("create wav");
+    for i in 0..frames * usize::from(channels) {
+        w.write_sample(value(i)).expect("write");
+    }
+    w.finalize().expect("finalize");
+}
+
+/// A slow sinusoid of interleaved sample index `i`, peak 0.3.
+pub fn tone(i: usize) -> f32 {
+    (0.05 * i as f32).sin() * 0.3
+}
+
+/// The arrays of an `.npz` written by afe: (name, shape, values), in archive order.
+pub fn npz_arrays(path: &Path) -> Vec<(String, Vec<usize>, Vec<f64>)> {
+    let file = std::fs::File::open(path).expect("npz");
+    let mut zip = zip::ZipArchive::new(file).expect("zip");
+    (0..zip.len())
+        .map(|i| {
+            let mut entry = zip.by_index(i).expect("entry");
+            let name = entry.name().trim_end_matches(".npy").to_string();
+            let mut bytes = Vec::new();
+            std::io::Read::read_to_end(&mut entry, &mut bytes).expect("read");
+            let a = decode(&bytes).expect("npy");
+            (name, a.shape, a.data)
+        })
+        .collect()
+}
+
+/// `out` failed with one `error:` line containing `needle`, no panic, and no output file.
+pub fn assert_clear_error(out: &Output, needle: &str, output_file: &Path) {
+    assert!(!out.status.success(), "should fail: {needle}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(
+        err.trim().lines().count(),
+        1,
+        "one line expected, got: {err}"
+    );
+    assert!(err.starts_with("error: "), "{err}");
+    assert!(err.contains(needle), "'{needle}' not in: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(!output_file.exists(), "no output file on error");
+}
