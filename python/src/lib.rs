@@ -102,6 +102,35 @@ impl PyManager {
             f(&mut st).map_err(to_py)
         })
     }
+
+    /// Processes `x` as the next chunk, or (`whole`) as a whole signal from a fresh
+    /// state; records it and returns the new output of every request.
+    fn process<'py>(
+        &self,
+        py: Python<'py>,
+        x: PyReadonlyArray2<'py, f64>,
+        whole: bool,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let ears = columns(&x);
+        let out = self.with(py, |st| {
+            let refs: Vec<&[f64]> = ears.iter().map(Vec::as_slice).collect();
+            if whole {
+                st.manager.process_signal(&refs)?;
+                st.history = Recorder::new(false);
+            } else {
+                st.manager.process_chunk(&refs)?;
+            }
+            if st.keep_history {
+                st.history.record(&st.manager);
+            }
+            Ok(st.new_output())
+        })?;
+        signals_dict(
+            py,
+            out.iter()
+                .map(|(k, s, d)| (k.clone(), s.clone(), d.as_slice())),
+        )
+    }
 }
 
 #[pymethods]
@@ -172,20 +201,7 @@ impl PyManager {
         py: Python<'py>,
         x: PyReadonlyArray2<'py, f64>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let ears = columns(&x);
-        let out = self.with(py, |st| {
-            let refs: Vec<&[f64]> = ears.iter().map(Vec::as_slice).collect();
-            st.manager.process_chunk(&refs)?;
-            if st.keep_history {
-                st.history.record(&st.manager);
-            }
-            Ok(st.new_output())
-        })?;
-        signals_dict(
-            py,
-            out.iter()
-                .map(|(k, s, d)| (k.clone(), s.clone(), d.as_slice())),
-        )
+        self.process(py, x, false)
     }
 
     fn process_signal<'py>(
@@ -193,21 +209,7 @@ impl PyManager {
         py: Python<'py>,
         x: PyReadonlyArray2<'py, f64>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let ears = columns(&x);
-        let out = self.with(py, |st| {
-            let refs: Vec<&[f64]> = ears.iter().map(Vec::as_slice).collect();
-            st.manager.process_signal(&refs)?;
-            st.history = Recorder::new(false);
-            if st.keep_history {
-                st.history.record(&st.manager);
-            }
-            Ok(st.new_output())
-        })?;
-        signals_dict(
-            py,
-            out.iter()
-                .map(|(k, s, d)| (k.clone(), s.clone(), d.as_slice())),
-        )
+        self.process(py, x, true)
     }
 
     fn reset(&self, py: Python<'_>) -> PyResult<()> {
