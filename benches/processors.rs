@@ -153,7 +153,7 @@ fn gammatone(c: &mut Criterion) {
             n_channels: Some(channels),
             ..GammatoneParams::default()
         };
-        let (mut fb, _, _) = Gammatone::new(&params, fs).expect("filterbank");
+        let (mut fb, _) = Gammatone::new(&params, fs).expect("filterbank");
         group.throughput(Throughput::Elements(
             left.len() as u64 * u64::from(channels),
         ));

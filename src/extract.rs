@@ -1,6 +1,6 @@
 //! Running a set of requests over a whole signal, whole or in chunks.
 
-use afe_core::{ParamMap, Result};
+use afe_core::{Error, ParamMap, Result};
 use afe_graph::Manager;
 
 use crate::recorder::Recorder;
@@ -50,10 +50,23 @@ pub fn run_with(mgr: &mut Manager, job: &Job, channels: &[&[f64]]) -> Result<Rec
     for r in &job.requests {
         mgr.add_request(r, &job.params)?;
     }
-    let mut rec = Recorder::new(job.all);
+    if job.requests.is_empty() && mgr.handles().next().is_none() {
+        return Err(Error::InvalidInput("no request given".into()));
+    }
+    if job.chunk == Some(0) {
+        return Err(Error::InvalidInput(
+            "chunk = 0: give a positive number of samples".into(),
+        ));
+    }
     let len = channels.first().map_or(0, |c| c.len());
+    if channels.iter().any(|c| c.len() != len) {
+        return Err(Error::InvalidInput(
+            "the channels have different lengths".into(),
+        ));
+    }
+    let mut rec = Recorder::new(job.all);
     let block = match job.chunk {
-        Some(n) => Some(n.max(1)),
+        Some(n) => Some(n),
         // a whole signal: one call where the AFE depends on chunk boundaries
         None if !mgr.is_chunk_invariant() => None,
         None => {
@@ -68,7 +81,7 @@ pub fn run_with(mgr: &mut Manager, job: &Job, channels: &[&[f64]]) -> Result<Rec
         }
         Some(n) => {
             if len == 0 {
-                return Err(afe_core::Error::InvalidInput("the signal is empty".into()));
+                return Err(Error::InvalidInput("the signal is empty".into()));
             }
             let mut start = 0;
             while start < len {

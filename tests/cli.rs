@@ -112,6 +112,11 @@ fn every_bad_input_is_one_clear_line() {
     let os = o.to_str().expect("path");
 
     assert_clear_error(
+        &afe(&["extract", g, "-r", ",", "-o", os]),
+        "no request given",
+        &o,
+    );
+    assert_clear_error(
         &afe(&["extract", g, "-r", "ratemapp", "-o", os]),
         "unknown request 'ratemapp'",
         &o,

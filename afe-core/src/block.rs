@@ -99,14 +99,6 @@ pub struct Block {
 }
 
 impl Block {
-    /// A block of width 0 and no rows (usable in statics).
-    pub const fn empty() -> Self {
-        Block {
-            data: Vec::new(),
-            width: 0,
-        }
-    }
-
     /// An empty block whose rows hold `width` values.
     pub fn new(width: usize) -> Self {
         Block {
@@ -172,9 +164,12 @@ impl Block {
         &mut self.data
     }
 
-    /// Appends the rows of `other` (which must have the same width).
+    /// Appends the rows of `other`.
+    ///
+    /// # Panics
+    /// If `other` has another width.
     pub fn extend_from(&mut self, other: &Block) {
-        debug_assert_eq!(self.width, other.width);
+        assert_eq!(self.width, other.width, "appending rows of another width");
         self.data.extend_from_slice(&other.data);
     }
 

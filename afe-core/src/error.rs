@@ -42,7 +42,7 @@ pub enum Error {
     #[error("request '{0}' needs a binaural (two-channel) input, but the input is mono")]
     BinauralOnMono(String),
     /// An invalid sampling rate.
-    #[error("invalid sampling rate {0} Hz: it must be a finite number > 0")]
+    #[error("invalid sampling rate {0} Hz: it must be above 0 and at most 1 MHz")]
     InvalidSampleRate(f64),
     /// A request handle that does not belong to this manager (or was removed).
     #[error("unknown request handle {0}")]

@@ -256,6 +256,7 @@ impl Shared {
         let k = next_chunk(&table.sync, n);
         let slot = (k % 2) as usize;
         let rt = &table.rt[n];
+        let ready = rt.claimed_at_ns.load(Ordering::Relaxed);
         let start = self.now_ns();
         // SAFETY: we hold the claim of `n`, so its processor and its slot `k % 2` (free:
         // READY checked `readers_left == 0`) are ours alone; every parent has published
@@ -296,7 +297,7 @@ impl Shared {
             TraceEvent {
                 node: n as u32,
                 chunk: k,
-                ready_ns: rt.claimed_at_ns.load(Ordering::Relaxed),
+                ready_ns: ready,
                 start_ns: start,
                 end_ns: end,
                 released_ns: self.now_ns(),
@@ -359,25 +360,27 @@ impl Engine {
             epoch: Instant::now(),
             tracer: Tracer::new(threads, trace_capacity),
         });
-        let mut handles = Vec::with_capacity(threads);
-        for id in 0..threads {
-            let s = Arc::clone(&shared);
-            let h = thread::Builder::new()
-                .name(format!("afe-worker-{id}"))
-                .spawn(move || s.worker_loop(id))
-                .map_err(|e| Error::InvalidInput(format!("cannot start worker thread: {e}")))?;
-            handles.push(h);
-        }
-        let threads_list: Box<[Thread]> = handles.iter().map(|h| h.thread().clone()).collect();
-        let _ = shared.workers.set(threads_list);
-        Ok(Engine {
+        let mut engine = Engine {
             shared,
-            handles,
+            handles: Vec::with_capacity(threads),
             submitted: 0,
             collected: 0,
             views: Vec::new(),
             stall_timeout: Duration::from_secs(30),
-        })
+        };
+        for id in 0..threads {
+            let s = Arc::clone(&engine.shared);
+            // On failure `engine` is dropped, which stops and joins the workers started.
+            let h = thread::Builder::new()
+                .name(format!("afe-worker-{id}"))
+                .spawn(move || s.worker_loop(id))
+                .map_err(|e| Error::InvalidInput(format!("cannot start worker thread: {e}")))?;
+            engine.handles.push(h);
+        }
+        let threads_list: Box<[Thread]> =
+            engine.handles.iter().map(|h| h.thread().clone()).collect();
+        let _ = engine.shared.workers.set(threads_list);
+        Ok(engine)
     }
 
     /// Number of worker threads.
@@ -461,11 +464,12 @@ impl Engine {
     }
 
     /// Makes the current thread the one workers wake (the manager may move threads).
+    /// Chunks in flight need not be collected: the swap waits only for the workers to
+    /// step out of the table.
     fn adopt_caller(&mut self) -> Result<()> {
         if self.shared.caller().id() == thread::current().id() {
             return Ok(());
         }
-        self.quiesce()?;
         self.with_table_swapped(|shared| {
             // SAFETY: no worker is active (`with_table_swapped`).
             #[allow(unsafe_code)]
@@ -478,7 +482,15 @@ impl Engine {
 
     /// Publishes the next input chunk (one slice per ear) into the source node, waiting
     /// while the source's previous use of that slot is still being read.
+    ///
+    /// At most two chunks may be in flight (each node double-buffers its output):
+    /// collect the oldest before submitting a third.
     pub fn submit(&mut self, chunk: &[&[f64]]) -> Result<()> {
+        if self.in_flight() >= 2 {
+            return Err(Error::InvalidInput(
+                "two chunks are in flight already: collect one before submitting the next".into(),
+            ));
+        }
         self.adopt_caller()?;
         let k = self.submitted;
         let slot = (k % 2) as usize;

@@ -8,6 +8,9 @@ use serde_json::Value;
 use crate::engine::Engine;
 use crate::graph::{Channel, Graph, Node, OutputRef};
 
+/// Highest input sampling rate accepted, in Hz.
+pub const MAX_FS: f64 = 1_000_000.0;
+
 /// Parameters the AFE does not allow to change at run time (they define the filterbank's
 /// channel grid, which every representation above it is laid out on).
 const FIXED_PARAMETERS: &[&str] = &[
@@ -149,7 +152,7 @@ fn edit_distance(a: &str, b: &str) -> usize {
 impl Manager {
     /// A manager for input at `fs` Hz with `ears` channels (1 = mono, 2 = binaural).
     pub fn new(fs: f64, ears: usize) -> Result<Self> {
-        if !(fs.is_finite() && fs > 0.0) {
+        if !(fs.is_finite() && fs > 0.0 && fs <= MAX_FS) {
             return Err(Error::InvalidSampleRate(fs));
         }
         if !(1..=2).contains(&ears) {
@@ -477,7 +480,7 @@ impl Manager {
     /// Starts processing the next chunk without waiting for it: with the concurrent
     /// scheduler, chunk k+1 enters the graph while chunk k is still in its deeper nodes.
     /// Collect each chunk's output, in order, with [`Manager::collect_chunk`]; keep at most
-    /// [`Manager::pipeline_depth`] chunks in flight (more waits for the oldest to drain).
+    /// [`Manager::pipeline_depth`] chunks in flight (submitting more is an error).
     ///
     /// ```
     /// use afe_graph::Manager;
@@ -855,6 +858,28 @@ mod tests {
             .map(Signal::key)
             .collect();
         assert_eq!(keys, vec!["ratemap_2_left", "ratemap_2_right"]);
+    }
+
+    #[test]
+    fn a_manager_moves_between_threads_mid_stream_and_bounds_chunks_in_flight() {
+        let mut m = Manager::with_threads(16000.0, 2, 2).expect("valid");
+        m.set_stall_timeout(std::time::Duration::from_secs(10));
+        let h = m.add_request("ild", &ParamMap::new()).expect("ok");
+        let x = vec![0.1; 1600];
+        m.submit_chunk(&[&x, &x]).expect("first");
+        m.submit_chunk(&[&x, &x]).expect("second");
+        let e = m.submit_chunk(&[&x, &x]).expect_err("a third in flight");
+        assert!(e.to_string().contains("collect one"), "{e}");
+        // another thread collects what this one submitted, then goes on streaming
+        let m = std::thread::spawn(move || {
+            m.collect_chunk().expect("collect on another thread");
+            m.collect_chunk().expect("collect on another thread");
+            m.process_chunk(&[&x, &x]).expect("stream on");
+            m
+        })
+        .join()
+        .expect("thread");
+        assert_eq!(m.request_signals(h).expect("ild")[0].new.frames(), 10);
     }
 
     #[test]

@@ -1,5 +1,5 @@
 //! The token protocol of the concurrent scheduler: Ready → Process → Wait → Release over
-//! two output slots per node (STYLE-ANCHORS §5.4–5.5).
+//! two output slots per node (the design of ARCHITECTURE.md, "The scheduler").
 //!
 //! Chunk `k` of a node is written to slot `k % 2`. A node may process chunk `k` (READY)
 //! when every parent has published chunk `k` (`produced > k`) and every reader of its own

@@ -1,7 +1,7 @@
 //! Model check (loom) of the scheduler's token protocol: the very `protocol.rs` the engine
 //! runs, compiled here against loom's atomics, on a 3-node chain and on a 1-parent /
-//! 2-child fan-out, over three chunks (two in flight, and a slot reused) and three
-//! threads. Loom explores the interleavings (bounded preemptions) and fails on a data
+//! 2-child fan-out, over four chunks (two in flight, slots reused while a reader may
+//! still be on them) and two threads. Loom explores the interleavings (bounded preemptions) and fails on a data
 //! race on a slot, a lost wake-up (work left undone), or a wrong value.
 //!
 //! No thread spins (loom cannot explore spin loops): the source is a node like the

@@ -110,14 +110,18 @@ impl Crosscorrelation {
             ("cc_hSizeSec", params.h_size_sec),
             fs,
         )?;
-        if params.max_delay_sec < 0.0 {
+        let max_lag = (params.max_delay_sec * fs).ceil();
+        if params.max_delay_sec < 0.0 || max_lag > w as f64 {
             return Err(Error::InvalidParameter {
                 name: "cc_maxDelaySec".into(),
                 value: params.max_delay_sec.to_string(),
-                reason: "must be ≥ 0 s".into(),
+                reason: format!(
+                    "must be ≥ 0 s and at most the window ({} s): longer lags are all zero",
+                    params.w_size_sec
+                ),
             });
         }
-        let max_lag = (params.max_delay_sec * fs).ceil() as usize;
+        let max_lag = max_lag as usize;
         // The AFE transforms 2^nextpow2(2W − 1) points; only lags up to L = min(maxLag,
         // W − 1) are kept, and a circular correlation of N ≥ W + L points has no wrap-around
         // there, so the smaller transform gives the same values (to rounding) at half the cost.

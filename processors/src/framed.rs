@@ -3,17 +3,20 @@
 use afe_core::framing::{hop_samples, window_samples};
 use afe_core::{Error, Result};
 
-/// Window and hop lengths in samples at `fs`, checked: `0 < H ≤ W`.
+/// Longest window, in samples (about 6 minutes at 44.1 kHz): beyond is a unit mistake.
+pub const MAX_WINDOW: usize = 1 << 24;
+
+/// Window and hop lengths in samples at `fs`, checked: `0 < H ≤ W ≤ MAX_WINDOW`.
 ///
 /// `w` and `h` are `(AFE parameter name, value in s)`.
 pub fn check_framing(w: (&str, f64), h: (&str, f64), fs: f64) -> Result<(usize, usize)> {
     let ws = window_samples(w.1, fs);
     let hs = hop_samples(h.1, fs);
-    if w.1 <= 0.0 || ws < 2 {
+    if w.1 <= 0.0 || !(2..=MAX_WINDOW).contains(&ws) {
         return Err(Error::InvalidParameter {
             name: w.0.into(),
             value: w.1.to_string(),
-            reason: format!("the window must span at least 2 samples at {fs} Hz"),
+            reason: format!("the window must span between 2 and {MAX_WINDOW} samples at {fs} Hz"),
         });
     }
     if h.1 <= 0.0 || hs == 0 || hs > ws {

@@ -142,6 +142,9 @@ pub struct GammatoneGrid {
     pub map: ParamMap,
 }
 
+/// Largest filterbank: more channels than this is a parameter mistake, not a use case.
+pub const MAX_CHANNELS: usize = 1024;
+
 impl GammatoneParams {
     /// Checks the parameters and derives the grid (priority `fb_cfHz` > `fb_nChannels` >
     /// `fb_nERBs`), as the AFE's verify step does.
@@ -152,6 +155,13 @@ impl GammatoneParams {
         let (cf, n_erbs, low, high): (Vec<f64>, Value, f64, f64) = if !self.cf_hz.is_empty() {
             if let Some(bad) = self.cf_hz.iter().find(|f| **f <= 0.0) {
                 return Err(invalid("fb_cfHz", bad, "centre frequencies must be > 0 Hz"));
+            }
+            if self.cf_hz.len() > MAX_CHANNELS {
+                return Err(invalid(
+                    "fb_cfHz",
+                    format!("[{} values]", self.cf_hz.len()),
+                    format!("at most {MAX_CHANNELS} channels are supported"),
+                ));
             }
             let cf = self.cf_hz.clone();
             let (lo, hi) = (cf[0], cf[cf.len() - 1]);
@@ -169,6 +179,13 @@ impl GammatoneParams {
             }
             let (elo, ehi) = (freq2erb(self.low_freq_hz), freq2erb(self.high_freq_hz));
             match self.n_channels {
+                Some(n) if n as usize > MAX_CHANNELS => {
+                    return Err(invalid(
+                        "fb_nChannels",
+                        n,
+                        format!("at most {MAX_CHANNELS} channels are supported"),
+                    ))
+                }
                 Some(n) => {
                     let e = linspace(elo, ehi, n as usize);
                     let spacing = (e[e.len() - 1] - e[0]) / f64::from(n);
@@ -176,8 +193,15 @@ impl GammatoneParams {
                     (cf, json!(spacing), self.low_freq_hz, self.high_freq_hz)
                 }
                 None => {
-                    if self.n_erbs <= 0.0 {
-                        return Err(invalid("fb_nERBs", self.n_erbs, "must be > 0"));
+                    let count = (ehi - elo) / self.n_erbs;
+                    if self.n_erbs <= 0.0 || count >= MAX_CHANNELS as f64 {
+                        return Err(invalid(
+                            "fb_nERBs",
+                            self.n_erbs,
+                            format!(
+                                "must be > 0 and give at most {MAX_CHANNELS} channels between fb_lowFreqHz and fb_highFreqHz"
+                            ),
+                        ));
                     }
                     let cf: Vec<f64> = colon_range(elo, self.n_erbs, ehi)
                         .into_iter()
@@ -283,11 +307,17 @@ pub struct Gammatone {
 
 impl Gammatone {
     /// Designs the filterbank for input rate `fs` Hz; returns it with its output signal.
-    pub fn new(params: &GammatoneParams, fs: f64) -> Result<(Self, SignalInfo, ParamMap)> {
+    /// (The verified parameter map is [`GammatoneParams::grid`]'s.)
+    pub fn new(params: &GammatoneParams, fs: f64) -> Result<(Self, SignalInfo)> {
         let grid = params.grid()?;
         if let Some(bad) = grid.cf_hz.iter().find(|f| **f >= fs / 2.0) {
+            let name = if params.cf_hz.is_empty() {
+                "fb_highFreqHz"
+            } else {
+                "fb_cfHz"
+            };
             return Err(invalid(
-                "fb_highFreqHz",
+                name,
                 bad,
                 format!(
                     "centre frequencies must lie below the Nyquist frequency ({} Hz) of the {fs} Hz input",
@@ -331,7 +361,6 @@ impl Gammatone {
                 groups,
             },
             info,
-            grid.map,
         ))
     }
 
@@ -459,7 +488,7 @@ mod tests {
             cf_hz: vec![1000.0],
             ..Default::default()
         };
-        let (mut gt, _, _) = Gammatone::new(&p, fs).expect("valid");
+        let (mut gt, _) = Gammatone::new(&p, fs).expect("valid");
         let n = 200;
         let mut x = vec![0.0; n];
         x[0] = 1.0;
@@ -482,7 +511,7 @@ mod tests {
             cf_hz: vec![1000.0],
             ..Default::default()
         };
-        let (mut gt, _, _) = Gammatone::new(&p, fs).expect("valid");
+        let (mut gt, _) = Gammatone::new(&p, fs).expect("valid");
         let n = 44100;
         let x: Vec<f64> = (0..n)
             .map(|t| (2.0 * PI * 1000.0 * t as f64 / fs).sin())
@@ -491,6 +520,33 @@ mod tests {
         gt.filter(&x, &mut y);
         let peak = y[n / 2..].iter().fold(0.0f64, |m, v| m.max(v.abs()));
         assert!((peak - 1.0).abs() < 1e-3, "peak {peak}");
+    }
+
+    #[test]
+    fn absurd_channel_counts_are_errors_not_allocations() {
+        for p in [
+            GammatoneParams {
+                n_erbs: 1e-9,
+                ..Default::default()
+            },
+            GammatoneParams {
+                n_erbs: 1e-300,
+                ..Default::default()
+            },
+            GammatoneParams {
+                n_channels: Some(u32::MAX),
+                ..Default::default()
+            },
+        ] {
+            let e = p.grid().expect_err("too many channels");
+            assert!(e.to_string().contains("at most 1024 channels"), "{e}");
+        }
+        let p = GammatoneParams {
+            cf_hz: vec![100.0, 900.0],
+            ..Default::default()
+        };
+        let e = Gammatone::new(&p, 1600.0).expect_err("900 Hz above Nyquist");
+        assert!(e.to_string().contains("'fb_cfHz'"), "{e}");
     }
 
     #[test]

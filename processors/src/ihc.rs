@@ -111,6 +111,17 @@ impl Ihc {
         let method = Method::parse(&params.method);
         let channels = input.channels();
         let lowpass = match method.lowpass() {
+            Some((_, fc, _)) if fc >= input.fs_hz / 2.0 => {
+                return Err(afe_core::Error::InvalidParameter {
+                    name: "ihc_method".into(),
+                    value: format!("\"{}\"", params.method),
+                    reason: format!(
+                        "its {fc} Hz low-pass needs a sampling rate above {} Hz (the input has {} Hz)",
+                        2.0 * fc,
+                        input.fs_hz
+                    ),
+                })
+            }
             Some((order, fc, count)) => {
                 let (b, a) = butter(order, &[fc / (input.fs_hz / 2.0)], ButterType::Low);
                 vec![Df2t::new(&b, &a, channels); count]
@@ -205,6 +216,20 @@ mod tests {
         assert_eq!(run("halfwave", &x), vec![0.0, 0.0, 0.0, 0.5, 3.0]);
         assert_eq!(run("fullwave", &x), vec![2.0, 0.5, 0.0, 0.5, 3.0]);
         assert_eq!(run("square", &x), vec![4.0, 0.25, 0.0, 0.25, 9.0]);
+    }
+
+    #[test]
+    fn lowpass_above_nyquist_is_rejected() {
+        let info = SignalInfo::time_frequency(1600.0, vec![300.0]);
+        let e = Ihc::new(&IhcParams::default(), &info).expect_err("1 kHz low-pass at 1.6 kHz");
+        assert!(e.to_string().contains("above 2000 Hz"), "{e}");
+        assert!(Ihc::new(
+            &IhcParams {
+                method: "halfwave".into()
+            },
+            &info
+        )
+        .is_ok());
     }
 
     #[test]

@@ -134,6 +134,9 @@ impl Params for PreProcParams {
     ];
 }
 
+/// Lowest sampling rate in Hz at which the middle-ear designs have data to work from.
+const MIN_MIDDLE_EAR_FS: f64 = 2000.0;
+
 /// The per-ear state of the pre-processor.
 #[derive(Debug, Clone)]
 struct Ear {
@@ -177,6 +180,15 @@ impl PreProc {
                 format!(
                     "must lie between 0 and the Nyquist frequency ({} Hz)",
                     fs / 2.0
+                ),
+            ));
+        }
+        if p.middle_ear_filtering && fs < MIN_MIDDLE_EAR_FS {
+            return Err(invalid(
+                "pp_bMiddleEarFiltering",
+                "true",
+                format!(
+                    "the middle-ear data tables start at 50–400 Hz: filtering needs a sampling rate of at least {MIN_MIDDLE_EAR_FS} Hz (the input has {fs} Hz)"
                 ),
             ));
         }
@@ -368,6 +380,18 @@ mod tests {
         let tail = &y[0][8000..];
         let rms = (tail.iter().map(|v| v * v).sum::<f64>() / tail.len() as f64).sqrt();
         assert!((rms - 1.0).abs() < 0.02, "{rms}");
+    }
+
+    #[test]
+    fn middle_ear_needs_a_usable_rate() {
+        let p = PreProcParams {
+            middle_ear_filtering: true,
+            middle_ear_model: "lopezpoveda".into(),
+            ..Default::default()
+        };
+        let e = PreProc::new(&p, 100.0, 2).expect_err("no table rows below 50 Hz");
+        assert!(e.to_string().contains("at least 2000 Hz"), "{e}");
+        assert!(PreProc::new(&p, 16000.0, 2).is_ok());
     }
 
     #[test]

@@ -8,6 +8,7 @@ use afe_core::{Block, ParamKind, ParamSpec, Params, Processor, Result, SignalInf
 use serde::{Deserialize, Serialize};
 
 use crate::framed::check_framing;
+use crate::ild::frame_power;
 
 /// Parameters of the ratemap, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -130,16 +131,13 @@ impl Processor for Ratemap {
         let w_len = self.win.len() as f64;
         for (k, row) in out.chunks_exact_mut(nc).enumerate() {
             let frame = self.frames.frame(k);
+            if self.power {
+                frame_power(&self.win, frame, row);
+                continue;
+            }
             for (w, z) in self.win.iter().zip(frame.chunks_exact(nc)) {
-                if self.power {
-                    for (acc, v) in row.iter_mut().zip(z) {
-                        let x = w * v;
-                        *acc += x * x;
-                    }
-                } else {
-                    for (acc, v) in row.iter_mut().zip(z) {
-                        *acc += w * v;
-                    }
+                for (acc, v) in row.iter_mut().zip(z) {
+                    *acc += w * v;
                 }
             }
             for v in row.iter_mut() {

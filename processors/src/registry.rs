@@ -100,7 +100,7 @@ fn canonical_filterbank(map: &ParamMap) -> Result<ParamMap> {
 }
 
 fn build_filterbank(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
-    let (p, out, _) = Gammatone::new(&GammatoneParams::from_map(map)?, inputs[0].fs_hz)?;
+    let (p, out) = Gammatone::new(&GammatoneParams::from_map(map)?, inputs[0].fs_hz)?;
     Ok(built(p, vec![out]))
 }
 

@@ -163,18 +163,18 @@ class Manager:
         from them. ``handle`` limits the change to one request's processors; by default
         every request using the parameter is changed. Raises ``ValueError`` if no request
         uses it or the value is invalid."""
-        targets = [int(handle)] if handle is not None else self._m.handles()
-        errors = []
+        if handle is not None:
+            self._m.modify_parameter(int(handle), str(name), _json(value))
+            return
         changed = False
-        for h in targets:
+        for h in self._m.handles():
             try:
                 self._m.modify_parameter(h, str(name), _json(value))
                 changed = True
             except ValueError as e:
-                errors.append(e)
+                if "uses this parameter" not in str(e):
+                    raise  # an invalid value or a fixed parameter: not to be skipped
         if not changed:
-            if errors:
-                raise errors[0]
             raise ValueError(f"no request in place uses parameter '{name}'")
 
     def process_chunk(self, x: Signal) -> Dict[str, np.ndarray]:
@@ -192,7 +192,9 @@ class Manager:
         self._m.reset()
 
     def outputs(self) -> Dict[str, np.ndarray]:
-        """Everything computed since creation, the last reset or ``process_signal``."""
+        """Everything computed since creation, the last ``reset``, ``process_signal``,
+        ``remove_request`` or ``modify_parameter`` (edits that can renumber or reshape
+        the outputs restart the history)."""
         return self._m.outputs()
 
     def info(self) -> Dict[str, Dict[str, Any]]:

@@ -171,7 +171,11 @@ impl PyManager {
 
     fn remove_request(&self, py: Python<'_>, handle: usize) -> PyResult<()> {
         self.with(py, |st| {
-            st.manager.remove_request(RequestHandle::from_index(handle))
+            st.manager
+                .remove_request(RequestHandle::from_index(handle))?;
+            // outputs may be renumbered: the history restarts
+            st.history = Recorder::new(false);
+            Ok(())
         })
     }
 
@@ -186,7 +190,10 @@ impl PyManager {
             .map_err(|e| PyValueError::new_err(format!("value of {name}: {e}")))?;
         self.with(py, |st| {
             st.manager
-                .modify_parameter(RequestHandle::from_index(handle), name, value)
+                .modify_parameter(RequestHandle::from_index(handle), name, value)?;
+            // output shapes may change: the history restarts
+            st.history = Recorder::new(false);
+            Ok(())
         })
     }
 

@@ -86,12 +86,18 @@ def test_run_time_edits():
     m.remove_request(ild)
     out = m.process_chunk(x[3200:])
     assert set(out) == {"ratemap_left", "ratemap_right"}
+    # the history restarted at the edits and holds exactly what came after
+    hist = m.outputs()
+    assert set(hist) == {"ratemap_left", "ratemap_right"}
+    np.testing.assert_array_equal(hist["ratemap_left"], out["ratemap_left"])
     with pytest.raises(KeyError):
         m.remove_request(ild)
     with pytest.raises(ValueError, match="cannot be changed at run time"):
         m.modify_parameter("fb_lowFreqHz", 100, handle=rm)
-    with pytest.raises(ValueError, match="uses this parameter"):
+    with pytest.raises(ValueError, match="no request in place uses parameter"):
         m.modify_parameter("ild_wSizeSec", 0.04)
+    with pytest.raises(ValueError, match="rm_scaling"):
+        m.modify_parameter("rm_scaling", "loudness")
 
 
 def test_errors_are_python_exceptions_with_clear_messages(tmp_path):

@@ -141,7 +141,11 @@ impl Requests {
     /// The request names (trimmed, empty ones dropped) and the merged parameters.
     fn load(self) -> Result<(Vec<String>, ParamMap), String> {
         let params = load_params(self.params_file.as_deref(), &self.params)?;
-        Ok((clean(self.names), params))
+        let names = clean(self.names);
+        if names.is_empty() {
+            return Err("no request given: -r takes request names, e.g. -r ratemap,ild".into());
+        }
+        Ok((names, params))
     }
 }
 
