@@ -310,9 +310,9 @@ pub fn run<Src: Source>(
 ) -> Result<Streamed, StreamError> {
     let format = source.format();
     let fs = f64::from(format.sample_rate);
-    if !(job.block_ms.is_finite() && job.block_ms > 0.0) {
+    if !(job.block_ms.is_finite() && job.block_ms > 0.0 && job.block_ms <= 10_000.0) {
         return Err(StreamError::Spec(format!(
-            "block length {} ms: it must be a number > 0",
+            "block length {} ms: it must be above 0 and at most 10000 ms",
             job.block_ms
         )));
     }

@@ -116,7 +116,14 @@ impl FromStr for SynthSpec {
                         .parse()
                         .map_err(|_| fail(format!("seed={value}: expected an integer ≥ 0")))?;
                 }
-                "itd_ms" => spec.itd_ms = number()?,
+                "itd_ms" => {
+                    spec.itd_ms = number()?;
+                    if spec.itd_ms.abs() > 1000.0 {
+                        return Err(fail(format!(
+                            "itd_ms={value}: interaural delays beyond ±1000 ms are not supported"
+                        )));
+                    }
+                }
                 "ild_db" => spec.ild_db = number()?,
                 other => {
                     return Err(fail(format!(

@@ -668,10 +668,15 @@ impl Engine {
         self.collected = 0;
     }
 
-    /// The node labels and the trace recorded so far (the pool should be quiescent).
-    pub fn trace(&self) -> (Vec<String>, Vec<(usize, TraceEvent)>) {
+    /// The node labels, the trace recorded so far and the number of events that did not
+    /// fit (the pool should be quiescent).
+    pub fn trace(&self) -> (Vec<String>, Vec<(usize, TraceEvent)>, u64) {
         let labels = self.table().rt.iter().map(|r| r.label.clone()).collect();
-        (labels, self.shared.tracer.events())
+        (
+            labels,
+            self.shared.tracer.events(),
+            self.shared.tracer.dropped(),
+        )
     }
 }
 

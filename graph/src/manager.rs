@@ -209,8 +209,8 @@ impl Manager {
             return Ok(None);
         };
         e.quiesce()?;
-        let (labels, events) = e.trace();
-        Ok(Some(crate::trace::chrome_trace(&labels, &events)))
+        let (labels, events, dropped) = e.trace();
+        Ok(Some(crate::trace::chrome_trace(&labels, &events, dropped)))
     }
 
     /// Worker threads of the concurrent scheduler (0: sequential executor).

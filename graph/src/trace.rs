@@ -59,6 +59,11 @@ impl Tracer {
         }
     }
 
+    /// Events that did not fit in the preallocated logs.
+    pub(crate) fn dropped(&self) -> u64 {
+        self.dropped.load(Ordering::Relaxed)
+    }
+
     /// Every recorded event with its worker.
     pub(crate) fn events(&self) -> Vec<(usize, TraceEvent)> {
         let mut out = Vec::new();
@@ -74,7 +79,9 @@ impl Tracer {
 
 /// The events as a Chrome trace: one track per worker with a slice per node and chunk,
 /// plus the time each node spent claimed but waiting for a worker.
-pub fn chrome_trace(labels: &[String], events: &[(usize, TraceEvent)]) -> Value {
+/// `dropped` counts the events that did not fit in the preallocated logs (recorded in the
+/// trace's metadata so that a truncated trace says so).
+pub fn chrome_trace(labels: &[String], events: &[(usize, TraceEvent)], dropped: u64) -> Value {
     let us = |ns: u64| ns as f64 / 1000.0;
     let mut out: Vec<Value> = Vec::with_capacity(2 * events.len() + labels.len());
     for (w, e) in events {
@@ -101,5 +108,5 @@ pub fn chrome_trace(labels: &[String], events: &[(usize, TraceEvent)]) -> Value 
         out.push(json!({"name": "thread_name", "ph": "M", "pid": 2, "tid": n,
                          "args": {"name": format!("{label} (queued)")}}));
     }
-    json!({"traceEvents": out, "displayTimeUnit": "ms"})
+    json!({"traceEvents": out, "displayTimeUnit": "ms", "metadata": {"dropped_events": dropped}})
 }
