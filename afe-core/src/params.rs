@@ -175,8 +175,10 @@ pub trait Params: Serialize + DeserializeOwned + Default + Clone + PartialEq {
     }
 }
 
-/// Test helper: checks that `P::SPECS` and the serialised default name the same parameters
-/// and that every default passes its own declaration.
+/// Test helper for processor crates (panics on a mismatch): checks that `P::SPECS` and
+/// the serialised default name the same parameters and that every default passes its own
+/// declaration.
+#[doc(hidden)]
 pub fn check_param_specs<P: Params>() {
     let defaults = P::default().to_map();
     let mut declared: Vec<&str> = P::SPECS.iter().map(|s| s.name).collect();
