@@ -128,28 +128,39 @@ def test_errors_are_python_exceptions_with_clear_messages(tmp_path):
 
 
 def test_two_managers_run_in_parallel_threads():
-    x = np.tile(signal(16000), (3, 1))
+    """Processing releases the GIL: two managers in two threads take clearly less wall
+    time than the same two runs one after the other (best of three of each, to be robust
+    against a noisy machine), and give the same numbers as alone."""
+    x = np.tile(signal(16000), (8, 1))
     reqs = ["ratemap", "ild", "itd", "ic"]
 
     def work(results, i):
         results[i] = afe.process(x, 16000, reqs)
 
-    alone = {}
-    t0 = time.perf_counter()
-    work(alone, 0)
-    work(alone, 1)
-    sequential = time.perf_counter() - t0
-    both = {}
-    threads = [threading.Thread(target=work, args=(both, i)) for i in range(2)]
-    t0 = time.perf_counter()
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join()
-    parallel = time.perf_counter() - t0
+    def sequential_run():
+        out = {}
+        t0 = time.perf_counter()
+        work(out, 0)
+        work(out, 1)
+        return time.perf_counter() - t0, out
+
+    def parallel_run():
+        out = {}
+        threads = [threading.Thread(target=work, args=(out, i)) for i in range(2)]
+        t0 = time.perf_counter()
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        return time.perf_counter() - t0, out
+
+    sequential = min(sequential_run()[0] for _ in range(3))
+    runs = [parallel_run() for _ in range(3)]
+    parallel = min(t for t, _ in runs)
+    alone = sequential_run()[1]
     for i in range(2):
         for k in alone[0]:
-            np.testing.assert_array_equal(both[i][k], alone[0][k])
+            np.testing.assert_array_equal(runs[0][1][i][k], alone[0][k])
     if (os.cpu_count() or 1) >= 2:
         assert parallel < 0.8 * sequential, f"parallel {parallel:.3f}s vs sequential {sequential:.3f}s"
 
