@@ -47,6 +47,36 @@ pub fn run(job: &Job, fs: f64, channels: &[&[f64]]) -> Result<Recorder> {
 /// requests of `job` are added to it. Chunks are pipelined: chunk k+1 is submitted before
 /// the output of chunk k is collected, so the concurrent scheduler can overlap them.
 pub fn run_with(mgr: &mut Manager, job: &Job, channels: &[&[f64]]) -> Result<Recorder> {
+    let len = channels.first().map_or(0, |c| c.len());
+    if channels.iter().any(|c| c.len() != len) {
+        return Err(Error::InvalidInput(
+            "the channels have different lengths".into(),
+        ));
+    }
+    let mut pos = 0;
+    run_source(mgr, job, channels.len(), |frames, out| {
+        let end = pos + frames.min(len - pos);
+        for (o, c) in out.iter_mut().zip(channels) {
+            o.clear();
+            o.extend_from_slice(&c[pos..end]);
+        }
+        let got = end - pos;
+        pos = end;
+        Ok(got)
+    })
+}
+
+/// Computes `job` on input drawn block by block from `next`, which fills one vector per
+/// ear (replacing their content) with up to the asked number of frames and returns how
+/// many it gave, 0 at the end. Where the graph is chunk-invariant, only one block of input
+/// is held at a time; otherwise (and only without `job.chunk`) the whole input is drawn
+/// first and processed in one call, as the AFE's `processSignal` does.
+pub fn run_source(
+    mgr: &mut Manager,
+    job: &Job,
+    ears: usize,
+    mut next: impl FnMut(usize, &mut [Vec<f64>]) -> Result<usize>,
+) -> Result<Recorder> {
     for r in &job.requests {
         mgr.add_request(r, &job.params)?;
     }
@@ -58,47 +88,67 @@ pub fn run_with(mgr: &mut Manager, job: &Job, channels: &[&[f64]]) -> Result<Rec
             "chunk = 0: give a positive number of samples".into(),
         ));
     }
-    let len = channels.first().map_or(0, |c| c.len());
-    if channels.iter().any(|c| c.len() != len) {
-        return Err(Error::InvalidInput(
-            "the channels have different lengths".into(),
-        ));
-    }
     let mut rec = Recorder::new(job.all);
+    let mut buf = vec![Vec::new(); ears];
+    let empty = || Error::InvalidInput("the signal is empty".into());
     let block = match job.chunk {
-        Some(n) => Some(n),
+        Some(n) => n,
         // a whole signal: one call where the AFE depends on chunk boundaries
-        None if !mgr.is_chunk_invariant() => None,
+        None if !mgr.is_chunk_invariant() => {
+            next(usize::MAX, &mut buf)?;
+            if buf.first().is_none_or(Vec::is_empty) {
+                return Err(empty());
+            }
+            let refs: Vec<&[f64]> = buf.iter().map(Vec::as_slice).collect();
+            mgr.process_signal(&refs)?;
+            rec.record(mgr);
+            return Ok(rec);
+        }
         None => {
             mgr.reset()?;
-            Some(WHOLE_SIGNAL_BLOCK)
+            WHOLE_SIGNAL_BLOCK
         }
     };
-    match block {
-        None => {
-            mgr.process_signal(channels)?;
+    let mut offset = 0;
+    loop {
+        let got = next(block, &mut buf)?;
+        if got == 0 {
+            break;
+        }
+        check_finite(&buf, offset)?;
+        offset += got;
+        let refs: Vec<&[f64]> = buf.iter().map(Vec::as_slice).collect();
+        mgr.submit_chunk(&refs)?;
+        if mgr.in_flight() >= mgr.pipeline_depth() {
+            mgr.collect_chunk()?;
             rec.record(mgr);
         }
-        Some(n) => {
-            if len == 0 {
-                return Err(Error::InvalidInput("the signal is empty".into()));
-            }
-            let mut start = 0;
-            while start < len {
-                let end = (start + n).min(len);
-                let part: Vec<&[f64]> = channels.iter().map(|c| &c[start..end]).collect();
-                mgr.submit_chunk(&part)?;
-                if mgr.in_flight() >= mgr.pipeline_depth() {
-                    mgr.collect_chunk()?;
-                    rec.record(mgr);
-                }
-                start = end;
-            }
-            while mgr.in_flight() > 0 {
-                mgr.collect_chunk()?;
-                rec.record(mgr);
-            }
-        }
+    }
+    while mgr.in_flight() > 0 {
+        mgr.collect_chunk()?;
+        rec.record(mgr);
+    }
+    if offset == 0 {
+        return Err(empty());
     }
     Ok(rec)
+}
+
+/// Rejects NaN or infinite samples, naming their position in the whole input.
+fn check_finite(block: &[Vec<f64>], offset: usize) -> Result<()> {
+    let names: &[&str] = if block.len() == 2 {
+        &["left", "right"]
+    } else {
+        &["mono"]
+    };
+    for (ear, name) in block.iter().zip(names) {
+        if let Some(i) = ear.iter().position(|v| !v.is_finite()) {
+            return Err(Error::InvalidInput(format!(
+                "sample {} of the {name} channel is {} (the input must be finite)",
+                offset + i,
+                ear[i]
+            )));
+        }
+    }
+    Ok(())
 }

@@ -234,6 +234,28 @@ fn every_bad_input_is_one_clear_line() {
         &o,
     );
 
+    // read block by block: the position is still the one in the whole file
+    let late_nan = tmp("late-nan.wav");
+    write_wav(&late_nan, 2, 16000, 6000, |i| {
+        if i == 2 * 5000 {
+            f32::NAN
+        } else {
+            0.1
+        }
+    });
+    assert_clear_error(
+        &afe(&[
+            "extract",
+            late_nan.to_str().expect("path"),
+            "-r",
+            "ratemap",
+            "-o",
+            os,
+        ]),
+        "sample 5000 of the left channel is NaN",
+        &o,
+    );
+
     let empty = tmp("empty.wav");
     write_wav(&empty, 2, 16000, 0, tone);
     assert_clear_error(

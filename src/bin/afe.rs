@@ -8,9 +8,9 @@ use std::io::IsTerminal;
 use std::time::{Duration, Instant};
 
 use afe::bass_source::Pacing;
-use afe::extract::{run_with, Job};
+use afe::extract::{run_source, run_with, Job};
 use afe::stream::{SourceSpec, StreamJob, StreamReport};
-use afe::wav::{read_wav, Audio};
+use afe::wav::{read_wav, Audio, WavBlocks};
 use afe::{Manager, ParamMap};
 use clap::{Parser, Subcommand};
 use serde_json::{json, Value};
@@ -343,32 +343,44 @@ fn clean(requests: Vec<String>) -> Vec<String> {
 }
 
 /// Reads a WAV file that afe can process: mono or two channels, not empty.
-fn read_input(input: &Path) -> Result<Audio, String> {
-    let audio = read_wav(input).map_err(|e| e.to_string())?;
-    if audio.channels.len() > 2 {
+/// Opens a WAV file that afe can process: mono or two channels, not empty.
+fn open_input(input: &Path) -> Result<WavBlocks, String> {
+    let wav = WavBlocks::open(input).map_err(|e| e.to_string())?;
+    if wav.channels() > 2 {
         return Err(format!(
             "'{}' has {} channels: afe takes mono or two-channel (left, right) input",
             input.display(),
-            audio.channels.len()
+            wav.channels()
         ));
     }
-    if audio.channels[0].is_empty() {
+    if wav.frames() == 0 {
         return Err(format!("'{}' holds no samples", input.display()));
     }
-    Ok(audio)
+    Ok(wav)
+}
+
+/// Reads a whole WAV file that afe can process.
+fn read_input(input: &Path) -> Result<Audio, String> {
+    open_input(input)?;
+    read_wav(input).map_err(|e| e.to_string())
 }
 
 fn extract(input: &Path, job: Job, trace: Option<&Path>, output: &Path) -> Result<(), String> {
     if trace.is_some() && job.threads == 0 {
         return Err("--trace records the concurrent scheduler: use --threads 1 or more".into());
     }
-    let audio = read_input(input)?;
-    let refs: Vec<&[f64]> = audio.channels.iter().map(Vec::as_slice).collect();
+    let mut wav = open_input(input)?;
     // trace events preallocated per worker (48 bytes each): 12 MiB, ~5000 chunks of 11 nodes
     let capacity = if trace.is_some() { 1 << 18 } else { 0 };
-    let mut mgr = Manager::with_engine(audio.fs, refs.len(), job.threads, capacity)
+    let mut mgr = Manager::with_engine(wav.fs(), wav.channels(), job.threads, capacity)
         .map_err(|e| e.to_string())?;
-    let rec = run_with(&mut mgr, &job, &refs).map_err(|e| e.to_string())?;
+    // the file is decoded block by block where the graph allows (see `run_source`)
+    let ears = wav.channels();
+    let rec = run_source(&mut mgr, &job, ears, |frames, out| {
+        wav.read(frames, out)
+            .map_err(|e| afe::Error::InvalidInput(e.to_string()))
+    })
+    .map_err(|e| e.to_string())?;
     save(&rec, output)?;
     if let Some(path) = trace {
         let t = mgr.trace().map_err(|e| e.to_string())?.unwrap_or_default();
