@@ -109,14 +109,13 @@ pub fn run_source(
             WHOLE_SIGNAL_BLOCK
         }
     };
-    let mut offset = 0;
+    let mut total = 0;
     loop {
         let got = next(block, &mut buf)?;
         if got == 0 {
             break;
         }
-        check_finite(&buf, offset)?;
-        offset += got;
+        total += got;
         let refs: Vec<&[f64]> = buf.iter().map(Vec::as_slice).collect();
         mgr.submit_chunk(&refs)?;
         if mgr.in_flight() >= mgr.pipeline_depth() {
@@ -128,27 +127,8 @@ pub fn run_source(
         mgr.collect_chunk()?;
         rec.record(mgr);
     }
-    if offset == 0 {
+    if total == 0 {
         return Err(empty());
     }
     Ok(rec)
-}
-
-/// Rejects NaN or infinite samples, naming their position in the whole input.
-fn check_finite(block: &[Vec<f64>], offset: usize) -> Result<()> {
-    let names: &[&str] = if block.len() == 2 {
-        &["left", "right"]
-    } else {
-        &["mono"]
-    };
-    for (ear, name) in block.iter().zip(names) {
-        if let Some(i) = ear.iter().position(|v| !v.is_finite()) {
-            return Err(Error::InvalidInput(format!(
-                "sample {} of the {name} channel is {} (the input must be finite)",
-                offset + i,
-                ear[i]
-            )));
-        }
-    }
-    Ok(())
 }

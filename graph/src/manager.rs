@@ -97,6 +97,9 @@ pub struct Manager {
     engine: Option<Engine>,
     /// Chunks processed by the sequential executor and not yet collected (0 or 1).
     pending: u64,
+    /// Samples per ear submitted since construction or the last reset: error messages
+    /// name a bad sample by its position in the stream.
+    position: u64,
 }
 
 impl std::fmt::Debug for Manager {
@@ -167,6 +170,7 @@ impl Manager {
             requests: Vec::new(),
             engine: None,
             pending: 0,
+            position: 0,
         })
     }
 
@@ -443,7 +447,8 @@ impl Manager {
             if let Some(i) = ear.iter().position(|v| !v.is_finite()) {
                 let which = if self.ears == 2 { names[e] } else { "mono" };
                 return Err(Error::InvalidInput(format!(
-                    "sample {i} of the {which} channel is {} (the input must be finite)",
+                    "sample {} of the {which} channel is {} (the input must be finite)",
+                    self.position + i as u64,
                     ear[i]
                 )));
             }
@@ -504,8 +509,13 @@ impl Manager {
     /// ```
     pub fn submit_chunk(&mut self, chunk: &[&[f64]]) -> Result<()> {
         self.check_chunk(chunk)?;
+        let len = chunk.first().map_or(0, |c| c.len() as u64);
         match self.engine.as_mut() {
-            Some(e) => e.submit(chunk),
+            Some(e) => {
+                e.submit(chunk)?;
+                self.position += len;
+                Ok(())
+            }
             None => {
                 if self.pending > 0 {
                     return Err(Error::InvalidInput(
@@ -515,6 +525,7 @@ impl Manager {
                 self.graph.load_input(chunk);
                 self.graph.run_sequential();
                 self.pending = 1;
+                self.position += len;
                 Ok(())
             }
         }
@@ -567,6 +578,7 @@ impl Manager {
     pub fn reset(&mut self) -> Result<()> {
         self.edit(|m| {
             m.graph.reset();
+            m.position = 0;
             Ok(())
         })
     }
@@ -913,6 +925,13 @@ mod tests {
         assert!(
             e.to_string()
                 .contains("sample 1 of the left channel is NaN"),
+            "{e}"
+        );
+        // later in the stream, the position counts from the start of the stream
+        m.process_chunk(&[&[0.0; 3], &[0.0; 3]]).expect("finite");
+        let e = m.process_chunk(&[&x, &x]).expect_err("NaN");
+        assert!(
+            e.to_string().contains("sample 4 of the left channel"),
             "{e}"
         );
         let e = m.process_chunk(&[&x]).expect_err("mono chunk");
