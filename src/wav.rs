@@ -101,6 +101,16 @@ impl WavBlocks {
         u64::from(self.reader.duration())
     }
 
+    /// Reads the rest of the file.
+    pub fn read_all(mut self) -> Result<Audio, WavError> {
+        let mut channels = vec![Vec::new(); self.channels];
+        self.read(usize::MAX, &mut channels)?;
+        Ok(Audio {
+            fs: self.fs,
+            channels,
+        })
+    }
+
     /// Reads up to `frames` frames into `out` (one vector per channel, replaced) and
     /// returns how many it read: 0 at the end of the file.
     pub fn read(&mut self, frames: usize, out: &mut [Vec<f64>]) -> Result<usize, WavError> {
@@ -147,11 +157,5 @@ impl WavBlocks {
 /// # Ok::<(), afe::wav::WavError>(())
 /// ```
 pub fn read_wav(path: &Path) -> Result<Audio, WavError> {
-    let mut wav = WavBlocks::open(path)?;
-    let mut channels = vec![Vec::new(); wav.channels()];
-    wav.read(usize::MAX, &mut channels)?;
-    Ok(Audio {
-        fs: wav.fs(),
-        channels,
-    })
+    WavBlocks::open(path)?.read_all()
 }

@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use afe::bass_source::Pacing;
 use afe::extract::{run_source, run_with, Job};
 use afe::stream::{SourceSpec, StreamJob, StreamReport};
-use afe::wav::{read_wav, Audio, WavBlocks};
+use afe::wav::{Audio, WavBlocks};
 use afe::{Manager, ParamMap};
 use clap::{Parser, Subcommand};
 use serde_json::{json, Value};
@@ -361,8 +361,7 @@ fn open_input(input: &Path) -> Result<WavBlocks, String> {
 
 /// Reads a whole WAV file that afe can process.
 fn read_input(input: &Path) -> Result<Audio, String> {
-    open_input(input)?;
-    read_wav(input).map_err(|e| e.to_string())
+    open_input(input)?.read_all().map_err(|e| e.to_string())
 }
 
 fn extract(input: &Path, job: Job, trace: Option<&Path>, output: &Path) -> Result<(), String> {
