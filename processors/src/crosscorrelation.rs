@@ -3,7 +3,6 @@
 
 use std::sync::Arc;
 
-use afe_core::framing::FrameBuffer;
 use afe_core::window::{window, WINDOW_NAMES};
 use afe_core::{
     Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
@@ -12,7 +11,7 @@ use realfft::num_complex::Complex64;
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use serde::{Deserialize, Serialize};
 
-use crate::framed::check_framing;
+use crate::framed::{check_framing, EarFrames};
 
 /// Parameters of the cross-correlation, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -74,8 +73,7 @@ impl Params for CrosscorrelationParams {
 
 /// The cross-correlation: left and right IHC in, `[frame][channel][lag]` out.
 pub struct Crosscorrelation {
-    left: FrameBuffer,
-    right: FrameBuffer,
+    frames: EarFrames,
     engine: Engine,
 }
 
@@ -143,8 +141,7 @@ impl Crosscorrelation {
             ifft,
         };
         let cc = Crosscorrelation {
-            left: FrameBuffer::new(nc, w, h),
-            right: FrameBuffer::new(nc, w, h),
+            frames: EarFrames::new(nc, w, h),
             engine,
         };
         let lags_s = (0..=2 * max_lag)
@@ -218,26 +215,22 @@ impl Engine {
 impl Processor for Crosscorrelation {
     fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
         let nc = inputs[0].width();
-        self.left.push(inputs[0].as_slice());
-        self.right.push(inputs[1].as_slice());
-        let n = self.left.available();
+        let n = self.frames.push(inputs[0].as_slice(), inputs[1].as_slice());
         let nl = 2 * self.engine.max_lag + 1;
         let out = outputs[0].reset_to(n);
         for k in 0..n {
-            let (fl, fr) = (self.left.frame(k), self.right.frame(k));
+            let (fl, fr) = self.frames.frame(k);
             for c in 0..nc {
                 let start = (k * nc + c) * nl;
                 self.engine
                     .correlate(fl, fr, c, nc, &mut out[start..start + nl]);
             }
         }
-        self.left.consume(n);
-        self.right.consume(n);
+        self.frames.consume(n);
     }
 
     fn reset(&mut self) {
-        self.left.reset();
-        self.right.reset();
+        self.frames.reset();
     }
 }
 

@@ -1,6 +1,7 @@
-//! Checks shared by the window/hop processors.
+//! What the window/hop processors share: the checks of their lengths, and the framing of
+//! both ears for the binaural ones.
 
-use afe_core::framing::{hop_samples, window_samples};
+use afe_core::framing::{hop_samples, window_samples, FrameBuffer};
 use afe_core::{Error, Result};
 
 /// Longest window, in samples (about 6 minutes at 44.1 kHz): beyond is a unit mistake.
@@ -30,4 +31,46 @@ pub fn check_framing(w: (&str, f64), h: (&str, f64), fs: f64) -> Result<(usize, 
         });
     }
     Ok((ws, hs))
+}
+
+/// Left and right inputs framed identically (the binaural window processors: the two
+/// inputs always have the same length, so they always hold the same number of frames).
+#[derive(Debug, Clone)]
+pub struct EarFrames {
+    left: FrameBuffer,
+    right: FrameBuffer,
+}
+
+impl EarFrames {
+    /// Frames of `window` rows of `width` values every `hop` rows, for each ear.
+    pub fn new(width: usize, window: usize, hop: usize) -> Self {
+        EarFrames {
+            left: FrameBuffer::new(width, window, hop),
+            right: FrameBuffer::new(width, window, hop),
+        }
+    }
+
+    /// Appends the new rows of both ears and returns the number of complete frames.
+    pub fn push(&mut self, left: &[f64], right: &[f64]) -> usize {
+        self.left.push(left);
+        self.right.push(right);
+        self.left.available()
+    }
+
+    /// Frame `k` of the left and of the right ear.
+    pub fn frame(&self, k: usize) -> (&[f64], &[f64]) {
+        (self.left.frame(k), self.right.frame(k))
+    }
+
+    /// Drops what the first `frames` frames no longer need, in both ears.
+    pub fn consume(&mut self, frames: usize) {
+        self.left.consume(frames);
+        self.right.consume(frames);
+    }
+
+    /// Empties both buffers.
+    pub fn reset(&mut self) {
+        self.left.reset();
+        self.right.reset();
+    }
 }

@@ -1,12 +1,11 @@
 //! `ild`: interaural level difference per channel and frame, right re left, in dB
 //! (spec 17-ild).
 
-use afe_core::framing::FrameBuffer;
 use afe_core::window::{window, WINDOW_NAMES};
 use afe_core::{Block, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
 
-use crate::framed::check_framing;
+use crate::framed::{check_framing, EarFrames};
 
 /// Parameters of the ILD, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -60,8 +59,7 @@ impl Params for IldParams {
 #[derive(Debug, Clone)]
 pub struct Ild {
     win: Vec<f64>,
-    left: FrameBuffer,
-    right: FrameBuffer,
+    frames: EarFrames,
     power_l: Vec<f64>,
     power_r: Vec<f64>,
 }
@@ -93,8 +91,7 @@ impl Ild {
         let nc = input.channels();
         let ild = Ild {
             win: window(&params.wname, w, "ild_wname")?,
-            left: FrameBuffer::new(nc, w, h),
-            right: FrameBuffer::new(nc, w, h),
+            frames: EarFrames::new(nc, w, h),
             power_l: vec![0.0; nc],
             power_r: vec![0.0; nc],
         };
@@ -105,25 +102,22 @@ impl Ild {
 
 impl Processor for Ild {
     fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
-        self.left.push(inputs[0].as_slice());
-        self.right.push(inputs[1].as_slice());
-        let n = self.left.available();
+        let n = self.frames.push(inputs[0].as_slice(), inputs[1].as_slice());
         let nc = self.power_l.len();
         let out = outputs[0].reset_to(n);
         for (k, row) in out.chunks_exact_mut(nc).enumerate() {
-            frame_power(&self.win, self.left.frame(k), &mut self.power_l);
-            frame_power(&self.win, self.right.frame(k), &mut self.power_r);
+            let (left, right) = self.frames.frame(k);
+            frame_power(&self.win, left, &mut self.power_l);
+            frame_power(&self.win, right, &mut self.power_r);
             for ((v, pl), pr) in row.iter_mut().zip(&self.power_l).zip(&self.power_r) {
                 *v = 10.0 * ((pr + f64::EPSILON) / (pl + f64::EPSILON)).log10();
             }
         }
-        self.left.consume(n);
-        self.right.consume(n);
+        self.frames.consume(n);
     }
 
     fn reset(&mut self) {
-        self.left.reset();
-        self.right.reset();
+        self.frames.reset();
     }
 }
 
