@@ -278,23 +278,104 @@ fn design_channel(cf: f64, bw_erbs: f64, n: usize, fs: f64, align: bool) -> Chan
     }
 }
 
-/// Channels processed together, one per SIMD lane.
-const LANES: usize = 4;
+/// Samples filtered per pass over the groups, so that a long input's output rows stay
+/// in cache while every group writes its lanes of them (a 32-channel block is 128 KiB).
+const TIME_BLOCK: usize = 512;
 /// Largest supported `fb_nGamma` (the expanded polynomial is numerically useless beyond).
 pub const MAX_ORDER: usize = 8;
 
-/// Coefficients and state of `LANES` channels, lane-major so that every operation of the
+/// Coefficients and state of `W` channels, lane-major so that every operation of the
 /// recursion runs across the channels (unused lanes of the last group have zero
-/// coefficients and produce zeros that are never written out).
+/// coefficients and produce zeros that are never written out). `b` and the state are
+/// stored doubled (see [`run_group`]).
 #[derive(Debug, Clone)]
-struct Group {
-    b_re: [f64; LANES],
-    b_im: [f64; LANES],
+struct Group<const W: usize> {
+    b_re: [f64; W],
+    b_im: [f64; W],
     /// `a[1..=order]`.
-    a_re: [[f64; LANES]; MAX_ORDER],
-    a_im: [[f64; LANES]; MAX_ORDER],
-    z_re: [[f64; LANES]; MAX_ORDER],
-    z_im: [[f64; LANES]; MAX_ORDER],
+    a_re: [[f64; W]; MAX_ORDER],
+    a_im: [[f64; W]; MAX_ORDER],
+    z_re: [[f64; W]; MAX_ORDER],
+    z_im: [[f64; W]; MAX_ORDER],
+}
+
+/// The channel groups of a filterbank, `W` channels per group.
+#[derive(Debug, Clone)]
+struct Bank<const W: usize> {
+    groups: Vec<Group<W>>,
+    /// Full-width output rows of a last group with fewer than `W` channels
+    /// (`TIME_BLOCK` × `W`), copied out in part.
+    partial: Vec<f64>,
+}
+
+impl<const W: usize> Bank<W> {
+    fn new(designs: &[ChannelDesign]) -> Self {
+        let empty = Group {
+            b_re: [0.0; W],
+            b_im: [0.0; W],
+            a_re: [[0.0; W]; MAX_ORDER],
+            a_im: [[0.0; W]; MAX_ORDER],
+            z_re: [[0.0; W]; MAX_ORDER],
+            z_im: [[0.0; W]; MAX_ORDER],
+        };
+        let mut groups = vec![empty; designs.len().div_ceil(W)];
+        for (c, d) in designs.iter().enumerate() {
+            let (g, l) = (&mut groups[c / W], c % W);
+            g.b_re[l] = 2.0 * d.b0.0;
+            g.b_im[l] = 2.0 * d.b0.1;
+            for (k, ak) in d.a.iter().enumerate() {
+                g.a_re[k][l] = ak.0;
+                g.a_im[k][l] = ak.1;
+            }
+        }
+        Bank {
+            groups,
+            partial: vec![0.0; TIME_BLOCK * W],
+        }
+    }
+
+    fn filter<const CPLX: bool>(&mut self, order: usize, x: &[f64], out: &mut [f64], nc: usize) {
+        let run = match order {
+            1 => run_group::<1, CPLX, W>,
+            2 => run_group::<2, CPLX, W>,
+            3 => run_group::<3, CPLX, W>,
+            4 => run_group::<4, CPLX, W>,
+            5 => run_group::<5, CPLX, W>,
+            6 => run_group::<6, CPLX, W>,
+            7 => run_group::<7, CPLX, W>,
+            _ => run_group::<8, CPLX, W>,
+        };
+        for (x, out) in x.chunks(TIME_BLOCK).zip(out.chunks_mut(TIME_BLOCK * nc)) {
+            for (gi, g) in self.groups.iter_mut().enumerate() {
+                let c0 = gi * W;
+                if c0 + W <= nc {
+                    run(g, x, &mut out[c0..], nc);
+                } else {
+                    let rows = &mut self.partial[..x.len() * W];
+                    run(g, x, rows, W);
+                    for (o, r) in out.chunks_exact_mut(nc).zip(rows.chunks_exact(W)) {
+                        o[c0..].copy_from_slice(&r[..nc - c0]);
+                    }
+                }
+            }
+        }
+    }
+
+    fn reset(&mut self) {
+        for g in &mut self.groups {
+            g.z_re = [[0.0; W]; MAX_ORDER];
+            g.z_im = [[0.0; W]; MAX_ORDER];
+        }
+    }
+}
+
+/// The groups in the width that suits the CPU, detected once at construction: 16
+/// channels (two AVX-512 registers) or 8 (two AVX2 registers, or plain SSE2). Both give
+/// the same numbers; only the register pressure differs.
+#[derive(Debug, Clone)]
+enum Banks {
+    Wide(Bank<16>),
+    Narrow(Bank<8>),
 }
 
 /// The gammatone filterbank of one ear: time-domain in, `[time][channel]` out.
@@ -302,13 +383,32 @@ struct Group {
 pub struct Gammatone {
     channels: usize,
     order: usize,
-    groups: Vec<Group>,
+    /// Whether any `b0` has an imaginary part (phase-aligned filters).
+    complex_b: bool,
+    banks: Banks,
+}
+
+fn has_avx512() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx512f")
+            && std::arch::is_x86_feature_detected!("avx512vl")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
 }
 
 impl Gammatone {
     /// Designs the filterbank for input rate `fs` Hz; returns it with its output signal.
     /// (The verified parameter map is [`GammatoneParams::grid`]'s.)
     pub fn new(params: &GammatoneParams, fs: f64) -> Result<(Self, SignalInfo)> {
+        Self::with_width(params, fs, has_avx512())
+    }
+
+    /// [`Gammatone::new`] with the group width chosen by the caller (`wide`: 16 lanes).
+    fn with_width(params: &GammatoneParams, fs: f64, wide: bool) -> Result<(Self, SignalInfo)> {
         let grid = params.grid()?;
         if let Some(bad) = grid.cf_hz.iter().find(|f| **f >= fs / 2.0) {
             let name = if params.cf_hz.is_empty() {
@@ -333,101 +433,84 @@ impl Gammatone {
                 format!("orders up to {MAX_ORDER} are supported"),
             ));
         }
-        let nc = grid.cf_hz.len();
-        let empty = Group {
-            b_re: [0.0; LANES],
-            b_im: [0.0; LANES],
-            a_re: [[0.0; LANES]; MAX_ORDER],
-            a_im: [[0.0; LANES]; MAX_ORDER],
-            z_re: [[0.0; LANES]; MAX_ORDER],
-            z_im: [[0.0; LANES]; MAX_ORDER],
+        let designs: Vec<ChannelDesign> = grid
+            .cf_hz
+            .iter()
+            .map(|&cf| design_channel(cf, params.bw_erbs, order, fs, params.align))
+            .collect();
+        let banks = if wide {
+            Banks::Wide(Bank::new(&designs))
+        } else {
+            Banks::Narrow(Bank::new(&designs))
         };
-        let mut groups = vec![empty; nc.div_ceil(LANES)];
-        for (c, &cf) in grid.cf_hz.iter().enumerate() {
-            let d = design_channel(cf, params.bw_erbs, order, fs, params.align);
-            let (g, l) = (&mut groups[c / LANES], c % LANES);
-            g.b_re[l] = d.b0.0;
-            g.b_im[l] = d.b0.1;
-            for (k, ak) in d.a.iter().enumerate() {
-                g.a_re[k][l] = ak.0;
-                g.a_im[k][l] = ak.1;
-            }
-        }
-        let info = SignalInfo::time_frequency(fs, grid.cf_hz);
-        Ok((
-            Gammatone {
-                channels: nc,
-                order,
-                groups,
-            },
-            info,
-        ))
+        let gammatone = Gammatone {
+            channels: designs.len(),
+            order,
+            complex_b: designs.iter().any(|d| d.b0.1 != 0.0),
+            banks,
+        };
+        Ok((gammatone, SignalInfo::time_frequency(fs, grid.cf_hz)))
     }
 
     /// Filters `x` (time-domain) into `out` (`x.len()` rows of one value per channel).
     pub fn filter(&mut self, x: &[f64], out: &mut [f64]) {
-        let nc = self.channels;
-        for (gi, g) in self.groups.iter_mut().enumerate() {
-            let c0 = gi * LANES;
-            let lanes = LANES.min(nc - c0);
-            match self.order {
-                1 => run_group::<1>(g, x, out, nc, c0, lanes),
-                2 => run_group::<2>(g, x, out, nc, c0, lanes),
-                3 => run_group::<3>(g, x, out, nc, c0, lanes),
-                4 => run_group::<4>(g, x, out, nc, c0, lanes),
-                5 => run_group::<5>(g, x, out, nc, c0, lanes),
-                6 => run_group::<6>(g, x, out, nc, c0, lanes),
-                7 => run_group::<7>(g, x, out, nc, c0, lanes),
-                _ => run_group::<8>(g, x, out, nc, c0, lanes),
-            }
+        let (order, nc) = (self.order, self.channels);
+        match (&mut self.banks, self.complex_b) {
+            (Banks::Wide(b), true) => b.filter::<true>(order, x, out, nc),
+            (Banks::Wide(b), false) => b.filter::<false>(order, x, out, nc),
+            (Banks::Narrow(b), true) => b.filter::<true>(order, x, out, nc),
+            (Banks::Narrow(b), false) => b.filter::<false>(order, x, out, nc),
         }
     }
 }
 
 /// The complex DF2T recursion of one channel group of order `M` over a chunk, state in
-/// registers. Per channel, the operations and their order are exactly the reference's
-/// (`y = z0 + b0·x`, `z[k] = z[k+1] − a[k+1]·y`, textbook complex products, no FMA), so
-/// the output is bit-identical to a channel-by-channel evaluation. Compiled for AVX2
-/// too, chosen at run time, so that the lanes fill a 256-bit register where available.
-#[multiversion::multiversion(targets("x86_64+avx2"))]
-fn run_group<const M: usize>(
-    g: &mut Group,
+/// registers. Per channel, the operations and their order are the reference's
+/// (`y = z0 + b0·x`, `z[k] = z[k+1] − a[k+1]·y`, textbook complex products, no FMA), run
+/// on values scaled by 2 (`b0` and the state are stored doubled), which is exact, so the
+/// output `2·Re y` is bit-identical to a channel-by-channel evaluation without its final
+/// multiplication. `CPLX` is false for a real `b0` (unaligned filters), whose zero
+/// imaginary part then costs nothing. Compiled for AVX-512 and AVX2 too, chosen at run
+/// time.
+#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+fn run_group<const M: usize, const CPLX: bool, const W: usize>(
+    g: &mut Group<W>,
     x: &[f64],
     out: &mut [f64],
-    nc: usize,
-    c0: usize,
-    lanes: usize,
+    stride: usize,
 ) {
-    let mut zr = [[0.0; LANES]; M];
-    let mut zi = [[0.0; LANES]; M];
-    let mut ar = [[0.0; LANES]; M];
-    let mut ai = [[0.0; LANES]; M];
+    let mut zr = [[0.0; W]; M];
+    let mut zi = [[0.0; W]; M];
+    let mut ar = [[0.0; W]; M];
+    let mut ai = [[0.0; W]; M];
     zr.copy_from_slice(&g.z_re[..M]);
     zi.copy_from_slice(&g.z_im[..M]);
     ar.copy_from_slice(&g.a_re[..M]);
     ai.copy_from_slice(&g.a_im[..M]);
     let (br, bi) = (g.b_re, g.b_im);
+    let nar = ar[M - 1].map(|a| -a);
     for (t, &xin) in x.iter().enumerate() {
-        let mut yr = [0.0; LANES];
-        let mut yi = [0.0; LANES];
-        for l in 0..LANES {
+        let mut yr = [0.0; W];
+        let mut yi = [0.0; W];
+        for l in 0..W {
             yr[l] = zr[0][l] + br[l] * xin;
-            yi[l] = zi[0][l] + bi[l] * xin;
+            yi[l] = if CPLX {
+                zi[0][l] + bi[l] * xin
+            } else {
+                zi[0][l]
+            };
         }
         for k in 0..M - 1 {
-            for l in 0..LANES {
+            for l in 0..W {
                 zr[k][l] = zr[k + 1][l] - (ar[k][l] * yr[l] - ai[k][l] * yi[l]);
                 zi[k][l] = zi[k + 1][l] - (ar[k][l] * yi[l] + ai[k][l] * yr[l]);
             }
         }
-        for l in 0..LANES {
-            zr[M - 1][l] = -(ar[M - 1][l] * yr[l] - ai[M - 1][l] * yi[l]);
-            zi[M - 1][l] = -(ar[M - 1][l] * yi[l] + ai[M - 1][l] * yr[l]);
+        for l in 0..W {
+            zr[M - 1][l] = ai[M - 1][l] * yi[l] - ar[M - 1][l] * yr[l];
+            zi[M - 1][l] = nar[l] * yi[l] - ai[M - 1][l] * yr[l];
         }
-        let row = &mut out[t * nc + c0..t * nc + c0 + lanes];
-        for (o, y) in row.iter_mut().zip(yr) {
-            *o = 2.0 * y;
-        }
+        out[t * stride..t * stride + W].copy_from_slice(&yr);
     }
     g.z_re[..M].copy_from_slice(&zr);
     g.z_im[..M].copy_from_slice(&zi);
@@ -441,9 +524,9 @@ impl Processor for Gammatone {
     }
 
     fn reset(&mut self) {
-        for g in &mut self.groups {
-            g.z_re = [[0.0; LANES]; MAX_ORDER];
-            g.z_im = [[0.0; LANES]; MAX_ORDER];
+        match &mut self.banks {
+            Banks::Wide(b) => b.reset(),
+            Banks::Narrow(b) => b.reset(),
         }
     }
 }
@@ -547,6 +630,34 @@ mod tests {
         };
         let e = Gammatone::new(&p, 1600.0).expect_err("900 Hz above Nyquist");
         assert!(e.to_string().contains("'fb_cfHz'"), "{e}");
+    }
+
+    #[test]
+    fn both_group_widths_give_the_same_bits() {
+        let x: Vec<f64> = (0..3000)
+            .map(|t| ((t * 7919 % 1000) as f64 / 500.0 - 1.0) * (1.0 + (t as f64 * 0.01).sin()))
+            .collect();
+        for align in [false, true] {
+            let p = GammatoneParams {
+                align,
+                ..Default::default()
+            };
+            let mut outs = Vec::new();
+            for wide in [false, true] {
+                let (mut gt, info) = Gammatone::with_width(&p, 44100.0, wide).expect("valid");
+                let nc = info.channels();
+                let mut y = vec![0.0; x.len() * nc];
+                let mut t = 0;
+                for len in [1, 441, 600, 1958] {
+                    gt.filter(&x[t..t + len], &mut y[t * nc..(t + len) * nc]);
+                    t += len;
+                }
+                outs.push(y);
+            }
+            assert!(outs[0].iter().any(|v| *v != 0.0));
+            let bits = |v: &Vec<f64>| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&outs[0]), bits(&outs[1]), "align={align}");
+        }
     }
 
     #[test]
