@@ -10,6 +10,13 @@
 //! * Group `chain`: `ratemap`, `ild`, `itd` and `ic` together at default parameters, fed
 //!   whole and in chunks of 441 (10 ms) and 2205 (50 ms) samples through `process_chunk`.
 //!
+//! * Group `gammatone`: the filterbank kernel alone, one ear, 16/32/64 channels, in
+//!   channel-samples per second.
+//! * Group `stages`: each processor after the filterbank alone (`innerhaircell` and
+//!   `ratemap` on one ear, `ild` and `crosscorrelation` on both), fed its real input
+//!   (the example's IHC envelopes), 16/32/64 channels, chunks of 441, 2205 and the whole
+//!   signal; throughput in audio samples per ear.
+//!
 //! Only processing is timed: the managers are built and the input read beforehand.
 //!
 //! Throughput is in elements = audio samples per ear (sample frames), so criterion
@@ -178,12 +185,110 @@ fn gammatone(c: &mut Criterion) {
     group.finish();
 }
 
+/// The processors after the filterbank, each alone on its real input (see the crate doc).
+fn stages(c: &mut Criterion) {
+    use afe_core::{Block, Processor, SignalInfo};
+    use afe_processors::crosscorrelation::{Crosscorrelation, CrosscorrelationParams};
+    use afe_processors::gammatone::{Gammatone, GammatoneParams};
+    use afe_processors::ihc::{Ihc, IhcParams};
+    use afe_processors::ild::{Ild, IldParams};
+    use afe_processors::ratemap::{Ratemap, RatemapParams};
+
+    /// Runs `p` (output `info`) over `inputs` (one signal per ear) cut into `chunk`-sample
+    /// blocks.
+    fn bench(
+        group: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+        id: BenchmarkId,
+        (p, info): (&mut dyn Processor, SignalInfo),
+        inputs: &[&Block],
+        chunk: usize,
+    ) {
+        let width = inputs[0].width();
+        let blocks: Vec<Vec<Block>> = inputs
+            .iter()
+            .map(|b| {
+                b.as_slice()
+                    .chunks(chunk * width)
+                    .map(|c| Block::from_vec(c.to_vec(), width))
+                    .collect()
+            })
+            .collect();
+        let mut out = vec![Block::new(info.width())];
+        group.bench_function(id, |b| {
+            b.iter(|| {
+                p.reset();
+                for k in 0..blocks[0].len() {
+                    let ins: Vec<&Block> = blocks.iter().map(|ear| &ear[k]).collect();
+                    p.process(black_box(&ins), &mut out);
+                }
+                black_box(out[0].frames())
+            })
+        });
+    }
+
+    let (fs, left, right) = example();
+    let mut group = c.benchmark_group("stages");
+    group.sample_size(10);
+    group.warm_up_time(Duration::from_millis(500));
+    group.measurement_time(Duration::from_secs(1));
+    group.throughput(Throughput::Elements(left.len() as u64));
+    for channels in [16u32, 32, 64] {
+        let params = GammatoneParams {
+            n_channels: Some(channels),
+            ..GammatoneParams::default()
+        };
+        let mut fb_info = SignalInfo::time_domain(fs);
+        let mut ihc_info = fb_info.clone();
+        let (mut fb_in, mut ihc_in) = (Vec::new(), Vec::new());
+        for ear in [&left, &right] {
+            let (mut fb, info) = Gammatone::new(&params, fs).expect("filterbank");
+            let (mut ihc, info2) = Ihc::new(&IhcParams::default(), &info).expect("ihc");
+            let mut fb_out = vec![Block::new(info.width())];
+            fb.process(&[&Block::from_vec(ear.clone(), 1)], &mut fb_out);
+            let mut ihc_out = vec![Block::new(info2.width())];
+            ihc.process(&[&fb_out[0]], &mut ihc_out);
+            fb_in.push(fb_out.remove(0));
+            ihc_in.push(ihc_out.remove(0));
+            (fb_info, ihc_info) = (info, info2);
+        }
+        for chunk in [441, 2205, left.len()] {
+            let id = |name: &str| BenchmarkId::new(format!("{name}/{channels}ch"), chunk);
+            let binaural = [&ihc_in[0], &ihc_in[1]];
+            let (mut ihc, info) = Ihc::new(&IhcParams::default(), &fb_info).expect("ihc");
+            let p = (&mut ihc as &mut dyn Processor, info);
+            bench(&mut group, id("innerhaircell"), p, &[&fb_in[0]], chunk);
+            let (mut rm, info) =
+                Ratemap::new(&RatemapParams::default(), &ihc_info).expect("ratemap");
+            bench(
+                &mut group,
+                id("ratemap"),
+                (&mut rm, info),
+                &[&ihc_in[0]],
+                chunk,
+            );
+            let (mut ild, info) = Ild::new(&IldParams::default(), &ihc_info).expect("ild");
+            bench(&mut group, id("ild"), (&mut ild, info), &binaural, chunk);
+            let (mut cc, info) =
+                Crosscorrelation::new(&CrosscorrelationParams::default(), &ihc_info)
+                    .expect("crosscorrelation");
+            bench(
+                &mut group,
+                id("crosscorrelation"),
+                (&mut cc, info),
+                &binaural,
+                chunk,
+            );
+        }
+    }
+    group.finish();
+}
+
 /// The benchmark list (in a private module: the macro makes an undocumented `pub fn`).
 mod list {
-    use super::{chain, gammatone, per_request};
+    use super::{chain, gammatone, per_request, stages};
     use criterion::criterion_group;
 
-    criterion_group!(benches, per_request, chain, gammatone);
+    criterion_group!(benches, per_request, chain, gammatone, stages);
 }
 
 criterion_main!(list::benches);
