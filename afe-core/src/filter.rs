@@ -4,14 +4,69 @@
 //! `y = z0 + b0·x`, `z[i] = (z[i+1] − a[i+1]·y) + b[i+1]·x`, `z[m−1] = b[m]·x − a[m]·y`.
 //! The order matters bit for bit on pole-clustered designs, so keep it.
 
+/// Channels per SIMD vector of the multichannel path.
+const LANES: usize = 8;
+/// Vectors per pass of the multichannel path: their independent recursions hide each
+/// other's latency.
+const MAX_VECTORS: usize = 4;
+/// Highest order run with the state in registers; higher orders take the scalar path.
+const MAX_LANE_ORDER: usize = 4;
+
 /// A real DF2T filter applied independently to every channel of a time-major block.
+///
+/// Eight or more channels with an order up to 4 run across SIMD lanes, in place, with
+/// the state in registers: passes of up to four vectors, each vector loading eight
+/// adjacent channels of a row. When the channel count is not a multiple of eight, the
+/// last vector of a pass overlaps its neighbour; the overlapping channels then have two
+/// lanes with equal state that compute and store equal values. Every channel sees
+/// exactly the scalar operations, so the numbers do not depend on the path.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Df2t {
     b: Vec<f64>,
     a: Vec<f64>,
     channels: usize,
-    /// State, `[order][channels]` so that the inner loop runs across channels.
+    /// Passes of the multichannel path (empty on the scalar path).
+    passes: Vec<Pass>,
+    /// Channel of each state lane: the identity on the scalar path.
+    lane_channel: Vec<usize>,
+    /// State, `[order][lane]` so that the inner loop runs across channels.
     z: Vec<f64>,
+}
+
+/// Up to `MAX_VECTORS` vectors filtered together: their first channels and state lanes.
+#[derive(Debug, Clone, PartialEq)]
+struct Pass {
+    starts: Vec<usize>,
+    first_lane: usize,
+}
+
+/// Splits `channels` (≥ `LANES`) into passes of whole vectors (see [`Df2t`]).
+fn plan_passes(channels: usize) -> (Vec<Pass>, Vec<usize>) {
+    let (mut passes, mut lane_channel) = (Vec::new(), Vec::new());
+    let mut start = 0;
+    while start < channels {
+        let rest = channels - start;
+        let full = LANES * MAX_VECTORS;
+        // A pass leaves at least one whole vector for the next one.
+        let size = if rest <= full {
+            rest
+        } else if rest - full < LANES {
+            full - LANES
+        } else {
+            full
+        };
+        let end = start + size;
+        let starts: Vec<usize> = (0..size.div_ceil(LANES))
+            .map(|v| (start + v * LANES).min(end - LANES))
+            .collect();
+        passes.push(Pass {
+            first_lane: lane_channel.len(),
+            starts: starts.clone(),
+        });
+        lane_channel.extend(starts.iter().flat_map(|s| *s..*s + LANES));
+        start = end;
+    }
+    (passes, lane_channel)
 }
 
 impl Df2t {
@@ -34,11 +89,19 @@ impl Df2t {
         for (d, s) in an.iter_mut().zip(a) {
             *d = s / a[0];
         }
+        let (passes, lane_channel) = if channels >= LANES && (1..=MAX_LANE_ORDER).contains(&(m - 1))
+        {
+            plan_passes(channels)
+        } else {
+            (Vec::new(), (0..channels).collect())
+        };
         Df2t {
             b: bn,
             a: an,
             channels,
-            z: vec![0.0; (m - 1) * channels],
+            z: vec![0.0; (m - 1) * lane_channel.len()],
+            passes,
+            lane_channel,
         }
     }
 
@@ -49,6 +112,10 @@ impl Df2t {
 
     /// Filters `data` (time-major, `channels` values per row) in place, carrying state.
     pub fn process(&mut self, data: &mut [f64]) {
+        if !self.passes.is_empty() {
+            self.process_lanes(data);
+            return;
+        }
         let nc = self.channels;
         let m = self.order();
         let b = &self.b;
@@ -72,6 +139,22 @@ impl Df2t {
         }
     }
 
+    /// The multichannel path, pass by pass over the whole block.
+    fn process_lanes(&mut self, data: &mut [f64]) {
+        let lanes = self.lane_channel.len();
+        let run = match self.order() {
+            1 => run_lanes::<1>,
+            2 => run_lanes::<2>,
+            3 => run_lanes::<3>,
+            _ => run_lanes::<4>,
+        };
+        for pass in &self.passes {
+            let filter = (&self.b[..], &self.a[..]);
+            let state = (&mut self.z[..], lanes, pass.first_lane);
+            run(filter, state, data, self.channels, &pass.starts);
+        }
+    }
+
     /// Zeroes the state.
     pub fn reset(&mut self) {
         self.z.fill(0.0);
@@ -80,11 +163,86 @@ impl Df2t {
     /// Sets every channel's first state to `value` (the other states are zeroed); used to
     /// seed one-pole smoothers.
     pub fn set_first_state(&mut self, channel: usize, value: f64) {
-        for i in 0..self.order() {
-            self.z[i * self.channels + channel] = 0.0;
+        let lanes = self.lane_channel.len();
+        for (lane, _) in self
+            .lane_channel
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| **c == channel)
+        {
+            for i in 0..self.order() {
+                self.z[i * lanes + lane] = 0.0;
+            }
+            if self.order() > 0 {
+                self.z[lane] = value;
+            }
         }
-        if self.order() > 0 {
-            self.z[channel] = value;
+    }
+}
+
+/// Filters the vectors of one pass (first channels `starts`) over every row of `data`
+/// (`stride` values per row), the state of lanes `first..` of `z` (`[order][lanes]`)
+/// held in registers and the vectors interleaved per row. Per lane, the operations are
+/// the scalar path's.
+fn run_lanes<const M: usize>(
+    filter: (&[f64], &[f64]),
+    state: (&mut [f64], usize, usize),
+    data: &mut [f64],
+    stride: usize,
+    starts: &[usize],
+) {
+    match *starts {
+        [s0] => lanes_kernel::<M, 1>(filter, state, data, stride, [s0]),
+        [s0, s1] => lanes_kernel::<M, 2>(filter, state, data, stride, [s0, s1]),
+        [s0, s1, s2] => lanes_kernel::<M, 3>(filter, state, data, stride, [s0, s1, s2]),
+        [s0, s1, s2, s3, ..] => {
+            lanes_kernel::<M, 4>(filter, state, data, stride, [s0, s1, s2, s3]);
+        }
+        [] => {}
+    }
+}
+
+#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+fn lanes_kernel<const M: usize, const V: usize>(
+    (b, a): (&[f64], &[f64]),
+    (z, lanes, first): (&mut [f64], usize, usize),
+    data: &mut [f64],
+    stride: usize,
+    starts: [usize; V],
+) {
+    let mut s = [[[0.0; LANES]; V]; M];
+    for (i, si) in s.iter_mut().enumerate() {
+        for (v, sv) in si.iter_mut().enumerate() {
+            let at = i * lanes + first + v * LANES;
+            sv.copy_from_slice(&z[at..at + LANES]);
+        }
+    }
+    let (b0, bm, am) = (b[0], b[M], a[M]);
+    for row in data.chunks_exact_mut(stride) {
+        let mut x = [[0.0; LANES]; V];
+        for (xv, &c) in x.iter_mut().zip(&starts) {
+            xv.copy_from_slice(&row[c..c + LANES]);
+        }
+        for v in 0..V {
+            let mut y = [0.0; LANES];
+            for l in 0..LANES {
+                y[l] = s[0][v][l] + b0 * x[v][l];
+            }
+            for i in 0..M - 1 {
+                for l in 0..LANES {
+                    s[i][v][l] = (s[i + 1][v][l] - a[i + 1] * y[l]) + b[i + 1] * x[v][l];
+                }
+            }
+            for l in 0..LANES {
+                s[M - 1][v][l] = bm * x[v][l] - am * y[l];
+            }
+            row[starts[v]..starts[v] + LANES].copy_from_slice(&y);
+        }
+    }
+    for (i, si) in s.iter().enumerate() {
+        for (v, sv) in si.iter().enumerate() {
+            let at = i * lanes + first + v * LANES;
+            z[at..at + LANES].copy_from_slice(sv);
         }
     }
 }
@@ -128,6 +286,55 @@ mod tests {
         for (n, w) in want.iter().enumerate() {
             assert!((data[2 * n] - w).abs() < 1e-12);
             assert!((data[2 * n + 1] - 2.0 * w).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn multichannel_lanes_match_single_channels_bit_for_bit() {
+        // Orders 1–4 take the lane path (and 5 the scalar one); 3 channels the scalar
+        // path, 8 one vector, 31 an overlapping vector, 35, 45 and 64 several passes.
+        let coeffs: [(&[f64], &[f64]); 5] = [
+            (&[0.3, 0.1], &[1.0, -0.6]),
+            (&[0.2, 0.3, -0.1], &[1.0, -0.5, 0.25]),
+            (&[0.1, 0.2, 0.2, 0.1], &[1.0, -0.9, 0.4, -0.05]),
+            (&[0.05, 0.1, 0.1, 0.1, 0.05], &[1.0, -1.2, 0.8, -0.3, 0.05]),
+            (
+                &[0.05, 0.1, 0.1, 0.1, 0.1, 0.05],
+                &[1.0, -1.2, 0.8, -0.3, 0.05, -0.01],
+            ),
+        ];
+        for (b, a) in coeffs {
+            for nc in [3, 8, 31, 35, 45, 64] {
+                let rows = 300;
+                let x: Vec<f64> = (0..rows * nc)
+                    .map(|i| ((i * 7919 % 997) as f64 / 498.5 - 1.0) * (1 + i % 5) as f64)
+                    .collect();
+                let mut multi = Df2t::new(b, a, nc);
+                multi.set_first_state(nc - 1, 0.25);
+                let mut y = x.clone();
+                let mut start = 0;
+                for len in [1, 70, 129] {
+                    multi.process(&mut y[start * nc..(start + len) * nc]);
+                    start += len;
+                }
+                multi.process(&mut y[start * nc..]);
+                for c in 0..nc {
+                    let mut single = Df2t::new(b, a, 1);
+                    if c == nc - 1 {
+                        single.set_first_state(0, 0.25);
+                    }
+                    let mut col: Vec<f64> = (0..rows).map(|t| x[t * nc + c]).collect();
+                    single.process(&mut col);
+                    for (t, v) in col.iter().enumerate() {
+                        assert_eq!(
+                            v.to_bits(),
+                            y[t * nc + c].to_bits(),
+                            "order {}, {nc} channels, c={c}, t={t}",
+                            a.len() - 1
+                        );
+                    }
+                }
+            }
         }
     }
 
