@@ -1,16 +1,39 @@
 //! The AFE framing rule (spec 00-overview §9): frames of `W` samples every `H` samples,
 //! carried across chunks, with no padding and no flushing.
 
-/// Buffer of not-yet-framed rows of a time-major signal.
+/// The rows of a time-major signal still needed by coming frames.
 ///
 /// Frame `j` of the stream always covers stream rows `[j·H, j·H + W)`, whatever the
-/// chunking, which makes every framed processor chunk-invariant.
+/// chunking, which makes every framed processor chunk-invariant. Frames are read over
+/// the kept rows followed by the new chunk, which is borrowed, not copied: only the rows
+/// that later frames still need are kept, at [`FrameBuffer::advance`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct FrameBuffer {
     width: usize,
     window: usize,
     hop: usize,
-    buf: Vec<f64>,
+    /// Rows from the start of the next frame on.
+    kept: Vec<f64>,
+}
+
+/// One frame: rows kept from earlier chunks (`head`), then rows of the new chunk
+/// (`tail`), each `width` values long.
+#[derive(Debug, Clone, Copy)]
+pub struct Frame<'a> {
+    /// The frame's first rows, from earlier chunks.
+    pub head: &'a [f64],
+    /// The frame's remaining rows, from the new chunk.
+    pub tail: &'a [f64],
+    width: usize,
+}
+
+impl<'a> Frame<'a> {
+    /// The frame's rows in time order.
+    pub fn rows(&self) -> impl Iterator<Item = &'a [f64]> {
+        let (head, tail) = (self.head, self.tail);
+        head.chunks_exact(self.width)
+            .chain(tail.chunks_exact(self.width))
+    }
 }
 
 impl FrameBuffer {
@@ -24,46 +47,54 @@ impl FrameBuffer {
             width,
             window,
             hop,
-            buf: Vec::with_capacity(window * width * 2),
+            kept: Vec::with_capacity(window * width),
         }
     }
 
-    /// Appends new rows (time-major, `width` values each).
-    pub fn push(&mut self, rows: &[f64]) {
-        debug_assert_eq!(rows.len() % self.width.max(1), 0);
-        self.buf.extend_from_slice(rows);
-    }
-
-    /// Number of complete frames available: `max(0, floor((N − (W − H))/H))`.
-    pub fn available(&self) -> usize {
-        let n = self.buf.len() / self.width;
-        let overlap = self.window - self.hop;
-        if n < overlap {
+    /// Number of complete frames over the kept rows followed by `input`.
+    pub fn available(&self, input: &[f64]) -> usize {
+        let n = (self.kept.len() + input.len()) / self.width.max(1);
+        if n < self.window {
             0
         } else {
-            (n - overlap) / self.hop
+            (n - self.window) / self.hop + 1
         }
     }
 
-    /// Frame `k` of the available ones: `window` rows, time-major.
-    pub fn frame(&self, k: usize) -> &[f64] {
+    /// Frame `k` (counted from the next frame) over the kept rows followed by `input`;
+    /// `k` must be below [`FrameBuffer::available`].
+    pub fn frame<'a>(&'a self, input: &'a [f64], k: usize) -> Frame<'a> {
+        let kept = self.kept.len();
         let start = k * self.hop * self.width;
-        &self.buf[start..start + self.window * self.width]
+        let end = start + self.window * self.width;
+        Frame {
+            head: &self.kept[start.min(kept)..end.min(kept)],
+            tail: &input[start.saturating_sub(kept)..end - kept.min(end)],
+            width: self.width,
+        }
     }
 
-    /// Drops the rows of the first `frames` frames' hops, keeping what later frames need.
-    pub fn consume(&mut self, frames: usize) {
-        let n = (frames * self.hop * self.width).min(self.buf.len());
-        self.buf.copy_within(n.., 0);
-        self.buf.truncate(self.buf.len() - n);
+    /// Drops `frames` frames and keeps the rows after them, from `input` too; `input`
+    /// is the chunk just framed.
+    pub fn advance(&mut self, input: &[f64], frames: usize) {
+        let next = frames * self.hop * self.width;
+        let kept = self.kept.len();
+        if next <= kept {
+            self.kept.drain(..next);
+            self.kept.extend_from_slice(input);
+        } else {
+            self.kept.clear();
+            self.kept
+                .extend_from_slice(&input[(next - kept).min(input.len())..]);
+        }
     }
 
-    /// Empties the buffer.
+    /// Forgets the kept rows (a new stream starts).
     pub fn reset(&mut self) {
-        self.buf.clear();
+        self.kept.clear();
     }
 
-    /// Frame length in rows.
+    /// Window length in rows.
     pub fn window(&self) -> usize {
         self.window
     }
@@ -83,31 +114,44 @@ pub fn hop_samples(h_size_s: f64, fs: f64) -> usize {
 mod tests {
     use super::*;
 
+    fn collect(frame: Frame<'_>) -> Vec<f64> {
+        frame.rows().flatten().copied().collect()
+    }
+
     #[test]
     fn frames_follow_the_stream_whatever_the_chunking() {
-        let x: Vec<f64> = (0..23).map(f64::from).collect();
-        let mut one = FrameBuffer::new(1, 6, 4);
-        one.push(&x);
-        let n = one.available();
-        assert_eq!(n, (23 - 2) / 4);
-        let whole: Vec<Vec<f64>> = (0..n).map(|k| one.frame(k).to_vec()).collect();
-        let mut chunked = Vec::new();
-        let mut fb = FrameBuffer::new(1, 6, 4);
-        for part in x.chunks(3) {
-            fb.push(part);
-            let m = fb.available();
-            chunked.extend((0..m).map(|k| fb.frame(k).to_vec()));
-            fb.consume(m);
+        let x: Vec<f64> = (0..46).map(f64::from).collect();
+        let one = FrameBuffer::new(2, 6, 4);
+        let n = one.available(&x);
+        assert_eq!(n, (23 - 6) / 4 + 1);
+        let whole: Vec<Vec<f64>> = (0..n).map(|k| collect(one.frame(&x, k))).collect();
+        for chunk in [1, 3, 5, 12, 40] {
+            let mut chunked = Vec::new();
+            let mut fb = FrameBuffer::new(2, 6, 4);
+            for part in x.chunks(2 * chunk) {
+                let m = fb.available(part);
+                chunked.extend((0..m).map(|k| collect(fb.frame(part, k))));
+                fb.advance(part, m);
+            }
+            assert_eq!(whole, chunked, "chunks of {chunk} rows");
         }
-        assert_eq!(whole, chunked);
-        assert_eq!(whole[1], vec![4.0, 5.0, 6.0, 7.0, 8.0, 9.0]);
+        assert_eq!(whole[1], (8..20).map(f64::from).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn only_rows_of_coming_frames_are_kept() {
+        let mut fb = FrameBuffer::new(1, 6, 2);
+        let x: Vec<f64> = (0..100).map(f64::from).collect();
+        let n = fb.available(&x);
+        fb.advance(&x, n);
+        // 48 frames end at row 100; the next starts at row 96.
+        assert_eq!(fb.kept, vec![96.0, 97.0, 98.0, 99.0]);
     }
 
     #[test]
     fn short_first_chunk_gives_no_frame() {
-        let mut fb = FrameBuffer::new(2, 10, 4);
-        fb.push(&[0.0; 2 * 5]);
-        assert_eq!(fb.available(), 0);
+        let fb = FrameBuffer::new(2, 10, 4);
+        assert_eq!(fb.available(&[0.0; 2 * 5]), 0);
     }
 
     #[test]

@@ -11,6 +11,8 @@ use realfft::num_complex::Complex64;
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use serde::{Deserialize, Serialize};
 
+use afe_core::framing::Frame;
+
 use crate::framed::{check_framing, EarFrames};
 
 /// Parameters of the cross-correlation, under their AFE names.
@@ -217,7 +219,7 @@ impl Direct {
 
     /// Correlates every channel of one frame pair (`[time][channel]`) into `out`
     /// (`[channel][lag]`).
-    fn correlate(&mut self, frame_l: &[f64], frame_r: &[f64], nc: usize, out: &mut [f64]) {
+    fn correlate(&mut self, frame_l: Frame<'_>, frame_r: Frame<'_>, nc: usize, out: &mut [f64]) {
         let w = self.win.len();
         let nl = 2 * self.max_lag + 1;
         let rows_l = self.left.len() / nc.div_ceil(LANES);
@@ -255,9 +257,9 @@ impl Direct {
 /// into the lanes of `left` and `right`; returns their energies `Σ (win·x)²`. `FULL`:
 /// the group has all `LANES` channels (a fixed width that vectorises).
 #[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
-fn window_group<const FULL: bool>(
+fn window_group<'a, const FULL: bool>(
     win: &[f64],
-    (frame_l, frame_r): (&[f64], &[f64]),
+    (frame_l, frame_r): (Frame<'a>, Frame<'a>),
     nc: usize,
     c0: usize,
     left: &mut [Lanes],
@@ -265,9 +267,9 @@ fn window_group<const FULL: bool>(
 ) -> ([f64; LANES], [f64; LANES]) {
     let lanes = if FULL { LANES } else { nc - c0 };
     let (mut el, mut er) = ([0.0; LANES], [0.0; LANES]);
-    for (n, ((pl, pr), &wn)) in left.iter_mut().zip(right.iter_mut()).zip(win).enumerate() {
-        let row = n * nc + c0;
-        let (fl, fr) = (&frame_l[row..row + lanes], &frame_r[row..row + lanes]);
+    let rows = frame_l.rows().zip(frame_r.rows());
+    for (((pl, pr), &wn), (rl, rr)) in left.iter_mut().zip(right.iter_mut()).zip(win).zip(rows) {
+        let (fl, fr) = (&rl[c0..c0 + lanes], &rr[c0..c0 + lanes]);
         for l in 0..lanes {
             let (vl, vr) = (wn * fl[l], wn * fr[l]);
             pl.0[l] = vl;
@@ -350,20 +352,14 @@ impl FftEngine {
     }
 
     /// Correlates channel `c` of the current frames into `out` (one value per lag).
-    fn correlate(
-        &mut self,
-        frame_l: &[f64],
-        frame_r: &[f64],
-        c: usize,
-        nc: usize,
-        out: &mut [f64],
-    ) {
+    fn correlate(&mut self, frame_l: Frame<'_>, frame_r: Frame<'_>, c: usize, out: &mut [f64]) {
         let w = self.win.len();
         let nfft = self.time_l.len();
         let (mut el, mut er) = (0.0, 0.0);
-        for n in 0..w {
-            let l = self.win[n] * frame_l[n * nc + c];
-            let r = self.win[n] * frame_r[n * nc + c];
+        let rows = frame_l.rows().zip(frame_r.rows());
+        for (n, (rl, rr)) in rows.enumerate() {
+            let l = self.win[n] * rl[c];
+            let r = self.win[n] * rr[c];
             self.time_l[n] = l;
             self.time_r[n] = r;
             el += l * l;
@@ -405,7 +401,8 @@ impl FftEngine {
 impl Processor for Crosscorrelation {
     fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
         let nc = inputs[0].width();
-        let n = self.frames.push(inputs[0].as_slice(), inputs[1].as_slice());
+        let ears = (inputs[0].as_slice(), inputs[1].as_slice());
+        let n = self.frames.available(ears.0, ears.1);
         let max_lag = match &self.engine {
             Engine::Direct(d) => d.max_lag,
             Engine::Fft(f) => f.max_lag,
@@ -413,17 +410,17 @@ impl Processor for Crosscorrelation {
         let nl = 2 * max_lag + 1;
         let out = outputs[0].reset_to(n);
         for (k, out) in out.chunks_exact_mut(nc * nl).enumerate() {
-            let (fl, fr) = self.frames.frame(k);
+            let (fl, fr) = self.frames.frame(ears, k);
             match &mut self.engine {
                 Engine::Direct(d) => d.correlate(fl, fr, nc, out),
                 Engine::Fft(f) => {
                     for (c, o) in out.chunks_exact_mut(nl).enumerate() {
-                        f.correlate(fl, fr, c, nc, o);
+                        f.correlate(fl, fr, c, o);
                     }
                 }
             }
         }
-        self.frames.consume(n);
+        self.frames.advance(ears.0, ears.1, n);
     }
 
     fn reset(&mut self) {
@@ -493,16 +490,18 @@ mod tests {
         for max_lag in [0, 3, 17, 39, 40] {
             let win = window("hann", w, "").expect("hann");
             let nl = 2 * max_lag + 1;
+            let framing = afe_core::framing::FrameBuffer::new(nc, w, w);
+            let (fl, fr) = (framing.frame(&fl, 0), framing.frame(&fr, 0));
             let mut fft = FftEngine::new(win.clone(), max_lag);
             let mut b = vec![0.0; nc * nl];
             for (c, o) in b.chunks_exact_mut(nl).enumerate() {
-                fft.correlate(&fl, &fr, c, nc, o);
+                fft.correlate(fl, fr, c, o);
             }
             assert!(b.iter().any(|v| *v > 0.1));
             for lag_block in [4, 8] {
                 let mut direct = Direct::with_lag_block(win.clone(), max_lag, nc, lag_block);
                 let mut a = vec![0.0; nc * nl];
-                direct.correlate(&fl, &fr, nc, &mut a);
+                direct.correlate(fl, fr, nc, &mut a);
                 for (i, (u, v)) in a.iter().zip(&b).enumerate() {
                     let (c, lag) = (i / nl, i % nl);
                     assert!(

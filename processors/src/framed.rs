@@ -1,7 +1,7 @@
 //! What the window/hop processors share: the checks of their lengths, and the framing of
 //! both ears for the binaural ones.
 
-use afe_core::framing::{hop_samples, window_samples, FrameBuffer};
+use afe_core::framing::{hop_samples, window_samples, Frame, FrameBuffer};
 use afe_core::{Error, Result};
 
 /// Longest window, in samples (about 6 minutes at 44.1 kHz): beyond is a unit mistake.
@@ -42,7 +42,7 @@ pub struct EarFrames {
 }
 
 impl EarFrames {
-    /// Frames of `window` rows of `width` values every `hop` rows, for each ear.
+    /// Buffers for `width`-value rows, frames of `window` rows every `hop` rows.
     pub fn new(width: usize, window: usize, hop: usize) -> Self {
         EarFrames {
             left: FrameBuffer::new(width, window, hop),
@@ -50,25 +50,27 @@ impl EarFrames {
         }
     }
 
-    /// Appends the new rows of both ears and returns the number of complete frames.
-    pub fn push(&mut self, left: &[f64], right: &[f64]) -> usize {
-        self.left.push(left);
-        self.right.push(right);
-        self.left.available()
+    /// Number of complete frame pairs over the kept rows and the new chunks.
+    pub fn available(&self, left: &[f64], right: &[f64]) -> usize {
+        self.left.available(left).min(self.right.available(right))
     }
 
-    /// Frame `k` of the left and of the right ear.
-    pub fn frame(&self, k: usize) -> (&[f64], &[f64]) {
-        (self.left.frame(k), self.right.frame(k))
+    /// Frame pair `k` over the kept rows and the new chunks.
+    pub fn frame<'a>(
+        &'a self,
+        (left, right): (&'a [f64], &'a [f64]),
+        k: usize,
+    ) -> (Frame<'a>, Frame<'a>) {
+        (self.left.frame(left, k), self.right.frame(right, k))
     }
 
-    /// Drops what the first `frames` frames no longer need, in both ears.
-    pub fn consume(&mut self, frames: usize) {
-        self.left.consume(frames);
-        self.right.consume(frames);
+    /// Drops `frames` frame pairs and keeps what later frames need of the new chunks.
+    pub fn advance(&mut self, left: &[f64], right: &[f64], frames: usize) {
+        self.left.advance(left, frames);
+        self.right.advance(right, frames);
     }
 
-    /// Empties both buffers.
+    /// Forgets the kept rows of both ears.
     pub fn reset(&mut self) {
         self.left.reset();
         self.right.reset();

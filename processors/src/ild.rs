@@ -1,6 +1,7 @@
 //! `ild`: interaural level difference per channel and frame, right re left, in dB
 //! (spec 17-ild).
 
+use afe_core::framing::Frame;
 use afe_core::window::{window, WINDOW_NAMES};
 use afe_core::{Block, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
@@ -65,10 +66,10 @@ pub struct Ild {
 }
 
 /// Windowed mean power of each channel of a time-major frame, `mean((w·x)²)`.
-pub(crate) fn frame_power(win: &[f64], frame: &[f64], out: &mut [f64]) {
-    let nc = out.len();
+#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+pub(crate) fn frame_power<'a>(win: &[f64], frame: Frame<'a>, out: &mut [f64]) {
     out.fill(0.0);
-    for (w, z) in win.iter().zip(frame.chunks_exact(nc)) {
+    for (w, z) in win.iter().zip(frame.rows()) {
         for (acc, v) in out.iter_mut().zip(z) {
             let x = w * v;
             *acc += x * x;
@@ -102,18 +103,19 @@ impl Ild {
 
 impl Processor for Ild {
     fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
-        let n = self.frames.push(inputs[0].as_slice(), inputs[1].as_slice());
+        let ears = (inputs[0].as_slice(), inputs[1].as_slice());
+        let n = self.frames.available(ears.0, ears.1);
         let nc = self.power_l.len();
         let out = outputs[0].reset_to(n);
         for (k, row) in out.chunks_exact_mut(nc).enumerate() {
-            let (left, right) = self.frames.frame(k);
+            let (left, right) = self.frames.frame(ears, k);
             frame_power(&self.win, left, &mut self.power_l);
             frame_power(&self.win, right, &mut self.power_r);
             for ((v, pl), pr) in row.iter_mut().zip(&self.power_l).zip(&self.power_r) {
                 *v = 10.0 * ((pr + f64::EPSILON) / (pl + f64::EPSILON)).log10();
             }
         }
-        self.frames.consume(n);
+        self.frames.advance(ears.0, ears.1, n);
     }
 
     fn reset(&mut self) {

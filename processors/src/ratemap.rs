@@ -125,17 +125,16 @@ impl Processor for Ratemap {
         self.scratch.clear();
         self.scratch.extend_from_slice(inputs[0].as_slice());
         self.leaky.process(&mut self.scratch);
-        self.frames.push(&self.scratch);
-        let n = self.frames.available();
+        let n = self.frames.available(&self.scratch);
         let out = outputs[0].reset_to(n);
         let w_len = self.win.len() as f64;
         for (k, row) in out.chunks_exact_mut(nc).enumerate() {
-            let frame = self.frames.frame(k);
+            let frame = self.frames.frame(&self.scratch, k);
             if self.power {
                 frame_power(&self.win, frame, row);
                 continue;
             }
-            for (w, z) in self.win.iter().zip(frame.chunks_exact(nc)) {
+            for (w, z) in self.win.iter().zip(frame.rows()) {
                 for (acc, v) in row.iter_mut().zip(z) {
                     *acc += w * v;
                 }
@@ -144,7 +143,7 @@ impl Processor for Ratemap {
                 *v /= w_len;
             }
         }
-        self.frames.consume(n);
+        self.frames.advance(&self.scratch, n);
     }
 
     fn reset(&mut self) {
