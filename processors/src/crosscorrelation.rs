@@ -102,7 +102,8 @@ struct Lanes([f64; LANES]);
 struct Direct {
     win: Vec<f64>,
     max_lag: usize,
-    /// Lags computed per pass (accumulators held in registers): 8 with AVX-512, else 4.
+    /// Lags computed per pass (accumulators held in registers): 8 to 12 with AVX-512,
+    /// else 4 or 5.
     lag_block: usize,
     /// Windowed left frame, row `p` holding sample `p − maxLag`, zero outside the
     /// frame; `W + lags − 1` rows per group, `lags` rounded up to `lag_block`.
@@ -111,6 +112,8 @@ struct Direct {
     right: Vec<Lanes>,
     /// One row per computed lag.
     acc: Vec<Lanes>,
+    /// Energies of the current frames, per group.
+    energy: Vec<Energy>,
 }
 
 /// FFT plans, window and scratch of the per-channel correlation.
@@ -200,7 +203,12 @@ fn prefer_direct(w: usize, max_lag: usize) -> bool {
 
 impl Direct {
     fn new(win: Vec<f64>, max_lag: usize, nc: usize) -> Self {
-        Self::with_lag_block(win, max_lag, nc, if has_avx512() { 8 } else { 4 })
+        // As many accumulators as the registers hold (32 AVX-512 registers, 16 AVX2 ones,
+        // two per vector), the count that pads the lags least: 11 for the default 99.
+        let blocks = if has_avx512() { 8..=12 } else { 4..=5 };
+        let nl = 2 * max_lag + 1;
+        let best = blocks.rev().min_by_key(|b| nl.next_multiple_of(*b));
+        Self::with_lag_block(win, max_lag, nc, best.unwrap_or(4))
     }
 
     fn with_lag_block(win: Vec<f64>, max_lag: usize, nc: usize, lag_block: usize) -> Self {
@@ -211,6 +219,7 @@ impl Direct {
             left: vec![Lanes::default(); groups * (w + lags - 1)],
             right: vec![Lanes::default(); groups * w],
             acc: vec![Lanes::default(); lags],
+            energy: vec![([0.0; LANES], [0.0; LANES]); groups],
             win,
             max_lag,
             lag_block,
@@ -222,27 +231,31 @@ impl Direct {
     fn correlate(&mut self, frame_l: Frame<'_>, frame_r: Frame<'_>, nc: usize, out: &mut [f64]) {
         let w = self.win.len();
         let nl = 2 * self.max_lag + 1;
-        let rows_l = self.left.len() / nc.div_ceil(LANES);
+        let shape = (nc, self.max_lag);
+        let buffers = (
+            &mut self.left[..],
+            &mut self.right[..],
+            &mut self.energy[..],
+        );
+        window_frames(&self.win, (frame_l, frame_r), shape, buffers);
+        let dot = match self.lag_block {
+            5 => dot_lags::<5>,
+            8 => dot_lags::<8>,
+            9 => dot_lags::<9>,
+            10 => dot_lags::<10>,
+            11 => dot_lags::<11>,
+            12 => dot_lags::<12>,
+            _ => dot_lags::<4>,
+        };
+        let rows_l = self.left.len() / self.energy.len();
         let groups = self
             .left
-            .chunks_exact_mut(rows_l)
-            .zip(self.right.chunks_exact_mut(w));
-        for (g, (left, right)) in groups.enumerate() {
+            .chunks_exact(rows_l)
+            .zip(self.right.chunks_exact(w));
+        for (g, ((left, right), (el, er))) in groups.zip(&self.energy).enumerate() {
+            dot(left, right, &mut self.acc);
             let c0 = g * LANES;
-            let lanes = LANES.min(nc - c0);
-            let padded = &mut left[self.max_lag..self.max_lag + w];
-            let frames = (frame_l, frame_r);
-            let (el, er) = if c0 + LANES <= nc {
-                window_group::<true>(&self.win, frames, nc, c0, padded, right)
-            } else {
-                window_group::<false>(&self.win, frames, nc, c0, padded, right)
-            };
-            if self.lag_block == 8 {
-                dot_lags::<8>(left, right, &mut self.acc);
-            } else {
-                dot_lags::<4>(left, right, &mut self.acc);
-            }
-            for l in 0..lanes {
+            for l in 0..LANES.min(nc - c0) {
                 let norm = f64::EPSILON + (el[l] * er[l]).sqrt();
                 let o = &mut out[(c0 + l) * nl..(c0 + l + 1) * nl];
                 for (v, a) in o.iter_mut().zip(&self.acc) {
@@ -253,32 +266,51 @@ impl Direct {
     }
 }
 
-/// Writes the windowed channels `c0..` of a frame pair (`[time][channel]`, `nc` wide)
-/// into the lanes of `left` and `right`; returns their energies `Σ (win·x)²`. `FULL`:
-/// the group has all `LANES` channels (a fixed width that vectorises).
+/// Per-group energies `Σ (win·x)²` of the left and right frames.
+type Energy = ([f64; LANES], [f64; LANES]);
+
+/// Writes the windowed frame pair (`[time][channel]`, `nc` wide) into the lanes of the
+/// groups of `left` (after `maxLag` zero rows) and `right`, row by row so that each
+/// frame row is read once, and their energies into `energy` (one per group).
 #[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
-fn window_group<'a, const FULL: bool>(
+fn window_frames<'a>(
     win: &[f64],
     (frame_l, frame_r): (Frame<'a>, Frame<'a>),
-    nc: usize,
-    c0: usize,
-    left: &mut [Lanes],
-    right: &mut [Lanes],
-) -> ([f64; LANES], [f64; LANES]) {
-    let lanes = if FULL { LANES } else { nc - c0 };
-    let (mut el, mut er) = ([0.0; LANES], [0.0; LANES]);
-    let rows = frame_l.rows().zip(frame_r.rows());
-    for (((pl, pr), &wn), (rl, rr)) in left.iter_mut().zip(right.iter_mut()).zip(win).zip(rows) {
-        let (fl, fr) = (&rl[c0..c0 + lanes], &rr[c0..c0 + lanes]);
-        for l in 0..lanes {
-            let (vl, vr) = (wn * fl[l], wn * fr[l]);
-            pl.0[l] = vl;
-            pr.0[l] = vr;
-            el[l] += vl * vl;
-            er[l] += vr * vr;
+    (nc, max_lag): (usize, usize),
+    (left, right, energy): (&mut [Lanes], &mut [Lanes], &mut [Energy]),
+) {
+    let (w, groups) = (win.len(), energy.len());
+    let rows_l = left.len() / groups;
+    energy.fill(([0.0; LANES], [0.0; LANES]));
+    let parts = [(frame_l.head, frame_r.head), (frame_l.tail, frame_r.tail)];
+    let rows = parts
+        .into_iter()
+        .flat_map(|(l, r)| l.chunks_exact(nc).zip(r.chunks_exact(nc)));
+    for (n, ((row_l, row_r), &wn)) in rows.zip(win).enumerate() {
+        for (g, (el, er)) in energy.iter_mut().enumerate() {
+            let c0 = g * LANES;
+            let (pl, pr) = (&mut left[g * rows_l + max_lag + n], &mut right[g * w + n]);
+            if c0 + LANES <= nc {
+                let fl: [f64; LANES] = row_l[c0..c0 + LANES].try_into().unwrap_or_default();
+                let fr: [f64; LANES] = row_r[c0..c0 + LANES].try_into().unwrap_or_default();
+                let (vl, vr) = (fl.map(|v| wn * v), fr.map(|v| wn * v));
+                let (mut sl, mut sr) = (*el, *er);
+                for l in 0..LANES {
+                    sl[l] += vl[l] * vl[l];
+                    sr[l] += vr[l] * vr[l];
+                }
+                (pl.0, pr.0, *el, *er) = (vl, vr, sl, sr);
+            } else {
+                for l in 0..nc - c0 {
+                    let (vl, vr) = (wn * row_l[c0 + l], wn * row_r[c0 + l]);
+                    pl.0[l] = vl;
+                    pr.0[l] = vr;
+                    el[l] += vl * vl;
+                    er[l] += vr * vr;
+                }
+            }
         }
     }
-    (el, er)
 }
 
 fn has_avx512() -> bool {
@@ -498,7 +530,7 @@ mod tests {
                 fft.correlate(fl, fr, c, o);
             }
             assert!(b.iter().any(|v| *v > 0.1));
-            for lag_block in [4, 8] {
+            for lag_block in [4, 5, 8, 9, 10, 11, 12] {
                 let mut direct = Direct::with_lag_block(win.clone(), max_lag, nc, lag_block);
                 let mut a = vec![0.0; nc * nl];
                 direct.correlate(fl, fr, nc, &mut a);
