@@ -164,6 +164,15 @@ impl Block {
         &mut self.data
     }
 
+    /// Makes the block `frames` rows long without clearing it, for a caller that then
+    /// writes every value: rows it held before keep stale values, new ones are zero.
+    ///
+    /// Does not allocate once the block has held that many values before.
+    pub fn resize_to(&mut self, frames: usize) -> &mut [f64] {
+        self.data.resize(frames * self.width, 0.0);
+        &mut self.data
+    }
+
     /// Appends the rows of `other`.
     ///
     /// # Panics

@@ -503,7 +503,7 @@ impl Engine {
         #[allow(unsafe_code)]
         let outputs = unsafe { &mut *table.rt[0].slots[slot].get() };
         for (block, ear) in outputs.iter_mut().zip(chunk) {
-            block.reset_to(ear.len()).copy_from_slice(ear);
+            block.resize_to(ear.len()).copy_from_slice(ear);
         }
         let mut queued = 0;
         release(&table.sync, &table.links, 0, k, |x| {

@@ -90,7 +90,7 @@ impl Graph {
     /// Copies the new input of a chunk into the input node (one slice per ear).
     pub fn load_input(&mut self, chunk: &[&[f64]]) {
         for (block, ear) in self.nodes[0].outputs.iter_mut().zip(chunk) {
-            block.reset_to(ear.len()).copy_from_slice(ear);
+            block.resize_to(ear.len()).copy_from_slice(ear);
         }
     }
 

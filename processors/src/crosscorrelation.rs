@@ -98,7 +98,7 @@ const LANES: usize = 8;
 struct Lanes([f64; LANES]);
 
 /// Window, zero-padded frames and accumulators of the direct method, per group of
-/// `LANES` channels (the unused lanes of the last group stay zero).
+/// `LANES` channels (see [`group_start`]; with fewer channels, the unused lanes stay zero).
 struct Direct {
     win: Vec<f64>,
     max_lag: usize,
@@ -254,8 +254,8 @@ impl Direct {
             .zip(self.right.chunks_exact(w));
         for (g, ((left, right), (el, er))) in groups.zip(&self.energy).enumerate() {
             dot(left, right, &mut self.acc);
-            let c0 = g * LANES;
-            for l in 0..LANES.min(nc - c0) {
+            let c0 = group_start(g, nc);
+            for l in 0..LANES.min(nc) {
                 let norm = f64::EPSILON + (el[l] * er[l]).sqrt();
                 let o = &mut out[(c0 + l) * nl..(c0 + l + 1) * nl];
                 for (v, a) in o.iter_mut().zip(&self.acc) {
@@ -266,12 +266,20 @@ impl Direct {
     }
 }
 
+/// First channel of group `g` of `nc` channels: groups of `LANES`, the last one ending at
+/// the last channel (overlapping its neighbour when `nc` is not a multiple of `LANES`;
+/// an overlapped channel is computed twice, identically). Fewer than `LANES` channels
+/// make one partial group.
+fn group_start(g: usize, nc: usize) -> usize {
+    (g * LANES).min(nc.saturating_sub(LANES))
+}
+
 /// Per-group energies `Σ (win·x)²` of the left and right frames.
 type Energy = ([f64; LANES], [f64; LANES]);
 
 /// Writes the windowed frame pair (`[time][channel]`, `nc` wide) into the lanes of the
-/// groups of `left` (after `maxLag` zero rows) and `right`, row by row so that each
-/// frame row is read once, and their energies into `energy` (one per group).
+/// groups of `left` (after `maxLag` zero rows) and `right` (see [`group_start`]), row by
+/// row so that each frame row is read once, and their energies into `energy`.
 #[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
 fn window_frames<'a>(
     win: &[f64],
@@ -288,9 +296,9 @@ fn window_frames<'a>(
         .flat_map(|(l, r)| l.chunks_exact(nc).zip(r.chunks_exact(nc)));
     for (n, ((row_l, row_r), &wn)) in rows.zip(win).enumerate() {
         for (g, (el, er)) in energy.iter_mut().enumerate() {
-            let c0 = g * LANES;
+            let c0 = group_start(g, nc);
             let (pl, pr) = (&mut left[g * rows_l + max_lag + n], &mut right[g * w + n]);
-            if c0 + LANES <= nc {
+            if nc >= LANES {
                 let fl: [f64; LANES] = row_l[c0..c0 + LANES].try_into().unwrap_or_default();
                 let fr: [f64; LANES] = row_r[c0..c0 + LANES].try_into().unwrap_or_default();
                 let (vl, vr) = (fl.map(|v| wn * v), fr.map(|v| wn * v));
@@ -301,7 +309,7 @@ fn window_frames<'a>(
                 }
                 (pl.0, pr.0, *el, *er) = (vl, vr, sl, sr);
             } else {
-                for l in 0..nc - c0 {
+                for l in 0..nc {
                     let (vl, vr) = (wn * row_l[c0 + l], wn * row_r[c0 + l]);
                     pl.0[l] = vl;
                     pr.0[l] = vr;
@@ -440,7 +448,7 @@ impl Processor for Crosscorrelation {
             Engine::Fft(f) => f.max_lag,
         };
         let nl = 2 * max_lag + 1;
-        let out = outputs[0].reset_to(n);
+        let out = outputs[0].resize_to(n);
         for (k, out) in out.chunks_exact_mut(nc * nl).enumerate() {
             let (fl, fr) = self.frames.frame(ears, k);
             match &mut self.engine {

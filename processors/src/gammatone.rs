@@ -303,8 +303,12 @@ struct Group<const W: usize> {
 #[derive(Debug, Clone)]
 struct Bank<const W: usize> {
     groups: Vec<Group<W>>,
-    /// Full-width output rows of a last group with fewer than `W` channels
-    /// (`TIME_BLOCK` × `W`), copied out in part.
+    /// First channel of each group. With `W` channels or more, the last group ends at
+    /// the last channel, overlapping its neighbour when the count is not a multiple of
+    /// `W`: an overlapped channel is then computed twice, identically, and written twice.
+    starts: Vec<usize>,
+    /// Full-width output rows of a bank narrower than `W` channels (`TIME_BLOCK` × `W`,
+    /// copied out in part; empty otherwise).
     partial: Vec<f64>,
 }
 
@@ -318,19 +322,30 @@ impl<const W: usize> Bank<W> {
             z_re: [[0.0; W]; MAX_ORDER],
             z_im: [[0.0; W]; MAX_ORDER],
         };
-        let mut groups = vec![empty; designs.len().div_ceil(W)];
-        for (c, d) in designs.iter().enumerate() {
-            let (g, l) = (&mut groups[c / W], c % W);
-            g.b_re[l] = 2.0 * d.b0.0;
-            g.b_im[l] = 2.0 * d.b0.1;
-            for (k, ak) in d.a.iter().enumerate() {
-                g.a_re[k][l] = ak.0;
-                g.a_im[k][l] = ak.1;
+        let nc = designs.len();
+        let starts: Vec<usize> = (0..nc.div_ceil(W))
+            .map(|g| (g * W).min(nc.saturating_sub(W)))
+            .collect();
+        let mut groups = vec![empty; starts.len()];
+        for (g, &c0) in groups.iter_mut().zip(&starts) {
+            for (l, d) in designs[c0..].iter().take(W).enumerate() {
+                g.b_re[l] = 2.0 * d.b0.0;
+                g.b_im[l] = 2.0 * d.b0.1;
+                for (k, ak) in d.a.iter().enumerate() {
+                    g.a_re[k][l] = ak.0;
+                    g.a_im[k][l] = ak.1;
+                }
             }
         }
+        let partial = if nc < W {
+            vec![0.0; TIME_BLOCK * W]
+        } else {
+            Vec::new()
+        };
         Bank {
             groups,
-            partial: vec![0.0; TIME_BLOCK * W],
+            starts,
+            partial,
         }
     }
 
@@ -346,15 +361,14 @@ impl<const W: usize> Bank<W> {
             _ => run_group::<8, CPLX, W>,
         };
         for (x, out) in x.chunks(TIME_BLOCK).zip(out.chunks_mut(TIME_BLOCK * nc)) {
-            for (gi, g) in self.groups.iter_mut().enumerate() {
-                let c0 = gi * W;
-                if c0 + W <= nc {
+            for (g, &c0) in self.groups.iter_mut().zip(&self.starts) {
+                if nc >= W {
                     run(g, x, &mut out[c0..], nc);
                 } else {
                     let rows = &mut self.partial[..x.len() * W];
                     run(g, x, rows, W);
                     for (o, r) in out.chunks_exact_mut(nc).zip(rows.chunks_exact(W)) {
-                        o[c0..].copy_from_slice(&r[..nc - c0]);
+                        o.copy_from_slice(&r[..nc]);
                     }
                 }
             }
@@ -519,7 +533,7 @@ fn run_group<const M: usize, const CPLX: bool, const W: usize>(
 impl Processor for Gammatone {
     fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
         let x = inputs[0].as_slice();
-        let out = outputs[0].reset_to(x.len());
+        let out = outputs[0].resize_to(x.len());
         self.filter(x, out);
     }
 
@@ -637,9 +651,12 @@ mod tests {
         let x: Vec<f64> = (0..3000)
             .map(|t| ((t * 7919 % 1000) as f64 / 500.0 - 1.0) * (1.0 + (t as f64 * 0.01).sin()))
             .collect();
-        for align in [false, true] {
+        // 5 channels: both widths take the partial path; 13: partial (16 lanes) against
+        // overlapping groups (8); 31: overlapping groups in both.
+        for (align, n_channels) in [(false, 5), (false, 13), (false, 31), (true, 31)] {
             let p = GammatoneParams {
                 align,
+                n_channels: Some(n_channels),
                 ..Default::default()
             };
             let mut outs = Vec::new();
@@ -656,7 +673,11 @@ mod tests {
             }
             assert!(outs[0].iter().any(|v| *v != 0.0));
             let bits = |v: &Vec<f64>| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
-            assert_eq!(bits(&outs[0]), bits(&outs[1]), "align={align}");
+            assert_eq!(
+                bits(&outs[0]),
+                bits(&outs[1]),
+                "{n_channels} channels, align={align}"
+            );
         }
     }
 

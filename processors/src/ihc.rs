@@ -152,29 +152,36 @@ impl Ihc {
     }
 }
 
+/// `out[i] = f(input[i])`: the rectifications, in one pass from the input.
+fn map_into(input: &[f64], out: &mut [f64], f: impl Fn(f64) -> f64) {
+    for (o, x) in out.iter_mut().zip(input) {
+        *o = f(*x);
+    }
+}
+
 impl Processor for Ihc {
     fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
         let input = inputs[0].as_slice();
-        let out = &mut outputs[0];
-        out.reset_to(0);
-        out.extend_from(inputs[0]);
-        let data = out.as_mut_slice();
-        debug_assert_eq!(data.len(), input.len());
+        let data = outputs[0].resize_to(inputs[0].frames());
         match self.method {
-            Method::None => {}
+            Method::None => data.copy_from_slice(input),
             Method::Halfwave | Method::Dau | Method::Breebart => {
-                for v in data.iter_mut() {
-                    *v = v.max(0.0);
-                }
+                map_into(input, data, |x| x.max(0.0))
             }
-            Method::Fullwave => data.iter_mut().for_each(|v| *v = v.abs()),
-            Method::Square => data.iter_mut().for_each(|v| *v = v.abs() * v.abs()),
-            Method::Hilbert | Method::Joergensen => self.hilbert_envelope(data, |env, _| env),
-            Method::Bernstein => self.hilbert_envelope(data, |env, x| {
-                // f64::max ignores NaN like MATLAB's max: silent samples (∞·0) give 0.
-                let v = (env.powf(-0.77) * x).max(0.0);
-                v * v
-            }),
+            Method::Fullwave => map_into(input, data, f64::abs),
+            Method::Square => map_into(input, data, |x| x.abs() * x.abs()),
+            Method::Hilbert | Method::Joergensen => {
+                data.copy_from_slice(input);
+                self.hilbert_envelope(data, |env, _| env);
+            }
+            Method::Bernstein => {
+                data.copy_from_slice(input);
+                self.hilbert_envelope(data, |env, x| {
+                    // f64::max ignores NaN like MATLAB's max: silent samples (∞·0) give 0.
+                    let v = (env.powf(-0.77) * x).max(0.0);
+                    v * v
+                });
+            }
         }
         for f in &mut self.lowpass {
             f.process(data);

@@ -155,7 +155,7 @@ impl Processor for Ild {
         let ears = (inputs[0].as_slice(), inputs[1].as_slice());
         let n = self.frames.available(ears.0, ears.1);
         let nc = self.power_l.len();
-        let out = outputs[0].reset_to(n);
+        let out = outputs[0].resize_to(n);
         for (k, row) in out.chunks_exact_mut(nc).enumerate() {
             let (left, right) = self.frames.frame(ears, k);
             frame_power(&self.win, left, &mut self.power_l);

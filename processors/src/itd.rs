@@ -6,13 +6,10 @@ use afe_core::{Block, Processor, Result, SignalInfo, SignalKind};
 /// Peak of a correlation function: `(index, δ)` with the first maximum (NaN ignored, as
 /// MATLAB's `max`) and the parabolic offset δ (0 at the lag-range edges).
 pub(crate) fn parabolic_peak(y: &[f64]) -> (usize, f64, f64) {
-    let mut best: Option<usize> = None;
-    for (i, v) in y.iter().enumerate() {
-        if !v.is_nan() && best.is_none_or(|b| *v > y[b]) {
-            best = Some(i);
-        }
-    }
-    let i = best.unwrap_or(0);
+    // The largest non-NaN value (f64::max skips NaN), then its first position; all-NaN
+    // gives index 0.
+    let top = y.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let i = y.iter().position(|v| *v == top).unwrap_or(0);
     if i > 0 && i + 1 < y.len() {
         let (yl, yc, yu) = (y[i - 1], y[i], y[i + 1]);
         let delta = 0.5 * (yl - yu) / (yl - 2.0 * yc + yu);
