@@ -110,10 +110,21 @@ impl Df2t {
         self.b.len() - 1
     }
 
+    /// Filters `input` (time-major, `channels` values per row) into `output` (as long),
+    /// carrying state: [`Df2t::process`] without a copy of the input first.
+    pub fn process_from(&mut self, input: &[f64], output: &mut [f64]) {
+        if self.passes.is_empty() {
+            output.copy_from_slice(input);
+            self.process(output);
+        } else {
+            self.process_lanes(Some(input), output);
+        }
+    }
+
     /// Filters `data` (time-major, `channels` values per row) in place, carrying state.
     pub fn process(&mut self, data: &mut [f64]) {
         if !self.passes.is_empty() {
-            self.process_lanes(data);
+            self.process_lanes(None, data);
             return;
         }
         let nc = self.channels;
@@ -140,7 +151,7 @@ impl Df2t {
     }
 
     /// The multichannel path, pass by pass over the whole block.
-    fn process_lanes(&mut self, data: &mut [f64]) {
+    fn process_lanes(&mut self, input: Option<&[f64]>, data: &mut [f64]) {
         let lanes = self.lane_channel.len();
         let run = match self.order() {
             1 => run_lanes::<1>,
@@ -151,7 +162,7 @@ impl Df2t {
         for pass in &self.passes {
             let filter = (&self.b[..], &self.a[..]);
             let state = (&mut self.z[..], lanes, pass.first_lane);
-            run(filter, state, data, self.channels, &pass.starts);
+            run(filter, state, (input, data), self.channels, &pass.starts);
         }
     }
 
@@ -181,13 +192,13 @@ impl Df2t {
 }
 
 /// Filters the vectors of one pass (first channels `starts`) over every row of `data`
-/// (`stride` values per row), the state of lanes `first..` of `z` (`[order][lanes]`)
-/// held in registers and the vectors interleaved per row. Per lane, the operations are
-/// the scalar path's.
+/// (`stride` values per row; read from the input when one is given, else in place), the
+/// state of lanes `first..` of `z` (`[order][lanes]`) held in registers and the vectors
+/// interleaved per row. Per lane, the operations are the scalar path's.
 fn run_lanes<const M: usize>(
     filter: (&[f64], &[f64]),
     state: (&mut [f64], usize, usize),
-    data: &mut [f64],
+    data: (Option<&[f64]>, &mut [f64]),
     stride: usize,
     starts: &[usize],
 ) {
@@ -206,7 +217,7 @@ fn run_lanes<const M: usize>(
 fn lanes_kernel<const M: usize, const V: usize>(
     (b, a): (&[f64], &[f64]),
     (z, lanes, first): (&mut [f64], usize, usize),
-    data: &mut [f64],
+    (input, data): (Option<&[f64]>, &mut [f64]),
     stride: usize,
     starts: [usize; V],
 ) {
@@ -218,10 +229,11 @@ fn lanes_kernel<const M: usize, const V: usize>(
         }
     }
     let (b0, bm, am) = (b[0], b[M], a[M]);
-    for row in data.chunks_exact_mut(stride) {
+    for (t, row) in data.chunks_exact_mut(stride).enumerate() {
         let mut x = [[0.0; LANES]; V];
+        let from = input.map_or(&*row, |i| &i[t * stride..(t + 1) * stride]);
         for (xv, &c) in x.iter_mut().zip(&starts) {
-            xv.copy_from_slice(&row[c..c + LANES]);
+            xv.copy_from_slice(&from[c..c + LANES]);
         }
         for v in 0..V {
             let mut y = [0.0; LANES];
@@ -335,6 +347,22 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    #[test]
+    fn filtering_from_an_input_equals_filtering_a_copy() {
+        for nc in [1, 3, 31] {
+            let x: Vec<f64> = (0..100 * nc)
+                .map(|i| ((i * 31) % 17) as f64 - 8.0)
+                .collect();
+            let (b, a) = ([0.2, 0.3, -0.1], [1.0, -0.5, 0.25]);
+            let (mut f, mut g) = (Df2t::new(&b, &a, nc), Df2t::new(&b, &a, nc));
+            let mut copy = x.clone();
+            f.process(&mut copy);
+            let mut out = vec![0.0; x.len()];
+            g.process_from(&x, &mut out);
+            assert_eq!(copy, out, "{nc} channels");
         }
     }
 

@@ -122,9 +122,9 @@ impl Ratemap {
 impl Processor for Ratemap {
     fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
         let nc = inputs[0].width();
-        self.scratch.clear();
-        self.scratch.extend_from_slice(inputs[0].as_slice());
-        self.leaky.process(&mut self.scratch);
+        let input = inputs[0].as_slice();
+        self.scratch.resize(input.len(), 0.0);
+        self.leaky.process_from(input, &mut self.scratch);
         let n = self.frames.available(&self.scratch);
         let out = outputs[0].reset_to(n);
         let w_len = self.win.len() as f64;
