@@ -279,7 +279,8 @@ type Energy = ([f64; LANES], [f64; LANES]);
 
 /// Writes the windowed frame pair (`[time][channel]`, `nc` wide) into the lanes of the
 /// groups of `left` (after `maxLag` zero rows) and `right` (see [`group_start`]), row by
-/// row so that each frame row is read once, and their energies into `energy`.
+/// row so that each frame row is read once; then their energies into `energy`, group by
+/// group with the sums in registers.
 #[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
 fn window_frames<'a>(
     win: &[f64],
@@ -289,35 +290,35 @@ fn window_frames<'a>(
 ) {
     let (w, groups) = (win.len(), energy.len());
     let rows_l = left.len() / groups;
-    energy.fill(([0.0; LANES], [0.0; LANES]));
     let parts = [(frame_l.head, frame_r.head), (frame_l.tail, frame_r.tail)];
     let rows = parts
         .into_iter()
         .flat_map(|(l, r)| l.chunks_exact(nc).zip(r.chunks_exact(nc)));
     for (n, ((row_l, row_r), &wn)) in rows.zip(win).enumerate() {
-        for (g, (el, er)) in energy.iter_mut().enumerate() {
+        for g in 0..groups {
             let c0 = group_start(g, nc);
             let (pl, pr) = (&mut left[g * rows_l + max_lag + n], &mut right[g * w + n]);
             if nc >= LANES {
                 let fl: [f64; LANES] = row_l[c0..c0 + LANES].try_into().unwrap_or_default();
                 let fr: [f64; LANES] = row_r[c0..c0 + LANES].try_into().unwrap_or_default();
-                let (vl, vr) = (fl.map(|v| wn * v), fr.map(|v| wn * v));
-                let (mut sl, mut sr) = (*el, *er);
-                for l in 0..LANES {
-                    sl[l] += vl[l] * vl[l];
-                    sr[l] += vr[l] * vr[l];
-                }
-                (pl.0, pr.0, *el, *er) = (vl, vr, sl, sr);
+                (pl.0, pr.0) = (fl.map(|v| wn * v), fr.map(|v| wn * v));
             } else {
                 for l in 0..nc {
-                    let (vl, vr) = (wn * row_l[c0 + l], wn * row_r[c0 + l]);
-                    pl.0[l] = vl;
-                    pr.0[l] = vr;
-                    el[l] += vl * vl;
-                    er[l] += vr * vr;
+                    (pl.0[l], pr.0[l]) = (wn * row_l[c0 + l], wn * row_r[c0 + l]);
                 }
             }
         }
+    }
+    let frames = left.chunks_exact(rows_l).zip(right.chunks_exact(w));
+    for ((pl, pr), (el, er)) in frames.zip(energy.iter_mut()) {
+        let (mut sl, mut sr) = ([0.0; LANES], [0.0; LANES]);
+        for (vl, vr) in pl[max_lag..max_lag + w].iter().zip(pr) {
+            for l in 0..LANES {
+                sl[l] += vl.0[l] * vl.0[l];
+                sr[l] += vr.0[l] * vr.0[l];
+            }
+        }
+        (*el, *er) = (sl, sr);
     }
 }
 
