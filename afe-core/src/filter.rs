@@ -117,14 +117,27 @@ impl Df2t {
             output.copy_from_slice(input);
             self.process(output);
         } else {
-            self.process_lanes(Some(input), output);
+            self.process_lanes(Source::Input(input), output);
+        }
+    }
+
+    /// Filters the half-wave rectified `input`, `max(x, 0)`, into `output`: the
+    /// rectifying inner-hair-cell models in one pass.
+    pub fn process_rectified_from(&mut self, input: &[f64], output: &mut [f64]) {
+        if self.passes.is_empty() {
+            for (o, x) in output.iter_mut().zip(input) {
+                *o = x.max(0.0);
+            }
+            self.process(output);
+        } else {
+            self.process_lanes(Source::Rectified(input), output);
         }
     }
 
     /// Filters `data` (time-major, `channels` values per row) in place, carrying state.
     pub fn process(&mut self, data: &mut [f64]) {
         if !self.passes.is_empty() {
-            self.process_lanes(None, data);
+            self.process_lanes(Source::InPlace, data);
             return;
         }
         let nc = self.channels;
@@ -151,7 +164,7 @@ impl Df2t {
     }
 
     /// The multichannel path, pass by pass over the whole block.
-    fn process_lanes(&mut self, input: Option<&[f64]>, data: &mut [f64]) {
+    fn process_lanes(&mut self, input: Source<'_>, data: &mut [f64]) {
         let lanes = self.lane_channel.len();
         let run = match self.order() {
             1 => run_lanes::<1>,
@@ -191,14 +204,25 @@ impl Df2t {
     }
 }
 
+/// Where the multichannel path reads its input rows.
+#[derive(Debug, Clone, Copy)]
+enum Source<'a> {
+    /// The output itself: filtering in place.
+    InPlace,
+    /// Another signal of the same shape.
+    Input(&'a [f64]),
+    /// Another signal, half-wave rectified on the way in.
+    Rectified(&'a [f64]),
+}
+
 /// Filters the vectors of one pass (first channels `starts`) over every row of `data`
-/// (`stride` values per row; read from the input when one is given, else in place), the
+/// (`stride` values per row; read from `Source`), the
 /// state of lanes `first..` of `z` (`[order][lanes]`) held in registers and the vectors
 /// interleaved per row. Per lane, the operations are the scalar path's.
 fn run_lanes<const M: usize>(
     filter: (&[f64], &[f64]),
     state: (&mut [f64], usize, usize),
-    data: (Option<&[f64]>, &mut [f64]),
+    data: (Source<'_>, &mut [f64]),
     stride: usize,
     starts: &[usize],
 ) {
@@ -217,7 +241,7 @@ fn run_lanes<const M: usize>(
 fn lanes_kernel<const M: usize, const V: usize>(
     (b, a): (&[f64], &[f64]),
     (z, lanes, first): (&mut [f64], usize, usize),
-    (input, data): (Option<&[f64]>, &mut [f64]),
+    (input, data): (Source<'_>, &mut [f64]),
     stride: usize,
     starts: [usize; V],
 ) {
@@ -231,9 +255,15 @@ fn lanes_kernel<const M: usize, const V: usize>(
     let (b0, bm, am) = (b[0], b[M], a[M]);
     for (t, row) in data.chunks_exact_mut(stride).enumerate() {
         let mut x = [[0.0; LANES]; V];
-        let from = input.map_or(&*row, |i| &i[t * stride..(t + 1) * stride]);
+        let from = match input {
+            Source::InPlace => &*row,
+            Source::Input(i) | Source::Rectified(i) => &i[t * stride..(t + 1) * stride],
+        };
         for (xv, &c) in x.iter_mut().zip(&starts) {
             xv.copy_from_slice(&from[c..c + LANES]);
+            if let Source::Rectified(_) = input {
+                *xv = xv.map(|v| v.max(0.0));
+            }
         }
         for v in 0..V {
             let mut y = [0.0; LANES];
@@ -363,6 +393,11 @@ mod tests {
             let mut out = vec![0.0; x.len()];
             g.process_from(&x, &mut out);
             assert_eq!(copy, out, "{nc} channels");
+            let (mut f, mut g) = (Df2t::new(&b, &a, nc), Df2t::new(&b, &a, nc));
+            let mut rectified: Vec<f64> = x.iter().map(|v| v.max(0.0)).collect();
+            f.process(&mut rectified);
+            g.process_rectified_from(&x, &mut out);
+            assert_eq!(rectified, out, "{nc} channels, rectified");
         }
     }
 

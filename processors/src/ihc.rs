@@ -163,6 +163,16 @@ impl Processor for Ihc {
     fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
         let input = inputs[0].as_slice();
         let data = outputs[0].resize_to(inputs[0].frames());
+        if let (Method::Dau | Method::Breebart, Some((first, rest))) =
+            (self.method, self.lowpass.split_first_mut())
+        {
+            // The rectification happens as the first low-pass stage reads its input.
+            first.process_rectified_from(input, data);
+            for f in rest {
+                f.process(data);
+            }
+            return;
+        }
         match self.method {
             Method::None => data.copy_from_slice(input),
             Method::Halfwave | Method::Dau | Method::Breebart => {
