@@ -232,12 +232,8 @@ impl Direct {
         let w = self.win.len();
         let nl = 2 * self.max_lag + 1;
         let shape = (nc, self.max_lag);
-        let buffers = (
-            &mut self.left[..],
-            &mut self.right[..],
-            &mut self.energy[..],
-        );
-        window_frames(&self.win, (frame_l, frame_r), shape, buffers);
+        let (left, right, energy) = (&mut self.left[..], &mut self.right[..], &mut self.energy);
+        window_frames(&self.win, (frame_l, frame_r), shape, left, right, energy);
         let dot = match self.lag_block {
             5 => dot_lags::<5>,
             8 => dot_lags::<8>,
@@ -286,7 +282,9 @@ fn window_frames<'a>(
     win: &[f64],
     (frame_l, frame_r): (Frame<'a>, Frame<'a>),
     (nc, max_lag): (usize, usize),
-    (left, right, energy): (&mut [Lanes], &mut [Lanes], &mut [Energy]),
+    left: &mut [Lanes],
+    right: &mut [Lanes],
+    energy: &mut [Energy],
 ) {
     let (w, groups) = (win.len(), energy.len());
     let rows_l = left.len() / groups;
@@ -299,9 +297,14 @@ fn window_frames<'a>(
             let c0 = group_start(g, nc);
             let (pl, pr) = (&mut left[g * rows_l + max_lag + n], &mut right[g * w + n]);
             if nc >= LANES {
-                let fl: [f64; LANES] = row_l[c0..c0 + LANES].try_into().unwrap_or_default();
-                let fr: [f64; LANES] = row_r[c0..c0 + LANES].try_into().unwrap_or_default();
-                (pl.0, pr.0) = (fl.map(|v| wn * v), fr.map(|v| wn * v));
+                let mut x = [[0.0; LANES]; 2];
+                x[0].copy_from_slice(&row_l[c0..c0 + LANES]);
+                x[1].copy_from_slice(&row_r[c0..c0 + LANES]);
+                for l in 0..LANES {
+                    x[0][l] *= wn;
+                    x[1][l] *= wn;
+                }
+                (pl.0, pr.0) = (x[0], x[1]);
             } else {
                 for l in 0..nc {
                     (pl.0[l], pr.0[l]) = (wn * row_l[c0 + l], wn * row_r[c0 + l]);
