@@ -300,9 +300,10 @@ fn window_frames<'a>(
                 let mut x = [[0.0; LANES]; 2];
                 x[0].copy_from_slice(&row_l[c0..c0 + LANES]);
                 x[1].copy_from_slice(&row_r[c0..c0 + LANES]);
-                for l in 0..LANES {
-                    x[0][l] *= wn;
-                    x[1][l] *= wn;
+                for ear in &mut x {
+                    for v in ear.iter_mut() {
+                        *v *= wn;
+                    }
                 }
                 (pl.0, pr.0) = (x[0], x[1]);
             } else {
