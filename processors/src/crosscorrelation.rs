@@ -3,6 +3,7 @@
 
 use std::sync::Arc;
 
+use afe_core::framing::Frame;
 use afe_core::window::{window, WINDOW_NAMES};
 use afe_core::{
     Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
@@ -11,8 +12,7 @@ use realfft::num_complex::Complex64;
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use serde::{Deserialize, Serialize};
 
-use afe_core::framing::Frame;
-
+use crate::cpu::has_avx512;
 use crate::framed::{check_framing, EarFrames};
 
 /// Parameters of the cross-correlation, under their AFE names.
@@ -323,18 +323,6 @@ fn window_frames<'a>(
             }
         }
         (*el, *er) = (sl, sr);
-    }
-}
-
-fn has_avx512() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx512f")
-            && std::arch::is_x86_feature_detected!("avx512vl")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
     }
 }
 

@@ -15,6 +15,8 @@ use afe_core::{
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
 
+use crate::cpu::has_avx512;
+
 /// Parameters of the gammatone filterbank, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -400,18 +402,6 @@ pub struct Gammatone {
     /// Whether any `b0` has an imaginary part (phase-aligned filters).
     complex_b: bool,
     banks: Banks,
-}
-
-fn has_avx512() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx512f")
-            && std::arch::is_x86_feature_detected!("avx512vl")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
 }
 
 impl Gammatone {

@@ -5,6 +5,7 @@
 //! design code and its tests; nothing here knows about graphs or threads.
 
 pub mod butterworth;
+mod cpu;
 pub mod crosscorrelation;
 mod framed;
 pub mod gammatone;

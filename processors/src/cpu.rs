@@ -1,0 +1,15 @@
+//! What the CPU offers, for kernels that size their register blocking to it.
+
+/// Whether the CPU has AVX-512 (F and VL): 32 vector registers of eight f64, which the
+/// gammatone groups and the cross-correlation's lag blocks are sized for.
+pub(crate) fn has_avx512() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx512f")
+            && std::arch::is_x86_feature_detected!("avx512vl")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
