@@ -187,6 +187,11 @@ impl Df2t {
     /// Sets every channel's first state to `value` (the other states are zeroed); used to
     /// seed one-pole smoothers.
     pub fn set_first_state(&mut self, channel: usize, value: f64) {
+        assert!(
+            channel < self.channels,
+            "channel {channel} of {}",
+            self.channels
+        );
         let lanes = self.lane_channel.len();
         for (lane, _) in self
             .lane_channel

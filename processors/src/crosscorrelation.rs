@@ -212,6 +212,10 @@ impl Direct {
     }
 
     fn with_lag_block(win: Vec<f64>, max_lag: usize, nc: usize, lag_block: usize) -> Self {
+        assert!(
+            matches!(lag_block, 4 | 5 | 8..=12),
+            "no dot-product kernel for {lag_block} lags per pass"
+        );
         let lags = (2 * max_lag + 1).next_multiple_of(lag_block);
         let w = win.len();
         let groups = nc.div_ceil(LANES);

@@ -181,6 +181,7 @@ impl GammatoneParams {
             }
             let (elo, ehi) = (freq2erb(self.low_freq_hz), freq2erb(self.high_freq_hz));
             match self.n_channels {
+                Some(0) => return Err(invalid("fb_nChannels", 0, "must be at least 1")),
                 Some(n) if n as usize > MAX_CHANNELS => {
                     return Err(invalid(
                         "fb_nChannels",
@@ -288,8 +289,7 @@ pub const MAX_ORDER: usize = 8;
 
 /// Coefficients and state of `W` channels, lane-major so that every operation of the
 /// recursion runs across the channels (unused lanes of the last group have zero
-/// coefficients and produce zeros that are never written out). `b` and the state are
-/// stored doubled (see [`run_group`]).
+/// coefficients and produce zeros that are never written out).
 #[derive(Debug, Clone)]
 struct Group<const W: usize> {
     b_re: [f64; W],
@@ -331,8 +331,8 @@ impl<const W: usize> Bank<W> {
         let mut groups = vec![empty; starts.len()];
         for (g, &c0) in groups.iter_mut().zip(&starts) {
             for (l, d) in designs[c0..].iter().take(W).enumerate() {
-                g.b_re[l] = 2.0 * d.b0.0;
-                g.b_im[l] = 2.0 * d.b0.1;
+                g.b_re[l] = d.b0.0;
+                g.b_im[l] = d.b0.1;
                 for (k, ak) in d.a.iter().enumerate() {
                     g.a_re[k][l] = ak.0;
                     g.a_im[k][l] = ak.1;
@@ -351,16 +351,16 @@ impl<const W: usize> Bank<W> {
         }
     }
 
-    fn filter<const CPLX: bool>(&mut self, order: usize, x: &[f64], out: &mut [f64], nc: usize) {
+    fn filter(&mut self, order: usize, x: &[f64], out: &mut [f64], nc: usize) {
         let run = match order {
-            1 => run_group::<1, CPLX, W>,
-            2 => run_group::<2, CPLX, W>,
-            3 => run_group::<3, CPLX, W>,
-            4 => run_group::<4, CPLX, W>,
-            5 => run_group::<5, CPLX, W>,
-            6 => run_group::<6, CPLX, W>,
-            7 => run_group::<7, CPLX, W>,
-            _ => run_group::<8, CPLX, W>,
+            1 => run_group::<1, W>,
+            2 => run_group::<2, W>,
+            3 => run_group::<3, W>,
+            4 => run_group::<4, W>,
+            5 => run_group::<5, W>,
+            6 => run_group::<6, W>,
+            7 => run_group::<7, W>,
+            _ => run_group::<8, W>,
         };
         for (x, out) in x.chunks(TIME_BLOCK).zip(out.chunks_mut(TIME_BLOCK * nc)) {
             for (g, &c0) in self.groups.iter_mut().zip(&self.starts) {
@@ -399,8 +399,6 @@ enum Banks {
 pub struct Gammatone {
     channels: usize,
     order: usize,
-    /// Whether any `b0` has an imaginary part (phase-aligned filters).
-    complex_b: bool,
     banks: Banks,
 }
 
@@ -450,7 +448,6 @@ impl Gammatone {
         let gammatone = Gammatone {
             channels: designs.len(),
             order,
-            complex_b: designs.iter().any(|d| d.b0.1 != 0.0),
             banks,
         };
         Ok((gammatone, SignalInfo::time_frequency(fs, grid.cf_hz)))
@@ -459,25 +456,21 @@ impl Gammatone {
     /// Filters `x` (time-domain) into `out` (`x.len()` rows of one value per channel).
     pub fn filter(&mut self, x: &[f64], out: &mut [f64]) {
         let (order, nc) = (self.order, self.channels);
-        match (&mut self.banks, self.complex_b) {
-            (Banks::Wide(b), true) => b.filter::<true>(order, x, out, nc),
-            (Banks::Wide(b), false) => b.filter::<false>(order, x, out, nc),
-            (Banks::Narrow(b), true) => b.filter::<true>(order, x, out, nc),
-            (Banks::Narrow(b), false) => b.filter::<false>(order, x, out, nc),
+        match &mut self.banks {
+            Banks::Wide(b) => b.filter(order, x, out, nc),
+            Banks::Narrow(b) => b.filter(order, x, out, nc),
         }
     }
 }
 
 /// The complex DF2T recursion of one channel group of order `M` over a chunk, state in
 /// registers. Per channel, the operations and their order are the reference's
-/// (`y = z0 + b0·x`, `z[k] = z[k+1] − a[k+1]·y`, textbook complex products, no FMA), run
-/// on values scaled by 2 (`b0` and the state are stored doubled), which is exact, so the
-/// output `2·Re y` is bit-identical to a channel-by-channel evaluation without its final
-/// multiplication. `CPLX` is false for a real `b0` (unaligned filters), whose zero
-/// imaginary part then costs nothing. Compiled for AVX-512 and AVX2 too, chosen at run
-/// time.
+/// (`y = z0 + b0·x`, `z[k] = z[k+1] − a[k+1]·y`, textbook complex products, no FMA,
+/// output `2·Re y`), so the output is bit-identical to a channel-by-channel evaluation,
+/// signed zeros and subnormals included. Compiled for AVX-512 and AVX2 too, chosen at
+/// run time.
 #[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
-fn run_group<const M: usize, const CPLX: bool, const W: usize>(
+fn run_group<const M: usize, const W: usize>(
     g: &mut Group<W>,
     x: &[f64],
     out: &mut [f64],
@@ -492,17 +485,12 @@ fn run_group<const M: usize, const CPLX: bool, const W: usize>(
     ar.copy_from_slice(&g.a_re[..M]);
     ai.copy_from_slice(&g.a_im[..M]);
     let (br, bi) = (g.b_re, g.b_im);
-    let nar = ar[M - 1].map(|a| -a);
     for (t, &xin) in x.iter().enumerate() {
         let mut yr = [0.0; W];
         let mut yi = [0.0; W];
         for l in 0..W {
             yr[l] = zr[0][l] + br[l] * xin;
-            yi[l] = if CPLX {
-                zi[0][l] + bi[l] * xin
-            } else {
-                zi[0][l]
-            };
+            yi[l] = zi[0][l] + bi[l] * xin;
         }
         for k in 0..M - 1 {
             for l in 0..W {
@@ -511,8 +499,11 @@ fn run_group<const M: usize, const CPLX: bool, const W: usize>(
             }
         }
         for l in 0..W {
-            zr[M - 1][l] = ai[M - 1][l] * yi[l] - ar[M - 1][l] * yr[l];
-            zi[M - 1][l] = nar[l] * yi[l] - ai[M - 1][l] * yr[l];
+            zr[M - 1][l] = -(ar[M - 1][l] * yr[l] - ai[M - 1][l] * yi[l]);
+            zi[M - 1][l] = -(ar[M - 1][l] * yi[l] + ai[M - 1][l] * yr[l]);
+        }
+        for y in &mut yr {
+            *y *= 2.0;
         }
         out[t * stride..t * stride + W].copy_from_slice(&yr);
     }
@@ -629,6 +620,12 @@ mod tests {
             assert!(e.to_string().contains("at most 1024 channels"), "{e}");
         }
         let p = GammatoneParams {
+            n_channels: Some(0),
+            ..Default::default()
+        };
+        let e = p.grid().expect_err("no channel");
+        assert!(e.to_string().contains("at least 1"), "{e}");
+        let p = GammatoneParams {
             cf_hz: vec![100.0, 900.0],
             ..Default::default()
         };
@@ -668,6 +665,70 @@ mod tests {
                 bits(&outs[1]),
                 "{n_channels} channels, align={align}"
             );
+        }
+    }
+
+    /// The reference recursion of one channel, written plainly (spec 11-gammatone).
+    fn reference_channel(d: &ChannelDesign, x: &[f64]) -> Vec<f64> {
+        let n = d.a.len();
+        let mut z = vec![(0.0f64, 0.0f64); n];
+        let mut out = Vec::with_capacity(x.len());
+        for &xin in x {
+            let y = (z[0].0 + d.b0.0 * xin, z[0].1 + d.b0.1 * xin);
+            for k in 0..n {
+                let (ar, ai) = d.a[k];
+                let prod = (ar * y.0 - ai * y.1, ar * y.1 + ai * y.0);
+                let next = if k + 1 < n { z[k + 1] } else { (0.0, 0.0) };
+                z[k] = if k + 1 < n {
+                    (next.0 - prod.0, next.1 - prod.1)
+                } else {
+                    (-prod.0, -prod.1)
+                };
+            }
+            out.push(2.0 * y.0);
+        }
+        out
+    }
+
+    #[test]
+    fn channels_match_the_plain_recursion_bit_for_bit_through_silence() {
+        // A burst, then 1 s of zeros (the state decays into subnormals) and negative zeros.
+        let fs = 44100.0;
+        let mut x: Vec<f64> = (0..2000)
+            .map(|t| (t * 7919 % 1000) as f64 / 500.0 - 1.0)
+            .collect();
+        x.extend(std::iter::repeat_n(0.0, 44100));
+        x.extend(std::iter::repeat_n(-0.0, 100));
+        for (align, order, n_channels) in
+            [(false, 4, 31), (true, 4, 13), (false, 1, 9), (false, 8, 5)]
+        {
+            let p = GammatoneParams {
+                align,
+                n_gamma: order,
+                n_channels: Some(n_channels),
+                ..Default::default()
+            };
+            let grid = p.grid().expect("valid");
+            for wide in [false, true] {
+                let (mut gt, _) = Gammatone::with_width(&p, fs, wide).expect("valid");
+                let nc = n_channels as usize;
+                let mut y = vec![0.0; x.len() * nc];
+                let (head, tail) = x.split_at(1000);
+                gt.filter(head, &mut y[..1000 * nc]);
+                gt.filter(tail, &mut y[1000 * nc..]);
+                for (c, &cf) in grid.cf_hz.iter().enumerate() {
+                    let d = design_channel(cf, p.bw_erbs, order as usize, fs, align);
+                    let want = reference_channel(&d, &x);
+                    for (t, w) in want.iter().enumerate() {
+                        let got = y[t * nc + c];
+                        assert_eq!(
+                            got.to_bits(),
+                            w.to_bits(),
+                            "channel {c}, t={t}: {got:e} vs {w:e}"
+                        );
+                    }
+                }
+            }
         }
     }
 
