@@ -57,7 +57,7 @@ fn plan_passes(channels: usize) -> (Vec<Pass>, Vec<usize>) {
         };
         let end = start + size;
         let starts: Vec<usize> = (0..size.div_ceil(LANES))
-            .map(|v| (start + v * LANES).min(end - LANES))
+            .map(|v| start + crate::lanes::vector_start(v, LANES, size))
             .collect();
         passes.push(Pass {
             first_lane: lane_channel.len(),

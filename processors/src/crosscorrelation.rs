@@ -4,6 +4,7 @@
 use std::sync::Arc;
 
 use afe_core::framing::Frame;
+use afe_core::lanes::vector_start;
 use afe_core::window::{window, WINDOW_NAMES};
 use afe_core::{
     Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
@@ -98,7 +99,7 @@ const LANES: usize = 8;
 struct Lanes([f64; LANES]);
 
 /// Window, zero-padded frames and accumulators of the direct method, per group of
-/// `LANES` channels (see [`group_start`]; with fewer channels, the unused lanes stay zero).
+/// `LANES` channels (see [`vector_start`]; with fewer channels, the unused lanes stay zero).
 struct Direct {
     win: Vec<f64>,
     max_lag: usize,
@@ -254,7 +255,7 @@ impl Direct {
             .zip(self.right.chunks_exact(w));
         for (g, ((left, right), (el, er))) in groups.zip(&self.energy).enumerate() {
             dot(left, right, &mut self.acc);
-            let c0 = group_start(g, nc);
+            let c0 = vector_start(g, LANES, nc);
             for l in 0..LANES.min(nc) {
                 let norm = f64::EPSILON + (el[l] * er[l]).sqrt();
                 let o = &mut out[(c0 + l) * nl..(c0 + l + 1) * nl];
@@ -266,19 +267,11 @@ impl Direct {
     }
 }
 
-/// First channel of group `g` of `nc` channels: groups of `LANES`, the last one ending at
-/// the last channel (overlapping its neighbour when `nc` is not a multiple of `LANES`;
-/// an overlapped channel is computed twice, identically). Fewer than `LANES` channels
-/// make one partial group.
-fn group_start(g: usize, nc: usize) -> usize {
-    (g * LANES).min(nc.saturating_sub(LANES))
-}
-
 /// Per-group energies `Σ (win·x)²` of the left and right frames.
 type Energy = ([f64; LANES], [f64; LANES]);
 
 /// Writes the windowed frame pair (`[time][channel]`, `nc` wide) into the lanes of the
-/// groups of `left` (after `maxLag` zero rows) and `right` (see [`group_start`]), row by
+/// groups of `left` (after `maxLag` zero rows) and `right` (see [`vector_start`]), row by
 /// row so that each frame row is read once; then their energies into `energy`, group by
 /// group with the sums in registers.
 #[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
@@ -298,7 +291,7 @@ fn window_frames<'a>(
         .flat_map(|(l, r)| l.chunks_exact(nc).zip(r.chunks_exact(nc)));
     for (n, ((row_l, row_r), &wn)) in rows.zip(win).enumerate() {
         for g in 0..groups {
-            let c0 = group_start(g, nc);
+            let c0 = vector_start(g, LANES, nc);
             let (pl, pr) = (&mut left[g * rows_l + max_lag + n], &mut right[g * w + n]);
             if nc >= LANES {
                 let mut x = [[0.0; LANES]; 2];

@@ -9,6 +9,7 @@
 use std::f64::consts::PI;
 
 use afe_core::erb::{colon_range, erb2freq, freq2erb, linspace};
+use afe_core::lanes::vector_start;
 use afe_core::{
     Block, Error, ParamKind, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo,
 };
@@ -326,7 +327,7 @@ impl<const W: usize> Bank<W> {
         };
         let nc = designs.len();
         let starts: Vec<usize> = (0..nc.div_ceil(W))
-            .map(|g| (g * W).min(nc.saturating_sub(W)))
+            .map(|g| vector_start(g, W, nc))
             .collect();
         let mut groups = vec![empty; starts.len()];
         for (g, &c0) in groups.iter_mut().zip(&starts) {

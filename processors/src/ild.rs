@@ -2,6 +2,7 @@
 //! (spec 17-ild).
 
 use afe_core::framing::Frame;
+use afe_core::lanes::vector_start;
 use afe_core::window::{window, WINDOW_NAMES};
 use afe_core::{Block, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
@@ -80,7 +81,7 @@ pub(crate) fn frame_power(win: &[f64], frame: Frame<'_>, out: &mut [f64]) {
         // Vectors of eight adjacent channels, the last one overlapping its neighbour
         // when `nc` is not a multiple of eight: every vector has its own accumulators,
         // and an overlapped channel gets the same sum from both.
-        let start = |v: usize| (v * LANES).min(nc - LANES);
+        let start = |v: usize| vector_start(v, LANES, nc);
         let vectors = nc.div_ceil(LANES);
         for v in (0..vectors).step_by(4) {
             match vectors - v {
