@@ -4,6 +4,7 @@
 /// except that the last vector ends at the last channel, overlapping its neighbour when
 /// `len` is not a multiple of `width`. An overlapped channel then sits in two lanes that
 /// compute the same values; fewer than `width` channels make one vector at 0.
+#[inline]
 pub fn vector_start(v: usize, width: usize, len: usize) -> usize {
     (v * width).min(len.saturating_sub(width))
 }

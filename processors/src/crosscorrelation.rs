@@ -98,20 +98,39 @@ const LANES: usize = 8;
 #[repr(align(64))]
 struct Lanes([f64; LANES]);
 
-/// Window, zero-padded frames and accumulators of the direct method, per group of
-/// `LANES` channels (see [`vector_start`]; with fewer channels, the unused lanes stay zero).
+/// Window, polyphase frames and accumulators of the direct method, per group of `LANES`
+/// channels (see [`vector_start`]; with fewer channels, the unused lanes stay zero).
+///
+/// The correlation `acc[i] = Σ_n L[n+i]·r[n]` (`L`: the left frame after `maxLag` zero
+/// rows, `r`: the right frame, `i = ℓ + maxLag`) is split over even and odd samples, a
+/// two-parallel fast FIR: with `X(a, b)[k] = Σ_m a[m+k]·b[m]` over half frames,
+/// `E = X(L_even, r_even)`, `O = X(L_odd, r_odd)` and
+/// `D = X(L_odd − L_even[·+1], r_even − r_odd)`,
+///
+/// ```text
+/// acc[2k] = E[k] + O[k]        acc[2k+1] = D[k] + O[k] + E[k+1]
+/// ```
+///
+/// three half-length correlations of about half the lags each: three quarters of the
+/// multiply-adds of the plain sum. It equals the plain sum to rounding (spec N17): `D`
+/// correlates the differences of neighbouring samples, small for the smooth IHC envelopes,
+/// so nothing cancels (the sums of Karatsuba's form would, by ~1e-15).
 struct Direct {
     win: Vec<f64>,
     max_lag: usize,
     /// Lags computed per pass (accumulators held in registers): 8 to 12 with AVX-512,
     /// else 4 or 5.
     lag_block: usize,
-    /// Windowed left frame, row `p` holding sample `p − maxLag`, zero outside the
-    /// frame; `W + lags − 1` rows per group, `lags` rounded up to `lag_block`.
+    /// First channel of each group.
+    starts: Vec<usize>,
+    /// Lags of each half-length correlation: `maxLag + 1`, rounded up to `lag_block`.
+    half_lags: usize,
+    /// Per group, the left frame's polyphase rows: `L_even`, `L_odd` and
+    /// `L_odd − L_even[·+1]`, `W/2 + half_lags` rows each, zero outside the frame.
     left: Vec<Lanes>,
-    /// Windowed right frame, `W` rows per group.
+    /// Per group, the right frame's `r_even`, `r_odd` and `r_even − r_odd`, `W/2` rows each.
     right: Vec<Lanes>,
-    /// One row per computed lag.
+    /// `E`, `O` and `D` of one group, `half_lags` rows each.
     acc: Vec<Lanes>,
     /// Energies of the current frames, per group.
     energy: Vec<Energy>,
@@ -191,13 +210,13 @@ impl Crosscorrelation {
 }
 
 /// Whether dot products beat the FFT for a `w`-sample window and lags up to `max_lag`:
-/// the direct method costs `w·(2·maxLag+1)` multiply-adds per channel, eight channels
+/// the direct method costs `3·(w/2)·(maxLag+1)` multiply-adds per channel, eight channels
 /// at a time, the FFT about three transforms per channel. Measured at 44.1 kHz (882-sample
 /// window, one core, `afe bench -r crosscorrelation -p cc_maxDelaySec=…`): direct is
 /// faster at 99 lags (1.1 ms) and 443 (5 ms), the FFT at 883 (10 ms) and beyond.
 fn prefer_direct(w: usize, max_lag: usize) -> bool {
     let nfft = (w + max_lag.min(w - 1)).next_power_of_two() as f64;
-    let direct = (w * (2 * max_lag + 1)) as f64 / LANES as f64;
+    let direct = (3 * (w / 2) * (max_lag + 1)) as f64 / LANES as f64;
     let fft = 3.0 * nfft * nfft.log2();
     direct <= fft
 }
@@ -205,10 +224,12 @@ fn prefer_direct(w: usize, max_lag: usize) -> bool {
 impl Direct {
     fn new(win: Vec<f64>, max_lag: usize, nc: usize) -> Self {
         // As many accumulators as the registers hold (32 AVX-512 registers, 16 AVX2 ones,
-        // two per vector), the count that pads the lags least: 11 for the default 99.
+        // two per vector), the count that pads the lags least: 10 for the default 50
+        // lags per half-length correlation.
         let blocks = if has_avx512() { 8..=12 } else { 4..=5 };
-        let nl = 2 * max_lag + 1;
-        let best = blocks.rev().min_by_key(|b| nl.next_multiple_of(*b));
+        let best = blocks
+            .rev()
+            .min_by_key(|b| (max_lag + 1).next_multiple_of(*b));
         Self::with_lag_block(win, max_lag, nc, best.unwrap_or(4))
     }
 
@@ -217,28 +238,45 @@ impl Direct {
             matches!(lag_block, 4 | 5 | 8..=12),
             "no dot-product kernel for {lag_block} lags per pass"
         );
-        let lags = (2 * max_lag + 1).next_multiple_of(lag_block);
-        let w = win.len();
+        assert!(win.len() % 2 == 0, "the AFE's windows have an even length");
+        let half_lags = (max_lag + 1).next_multiple_of(lag_block);
+        let half = win.len() / 2;
         let groups = nc.div_ceil(LANES);
         Direct {
-            left: vec![Lanes::default(); groups * (w + lags - 1)],
-            right: vec![Lanes::default(); groups * w],
-            acc: vec![Lanes::default(); lags],
+            starts: (0..groups).map(|g| vector_start(g, LANES, nc)).collect(),
+            left: vec![Lanes::default(); groups * 3 * (half + half_lags)],
+            right: vec![Lanes::default(); groups * 3 * half],
+            acc: vec![Lanes::default(); 3 * half_lags],
             energy: vec![([0.0; LANES], [0.0; LANES]); groups],
             win,
             max_lag,
             lag_block,
+            half_lags,
         }
     }
 
     /// Correlates every channel of one frame pair (`[time][channel]`) into `out`
     /// (`[channel][lag]`).
     fn correlate(&mut self, frame_l: Frame<'_>, frame_r: Frame<'_>, nc: usize, out: &mut [f64]) {
-        let w = self.win.len();
-        let nl = 2 * self.max_lag + 1;
-        let shape = (nc, self.max_lag);
-        let (left, right, energy) = (&mut self.left[..], &mut self.right[..], &mut self.energy);
-        window_frames(&self.win, (frame_l, frame_r), shape, left, right, energy);
+        let half = self.win.len() / 2;
+        let (rows_l, k) = (half + self.half_lags, self.half_lags);
+        let groups = self.starts.len();
+        for g in (0..groups).step_by(BATCH) {
+            let batch = BATCH.min(groups - g);
+            let left = &mut self.left[3 * rows_l * g..3 * rows_l * (g + batch)];
+            let right = &mut self.right[3 * half * g..3 * half * (g + batch)];
+            let frames = (frame_l, frame_r);
+            let energy = &mut self.energy[g..g + batch];
+            let (starts, shape) = (&self.starts[g..g + batch], (nc, self.max_lag));
+            let window = match batch {
+                _ if nc < LANES => window_frames::<1, false>,
+                1 => window_frames::<1, true>,
+                2 => window_frames::<2, true>,
+                3 => window_frames::<3, true>,
+                _ => window_frames::<4, true>,
+            };
+            window(&self.win, frames, shape, starts, left, right, energy);
+        }
         let dot = match self.lag_block {
             5 => dot_lags::<5>,
             8 => dot_lags::<8>,
@@ -248,78 +286,114 @@ impl Direct {
             12 => dot_lags::<12>,
             _ => dot_lags::<4>,
         };
-        let rows_l = self.left.len() / self.energy.len();
-        let groups = self
+        let nl = 2 * self.max_lag + 1;
+        let parts = self
             .left
-            .chunks_exact(rows_l)
-            .zip(self.right.chunks_exact(w));
-        for (g, ((left, right), (el, er))) in groups.zip(&self.energy).enumerate() {
-            dot(left, right, &mut self.acc);
-            let c0 = vector_start(g, LANES, nc);
+            .chunks_exact(3 * rows_l)
+            .zip(self.right.chunks_exact(3 * half));
+        for ((left, right), ((el, er), &c0)) in parts.zip(self.energy.iter().zip(&self.starts)) {
+            let phases = left.chunks_exact(rows_l).zip(right.chunks_exact(half));
+            for ((l, r), acc) in phases.zip(self.acc.chunks_exact_mut(k)) {
+                dot(l, r, acc);
+            }
+            let (e, rest) = self.acc.split_at(k);
+            let (o, d) = rest.split_at(k);
             for l in 0..LANES.min(nc) {
                 let norm = f64::EPSILON + (el[l] * er[l]).sqrt();
-                let o = &mut out[(c0 + l) * nl..(c0 + l + 1) * nl];
-                for (v, a) in o.iter_mut().zip(&self.acc) {
-                    *v = a.0[l] / norm;
+                let out = &mut out[(c0 + l) * nl..(c0 + l + 1) * nl];
+                for (i, v) in out.iter_mut().enumerate() {
+                    let j = i / 2;
+                    let sum = if i % 2 == 0 {
+                        e[j].0[l] + o[j].0[l]
+                    } else {
+                        d[j].0[l] + o[j].0[l] + e[j + 1].0[l]
+                    };
+                    *v = sum / norm;
                 }
             }
         }
     }
 }
 
+/// Groups windowed per pass of [`window_frames`] (their energies held in registers).
+const BATCH: usize = 4;
+
 /// Per-group energies `Σ (win·x)²` of the left and right frames.
 type Energy = ([f64; LANES], [f64; LANES]);
 
-/// Writes the windowed frame pair (`[time][channel]`, `nc` wide) into the lanes of the
-/// groups of `left` (after `maxLag` zero rows) and `right` (see [`vector_start`]), row by
-/// row so that each frame row is read once; then their energies into `energy`, group by
-/// group with the sums in registers.
+/// Windows the frame pair (`[time][channel]`, `nc` wide) into the polyphase rows of `G`
+/// groups (first channels `starts`; `left` and `right` laid out as in [`Direct`]), with
+/// the frames' energies into `energy`, summed in time order in registers. Row `n` of the
+/// left frame is row `p = n + maxLag` of `L`: row `p / 2` of `L_even` or `L_odd`, and of
+/// the differences with its neighbour (`L[p−1] − L[p]` at row `p/2 − 1` for an even `p`,
+/// `r[n−1] − r[n]` at row `n / 2` for an odd `n`). `WIDE`: at least `LANES` channels
+/// (else the first `nc` lanes are filled, the others stay zero).
 #[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
-fn window_frames<'a>(
+fn window_frames<'a, const G: usize, const WIDE: bool>(
     win: &[f64],
     (frame_l, frame_r): (Frame<'a>, Frame<'a>),
     (nc, max_lag): (usize, usize),
+    starts: &[usize],
     left: &mut [Lanes],
     right: &mut [Lanes],
     energy: &mut [Energy],
 ) {
-    let (w, groups) = (win.len(), energy.len());
-    let rows_l = left.len() / groups;
-    let parts = [(frame_l.head, frame_r.head), (frame_l.tail, frame_r.tail)];
-    let rows = parts
-        .into_iter()
-        .flat_map(|(l, r)| l.chunks_exact(nc).zip(r.chunks_exact(nc)));
-    for (n, ((row_l, row_r), &wn)) in rows.zip(win).enumerate() {
-        for g in 0..groups {
-            let c0 = vector_start(g, LANES, nc);
-            let (pl, pr) = (&mut left[g * rows_l + max_lag + n], &mut right[g * w + n]);
-            if nc >= LANES {
-                let mut x = [[0.0; LANES]; 2];
-                x[0].copy_from_slice(&row_l[c0..c0 + LANES]);
-                x[1].copy_from_slice(&row_r[c0..c0 + LANES]);
-                for ear in &mut x {
-                    for v in ear.iter_mut() {
-                        *v *= wn;
+    let (rows_l, half) = (left.len() / (3 * G), right.len() / (3 * G));
+    let mut el = [[0.0; LANES]; G];
+    let mut er = [[0.0; LANES]; G];
+    // the previous row of each group (zero before the frame)
+    let mut prev_l = [[0.0; LANES]; G];
+    let mut prev_r = [[0.0; LANES]; G];
+    let mut n = 0;
+    for (part_l, part_r) in [(frame_l.head, frame_r.head), (frame_l.tail, frame_r.tail)] {
+        let rows = part_l.chunks_exact(nc).zip(part_r.chunks_exact(nc));
+        for ((row_l, row_r), &w) in rows.zip(&win[n..]) {
+            let p = n + max_lag;
+            let at_l = (p % 2) * rows_l + p / 2;
+            let at_r = (n % 2) * half + n / 2;
+            for g in 0..G {
+                let (mut xl, mut xr) = ([0.0; LANES], [0.0; LANES]);
+                if WIDE {
+                    let c0 = starts[g];
+                    xl.copy_from_slice(&row_l[c0..c0 + LANES]);
+                    xr.copy_from_slice(&row_r[c0..c0 + LANES]);
+                } else {
+                    xl[..nc].copy_from_slice(row_l);
+                    xr[..nc].copy_from_slice(row_r);
+                }
+                for l in 0..LANES {
+                    xl[l] *= w;
+                    xr[l] *= w;
+                    el[g][l] += xl[l] * xl[l];
+                    er[g][l] += xr[l] * xr[l];
+                }
+                let (gl, gr) = (3 * rows_l * g, 3 * half * g);
+                left[gl + at_l].0 = xl;
+                right[gr + at_r].0 = xr;
+                if p % 2 == 0 && p >= 2 {
+                    let s = &mut left[gl + 2 * rows_l + p / 2 - 1].0;
+                    for l in 0..LANES {
+                        s[l] = prev_l[g][l] - xl[l];
                     }
                 }
-                (pl.0, pr.0) = (x[0], x[1]);
-            } else {
-                for l in 0..nc {
-                    (pl.0[l], pr.0[l]) = (wn * row_l[c0 + l], wn * row_r[c0 + l]);
+                if n % 2 == 1 {
+                    let s = &mut right[gr + 2 * half + n / 2].0;
+                    for l in 0..LANES {
+                        s[l] = prev_r[g][l] - xr[l];
+                    }
                 }
+                (prev_l[g], prev_r[g]) = (xl, xr);
             }
+            n += 1;
         }
     }
-    let frames = left.chunks_exact(rows_l).zip(right.chunks_exact(w));
-    for ((pl, pr), (el, er)) in frames.zip(energy.iter_mut()) {
-        let (mut sl, mut sr) = ([0.0; LANES], [0.0; LANES]);
-        for (vl, vr) in pl[max_lag..max_lag + w].iter().zip(pr) {
-            for l in 0..LANES {
-                sl[l] += vl.0[l] * vl.0[l];
-                sr[l] += vr.0[l] * vr.0[l];
-            }
+    // a last row of odd parity: its difference with the zero after the frame (row `p`)
+    let p = n + max_lag;
+    for g in 0..G {
+        if p % 2 == 0 {
+            left[3 * rows_l * g + 2 * rows_l + p / 2 - 1].0 = prev_l[g];
         }
-        (*el, *er) = (sl, sr);
+        energy[g] = (el[g], er[g]);
     }
 }
 
@@ -509,35 +583,44 @@ mod tests {
 
     #[test]
     fn direct_and_fft_engines_agree() {
-        // 11 channels: a full group and a partial one; lags up to and beyond the window.
-        let (w, nc) = (40, 11);
-        let x = |seed: usize| -> Vec<f64> {
-            (0..w * nc)
-                .map(|i| ((i * 7919 + seed) % 1013) as f64 / 1013.0)
-                .collect()
-        };
-        let (fl, fr) = (x(1), x(5));
-        for max_lag in [0, 3, 17, 39, 40] {
-            let win = window("hann", w, "").expect("hann");
-            let nl = 2 * max_lag + 1;
-            let framing = afe_core::framing::FrameBuffer::new(nc, w, w);
-            let (fl, fr) = (framing.frame(&fl, 0), framing.frame(&fr, 0));
-            let mut fft = FftEngine::new(win.clone(), max_lag);
-            let mut b = vec![0.0; nc * nl];
-            for (c, o) in b.chunks_exact_mut(nl).enumerate() {
-                fft.correlate(fl, fr, c, o);
-            }
-            assert!(b.iter().any(|v| *v > 0.1));
-            for lag_block in [4, 5, 8, 9, 10, 11, 12] {
-                let mut direct = Direct::with_lag_block(win.clone(), max_lag, nc, lag_block);
-                let mut a = vec![0.0; nc * nl];
-                direct.correlate(fl, fr, nc, &mut a);
-                for (i, (u, v)) in a.iter().zip(&b).enumerate() {
-                    let (c, lag) = (i / nl, i % nl);
-                    assert!(
-                        (u - v).abs() < 1e-13,
-                        "{lag}/{max_lag}, channel {c}: {u} vs {v}"
-                    );
+        // Channel counts below one group, with a partial group, and over one batch of
+        // groups; half frames of even and odd length; lags up to and beyond the window;
+        // frames that start in rows kept from an earlier chunk.
+        for (w, nc) in [(40, 11), (42, 3), (42, 37)] {
+            let x = |seed: usize| -> Vec<f64> {
+                (0..w * nc)
+                    .map(|i| ((i * 7919 + seed) % 1013) as f64 / 1013.0)
+                    .collect()
+            };
+            let (xl, xr) = (x(1), x(5));
+            let mut framing = afe_core::framing::FrameBuffer::new(nc, w, w);
+            let split = 7 * nc;
+            framing.advance(&xl[..split], 0);
+            let fl = framing.frame(&xl[split..], 0);
+            let mut framing_r = afe_core::framing::FrameBuffer::new(nc, w, w);
+            framing_r.advance(&xr[..split], 0);
+            let fr = framing_r.frame(&xr[split..], 0);
+            assert_eq!(fl.head.len(), split);
+            for max_lag in [0, 3, 17, w - 1, w] {
+                let win = window("hann", w, "").expect("hann");
+                let nl = 2 * max_lag + 1;
+                let mut fft = FftEngine::new(win.clone(), max_lag);
+                let mut b = vec![0.0; nc * nl];
+                for (c, o) in b.chunks_exact_mut(nl).enumerate() {
+                    fft.correlate(fl, fr, c, o);
+                }
+                assert!(b.iter().any(|v| *v > 0.1));
+                for lag_block in [4, 5, 8, 9, 10, 11, 12] {
+                    let mut direct = Direct::with_lag_block(win.clone(), max_lag, nc, lag_block);
+                    let mut a = vec![0.0; nc * nl];
+                    direct.correlate(fl, fr, nc, &mut a);
+                    for (i, (u, v)) in a.iter().zip(&b).enumerate() {
+                        let (c, lag) = (i / nl, i % nl);
+                        assert!(
+                            (u - v).abs() < 1e-13,
+                            "W {w}, {nc} channels, lag {lag}/{max_lag}, channel {c}: {u} vs {v}"
+                        );
+                    }
                 }
             }
         }
