@@ -5,10 +5,7 @@ use afe_graph::Manager;
 
 use crate::recorder::Recorder;
 
-/// Block length in samples in which a whole signal goes through a chunk-invariant graph:
-/// bit-identical to one call, and the intermediate signals stay in cache instead of
-/// being held, full rate, for the whole file.
-pub const WHOLE_SIGNAL_BLOCK: usize = 4096;
+pub use afe_graph::WHOLE_SIGNAL_BLOCK;
 
 /// What to compute and how to feed the input.
 #[derive(Debug, Clone, Default)]

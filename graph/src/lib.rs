@@ -13,5 +13,5 @@ mod trace;
 
 pub use engine::{is_worker_thread, MAX_THREADS};
 pub use graph::{Channel, OutputRef};
-pub use manager::{check_parameter_names, Manager, RequestHandle, Signal};
+pub use manager::{check_parameter_names, Manager, RequestHandle, Signal, WHOLE_SIGNAL_BLOCK};
 pub use trace::{chrome_trace, TraceEvent};

@@ -100,7 +100,16 @@ pub struct Manager {
     /// Samples per ear submitted since construction or the last reset: error messages
     /// name a bad sample by its position in the stream.
     position: u64,
+    /// Whole-signal outputs of the last [`Manager::process_signal`] run in blocks, per
+    /// node and output: what the signals show while `whole_shown` (until the next chunk
+    /// or edit). Kept allocated for the next call.
+    whole: Vec<Vec<Block>>,
+    whole_shown: bool,
 }
+
+/// Block length in samples in which a whole signal goes through a chunk-invariant graph:
+/// bit-identical to one call, and the intermediate signals stay in cache.
+pub const WHOLE_SIGNAL_BLOCK: usize = 4096;
 
 impl std::fmt::Debug for Manager {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -171,6 +180,8 @@ impl Manager {
             engine: None,
             pending: 0,
             position: 0,
+            whole: Vec::new(),
+            whole_shown: false,
         })
     }
 
@@ -231,6 +242,7 @@ impl Manager {
             e.uninstall(&mut self.graph);
         }
         self.pending = 0;
+        self.whole_shown = false;
         let r = f(self);
         if let Some(e) = self.engine.as_mut() {
             e.install(&mut self.graph);
@@ -509,6 +521,7 @@ impl Manager {
     /// ```
     pub fn submit_chunk(&mut self, chunk: &[&[f64]]) -> Result<()> {
         self.check_chunk(chunk)?;
+        self.whole_shown = false;
         let len = chunk.first().map_or(0, |c| c.len() as u64);
         match self.engine.as_mut() {
             Some(e) => {
@@ -563,14 +576,60 @@ impl Manager {
     }
 
     /// Processes a whole signal from a fresh state (every processor is reset first), as
-    /// the AFE's `processSignal`.
+    /// the AFE's `processSignal`. A chunk-invariant graph runs it in blocks of
+    /// [`WHOLE_SIGNAL_BLOCK`] samples, bit-identical to one call and faster (the
+    /// intermediate signals stay in cache), and joins each output's blocks.
     pub fn process_signal(&mut self, signal: &[&[f64]]) -> Result<()> {
         self.check_chunk(signal)?;
-        if signal[0].is_empty() {
+        let len = signal[0].len();
+        if len == 0 {
             return Err(Error::InvalidInput("the signal is empty".into()));
         }
         self.reset()?;
-        self.process_chunk(signal)
+        if len <= WHOLE_SIGNAL_BLOCK || !self.is_chunk_invariant() {
+            return self.process_chunk(signal);
+        }
+        let mut whole = std::mem::take(&mut self.whole);
+        let widths = |n: &Node| n.infos.iter().map(SignalInfo::width).collect::<Vec<_>>();
+        let same_shape = whole.len() == self.graph.nodes.len()
+            && whole
+                .iter()
+                .zip(&self.graph.nodes)
+                .all(|(w, n)| w.iter().map(Block::width).eq(widths(n)));
+        if !same_shape {
+            whole = self
+                .graph
+                .nodes
+                .iter()
+                .map(|n| n.infos.iter().map(|i| Block::new(i.width())).collect())
+                .collect();
+        }
+        whole.iter_mut().flatten().for_each(Block::clear);
+        for start in (0..len).step_by(WHOLE_SIGNAL_BLOCK) {
+            let end = (start + WHOLE_SIGNAL_BLOCK).min(len);
+            let part: Vec<&[f64]> = signal.iter().map(|c| &c[start..end]).collect();
+            self.submit_chunk(&part)?;
+            if self.in_flight() >= self.pipeline_depth() {
+                self.collect_chunk()?;
+                self.append_outputs(&mut whole);
+            }
+        }
+        while self.in_flight() > 0 {
+            self.collect_chunk()?;
+            self.append_outputs(&mut whole);
+        }
+        self.whole = whole;
+        self.whole_shown = true;
+        Ok(())
+    }
+
+    /// Appends the new output of every node to `whole` (per node and output).
+    fn append_outputs(&self, whole: &mut [Vec<Block>]) {
+        for (node, outputs) in whole.iter_mut().enumerate() {
+            for (output, acc) in outputs.iter_mut().enumerate() {
+                acc.extend_from(self.signal(OutputRef { node, output }).new);
+            }
+        }
     }
 
     /// Returns every processor to its initial state (chunks in flight are finished and
@@ -819,9 +878,10 @@ impl Manager {
             instance: node.instance,
             channel: node.channels[r.output],
             info: &node.infos[r.output],
-            new: match &self.engine {
-                Some(e) => e.block(r),
-                None => &node.outputs[r.output],
+            new: match (self.whole_shown, &self.engine) {
+                (true, _) => &self.whole[r.node][r.output],
+                (false, Some(e)) => e.block(r),
+                (false, None) => &node.outputs[r.output],
             },
             source: r,
         }
