@@ -1,5 +1,6 @@
 //! `crosscorrelation`: normalised interaural cross-correlation per channel and frame over
-//! lags −maxLag..maxLag (spec 18-crosscorrelation), computed by zero-padded real FFTs.
+//! lags −maxLag..maxLag (spec 18-crosscorrelation): by dot products over even and odd
+//! samples for short lag ranges, by zero-padded real FFTs for long ones.
 
 use std::sync::Arc;
 
@@ -82,8 +83,8 @@ pub struct Crosscorrelation {
 
 /// How the lags are computed: the choice depends only on the configuration.
 enum Engine {
-    /// Dot products per lag, eight channels per SIMD vector: fastest for short lag
-    /// ranges such as the default 99 lags.
+    /// Dot products per lag (a two-parallel fast FIR), eight channels per SIMD vector:
+    /// fastest for short lag ranges such as the default 99 lags.
     Direct(Direct),
     /// Zero-padded real FFTs per channel: fastest for long lag ranges.
     Fft(Box<FftEngine>),
@@ -211,9 +212,11 @@ impl Crosscorrelation {
 
 /// Whether dot products beat the FFT for a `w`-sample window and lags up to `max_lag`:
 /// the direct method costs `3·(w/2)·(maxLag+1)` multiply-adds per channel, eight channels
-/// at a time, the FFT about three transforms per channel. Measured at 44.1 kHz (882-sample
-/// window, one core, `afe bench -r crosscorrelation -p cc_maxDelaySec=…`): direct is
-/// faster at 99 lags (1.1 ms) and 443 (5 ms), the FFT at 883 (10 ms) and beyond.
+/// at a time, the FFT about three transforms per channel. At 44.1 kHz (882-sample window)
+/// this picks dot products for 99 and 443 lags, the FFT for 883 and beyond, which is
+/// where the plain dot products measured faster and slower (`afe bench -r
+/// crosscorrelation -p cc_maxDelaySec=…`, one core); the fast FIR moves the crossover
+/// further out, not below.
 fn prefer_direct(w: usize, max_lag: usize) -> bool {
     let nfft = (w + max_lag.min(w - 1)).next_power_of_two() as f64;
     let direct = (3 * (w / 2) * (max_lag + 1)) as f64 / LANES as f64;
