@@ -596,13 +596,10 @@ mod tests {
                     .collect()
             };
             let (xl, xr) = (x(1), x(5));
-            let mut framing = afe_core::framing::FrameBuffer::new(nc, w, w);
+            let mut framing = EarFrames::new(nc, w, w);
             let split = 7 * nc;
-            framing.advance(&xl[..split], 0);
-            let fl = framing.frame(&xl[split..], 0);
-            let mut framing_r = afe_core::framing::FrameBuffer::new(nc, w, w);
-            framing_r.advance(&xr[..split], 0);
-            let fr = framing_r.frame(&xr[split..], 0);
+            framing.advance(&xl[..split], &xr[..split], 0);
+            let (fl, fr) = framing.frame((&xl[split..], &xr[split..]), 0);
             assert_eq!(fl.head.len(), split);
             for max_lag in [0, 3, 17, w - 1, w] {
                 let win = window("hann", w, "").expect("hann");
