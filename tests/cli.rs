@@ -3,7 +3,8 @@
 
 mod common;
 
-use common::{afe, assert_clear_error, npz_arrays, tmp, tone, write_wav};
+use common::{afe, assert_clear_error, library_arrays, npz_arrays, sorted, tmp, tone, write_wav};
+use serde_json::json;
 
 #[test]
 fn extract_writes_the_oracle_layout_and_chunking_does_not_change_it() {
@@ -39,6 +40,14 @@ fn extract_writes_the_oracle_layout_and_chunking_does_not_change_it() {
     // 4000 samples, W = 320, H = 160: 24 frames; 8 channels; ceil(1.1e-3·16000) = 18 → 37 lags
     assert_eq!(arrays[0].1, vec![24, 8]);
     assert_eq!(arrays[3].1, vec![24, 8, 37]);
+    // the values are the library's, bit for bit
+    let library = library_arrays(
+        &wav,
+        &["ratemap", "ild", "crosscorrelation"],
+        &[("fb_nChannels", json!(8))],
+        false,
+    );
+    assert_eq!(sorted(arrays.clone()), library);
 
     let chunked = tmp("chunked.npz");
     let out = afe(&[
@@ -67,7 +76,9 @@ fn extract_writes_the_oracle_layout_and_chunking_does_not_change_it() {
         all.to_str().expect("path"),
     ]);
     assert!(out.status.success());
-    let names: Vec<String> = npz_arrays(&all).into_iter().map(|a| a.0).collect();
+    let every = sorted(npz_arrays(&all));
+    assert_eq!(every, library_arrays(&wav, &["ild"], &[], true));
+    let names: Vec<String> = every.into_iter().map(|a| a.0).collect();
     for n in [
         "time_left",
         "filterbank_right",
@@ -100,7 +111,19 @@ fn params_file_takes_oracle_style_json() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    assert_eq!(npz_arrays(&out_file)[0].1, vec![19, 16]);
+    let arrays = npz_arrays(&out_file);
+    assert_eq!(arrays[0].1, vec![19, 16]);
+    let params = [
+        ("fb_nChannels", json!(16)),
+        ("fb_lowFreqHz", json!(100)),
+        ("fb_highFreqHz", json!(6000)),
+        ("ihc_method", json!("halfwave")),
+        ("rm_scaling", json!("magnitude")),
+    ];
+    assert_eq!(
+        sorted(arrays),
+        library_arrays(&wav, &["ratemap"], &params, false)
+    );
 }
 
 #[test]

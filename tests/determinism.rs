@@ -103,7 +103,7 @@ fn run(threads: usize, sizes: &[usize], left: &[f64], right: &[f64]) -> Recorder
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 6, failure_persistence: None, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 16, failure_persistence: None, ..ProptestConfig::default() })]
 
     #[test]
     fn every_thread_count_matches_sequential(
@@ -265,6 +265,16 @@ fn modify_parameter_resets_the_processor_and_its_dependants() {
             a.modify_parameter(ild, "fb_lowFreqHz", json!(100)).is_err(),
             "grid is fixed"
         );
-        assert!(a.modify_parameter(ild, "rm_wSizeSecs", json!(1)).is_err());
+        // a ratemap parameter is no parameter of the ILD's chain
+        let e = a
+            .modify_parameter(ild, "rm_wSizeSec", json!(1))
+            .expect_err("not in the ild chain")
+            .to_string();
+        assert!(e.contains("no processor of request"), "{e}");
+        let e = a
+            .modify_parameter(ild, "rm_wSizeSecs", json!(1))
+            .expect_err("misspelt")
+            .to_string();
+        assert!(e.contains("rm_wSizeSec"), "did you mean: {e}");
     }
 }

@@ -79,4 +79,35 @@ mod tests {
             .sum();
         assert!(nyq.abs() < 0.01, "Nyquist gain {nyq}");
     }
+
+    /// Against an independent NumPy reading of MATLAB's `fir2`
+    /// (`tools/make_middle_ear_fixture.py`): a plain band edge, a jump (repeated
+    /// breakpoint, ramped over `lap` grid points) and an odd order.
+    #[test]
+    fn matches_an_independent_reading_of_matlab_fir2() {
+        let text = include_str!("../../data/middle_ear_fir2.json");
+        let fixture: serde_json::Value = serde_json::from_str(text).expect("fixture");
+        let designs = fixture["fir2"].as_array().expect("fir2 designs");
+        assert_eq!(designs.len(), 3);
+        let floats = |v: &serde_json::Value| -> Vec<f64> {
+            v.as_array()
+                .expect("array")
+                .iter()
+                .map(|x| x.as_f64().expect("number"))
+                .collect()
+        };
+        for d in designs {
+            let order = d["order"].as_u64().expect("order") as usize;
+            let want = floats(&d["taps"]);
+            let got = fir2(order, &floats(&d["f"]), &floats(&d["m"]));
+            assert_eq!(got.len(), want.len());
+            let peak = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            for (k, (g, w)) in got.iter().zip(&want).enumerate() {
+                assert!(
+                    (g - w).abs() <= 1e-12 * peak,
+                    "order {order} tap {k}: {g} vs {w}"
+                );
+            }
+        }
+    }
 }

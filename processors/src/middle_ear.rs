@@ -206,4 +206,39 @@ mod tests {
         let p = peak_db(&b) + unity_comp_db("lopezpoveda");
         assert!(p.abs() < 1.0, "compensated peak {p} dB");
     }
+
+    /// Both designs at three rates against an independent NumPy reading of the spec
+    /// (`tools/make_middle_ear_fixture.py`), to 1e-12 of the largest tap.
+    #[test]
+    fn designs_match_an_independent_reading_of_the_spec() {
+        let text = include_str!("../../data/middle_ear_fir2.json");
+        let fixture: serde_json::Value = serde_json::from_str(text).expect("fixture");
+        let cases = fixture["middle_ear"]
+            .as_array()
+            .expect("middle-ear designs");
+        assert_eq!(cases.len(), 6);
+        for c in cases {
+            let fs = c["fs_hz"].as_f64().expect("fs");
+            let model = c["model"].as_str().expect("model");
+            let want: Vec<f64> = c["taps"]
+                .as_array()
+                .expect("taps")
+                .iter()
+                .map(|v| v.as_f64().expect("tap"))
+                .collect();
+            let got = if model == "jepsen" {
+                jepsen(fs)
+            } else {
+                lopezpoveda(fs)
+            };
+            let peak = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            assert_eq!(got.len(), want.len(), "{model} at {fs} Hz");
+            for (k, (g, w)) in got.iter().zip(&want).enumerate() {
+                assert!(
+                    (g - w).abs() <= 1e-12 * peak,
+                    "{model} at {fs} Hz, tap {k}: {g} vs {w}"
+                );
+            }
+        }
+    }
 }

@@ -382,6 +382,53 @@ mod tests {
         assert!((rms - 1.0).abs() < 0.02, "{rms}");
     }
 
+    /// The whole middle-ear stage (design, filtering, unity compensation of spec
+    /// 10-preProc step 5) against a direct convolution with the taps of an independent
+    /// reading of the spec (`data/middle_ear_fir2.json`) times `10^(peak/20)`.
+    #[test]
+    fn middle_ear_output_is_the_independent_design_with_its_unity_gain() {
+        let text = include_str!("../../data/middle_ear_fir2.json");
+        let fixture: serde_json::Value = serde_json::from_str(text).expect("fixture");
+        for (model, peak_db) in [("jepsen", 55.9986), ("lopezpoveda", 66.2888)] {
+            let case = fixture["middle_ear"]
+                .as_array()
+                .expect("designs")
+                .iter()
+                .find(|c| c["model"] == model && c["fs_hz"] == 16000.0)
+                .expect("16 kHz design");
+            let gain = 10f64.powf(peak_db / 20.0);
+            let taps: Vec<f64> = case["taps"]
+                .as_array()
+                .expect("taps")
+                .iter()
+                .map(|v| v.as_f64().expect("tap") * gain)
+                .collect();
+            let x: Vec<f64> = (0..1500)
+                .map(|t| (0.37 * t as f64).sin() + 0.5 * (0.011 * (t * t) as f64).cos())
+                .collect();
+            let p = PreProcParams {
+                middle_ear_filtering: true,
+                middle_ear_model: model.into(),
+                ..Default::default()
+            };
+            let y = run(&p, std::slice::from_ref(&x), 16000.0);
+            let want: Vec<f64> = (0..x.len())
+                .map(|n| {
+                    (0..=n.min(taps.len() - 1))
+                        .map(|k| taps[k] * x[n - k])
+                        .sum()
+                })
+                .collect();
+            let scale = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            for (n, (g, w)) in y[0].iter().zip(&want).enumerate() {
+                assert!(
+                    (g - w).abs() <= 1e-12 * scale,
+                    "{model} sample {n}: {g} vs {w}"
+                );
+            }
+        }
+    }
+
     #[test]
     fn middle_ear_needs_a_usable_rate() {
         let p = PreProcParams {

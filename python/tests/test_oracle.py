@@ -12,7 +12,8 @@ import afe
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 GOLDEN = os.path.join(ROOT, "data", "golden")
 CASES = json.load(open(os.path.join(GOLDEN, "cases.json")))
-TOL = 1e-6
+# The bounds of each comparison and their reasons, shared with the Rust suite.
+TOLERANCES = json.load(open(os.path.join(ROOT, "tests", "oracle_tolerances.json")))
 
 
 def rel_error(out, ref):
@@ -29,38 +30,67 @@ def rel_error(out, ref):
 
 
 def run_case(case, wav):
+    """Runs a case as the oracle did; an ITD request also records its cross-correlation
+    (the same shared node), to tell genuine peak ties from errors."""
     x, fs = afe.read_wav(wav)
     m = afe.Manager(fs, x.shape[1] if x.ndim == 2 else 1)
-    for r in case["requests"]:
+    requests = list(case["requests"])
+    if "itd" in requests and "crosscorrelation" not in requests:
+        requests.append("crosscorrelation")
+    for r in requests:
         m.add_request(r, case["nondefault_params"])
     if case["mode"] == "chunks":
         start = 0
         for n in case["chunk_sizes_used"]:
             m.process_chunk(x[start : start + n])
             start += n
-        return m.outputs()
-    return m.process_signal(x)
+        return m.outputs(), fs
+    return m.process_signal(x), fs
 
 
-def check(out, key, ref, case_name):
+def rule(case_name, signal, float32):
+    """The table's entry for a signal: the case's own, the float32 storage bound, the
+    signal's, or the float64 default (the order of tests/oracle.rs)."""
+    t = TOLERANCES
+    if case_name in t["float64_by_case"]:
+        return t["float64_by_case"][case_name]
+    if float32:
+        return t["float32_reference"]
+    return t["float64_by_signal"].get(signal, t["float64_default"])
+
+
+def check(out, key, ref, case_name, fs):
     got = out[key][: ref.shape[0]]
+    signal = key.rsplit("_", 1)[0]
+    r = rule(case_name, signal, ref.dtype == np.float32)
     err = rel_error(got, ref.astype(np.float64))
-    if case_name == "pp_bMiddleEarFiltering":
-        assert err.max() < 0.06  # oracle ran Octave's fir2, afe implements MATLAB's
-    elif key.startswith("itd"):
-        assert np.mean(err > TOL) <= 0.001, f"{key}: {np.mean(err > TOL):.4%} over tolerance"
-    else:
-        assert err.max() <= TOL, f"{key}: rel {err.max():.3e}"
+    over = err > r["rel"]
+    if not over.any():
+        return
+    o = r.get("outliers")
+    assert o, f"{key}: rel {err.max():.3e} over {r['rel']:.1e}"
+    assert over.mean() <= o["max_fraction"], f"{key}: {over.mean():.4%} of cells over {r['rel']}"
+    ccf = out[key.replace("itd", "crosscorrelation", 1)][: ref.shape[0]]
+    max_lag = ccf.shape[2] // 2
+    for t, c in zip(*np.nonzero(over)):
+        ours, theirs = got[t, c], ref[t, c]
+        steps = abs(ours - theirs) * fs
+        row = ccf[t, c]
+        lag = lambda itd: int(np.clip(round(itd * fs + max_lag), 0, 2 * max_lag))
+        gap = abs(row[lag(ours)] - row[lag(theirs)])
+        assert steps <= o["max_lag_steps"], f"{key}[{t}, {c}]: {steps:.2f} lag steps off"
+        assert gap <= o["tie_rel"] * np.abs(row).max(), f"{key}[{t}, {c}]: not a tie"
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c["case"] for c in CASES])
 def test_golden_case(case):
-    out = run_case(case, os.path.join(GOLDEN, case["input"]))
+    out, fs = run_case(case, os.path.join(GOLDEN, case["input"]))
     for sig in case["signals"]:
         if sig["key"].split("_")[0] not in case["requests"]:
             continue  # intermediate signals are checked by the Rust suite
         assert list(out[sig["key"]].shape) == sig["shape"]
-        check(out, sig["key"], np.load(os.path.join(GOLDEN, sig["file"])), case["case"])
+        ref = np.load(os.path.join(GOLDEN, sig["file"]))
+        check(out, sig["key"], ref, case["case"], fs)
 
 
 @pytest.mark.parametrize("name", ["default_ratemap", "itd_ic_w40_h20_hamming", "chunks_irregular", "ihc_hilbert_fb16"])
@@ -96,12 +126,19 @@ def oracle_cases():
     return out
 
 
+def test_full_oracle_is_present_in_ci():
+    """Under CI=true the full-oracle cases must run, not be skipped."""
+    if os.environ.get("CI") == "true":
+        assert os.environ.get("AFE_ORACLE_DIR"), "CI=true but AFE_ORACLE_DIR is not set"
+        assert oracle_cases(), "AFE_ORACLE_DIR holds no case afe implements"
+
+
 @pytest.mark.skipif(not os.environ.get("AFE_ORACLE_DIR"), reason="AFE_ORACLE_DIR not set")
 @pytest.mark.parametrize("wav,base,meta", oracle_cases(), ids=[m["case"] for _, _, m in oracle_cases()])
 def test_full_oracle_case(wav, base, meta):
-    out = run_case(meta, wav)
+    out, fs = run_case(meta, wav)
     for sig in meta["signals"]:
         if sig["name"] not in meta["requests"] or not sig.get("file"):
             continue
         key = f"{sig['name']}_{sig['channel']}"
-        check(out, key, np.load(os.path.join(base, sig["file"])), meta["case"])
+        check(out, key, np.load(os.path.join(base, sig["file"])), meta["case"], fs)

@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use afe::npy::decode;
+use afe::{Manager, ParamMap, Recorder};
 
 /// Runs `afe` with `args`.
 pub fn afe(args: &[&str]) -> Output {
@@ -64,6 +65,44 @@ pub fn npz_arrays(path: &Path) -> Vec<(String, Vec<usize>, Vec<f64>)> {
             (name, a.shape, a.data)
         })
         .collect()
+}
+
+/// What the library computes on the WAV at `path` for `requests` with `params` (AFE name
+/// → JSON value), in one `process_signal`: (name, shape, values) of every requested
+/// output, or of every signal with `all`, sorted by name.
+pub fn library_arrays(
+    path: &Path,
+    requests: &[&str],
+    params: &[(&str, serde_json::Value)],
+    all: bool,
+) -> Vec<(String, Vec<usize>, Vec<f64>)> {
+    let audio = afe::wav::read_wav(path).expect("wav");
+    let mut mgr = Manager::new(audio.fs, audio.channels.len()).expect("manager");
+    let params: ParamMap = params
+        .iter()
+        .map(|(k, v)| (k.to_string(), v.clone()))
+        .collect();
+    for r in requests {
+        mgr.add_request(r, &params).expect("request");
+    }
+    let ears: Vec<&[f64]> = audio.channels.iter().map(Vec::as_slice).collect();
+    mgr.process_signal(&ears).expect("process");
+    let mut rec = Recorder::new(all);
+    rec.record(&mgr);
+    sorted(
+        rec.signals()
+            .iter()
+            .map(|s| (s.key.clone(), s.shape(), s.data.as_slice().to_vec()))
+            .collect(),
+    )
+}
+
+/// `arrays` sorted by name.
+pub fn sorted(
+    mut arrays: Vec<(String, Vec<usize>, Vec<f64>)>,
+) -> Vec<(String, Vec<usize>, Vec<f64>)> {
+    arrays.sort_by(|a, b| a.0.cmp(&b.0));
+    arrays
 }
 
 /// `out` failed with one `error:` line containing `needle`, no panic, and no output file.
