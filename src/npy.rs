@@ -1,11 +1,17 @@
-//! Minimal NumPy `.npy` encoding and decoding (little-endian float64/float32, C order),
-//! and `.npz` writing (an uncompressed zip of `.npy` files), for outputs and golden files.
+//! Minimal NumPy `.npy` encoding and decoding (little-endian float64/float32, and
+//! complex128, C order), and `.npz` writing (an uncompressed zip of `.npy` files), for
+//! outputs and golden files.
+//!
+//! Complex arrays travel as their `(real, imaginary)` pairs of `f64`: `data` then holds
+//! twice as many values as `shape` has elements (the layout of complex128 in memory, and
+//! of afe's complex signals, e.g. the STFT).
 
 use std::io::{Seek, Write};
 
 use thiserror::Error;
 
-/// A decoded array: shape and values in C order, widened to f64.
+/// A decoded array: shape and values in C order, widened to f64 (complex values as
+/// `(real, imaginary)` pairs).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Array {
     /// Dimensions, outermost first.
@@ -22,10 +28,27 @@ pub enum NpyError {
     Format(String),
 }
 
-/// Encodes `data` with `shape` as a version-1.0 `.npy` file of little-endian float64.
+/// Whether `data` holds the `(real, imaginary)` pairs of an array of `shape`.
+pub fn is_complex(shape: &[usize], data: &[f64]) -> bool {
+    let count: usize = shape.iter().product();
+    count > 0 && data.len() == 2 * count
+}
+
+/// Encodes `data` with `shape` as a version-1.0 `.npy` file of little-endian float64, or
+/// complex128 when `data` holds twice as many values as the shape (pairs).
+///
+/// # Panics
+/// If `data` holds neither one nor two values per element of `shape`.
 pub fn encode(shape: &[usize], data: &[f64]) -> Vec<u8> {
+    let complex = is_complex(shape, data);
+    assert!(
+        complex || data.len() == shape.iter().product::<usize>(),
+        "{} values for shape {shape:?}",
+        data.len()
+    );
+    let descr = if complex { "<c16" } else { "<f8" };
     let dims: String = shape.iter().map(|d| format!("{d}, ")).collect();
-    let mut header = format!("{{'descr': '<f8', 'fortran_order': False, 'shape': ({dims}), }}");
+    let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': ({dims}), }}");
     let unpadded = 10 + header.len() + 1;
     header.push_str(&" ".repeat((64 - unpadded % 64) % 64));
     header.push('\n');
@@ -62,12 +85,14 @@ pub fn decode(bytes: &[u8]) -> Result<Array, NpyError> {
     if header.contains("'fortran_order': True") {
         return Err(bad("Fortran order"));
     }
-    let width = if header.contains("'<f8'") {
-        8
+    let (width, per_element) = if header.contains("'<f8'") {
+        (8, 1)
     } else if header.contains("'<f4'") {
-        4
+        (4, 1)
+    } else if header.contains("'<c16'") {
+        (8, 2)
     } else {
-        return Err(bad("dtype is not <f8 or <f4"));
+        return Err(bad("dtype is not <f8, <f4 or <c16"));
     };
     let shape_txt = header
         .split("'shape':")
@@ -81,7 +106,7 @@ pub fn decode(bytes: &[u8]) -> Result<Array, NpyError> {
         .filter(|s| !s.is_empty())
         .map(|s| s.parse().map_err(|_| bad("bad shape")))
         .collect::<Result<_, _>>()?;
-    let count: usize = shape.iter().product();
+    let count = shape.iter().product::<usize>() * per_element;
     let body = &bytes[start + hlen..];
     if body.len() < count * width {
         return Err(bad("truncated data"));
@@ -131,6 +156,11 @@ mod tests {
         assert_eq!(a.data, data.to_vec());
         let one_d = decode(&encode(&[6], &data)).expect("valid");
         assert_eq!(one_d.shape, vec![6]);
+        // three complex values
+        let bytes = encode(&[3], &data);
+        assert!(String::from_utf8_lossy(&bytes[..64]).contains("'<c16'"));
+        let c = decode(&bytes).expect("valid");
+        assert_eq!((c.shape, c.data), (vec![3], data.to_vec()));
         assert!(decode(b"not numpy").is_err());
     }
 }

@@ -1,27 +1,71 @@
 //! Time-major sample blocks and the description of the signal they carry.
 
-/// What a signal's frames contain, which fixes its array layout.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// What a signal's frames contain, which fixes its array layout (the AFE's signal
+/// classes, spec 00-overview §7).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum SignalKind {
     /// One value per sample: `[time]`.
+    #[default]
     TimeDomain,
     /// One value per frequency channel: `[time_or_frame, channel]`.
     TimeFrequency,
     /// One value per channel and lag: `[frame, channel, lag]`.
     Correlation,
+    /// One value per channel and modulation channel: `[frame, channel, modulation]`.
+    Modulation,
+    /// Named features: `[frame, feature]`.
+    Feature,
+    /// A complex spectrum: `[frame, bin]`, each value stored as a (real, imaginary) pair.
+    Spectrum,
+    /// A 0/1 value per channel: `[frame, channel]`.
+    BinaryMask,
 }
 
-/// Static description of a processor output: kind, rate, channel and lag axes.
-#[derive(Debug, Clone, PartialEq)]
+impl SignalKind {
+    /// The AFE's name of the signal class (`TimeFrequencySignal`, ...).
+    pub fn afe_class(self) -> &'static str {
+        match self {
+            SignalKind::TimeDomain => "TimeDomainSignal",
+            SignalKind::TimeFrequency => "TimeFrequencySignal",
+            SignalKind::Correlation => "CorrelationSignal",
+            SignalKind::Modulation => "ModulationSignal",
+            SignalKind::Feature => "FeatureSignal",
+            SignalKind::Spectrum => "STFTSignal",
+            SignalKind::BinaryMask => "BinaryMask",
+        }
+    }
+
+    /// Names of the array axes, outermost first (`time` or `frame` first).
+    pub fn axes(self) -> &'static [&'static str] {
+        match self {
+            SignalKind::TimeDomain => &["time"],
+            SignalKind::TimeFrequency => &["time_or_frame", "channel"],
+            SignalKind::Correlation => &["frame", "channel", "lag"],
+            SignalKind::Modulation => &["frame", "channel", "modulation"],
+            SignalKind::Feature => &["frame", "feature"],
+            SignalKind::Spectrum => &["frame", "bin"],
+            SignalKind::BinaryMask => &["frame", "channel"],
+        }
+    }
+}
+
+/// Static description of a processor output: kind, rate and the values along each axis.
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct SignalInfo {
     /// Layout of one frame.
     pub kind: SignalKind,
     /// Nominal rate of the output in Hz (`fs` for full-rate signals, `1/hop` for framed ones).
     pub fs_hz: f64,
-    /// Centre frequency of each channel in Hz (empty for time-domain signals).
+    /// Centre frequency of each channel in Hz (empty for time-domain and feature
+    /// signals); for a spectrum, the frequency of each bin.
     pub cf_hz: Vec<f64>,
     /// Lag of each correlation column in seconds (empty unless `kind` is `Correlation`).
     pub lags_s: Vec<f64>,
+    /// Centre frequency of each modulation channel in Hz (empty unless `kind` is
+    /// `Modulation`).
+    pub mod_cf_hz: Vec<f64>,
+    /// Name of each feature column, in output order (empty unless `kind` is `Feature`).
+    pub features: Vec<String>,
     /// Rate in Hz of the audio this signal was computed from (equal to `fs_hz` for
     /// full-rate signals; framed signals keep the rate their frames were cut at).
     pub audio_fs_hz: f64,
@@ -31,11 +75,9 @@ impl SignalInfo {
     /// A time-domain signal at `fs_hz`.
     pub fn time_domain(fs_hz: f64) -> Self {
         SignalInfo {
-            kind: SignalKind::TimeDomain,
             fs_hz,
-            cf_hz: Vec::new(),
-            lags_s: Vec::new(),
             audio_fs_hz: fs_hz,
+            ..SignalInfo::default()
         }
     }
 
@@ -45,8 +87,8 @@ impl SignalInfo {
             kind: SignalKind::TimeFrequency,
             fs_hz,
             cf_hz,
-            lags_s: Vec::new(),
             audio_fs_hz: fs_hz,
+            ..SignalInfo::default()
         }
     }
 
@@ -56,34 +98,68 @@ impl SignalInfo {
             kind: SignalKind::TimeFrequency,
             fs_hz: frame_rate_hz,
             cf_hz: self.cf_hz.clone(),
-            lags_s: Vec::new(),
             audio_fs_hz: self.audio_fs_hz,
+            ..SignalInfo::default()
         }
     }
 
-    /// Number of frequency channels (1 for a time-domain signal).
+    /// The same channels as a correlation over `lags_s` (seconds) at `frame_rate_hz`.
+    pub fn correlation(&self, frame_rate_hz: f64, lags_s: Vec<f64>) -> Self {
+        SignalInfo {
+            kind: SignalKind::Correlation,
+            lags_s,
+            ..self.framed(frame_rate_hz)
+        }
+    }
+
+    /// Named features at `frame_rate_hz`, computed from audio at `audio_fs_hz`.
+    pub fn feature(frame_rate_hz: f64, audio_fs_hz: f64, features: Vec<String>) -> Self {
+        SignalInfo {
+            kind: SignalKind::Feature,
+            fs_hz: frame_rate_hz,
+            features,
+            audio_fs_hz,
+            ..SignalInfo::default()
+        }
+    }
+
+    /// Number of frequency channels (1 for a time-domain signal, 0 for features).
     pub fn channels(&self) -> usize {
         match self.kind {
             SignalKind::TimeDomain => 1,
+            SignalKind::Feature => 0,
             _ => self.cf_hz.len(),
         }
     }
 
-    /// Number of values in one frame (one row of the time-major block).
+    /// Whether the values are complex ((real, imaginary) pairs in the block).
+    pub fn is_complex(&self) -> bool {
+        self.kind == SignalKind::Spectrum
+    }
+
+    /// Number of `f64` values in one frame (one row of the time-major block).
     pub fn width(&self) -> usize {
         match self.kind {
             SignalKind::TimeDomain => 1,
-            SignalKind::TimeFrequency => self.cf_hz.len(),
+            SignalKind::TimeFrequency | SignalKind::BinaryMask => self.cf_hz.len(),
             SignalKind::Correlation => self.cf_hz.len() * self.lags_s.len(),
+            SignalKind::Modulation => self.cf_hz.len() * self.mod_cf_hz.len(),
+            SignalKind::Feature => self.features.len(),
+            SignalKind::Spectrum => 2 * self.cf_hz.len(),
         }
     }
 
-    /// The shape of one frame as array dimensions (`[]`, `[channels]` or `[channels, lags]`).
+    /// The shape of one frame as array dimensions (`[]`, `[channels]`, `[channels, lags]`,
+    /// ...); a complex value counts as one element.
     pub fn frame_shape(&self) -> Vec<usize> {
         match self.kind {
             SignalKind::TimeDomain => Vec::new(),
-            SignalKind::TimeFrequency => vec![self.cf_hz.len()],
+            SignalKind::TimeFrequency | SignalKind::BinaryMask | SignalKind::Spectrum => {
+                vec![self.cf_hz.len()]
+            }
             SignalKind::Correlation => vec![self.cf_hz.len(), self.lags_s.len()],
+            SignalKind::Modulation => vec![self.cf_hz.len(), self.mod_cf_hz.len()],
+            SignalKind::Feature => vec![self.features.len()],
         }
     }
 }
@@ -209,15 +285,25 @@ mod tests {
     }
 
     #[test]
-    fn correlation_width_is_channels_times_lags() {
-        let info = SignalInfo {
-            kind: SignalKind::Correlation,
-            fs_hz: 100.0,
-            cf_hz: vec![100.0, 200.0],
-            lags_s: vec![-1.0, 0.0, 1.0],
-            audio_fs_hz: 1000.0,
+    fn widths_and_shapes_follow_the_kind() {
+        let tf = SignalInfo::time_frequency(1000.0, vec![100.0, 200.0]);
+        let cc = tf.correlation(100.0, vec![-1.0, 0.0, 1.0]);
+        assert_eq!((cc.width(), cc.frame_shape()), (6, vec![2, 3]));
+        assert_eq!(cc.audio_fs_hz, 1000.0);
+        let ams = SignalInfo {
+            kind: SignalKind::Modulation,
+            mod_cf_hz: vec![4.0, 8.0, 16.0],
+            ..tf.framed(100.0)
         };
-        assert_eq!(info.width(), 6);
-        assert_eq!(info.frame_shape(), vec![2, 3]);
+        assert_eq!((ams.width(), ams.frame_shape()), (6, vec![2, 3]));
+        let stft = SignalInfo {
+            kind: SignalKind::Spectrum,
+            ..tf.framed(100.0)
+        };
+        assert!(stft.is_complex());
+        assert_eq!((stft.width(), stft.frame_shape()), (4, vec![2]));
+        let pitch = SignalInfo::feature(100.0, 1000.0, vec!["pitch".into(), "rawPitch".into()]);
+        assert_eq!((pitch.width(), pitch.channels()), (2, 0));
+        assert_eq!(pitch.kind.axes(), &["frame", "feature"]);
     }
 }

@@ -7,9 +7,7 @@ use std::sync::Arc;
 use afe_core::framing::Frame;
 use afe_core::lanes::vector_start;
 use afe_core::window::{window, WINDOW_NAMES};
-use afe_core::{
-    Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
-};
+use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use realfft::num_complex::Complex64;
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use serde::{Deserialize, Serialize};
@@ -199,13 +197,7 @@ impl Crosscorrelation {
         let lags_s = (0..=2 * max_lag)
             .map(|i| (i as f64 - max_lag as f64) / fs)
             .collect();
-        let info = SignalInfo {
-            kind: SignalKind::Correlation,
-            fs_hz: 1.0 / params.h_size_sec,
-            cf_hz: input.cf_hz.clone(),
-            lags_s,
-            audio_fs_hz: input.audio_fs_hz,
-        };
+        let info = input.correlation(1.0 / params.h_size_sec, lags_s);
         Ok((cc, info))
     }
 }

@@ -41,13 +41,8 @@ mod tests {
 
     #[test]
     fn interior_peak_is_the_vertex_and_edge_is_the_sample() {
-        let info = SignalInfo {
-            kind: afe_core::SignalKind::Correlation,
-            fs_hz: 100.0,
-            cf_hz: vec![500.0, 600.0],
-            lags_s: vec![-1e-3, 0.0, 1e-3],
-            audio_fs_hz: 1000.0,
-        };
+        let info = SignalInfo::time_frequency(1000.0, vec![500.0, 600.0])
+            .correlation(100.0, vec![-1e-3, 0.0, 1e-3]);
         let (mut ic, _) = Ic::new(&info).expect("valid");
         let ccf = Block::from_vec(vec![0.0, 1.0, 0.5, 0.9, 0.2, 0.1], 6);
         let mut out = vec![Block::new(2)];

@@ -82,13 +82,8 @@ mod tests {
 
     #[test]
     fn silent_frame_gives_minus_max_lag() {
-        let info = SignalInfo {
-            kind: SignalKind::Correlation,
-            fs_hz: 100.0,
-            cf_hz: vec![500.0],
-            lags_s: vec![-2e-3, -1e-3, 0.0, 1e-3, 2e-3],
-            audio_fs_hz: 1000.0,
-        };
+        let info = SignalInfo::time_frequency(1000.0, vec![500.0])
+            .correlation(100.0, vec![-2e-3, -1e-3, 0.0, 1e-3, 2e-3]);
         let (mut itd, _) = Itd::new(&info).expect("valid");
         let ccf = Block::from_vec(vec![0.0; 5], 5);
         let mut out = vec![Block::new(1)];

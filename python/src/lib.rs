@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use std::sync::Mutex;
 
 use afe::{Manager, ParamMap, Recorder, RequestHandle};
-use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{Complex64, PyArray1, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyFileNotFoundError, PyKeyError, PyOSError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -40,8 +40,17 @@ fn columns(x: &PyReadonlyArray2<'_, f64>) -> Vec<Vec<f64>> {
         .collect()
 }
 
-/// A float64 numpy array of `shape` from row-major `data`.
+/// A numpy array of `shape` from row-major `data`: float64, or complex128 when `data`
+/// holds `(real, imaginary)` pairs (twice as many values as the shape, see `afe::npy`).
 fn array<'py>(py: Python<'py>, shape: &[usize], data: &[f64]) -> PyResult<Bound<'py, PyAny>> {
+    if afe::npy::is_complex(shape, data) {
+        let values: Vec<Complex64> = data
+            .chunks_exact(2)
+            .map(|c| Complex64::new(c[0], c[1]))
+            .collect();
+        let flat = PyArray1::from_vec(py, values);
+        return Ok(flat.reshape(shape.to_vec())?.into_any());
+    }
     let flat = PyArray1::from_slice(py, data);
     Ok(flat.reshape(shape.to_vec())?.into_any())
 }
@@ -254,13 +263,22 @@ impl PyManager {
                         afe::SignalKind::TimeDomain => "time-domain",
                         afe::SignalKind::TimeFrequency => "time-frequency",
                         afe::SignalKind::Correlation => "correlation",
+                        afe::SignalKind::Modulation => "modulation",
+                        afe::SignalKind::Feature => "feature",
+                        afe::SignalKind::Spectrum => "spectrum",
+                        afe::SignalKind::BinaryMask => "binary-mask",
                     };
                     let value = serde_json::json!({
                         "kind": kind,
+                        "afe_class": s.info.kind.afe_class(),
+                        "axes": s.info.kind.axes(),
+                        "dtype": if s.info.is_complex() { "complex128" } else { "float64" },
                         "fs_hz": s.info.fs_hz,
                         "audio_fs_hz": s.info.audio_fs_hz,
                         "cf_hz": s.info.cf_hz,
                         "lags_s": s.info.lags_s,
+                        "mod_cf_hz": s.info.mod_cf_hz,
+                        "features": s.info.features,
                         "frame_shape": s.info.frame_shape(),
                     });
                     (s.key(), value)
