@@ -30,21 +30,12 @@ fn golden_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("data/golden")
 }
 
+/// Whether every request of a case is one this build implements (from the registry).
 fn supported(meta: &Value) -> bool {
-    let known = [
-        "time",
-        "filterbank",
-        "innerhaircell",
-        "ratemap",
-        "ild",
-        "crosscorrelation",
-        "itd",
-        "ic",
-    ];
-    meta["requests"]
-        .as_array()
-        .is_some_and(|r| r.iter().all(|x| known.contains(&x.as_str().unwrap_or(""))))
-        && meta["nondefault_params"]["fb_type"] != "drnl"
+    meta["requests"].as_array().is_some_and(|r| {
+        r.iter()
+            .all(|x| afe::find_request(x.as_str().unwrap_or("")).is_ok())
+    }) && meta["nondefault_params"]["fb_type"] != "drnl"
 }
 
 fn case_from(
