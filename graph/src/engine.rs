@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 
 use afe_core::{Block, Error, Processor, Result};
 
-use crate::graph::{Graph, OutputRef};
+use crate::graph::{Graph, OutputRef, MAX_INPUTS};
 use crate::protocol::{consumed, is_ready, next_chunk, release, try_claim, Links, NodeSync};
 use crate::sync::{fence, AtomicBool, AtomicU64, Ordering};
 use crate::trace::{TraceEvent, Tracer};
@@ -266,7 +266,7 @@ impl Shared {
         let ok = unsafe {
             let first = rt.inputs[0];
             let first_block = &(&*table.rt[first.node].slots[slot].get())[first.output];
-            let mut inputs: [&Block; 2] = [first_block, first_block];
+            let mut inputs: [&Block; MAX_INPUTS] = [first_block; MAX_INPUTS];
             for (dst, p) in inputs.iter_mut().zip(rt.inputs.iter()).skip(1) {
                 *dst = &(&*table.rt[p.node].slots[slot].get())[p.output];
             }
@@ -604,6 +604,7 @@ impl Engine {
             .enumerate()
             .map(|(i, node)| {
                 let mut parents: Vec<usize> = node.parents.iter().map(|p| p.node).collect();
+                parents.sort_unstable();
                 parents.dedup();
                 let sink = u32::from(i != 0);
                 Links {

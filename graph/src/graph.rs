@@ -25,6 +25,10 @@ impl Channel {
     }
 }
 
+/// Most inputs a node may read: left and right of a binaural node, each with one extra
+/// input (e.g. a map reading the ratemap beside its onset strength).
+pub const MAX_INPUTS: usize = 4;
+
 /// A reference to one output of one node.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct OutputRef {
@@ -101,7 +105,7 @@ impl Graph {
             let node = &mut rest[0];
             let first = node.parents[0];
             let first_block = &before[first.node].outputs[first.output];
-            let mut inputs: [&Block; 2] = [first_block, first_block];
+            let mut inputs: [&Block; MAX_INPUTS] = [first_block; MAX_INPUTS];
             for (slot, p) in inputs.iter_mut().zip(&node.parents).skip(1) {
                 *slot = &before[p.node].outputs[p.output];
             }

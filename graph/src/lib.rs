@@ -6,6 +6,7 @@ mod engine;
 mod graph;
 mod manager;
 mod protocol;
+mod resolve;
 #[cfg(test)]
 mod stress;
 mod sync;

@@ -1,25 +1,17 @@
-//! The request manager: resolves AFE requests into a shared processor graph and runs it
-//! chunk by chunk (spec 00-overview §3–§6).
+//! The request manager: the public face of a processor graph. It places and edits
+//! requests (resolved by [`crate::resolve`]) between chunks, and runs the graph chunk by
+//! chunk on the sequential or the concurrent executor (spec 00-overview §3–§6).
 
 use afe_core::{Block, Error, ParamMap, Result, SignalInfo};
-use afe_processors::{find_request, requests, Ears, RequestDef};
+use afe_processors::requests;
 use serde_json::Value;
 
 use crate::engine::Engine;
 use crate::graph::{Channel, Graph, Node, OutputRef};
+use crate::resolve::chain_of;
 
 /// Highest input sampling rate accepted, in Hz.
 pub const MAX_FS: f64 = 1_000_000.0;
-
-/// Parameters the AFE does not allow to change at run time (they define the filterbank's
-/// channel grid, which every representation above it is laid out on).
-const FIXED_PARAMETERS: &[&str] = &[
-    "fb_type",
-    "fb_lowFreqHz",
-    "fb_highFreqHz",
-    "fb_nERBs",
-    "fb_cfHz",
-];
 
 /// Handle of a placed request, returned by [`Manager::add_request`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -304,13 +296,9 @@ impl Manager {
     }
 
     fn add_request_now(&mut self, name: &str, params: &ParamMap) -> Result<RequestHandle> {
-        let def = find_request(name)?;
-        let mut chain: Vec<&'static RequestDef> = vec![def];
-        while chain[chain.len() - 1].dependency != "input" {
-            chain.push(find_request(chain[chain.len() - 1].dependency)?);
-        }
+        let chain = chain_of(name)?;
         let rollback = self.graph.nodes.len();
-        match self.resolve(&chain, params, name) {
+        match self.graph.resolve(self.ears, &chain, params, name) {
             Ok(outputs) => {
                 self.requests.push(Some(Request {
                     outputs,
@@ -323,115 +311,6 @@ impl Manager {
                 Err(e)
             }
         }
-    }
-
-    fn resolve(
-        &mut self,
-        chain: &[&'static RequestDef],
-        params: &ParamMap,
-        request: &str,
-    ) -> Result<Vec<OutputRef>> {
-        let mut level: Vec<OutputRef> = (0..self.ears)
-            .map(|output| OutputRef { node: 0, output })
-            .collect();
-        for def in chain.iter().rev() {
-            let own = (def.canonical)(params)?;
-            let groups: Vec<Vec<OutputRef>> = match def.ears {
-                Ears::All => vec![level.clone()],
-                Ears::PerEar => level.iter().map(|r| vec![*r]).collect(),
-                Ears::Binaural => {
-                    let single_binaural = level.len() == 1
-                        && self.graph.nodes[level[0].node].parents.len() == 2
-                        && self.graph.nodes[level[0].node].outputs.len() == 1;
-                    if level.len() == 1 && !single_binaural {
-                        return Err(Error::BinauralOnMono(request.to_string()));
-                    }
-                    vec![level.clone()]
-                }
-            };
-            let instance = self.instance_for(def.name, &own, &groups);
-            let mut next = Vec::new();
-            for parents in groups {
-                let node = match self.find_node(def.name, &own, &parents) {
-                    Some(n) => n,
-                    None => self.add_node(def, params, own.clone(), parents, instance)?,
-                };
-                next.extend(
-                    (0..self.graph.nodes[node].outputs.len())
-                        .map(|output| OutputRef { node, output }),
-                );
-            }
-            level = next;
-        }
-        Ok(level)
-    }
-
-    fn find_node(&self, name: &str, params: &ParamMap, parents: &[OutputRef]) -> Option<usize> {
-        self.graph
-            .nodes
-            .iter()
-            .position(|n| n.name == name && &n.params == params && n.parents == parents)
-    }
-
-    /// The instance number for a new node of `name`: the one of an existing node with the
-    /// same parameters (the other ear of the same request), or one more than the largest.
-    fn instance_for(&self, name: &str, params: &ParamMap, groups: &[Vec<OutputRef>]) -> usize {
-        if let Some(n) = groups
-            .iter()
-            .find_map(|parents| self.find_node(name, params, parents))
-        {
-            return self.graph.nodes[n].instance;
-        }
-        1 + self
-            .graph
-            .nodes
-            .iter()
-            .filter(|n| n.name == name)
-            .map(|n| n.instance)
-            .max()
-            .unwrap_or(0)
-    }
-
-    /// Builds a node from the request's `params`; `own` is its canonical parameter map.
-    fn add_node(
-        &mut self,
-        def: &'static RequestDef,
-        params: &ParamMap,
-        own: ParamMap,
-        parents: Vec<OutputRef>,
-        instance: usize,
-    ) -> Result<usize> {
-        let inputs: Vec<SignalInfo> = parents
-            .iter()
-            .map(|p| self.graph.nodes[p.node].infos[p.output].clone())
-            .collect();
-        let built = (def.build)(params, &inputs)?;
-        let channels = match def.ears {
-            Ears::All => parents
-                .iter()
-                .map(|p| self.graph.nodes[p.node].channels[p.output])
-                .collect(),
-            Ears::PerEar => vec![self.graph.nodes[parents[0].node].channels[parents[0].output]],
-            Ears::Binaural => vec![Channel::Mono],
-        };
-        let outputs = built
-            .outputs
-            .iter()
-            .map(|info| Block::new(info.width()))
-            .collect();
-        self.graph.nodes.push(Node {
-            name: def.name,
-            def: Some(def),
-            build_params: params.clone(),
-            instance,
-            params: own,
-            parents,
-            processor: Some(built.processor),
-            outputs,
-            infos: built.outputs,
-            channels,
-        });
-        Ok(self.graph.nodes.len() - 1)
     }
 
     fn check_chunk(&self, chunk: &[&[f64]]) -> Result<()> {
@@ -658,41 +537,13 @@ impl Manager {
 
     /// Drops the nodes that no remaining request needs, renumbering the others.
     fn prune(&mut self) {
-        let n = self.graph.nodes.len();
-        let mut keep = vec![false; n];
-        keep[0] = true;
-        let mut stack: Vec<usize> = self
+        let needed: Vec<OutputRef> = self
             .requests
             .iter()
             .flatten()
-            .flat_map(|r| r.outputs.iter().map(|o| o.node))
+            .flat_map(|r| r.outputs.iter().copied())
             .collect();
-        while let Some(i) = stack.pop() {
-            if !keep[i] {
-                keep[i] = true;
-                stack.extend(self.graph.nodes[i].parents.iter().map(|p| p.node));
-            }
-        }
-        let mut new_index = vec![usize::MAX; n];
-        let mut next = 0;
-        for (i, k) in keep.iter().enumerate() {
-            if *k {
-                new_index[i] = next;
-                next += 1;
-            }
-        }
-        let old = std::mem::take(&mut self.graph.nodes);
-        self.graph.nodes = old
-            .into_iter()
-            .zip(&keep)
-            .filter(|(_, k)| **k)
-            .map(|(mut node, _)| {
-                for p in &mut node.parents {
-                    p.node = new_index[p.node];
-                }
-                node
-            })
-            .collect();
+        let new_index = self.graph.prune(needed.into_iter());
         for r in self.requests.iter_mut().flatten() {
             for o in &mut r.outputs {
                 o.node = new_index[o.node];
@@ -712,7 +563,7 @@ impl Manager {
     ) -> Result<()> {
         let single: ParamMap = [(name.to_string(), value)].into_iter().collect();
         check_parameter_names(&single)?;
-        if FIXED_PARAMETERS.contains(&name) {
+        if requests().iter().any(|r| r.fixed.contains(&name)) {
             return Err(Error::InvalidParameter {
                 name: name.into(),
                 value: single[name].to_string(),
@@ -724,7 +575,7 @@ impl Manager {
         };
         let mut params = req.params.clone();
         params.extend(single);
-        let chain = self.ancestors(&req.outputs);
+        let chain = self.graph.ancestors(req.outputs.iter().copied());
         let used = chain.iter().any(|&i| {
             self.graph.nodes[i]
                 .def
@@ -737,89 +588,13 @@ impl Manager {
                 reason: format!("no processor of request {} uses this parameter", handle.0),
             });
         }
-        self.edit(|m| m.modify_now(handle, &chain, name, params))
-    }
-
-    /// Every node a set of outputs is computed from, the outputs' nodes included.
-    fn ancestors(&self, outputs: &[OutputRef]) -> Vec<usize> {
-        let mut seen = vec![false; self.graph.nodes.len()];
-        let mut stack: Vec<usize> = outputs.iter().map(|o| o.node).collect();
-        while let Some(i) = stack.pop() {
-            if !seen[i] {
-                seen[i] = true;
-                stack.extend(self.graph.nodes[i].parents.iter().map(|p| p.node));
+        self.edit(|m| {
+            m.graph.modify(&chain, name, &params)?;
+            if let Some(Some(req)) = m.requests.get_mut(handle.0) {
+                req.params.insert(name.to_string(), params[name].clone());
             }
-        }
-        (0..seen.len()).filter(|i| seen[*i]).collect()
-    }
-
-    fn modify_now(
-        &mut self,
-        handle: RequestHandle,
-        chain: &[usize],
-        name: &str,
-        params: ParamMap,
-    ) -> Result<()> {
-        let n = self.graph.nodes.len();
-        let mut dirty = vec![false; n];
-        let mut rebuilt: Vec<(usize, ParamMap, ParamMap)> = Vec::new();
-        for &i in chain {
-            let node = &self.graph.nodes[i];
-            if let Some(def) = node.def {
-                if def.params.iter().any(|p| p.name == name) {
-                    let own = (def.canonical)(&params)?;
-                    let mut build = node.build_params.clone();
-                    build.insert(name.to_string(), params[name].clone());
-                    rebuilt.push((i, build, own));
-                    dirty[i] = true;
-                }
-            }
-        }
-        for i in 1..n {
-            if !dirty[i] && self.graph.nodes[i].parents.iter().any(|p| dirty[p.node]) {
-                dirty[i] = true;
-            }
-        }
-        // Build every replacement first, so that a rejected value changes nothing.
-        let mut infos: Vec<Vec<SignalInfo>> =
-            self.graph.nodes.iter().map(|n| n.infos.clone()).collect();
-        let mut built = Vec::new();
-        for i in (1..n).filter(|i| dirty[*i]) {
-            let node = &self.graph.nodes[i];
-            let def = node
-                .def
-                .ok_or_else(|| Error::InvalidInput("the input node cannot be rebuilt".into()))?;
-            let (build, own) = match rebuilt.iter().find(|r| r.0 == i) {
-                Some((_, b, o)) => (b.clone(), Some(o.clone())),
-                None => (node.build_params.clone(), None),
-            };
-            let inputs: Vec<SignalInfo> = node
-                .parents
-                .iter()
-                .map(|p| infos[p.node][p.output].clone())
-                .collect();
-            let b = (def.build)(&build, &inputs)?;
-            infos[i] = b.outputs.clone();
-            built.push((i, b, build, own));
-        }
-        for (i, b, build, own) in built {
-            let node = &mut self.graph.nodes[i];
-            node.outputs = b
-                .outputs
-                .iter()
-                .map(|info| Block::new(info.width()))
-                .collect();
-            node.infos = b.outputs;
-            node.processor = Some(b.processor);
-            node.build_params = build;
-            if let Some(own) = own {
-                node.params = own;
-            }
-        }
-        if let Some(Some(req)) = self.requests.get_mut(handle.0) {
-            req.params.insert(name.to_string(), params[name].clone());
-        }
-        Ok(())
+            Ok(())
+        })
     }
 
     /// The output signals of a request: one per ear for per-ear representations, one

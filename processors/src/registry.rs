@@ -56,6 +56,14 @@ pub struct RequestDef {
     /// Whether, with these request parameters, any chunking gives the output of one call
     /// (false where the AFE itself depends on chunk boundaries).
     pub chunk_invariant: fn(&ParamMap) -> bool,
+    /// Requests read beside the dependency, with these request parameters (resolved with
+    /// the same parameters, so they are the nodes of the chain below when it has them).
+    /// Per-ear processors get the same ear's output after their dependency's; binaural
+    /// ones get left and right after theirs.
+    pub extra_inputs: fn(&ParamMap) -> &'static [&'static str],
+    /// Parameters that cannot change at run time (as in the AFE): they fix what every
+    /// representation above is laid out on.
+    pub fixed: &'static [&'static str],
 }
 
 impl std::fmt::Debug for RequestDef {
@@ -142,6 +150,10 @@ fn always(_: &ParamMap) -> bool {
     true
 }
 
+fn no_extra_inputs(_: &ParamMap) -> &'static [&'static str] {
+    &[]
+}
+
 /// The AGC seeds its running mean from the first chunk.
 fn time_chunk_invariant(map: &ParamMap) -> bool {
     PreProcParams::from_map(map).is_ok_and(|p| !p.normalize_rms)
@@ -165,6 +177,8 @@ static REQUESTS: &[RequestDef] = &[
         canonical: canonical::<PreProcParams>,
         build: build_time,
         chunk_invariant: time_chunk_invariant,
+        extra_inputs: no_extra_inputs,
+        fixed: &[],
     },
     RequestDef {
         name: "butterworth",
@@ -177,6 +191,8 @@ static REQUESTS: &[RequestDef] = &[
         canonical: canonical::<ButterworthParams>,
         build: build_butterworth,
         chunk_invariant: always,
+        extra_inputs: no_extra_inputs,
+        fixed: &[],
     },
     RequestDef {
         name: "filterbank",
@@ -189,6 +205,14 @@ static REQUESTS: &[RequestDef] = &[
         canonical: canonical_filterbank,
         build: build_filterbank,
         chunk_invariant: always,
+        extra_inputs: no_extra_inputs,
+        fixed: &[
+            "fb_type",
+            "fb_lowFreqHz",
+            "fb_highFreqHz",
+            "fb_nERBs",
+            "fb_cfHz",
+        ],
     },
     RequestDef {
         name: "innerhaircell",
@@ -201,6 +225,8 @@ static REQUESTS: &[RequestDef] = &[
         canonical: canonical::<IhcParams>,
         build: build_ihc,
         chunk_invariant: ihc_chunk_invariant,
+        extra_inputs: no_extra_inputs,
+        fixed: &[],
     },
     RequestDef {
         name: "ratemap",
@@ -213,6 +239,8 @@ static REQUESTS: &[RequestDef] = &[
         canonical: canonical::<RatemapParams>,
         build: build_ratemap,
         chunk_invariant: always,
+        extra_inputs: no_extra_inputs,
+        fixed: &[],
     },
     RequestDef {
         name: "ild",
@@ -225,6 +253,8 @@ static REQUESTS: &[RequestDef] = &[
         canonical: canonical::<IldParams>,
         build: build_ild,
         chunk_invariant: always,
+        extra_inputs: no_extra_inputs,
+        fixed: &[],
     },
     RequestDef {
         name: "crosscorrelation",
@@ -237,6 +267,8 @@ static REQUESTS: &[RequestDef] = &[
         canonical: canonical::<CrosscorrelationParams>,
         build: build_crosscorrelation,
         chunk_invariant: always,
+        extra_inputs: no_extra_inputs,
+        fixed: &[],
     },
     RequestDef {
         name: "itd",
@@ -249,6 +281,8 @@ static REQUESTS: &[RequestDef] = &[
         canonical: no_params,
         build: build_itd,
         chunk_invariant: always,
+        extra_inputs: no_extra_inputs,
+        fixed: &[],
     },
     RequestDef {
         name: "ic",
@@ -261,6 +295,8 @@ static REQUESTS: &[RequestDef] = &[
         canonical: no_params,
         build: build_ic,
         chunk_invariant: always,
+        extra_inputs: no_extra_inputs,
+        fixed: &[],
     },
 ];
 

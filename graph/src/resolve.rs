@@ -1,0 +1,265 @@
+//! Request resolution and graph editing (spec 00-overview §3–§5, §10): a request becomes a
+//! chain of processors, each shared with earlier requests whose whole chain has equal
+//! parameters; removing a request prunes what nobody uses; modifying a parameter rebuilds
+//! the processors that declare it and everything computed from them. Execution lives in
+//! [`crate::manager`] and the executors; nothing here runs a processor.
+
+use afe_core::{Block, Error, ParamMap, Result, SignalInfo};
+use afe_processors::{find_request, Ears, RequestDef};
+
+use crate::graph::{Channel, Graph, Node, OutputRef, MAX_INPUTS};
+
+/// The request definitions from `name` down to the input, `name` first.
+pub(crate) fn chain_of(name: &str) -> Result<Vec<&'static RequestDef>> {
+    let mut chain: Vec<&'static RequestDef> = vec![find_request(name)?];
+    while chain[chain.len() - 1].dependency != "input" {
+        chain.push(find_request(chain[chain.len() - 1].dependency)?);
+    }
+    Ok(chain)
+}
+
+impl Graph {
+    /// Places the processors of request `request` (its chain, `request` first) with the
+    /// request parameters `params`, sharing every node whose own parameters and parents
+    /// are equal; returns the request's outputs. On error, nodes added so far stay: the
+    /// caller truncates to the length it had.
+    pub(crate) fn resolve(
+        &mut self,
+        ears: usize,
+        chain: &[&'static RequestDef],
+        params: &ParamMap,
+        request: &str,
+    ) -> Result<Vec<OutputRef>> {
+        let mut level: Vec<OutputRef> = (0..ears)
+            .map(|output| OutputRef { node: 0, output })
+            .collect();
+        for def in chain.iter().rev() {
+            let own = (def.canonical)(params)?;
+            let mut extras: Vec<Vec<OutputRef>> = Vec::new();
+            for extra in (def.extra_inputs)(params) {
+                extras.push(self.resolve(ears, &chain_of(extra)?, params, request)?);
+            }
+            let groups: Vec<Vec<OutputRef>> = match def.ears {
+                Ears::All => vec![level.clone()],
+                Ears::PerEar => level
+                    .iter()
+                    .enumerate()
+                    .map(|(ear, r)| {
+                        let mut g = vec![*r];
+                        g.extend(extras.iter().map(|e| e[ear.min(e.len() - 1)]));
+                        g
+                    })
+                    .collect(),
+                Ears::Binaural => {
+                    if level.len() == 1 && !self.is_binaural(level[0]) {
+                        return Err(Error::BinauralOnMono(request.to_string()));
+                    }
+                    let mut g = level.clone();
+                    g.extend(extras.iter().flatten());
+                    vec![g]
+                }
+            };
+            let instance = self.instance_for(def.name, &own, &groups);
+            let mut next = Vec::new();
+            for parents in groups {
+                let node = match self.find_node(def.name, &own, &parents) {
+                    Some(n) => n,
+                    None => self.add_node(def, params, own.clone(), parents, instance)?,
+                };
+                next.extend(
+                    (0..self.nodes[node].outputs.len()).map(|output| OutputRef { node, output }),
+                );
+            }
+            level = next;
+        }
+        Ok(level)
+    }
+
+    /// Whether `r` is the output of a binaural processor (a cue computed from both ears).
+    fn is_binaural(&self, r: OutputRef) -> bool {
+        self.nodes[r.node]
+            .def
+            .is_some_and(|d| d.ears == Ears::Binaural)
+    }
+
+    fn find_node(&self, name: &str, params: &ParamMap, parents: &[OutputRef]) -> Option<usize> {
+        self.nodes
+            .iter()
+            .position(|n| n.name == name && &n.params == params && n.parents == parents)
+    }
+
+    /// The instance number for a new node of `name`: the one of an existing node with the
+    /// same parameters (the other ear of the same request), or one more than the largest.
+    fn instance_for(&self, name: &str, params: &ParamMap, groups: &[Vec<OutputRef>]) -> usize {
+        if let Some(n) = groups
+            .iter()
+            .find_map(|parents| self.find_node(name, params, parents))
+        {
+            return self.nodes[n].instance;
+        }
+        1 + self
+            .nodes
+            .iter()
+            .filter(|n| n.name == name)
+            .map(|n| n.instance)
+            .max()
+            .unwrap_or(0)
+    }
+
+    /// Builds a node from the request's `params`; `own` is its canonical parameter map.
+    fn add_node(
+        &mut self,
+        def: &'static RequestDef,
+        params: &ParamMap,
+        own: ParamMap,
+        parents: Vec<OutputRef>,
+        instance: usize,
+    ) -> Result<usize> {
+        if parents.len() > MAX_INPUTS {
+            return Err(Error::InvalidInput(format!(
+                "{} would read {} inputs; a node reads at most {MAX_INPUTS}",
+                def.name,
+                parents.len()
+            )));
+        }
+        let inputs: Vec<SignalInfo> = parents
+            .iter()
+            .map(|p| self.nodes[p.node].infos[p.output].clone())
+            .collect();
+        let built = (def.build)(params, &inputs)?;
+        let channels = match def.ears {
+            Ears::All => parents
+                .iter()
+                .map(|p| self.nodes[p.node].channels[p.output])
+                .collect(),
+            Ears::PerEar => vec![self.nodes[parents[0].node].channels[parents[0].output]],
+            Ears::Binaural => vec![Channel::Mono],
+        };
+        let outputs = built
+            .outputs
+            .iter()
+            .map(|info| Block::new(info.width()))
+            .collect();
+        self.nodes.push(Node {
+            name: def.name,
+            def: Some(def),
+            build_params: params.clone(),
+            instance,
+            params: own,
+            parents,
+            processor: Some(built.processor),
+            outputs,
+            infos: built.outputs,
+            channels,
+        });
+        Ok(self.nodes.len() - 1)
+    }
+
+    /// Drops the nodes that none of `needed` (the outputs of the remaining requests) is
+    /// computed from, renumbering the others; returns the new index of each old node
+    /// (`usize::MAX` for a dropped one).
+    pub(crate) fn prune(&mut self, needed: impl Iterator<Item = OutputRef>) -> Vec<usize> {
+        let n = self.nodes.len();
+        let mut keep = vec![false; n];
+        keep[0] = true;
+        for i in self.ancestors(needed) {
+            keep[i] = true;
+        }
+        let mut new_index = vec![usize::MAX; n];
+        let mut next = 0;
+        for (i, k) in keep.iter().enumerate() {
+            if *k {
+                new_index[i] = next;
+                next += 1;
+            }
+        }
+        let old = std::mem::take(&mut self.nodes);
+        self.nodes = old
+            .into_iter()
+            .zip(&keep)
+            .filter(|(_, k)| **k)
+            .map(|(mut node, _)| {
+                for p in &mut node.parents {
+                    p.node = new_index[p.node];
+                }
+                node
+            })
+            .collect();
+        new_index
+    }
+
+    /// Every node a set of outputs is computed from, the outputs' nodes included, in
+    /// graph order.
+    pub(crate) fn ancestors(&self, outputs: impl Iterator<Item = OutputRef>) -> Vec<usize> {
+        let mut seen = vec![false; self.nodes.len()];
+        let mut stack: Vec<usize> = outputs.map(|o| o.node).collect();
+        while let Some(i) = stack.pop() {
+            if !seen[i] {
+                seen[i] = true;
+                stack.extend(self.nodes[i].parents.iter().map(|p| p.node));
+            }
+        }
+        (0..seen.len()).filter(|i| seen[*i]).collect()
+    }
+
+    /// Sets parameter `name` to `params[name]` in the nodes of `chain` that declare it and
+    /// rebuilds them and every node computed from them (fresh state). Every replacement is
+    /// built before any is installed, so a rejected value changes nothing.
+    pub(crate) fn modify(&mut self, chain: &[usize], name: &str, params: &ParamMap) -> Result<()> {
+        let n = self.nodes.len();
+        let mut dirty = vec![false; n];
+        let mut rebuilt: Vec<(usize, ParamMap, ParamMap)> = Vec::new();
+        for &i in chain {
+            let node = &self.nodes[i];
+            if let Some(def) = node.def {
+                if def.params.iter().any(|p| p.name == name) {
+                    let own = (def.canonical)(params)?;
+                    let mut build = node.build_params.clone();
+                    build.insert(name.to_string(), params[name].clone());
+                    rebuilt.push((i, build, own));
+                    dirty[i] = true;
+                }
+            }
+        }
+        for i in 1..n {
+            if !dirty[i] && self.nodes[i].parents.iter().any(|p| dirty[p.node]) {
+                dirty[i] = true;
+            }
+        }
+        let mut infos: Vec<Vec<SignalInfo>> = self.nodes.iter().map(|n| n.infos.clone()).collect();
+        let mut built = Vec::new();
+        for i in (1..n).filter(|i| dirty[*i]) {
+            let node = &self.nodes[i];
+            let def = node
+                .def
+                .ok_or_else(|| Error::InvalidInput("the input node cannot be rebuilt".into()))?;
+            let (build, own) = match rebuilt.iter().find(|r| r.0 == i) {
+                Some((_, b, o)) => (b.clone(), Some(o.clone())),
+                None => (node.build_params.clone(), None),
+            };
+            let inputs: Vec<SignalInfo> = node
+                .parents
+                .iter()
+                .map(|p| infos[p.node][p.output].clone())
+                .collect();
+            let b = (def.build)(&build, &inputs)?;
+            infos[i] = b.outputs.clone();
+            built.push((i, b, build, own));
+        }
+        for (i, b, build, own) in built {
+            let node = &mut self.nodes[i];
+            node.outputs = b
+                .outputs
+                .iter()
+                .map(|info| Block::new(info.width()))
+                .collect();
+            node.infos = b.outputs;
+            node.processor = Some(b.processor);
+            node.build_params = build;
+            if let Some(own) = own {
+                node.params = own;
+            }
+        }
+        Ok(())
+    }
+}
