@@ -18,5 +18,5 @@ pub mod window;
 
 pub use block::{Block, SignalInfo, SignalKind};
 pub use error::{Error, Result};
-pub use params::{ParamKind, ParamMap, ParamSpec, Params};
+pub use params::{NoParams, ParamKind, ParamMap, ParamSpec, Params};
 pub use processor::Processor;

@@ -175,6 +175,14 @@ pub trait Params: Serialize + DeserializeOwned + Default + Clone + PartialEq {
     }
 }
 
+/// The parameters of a processor that has none of its own (e.g. `itd`, `ic`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, serde::Deserialize)]
+pub struct NoParams {}
+
+impl Params for NoParams {
+    const SPECS: &'static [ParamSpec] = &[];
+}
+
 /// Test helper for processor crates (panics on a mismatch): checks that `P::SPECS` and
 /// the serialised default name the same parameters and that every default passes its own
 /// declaration.

@@ -6,6 +6,8 @@ use afe_core::filter::Df2t;
 use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
 
+use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
+
 /// Parameters of the Butterworth filter (`bw_` prefix, in the AFE naming style).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -130,6 +132,23 @@ impl Processor for Butterworth {
         self.filter.reset();
     }
 }
+
+impl Descriptor for Butterworth {
+    type Params = ButterworthParams;
+    const NAME: &'static str = "butterworth";
+    const DEPENDENCY: &'static str = "time";
+    const EARS: Ears = Ears::PerEar;
+    const DESCRIPTION: &'static str = "Butterworth-filtered ear signals (not in the AFE)";
+    const OUTPUT_UNIT: &'static str = "";
+
+    fn build(params: &ButterworthParams, inputs: &[SignalInfo]) -> Result<Built> {
+        let (p, out) = Butterworth::new(params, inputs[0].fs_hz)?;
+        Ok(Built::new(p, vec![out]))
+    }
+}
+
+/// The registry entry of `butterworth`.
+pub static REQUEST: RequestDef = request_def::<Butterworth>();
 
 #[cfg(test)]
 mod tests {

@@ -15,6 +15,8 @@ use serde::{Deserialize, Serialize};
 use crate::cpu::has_avx512;
 use crate::framed::{check_framing, EarFrames};
 
+use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
+
 /// Parameters of the cross-correlation, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -526,6 +528,24 @@ impl Processor for Crosscorrelation {
         self.frames.reset();
     }
 }
+
+impl Descriptor for Crosscorrelation {
+    type Params = CrosscorrelationParams;
+    const NAME: &'static str = "crosscorrelation";
+    const DEPENDENCY: &'static str = "innerhaircell";
+    const EARS: Ears = Ears::Binaural;
+    const DESCRIPTION: &'static str =
+        "normalised interaural cross-correlation per frame, channel and lag";
+    const OUTPUT_UNIT: &'static str = "";
+
+    fn build(params: &CrosscorrelationParams, inputs: &[SignalInfo]) -> Result<Built> {
+        let (p, out) = Crosscorrelation::new(params, &inputs[0])?;
+        Ok(Built::new(p, vec![out]))
+    }
+}
+
+/// The registry entry of `crosscorrelation`.
+pub static REQUEST: RequestDef = request_def::<Crosscorrelation>();
 
 #[cfg(test)]
 mod tests {

@@ -18,6 +18,8 @@ use serde_json::{json, Value};
 
 use crate::cpu::has_avx512;
 
+use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
+
 /// Parameters of the gammatone filterbank, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -526,6 +528,36 @@ impl Processor for Gammatone {
         }
     }
 }
+
+impl Descriptor for Gammatone {
+    type Params = GammatoneParams;
+    const NAME: &'static str = "filterbank";
+    const DEPENDENCY: &'static str = "time";
+    const EARS: Ears = Ears::PerEar;
+    const DESCRIPTION: &'static str = "gammatone filterbank output per frequency channel";
+    const OUTPUT_UNIT: &'static str = "";
+    /// The channel grid, which every representation above is laid out on.
+    const FIXED: &'static [&'static str] = &[
+        "fb_type",
+        "fb_lowFreqHz",
+        "fb_highFreqHz",
+        "fb_nERBs",
+        "fb_cfHz",
+    ];
+
+    fn build(params: &GammatoneParams, inputs: &[SignalInfo]) -> Result<Built> {
+        let (p, out) = Gammatone::new(params, inputs[0].fs_hz)?;
+        Ok(Built::new(p, vec![out]))
+    }
+
+    /// The resolved channel grid (equal grids from different parameter sets are shared).
+    fn canonical(params: &GammatoneParams) -> Result<ParamMap> {
+        Ok(params.grid()?.map)
+    }
+}
+
+/// The registry entry of `filterbank`.
+pub static REQUEST: RequestDef = request_def::<Gammatone>();
 
 #[cfg(test)]
 mod tests {

@@ -5,6 +5,8 @@ use afe_core::{Block, Processor, Result, SignalInfo};
 
 use crate::itd::{correlation_input, parabolic_peak};
 
+use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
+
 /// The IC extractor: `[frame][channel][lag]` in, `[frame][channel]` out.
 #[derive(Debug, Clone)]
 pub struct Ic {
@@ -34,6 +36,23 @@ impl Processor for Ic {
 
     fn reset(&mut self) {}
 }
+
+impl Descriptor for Ic {
+    type Params = afe_core::NoParams;
+    const NAME: &'static str = "ic";
+    const DEPENDENCY: &'static str = "crosscorrelation";
+    const EARS: Ears = Ears::Binaural;
+    const DESCRIPTION: &'static str = "interaural coherence per frame and channel";
+    const OUTPUT_UNIT: &'static str = "";
+
+    fn build(_: &afe_core::NoParams, inputs: &[SignalInfo]) -> Result<Built> {
+        let (p, out) = Ic::new(&inputs[0])?;
+        Ok(Built::new(p, vec![out]))
+    }
+}
+
+/// The registry entry of `ic`.
+pub static REQUEST: RequestDef = request_def::<Ic>();
 
 #[cfg(test)]
 mod tests {

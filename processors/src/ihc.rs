@@ -10,6 +10,8 @@ use afe_core::hilbert::Hilbert;
 use afe_core::{Block, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
 
+use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
+
 /// The accepted `ihc_method` names.
 pub const IHC_METHODS: &[&str] = &[
     "none",
@@ -24,20 +26,12 @@ pub const IHC_METHODS: &[&str] = &[
 ];
 
 /// Parameters of the inner-hair-cell stage, under their AFE names.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct IhcParams {
     /// Envelope extraction method (AFE `ihc_method`).
     #[serde(rename = "ihc_method")]
-    pub method: String,
-}
-
-impl Default for IhcParams {
-    fn default() -> Self {
-        IhcParams {
-            method: "dau".into(),
-        }
-    }
+    pub method: Method,
 }
 
 impl Params for IhcParams {
@@ -49,32 +43,40 @@ impl Params for IhcParams {
     }];
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Method {
+/// Envelope extraction methods of the AFE (spec 13-ihc), under their AFE names.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// The filterbank output unchanged.
     None,
+    /// Half-wave rectification.
     Halfwave,
+    /// Full-wave rectification.
     Fullwave,
+    /// Squared signal.
     Square,
+    /// Hilbert envelope (per chunk).
     Hilbert,
+    /// Hilbert envelope, then a 150 Hz first-order low-pass (Jørgensen & Dau).
     Joergensen,
+    /// Half-wave rectification, then a 1 kHz second-order low-pass (Dau et al.).
+    #[default]
     Dau,
+    /// Half-wave rectification, then five 2 kHz first-order low-passes (Breebaart et al.).
     Breebart,
+    /// Compressed Hilbert envelope, squared and half-wave rectified, then a 425 Hz
+    /// second-order low-pass (Bernstein et al.).
     Bernstein,
 }
 
 impl Method {
-    fn parse(name: &str) -> Self {
-        match name {
-            "none" => Method::None,
-            "halfwave" => Method::Halfwave,
-            "fullwave" => Method::Fullwave,
-            "square" => Method::Square,
-            "hilbert" => Method::Hilbert,
-            "joergensen" => Method::Joergensen,
-            "breebart" => Method::Breebart,
-            "bernstein" => Method::Bernstein,
-            _ => Method::Dau,
-        }
+    /// Whether the method transforms each chunk on its own (a Hilbert transform over the
+    /// chunk), which makes the output depend on the chunking, as in the AFE.
+    pub fn is_per_chunk(self) -> bool {
+        matches!(
+            self,
+            Method::Hilbert | Method::Joergensen | Method::Bernstein
+        )
     }
 
     /// Butterworth low-pass stage: (order, cut-off Hz, cascade count).
@@ -108,13 +110,13 @@ impl std::fmt::Debug for Ihc {
 impl Ihc {
     /// Builds the stage for the filterbank signal `input`.
     pub fn new(params: &IhcParams, input: &SignalInfo) -> Result<(Self, SignalInfo)> {
-        let method = Method::parse(&params.method);
+        let method = params.method;
         let channels = input.channels();
         let lowpass = match method.lowpass() {
             Some((_, fc, _)) if fc >= input.fs_hz / 2.0 => {
                 return Err(afe_core::Error::InvalidParameter {
                     name: "ihc_method".into(),
-                    value: format!("\"{}\"", params.method),
+                    value: serde_json::to_string(&method).unwrap_or_default(),
                     reason: format!(
                         "its {fc} Hz low-pass needs a sampling rate above {} Hz (the input has {} Hz)",
                         2.0 * fc,
@@ -205,15 +207,34 @@ impl Processor for Ihc {
     }
 }
 
+impl Descriptor for Ihc {
+    type Params = IhcParams;
+    const NAME: &'static str = "innerhaircell";
+    const DEPENDENCY: &'static str = "filterbank";
+    const EARS: Ears = Ears::PerEar;
+    const DESCRIPTION: &'static str = "inner-hair-cell envelope per frequency channel";
+    const OUTPUT_UNIT: &'static str = "";
+
+    fn build(params: &IhcParams, inputs: &[SignalInfo]) -> Result<Built> {
+        let (p, out) = Ihc::new(params, &inputs[0])?;
+        Ok(Built::new(p, vec![out]))
+    }
+
+    fn chunk_invariant(params: &IhcParams) -> bool {
+        !params.method.is_per_chunk()
+    }
+}
+
+/// The registry entry of `innerhaircell`.
+pub static REQUEST: RequestDef = request_def::<Ihc>();
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    fn run(method: &str, x: &[f64]) -> Vec<f64> {
+    fn run(method: Method, x: &[f64]) -> Vec<f64> {
         let info = SignalInfo::time_frequency(16000.0, vec![1000.0]);
-        let params = IhcParams {
-            method: method.into(),
-        };
+        let params = IhcParams { method };
         let (mut ihc, _) = Ihc::new(&params, &info).expect("valid");
         let input = Block::from_vec(x.to_vec(), 1);
         let mut out = vec![Block::new(1)];
@@ -229,10 +250,10 @@ mod tests {
     #[test]
     fn memoryless_methods() {
         let x = [-2.0, -0.5, 0.0, 0.5, 3.0];
-        assert_eq!(run("none", &x), x.to_vec());
-        assert_eq!(run("halfwave", &x), vec![0.0, 0.0, 0.0, 0.5, 3.0]);
-        assert_eq!(run("fullwave", &x), vec![2.0, 0.5, 0.0, 0.5, 3.0]);
-        assert_eq!(run("square", &x), vec![4.0, 0.25, 0.0, 0.25, 9.0]);
+        assert_eq!(run(Method::None, &x), x.to_vec());
+        assert_eq!(run(Method::Halfwave, &x), vec![0.0, 0.0, 0.0, 0.5, 3.0]);
+        assert_eq!(run(Method::Fullwave, &x), vec![2.0, 0.5, 0.0, 0.5, 3.0]);
+        assert_eq!(run(Method::Square, &x), vec![4.0, 0.25, 0.0, 0.25, 9.0]);
     }
 
     #[test]
@@ -242,7 +263,7 @@ mod tests {
         assert!(e.to_string().contains("above 2000 Hz"), "{e}");
         assert!(Ihc::new(
             &IhcParams {
-                method: "halfwave".into()
+                method: Method::Halfwave
             },
             &info
         )
@@ -251,7 +272,7 @@ mod tests {
 
     #[test]
     fn bernstein_is_zero_on_silence_not_nan() {
-        let y = run("bernstein", &[0.0; 32]);
+        let y = run(Method::Bernstein, &[0.0; 32]);
         assert!(y.iter().all(|v| *v == 0.0));
     }
 
@@ -260,10 +281,26 @@ mod tests {
         let x: Vec<f64> = (0..16000)
             .map(|t| (2.0 * std::f64::consts::PI * 100.0 * t as f64 / 16000.0).sin())
             .collect();
-        let y = run("dau", &x);
+        let y = run(Method::Dau, &x);
         let tail = &y[8000..];
         let mean = tail.iter().sum::<f64>() / tail.len() as f64;
         // mean of a half-wave rectified unit sine is 1/π
         assert!((mean - 1.0 / std::f64::consts::PI).abs() < 1e-3, "{mean}");
+    }
+
+    #[test]
+    fn every_listed_name_parses_and_unknown_ones_are_errors() {
+        for name in IHC_METHODS {
+            let map = [("ihc_method".to_string(), serde_json::json!(name))]
+                .into_iter()
+                .collect();
+            let p = IhcParams::from_map(&map).expect("listed name");
+            assert_eq!(serde_json::to_value(p.method).expect("name"), *name);
+        }
+        let map = [("ihc_method".to_string(), serde_json::json!("dauu"))]
+            .into_iter()
+            .collect();
+        let e = IhcParams::from_map(&map).expect_err("unknown method");
+        assert!(e.to_string().contains("ihc_method"), "{e}");
     }
 }

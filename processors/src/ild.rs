@@ -9,6 +9,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::framed::{check_framing, EarFrames};
 
+use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
+
 /// Parameters of the ILD, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -172,6 +174,24 @@ impl Processor for Ild {
         self.frames.reset();
     }
 }
+
+impl Descriptor for Ild {
+    type Params = IldParams;
+    const NAME: &'static str = "ild";
+    const DEPENDENCY: &'static str = "innerhaircell";
+    const EARS: Ears = Ears::Binaural;
+    const DESCRIPTION: &'static str =
+        "interaural level difference, right re left, per frame and channel";
+    const OUTPUT_UNIT: &'static str = "dB";
+
+    fn build(params: &IldParams, inputs: &[SignalInfo]) -> Result<Built> {
+        let (p, out) = Ild::new(params, &inputs[0])?;
+        Ok(Built::new(p, vec![out]))
+    }
+}
+
+/// The registry entry of `ild`.
+pub static REQUEST: RequestDef = request_def::<Ild>();
 
 #[cfg(test)]
 mod tests {

@@ -3,6 +3,8 @@
 
 use afe_core::{Block, Processor, Result, SignalInfo, SignalKind};
 
+use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
+
 /// Peak of a correlation function: `(index, δ)` with the first maximum (NaN ignored, as
 /// MATLAB's `max`) and the parabolic offset δ (0 at the lag-range edges).
 pub(crate) fn parabolic_peak(y: &[f64]) -> (usize, f64, f64) {
@@ -62,6 +64,24 @@ impl Processor for Itd {
 
     fn reset(&mut self) {}
 }
+
+impl Descriptor for Itd {
+    type Params = afe_core::NoParams;
+    const NAME: &'static str = "itd";
+    const DEPENDENCY: &'static str = "crosscorrelation";
+    const EARS: Ears = Ears::Binaural;
+    const DESCRIPTION: &'static str =
+        "interaural time difference per frame and channel (positive: right leads)";
+    const OUTPUT_UNIT: &'static str = "s";
+
+    fn build(_: &afe_core::NoParams, inputs: &[SignalInfo]) -> Result<Built> {
+        let (p, out) = Itd::new(&inputs[0])?;
+        Ok(Built::new(p, vec![out]))
+    }
+}
+
+/// The registry entry of `itd`.
+pub static REQUEST: RequestDef = request_def::<Itd>();
 
 #[cfg(test)]
 mod tests {

@@ -10,6 +10,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::middle_ear;
 
+use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
+
 /// Parameters of the pre-processor, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -329,6 +331,29 @@ impl Processor for PreProc {
         }
     }
 }
+
+impl Descriptor for PreProc {
+    type Params = PreProcParams;
+    const NAME: &'static str = "time";
+    const DEPENDENCY: &'static str = "input";
+    const EARS: Ears = Ears::All;
+    const DESCRIPTION: &'static str =
+        "pre-processed ear signals (DC removal, pre-emphasis, AGC, level, middle ear)";
+    const OUTPUT_UNIT: &'static str = "";
+
+    fn build(params: &PreProcParams, inputs: &[SignalInfo]) -> Result<Built> {
+        let (p, outputs) = PreProc::new(params, inputs[0].fs_hz, inputs.len())?;
+        Ok(Built::new(p, outputs))
+    }
+
+    /// The AGC seeds its running mean from the first chunk.
+    fn chunk_invariant(params: &PreProcParams) -> bool {
+        !params.normalize_rms
+    }
+}
+
+/// The registry entry of `time`.
+pub static REQUEST: RequestDef = request_def::<PreProc>();
 
 #[cfg(test)]
 mod tests {

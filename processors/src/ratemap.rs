@@ -10,6 +10,8 @@ use serde::{Deserialize, Serialize};
 use crate::framed::check_framing;
 use crate::ild::frame_power;
 
+use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
+
 /// Parameters of the ratemap, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -151,6 +153,24 @@ impl Processor for Ratemap {
         self.frames.reset();
     }
 }
+
+impl Descriptor for Ratemap {
+    type Params = RatemapParams;
+    const NAME: &'static str = "ratemap";
+    const DEPENDENCY: &'static str = "innerhaircell";
+    const EARS: Ears = Ears::PerEar;
+    const DESCRIPTION: &'static str =
+        "auditory spectrogram: smoothed IHC envelope per frame and channel";
+    const OUTPUT_UNIT: &'static str = "";
+
+    fn build(params: &RatemapParams, inputs: &[SignalInfo]) -> Result<Built> {
+        let (p, out) = Ratemap::new(params, &inputs[0])?;
+        Ok(Built::new(p, vec![out]))
+    }
+}
+
+/// The registry entry of `ratemap`.
+pub static REQUEST: RequestDef = request_def::<Ratemap>();
 
 #[cfg(test)]
 mod tests {

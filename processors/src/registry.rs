@@ -1,16 +1,10 @@
-//! Request names → processors: dependency, ear handling, parameters, constructor.
+//! The registry: every request this build computes, as a list of the descriptors that
+//! the processor modules declare (each module implements [`Descriptor`] for its processor
+//! and exports the type-erased [`RequestDef`] the graph works with as `REQUEST`).
 
 use afe_core::{Error, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo};
 
-use crate::butterworth::{Butterworth, ButterworthParams};
-use crate::crosscorrelation::{Crosscorrelation, CrosscorrelationParams};
-use crate::gammatone::{Gammatone, GammatoneParams};
-use crate::ic::Ic;
-use crate::ihc::{Ihc, IhcParams};
-use crate::ild::{Ild, IldParams};
-use crate::itd::Itd;
-use crate::pre_proc::{PreProc, PreProcParams};
-use crate::ratemap::{Ratemap, RatemapParams};
+use crate::{butterworth, crosscorrelation, gammatone, ic, ihc, ild, itd, pre_proc, ratemap};
 
 /// How a processor relates to the ears (the AFE's binaural flag).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -74,234 +68,111 @@ impl std::fmt::Debug for RequestDef {
     }
 }
 
-fn canonical<P: Params>(map: &ParamMap) -> Result<ParamMap> {
-    Ok(P::from_map(map)?.to_map())
-}
-
-fn defaults<P: Params>() -> ParamMap {
-    P::default().to_map()
-}
-
-fn built(processor: impl Processor + 'static, outputs: Vec<SignalInfo>) -> Built {
-    Built {
-        processor: Box::new(processor),
-        outputs,
+impl Built {
+    /// A built processor with one description per output.
+    pub fn new(processor: impl Processor + 'static, outputs: Vec<SignalInfo>) -> Self {
+        Built {
+            processor: Box::new(processor),
+            outputs,
+        }
     }
 }
 
-fn build_time(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
-    let (p, outs) = PreProc::new(
-        &PreProcParams::from_map(map)?,
-        inputs[0].fs_hz,
-        inputs.len(),
-    )?;
-    Ok(built(p, outs))
+/// What a processor module declares about the request it computes: its name, where its
+/// input comes from, its typed parameters and how to build it. The registry turns it into
+/// a [`RequestDef`] with [`request_def`]; parameters are parsed from the request's map
+/// once per use, into `Self::Params`.
+pub trait Descriptor {
+    /// The typed parameters (AFE names and defaults).
+    type Params: Params;
+    /// The AFE request name, e.g. `ratemap`.
+    const NAME: &'static str;
+    /// The request this one is computed from (`input` for the raw ear signals).
+    const DEPENDENCY: &'static str;
+    /// Ear handling.
+    const EARS: Ears;
+    /// One-line meaning, for listings.
+    const DESCRIPTION: &'static str;
+    /// Unit of the output values, for listings (`""` when dimensionless).
+    const OUTPUT_UNIT: &'static str;
+    /// Parameters that cannot change at run time (as in the AFE).
+    const FIXED: &'static [&'static str] = &[];
+
+    /// Builds the processor for the parents' outputs `inputs` (the dependency's, then
+    /// those of the extra inputs).
+    fn build(params: &Self::Params, inputs: &[SignalInfo]) -> Result<Built>;
+
+    /// The parameters that decide what the processor computes; two nodes with equal maps
+    /// (and equal parents) are shared.
+    fn canonical(params: &Self::Params) -> Result<ParamMap> {
+        Ok(params.to_map())
+    }
+
+    /// Whether any chunking gives the output of one call (false where the AFE itself
+    /// depends on chunk boundaries).
+    fn chunk_invariant(_: &Self::Params) -> bool {
+        true
+    }
+
+    /// Requests read beside the dependency (see [`RequestDef::extra_inputs`]).
+    fn extra_inputs(_: &Self::Params) -> &'static [&'static str] {
+        &[]
+    }
 }
 
-fn build_butterworth(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
-    let (p, out) = Butterworth::new(&ButterworthParams::from_map(map)?, inputs[0].fs_hz)?;
-    Ok(built(p, vec![out]))
-}
-
-fn canonical_filterbank(map: &ParamMap) -> Result<ParamMap> {
-    Ok(GammatoneParams::from_map(map)?.grid()?.map)
-}
-
-fn build_filterbank(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
-    let (p, out) = Gammatone::new(&GammatoneParams::from_map(map)?, inputs[0].fs_hz)?;
-    Ok(built(p, vec![out]))
-}
-
-fn build_ihc(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
-    let (p, out) = Ihc::new(&IhcParams::from_map(map)?, &inputs[0])?;
-    Ok(built(p, vec![out]))
-}
-
-fn build_ratemap(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
-    let (p, out) = Ratemap::new(&RatemapParams::from_map(map)?, &inputs[0])?;
-    Ok(built(p, vec![out]))
-}
-
-fn build_ild(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
-    let (p, out) = Ild::new(&IldParams::from_map(map)?, &inputs[0])?;
-    Ok(built(p, vec![out]))
-}
-
-fn build_crosscorrelation(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
-    let (p, out) = Crosscorrelation::new(&CrosscorrelationParams::from_map(map)?, &inputs[0])?;
-    Ok(built(p, vec![out]))
-}
-
-fn build_itd(_: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
-    let (p, out) = Itd::new(&inputs[0])?;
-    Ok(built(p, vec![out]))
-}
-
-fn build_ic(_: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
-    let (p, out) = Ic::new(&inputs[0])?;
-    Ok(built(p, vec![out]))
-}
-
-fn no_params(_: &ParamMap) -> Result<ParamMap> {
-    Ok(ParamMap::new())
-}
-
-fn always(_: &ParamMap) -> bool {
-    true
-}
-
-fn no_extra_inputs(_: &ParamMap) -> &'static [&'static str] {
-    &[]
-}
-
-/// The AGC seeds its running mean from the first chunk.
-fn time_chunk_invariant(map: &ParamMap) -> bool {
-    PreProcParams::from_map(map).is_ok_and(|p| !p.normalize_rms)
-}
-
-/// The Hilbert-based IHC methods transform each chunk on its own.
-fn ihc_chunk_invariant(map: &ParamMap) -> bool {
-    IhcParams::from_map(map)
-        .is_ok_and(|p| !matches!(p.method.as_str(), "hilbert" | "joergensen" | "bernstein"))
-}
-
-static REQUESTS: &[RequestDef] = &[
+/// The type-erased registry entry of the processor described by `D`.
+pub const fn request_def<D: Descriptor>() -> RequestDef {
     RequestDef {
-        name: "time",
-        dependency: "input",
-        ears: Ears::All,
-        description: "pre-processed ear signals (DC removal, pre-emphasis, AGC, level, middle ear)",
-        output_unit: "",
-        params: PreProcParams::SPECS,
-        defaults: defaults::<PreProcParams>,
-        canonical: canonical::<PreProcParams>,
-        build: build_time,
-        chunk_invariant: time_chunk_invariant,
-        extra_inputs: no_extra_inputs,
-        fixed: &[],
-    },
-    RequestDef {
-        name: "butterworth",
-        dependency: "time",
-        ears: Ears::PerEar,
-        description: "Butterworth-filtered ear signals (not in the AFE)",
-        output_unit: "",
-        params: ButterworthParams::SPECS,
-        defaults: defaults::<ButterworthParams>,
-        canonical: canonical::<ButterworthParams>,
-        build: build_butterworth,
-        chunk_invariant: always,
-        extra_inputs: no_extra_inputs,
-        fixed: &[],
-    },
-    RequestDef {
-        name: "filterbank",
-        dependency: "time",
-        ears: Ears::PerEar,
-        description: "gammatone filterbank output per frequency channel",
-        output_unit: "",
-        params: GammatoneParams::SPECS,
-        defaults: defaults::<GammatoneParams>,
-        canonical: canonical_filterbank,
-        build: build_filterbank,
-        chunk_invariant: always,
-        extra_inputs: no_extra_inputs,
-        fixed: &[
-            "fb_type",
-            "fb_lowFreqHz",
-            "fb_highFreqHz",
-            "fb_nERBs",
-            "fb_cfHz",
-        ],
-    },
-    RequestDef {
-        name: "innerhaircell",
-        dependency: "filterbank",
-        ears: Ears::PerEar,
-        description: "inner-hair-cell envelope per frequency channel",
-        output_unit: "",
-        params: IhcParams::SPECS,
-        defaults: defaults::<IhcParams>,
-        canonical: canonical::<IhcParams>,
-        build: build_ihc,
-        chunk_invariant: ihc_chunk_invariant,
-        extra_inputs: no_extra_inputs,
-        fixed: &[],
-    },
-    RequestDef {
-        name: "ratemap",
-        dependency: "innerhaircell",
-        ears: Ears::PerEar,
-        description: "auditory spectrogram: smoothed IHC envelope per frame and channel",
-        output_unit: "",
-        params: RatemapParams::SPECS,
-        defaults: defaults::<RatemapParams>,
-        canonical: canonical::<RatemapParams>,
-        build: build_ratemap,
-        chunk_invariant: always,
-        extra_inputs: no_extra_inputs,
-        fixed: &[],
-    },
-    RequestDef {
-        name: "ild",
-        dependency: "innerhaircell",
-        ears: Ears::Binaural,
-        description: "interaural level difference, right re left, per frame and channel",
-        output_unit: "dB",
-        params: IldParams::SPECS,
-        defaults: defaults::<IldParams>,
-        canonical: canonical::<IldParams>,
-        build: build_ild,
-        chunk_invariant: always,
-        extra_inputs: no_extra_inputs,
-        fixed: &[],
-    },
-    RequestDef {
-        name: "crosscorrelation",
-        dependency: "innerhaircell",
-        ears: Ears::Binaural,
-        description: "normalised interaural cross-correlation per frame, channel and lag",
-        output_unit: "",
-        params: CrosscorrelationParams::SPECS,
-        defaults: defaults::<CrosscorrelationParams>,
-        canonical: canonical::<CrosscorrelationParams>,
-        build: build_crosscorrelation,
-        chunk_invariant: always,
-        extra_inputs: no_extra_inputs,
-        fixed: &[],
-    },
-    RequestDef {
-        name: "itd",
-        dependency: "crosscorrelation",
-        ears: Ears::Binaural,
-        description: "interaural time difference per frame and channel (positive: right leads)",
-        output_unit: "s",
-        params: &[],
-        defaults: ParamMap::new,
-        canonical: no_params,
-        build: build_itd,
-        chunk_invariant: always,
-        extra_inputs: no_extra_inputs,
-        fixed: &[],
-    },
-    RequestDef {
-        name: "ic",
-        dependency: "crosscorrelation",
-        ears: Ears::Binaural,
-        description: "interaural coherence per frame and channel",
-        output_unit: "",
-        params: &[],
-        defaults: ParamMap::new,
-        canonical: no_params,
-        build: build_ic,
-        chunk_invariant: always,
-        extra_inputs: no_extra_inputs,
-        fixed: &[],
-    },
+        name: D::NAME,
+        dependency: D::DEPENDENCY,
+        ears: D::EARS,
+        description: D::DESCRIPTION,
+        output_unit: D::OUTPUT_UNIT,
+        params: D::Params::SPECS,
+        defaults: defaults::<D>,
+        canonical: canonical::<D>,
+        build: build::<D>,
+        chunk_invariant: chunk_invariant::<D>,
+        extra_inputs: extra_inputs::<D>,
+        fixed: D::FIXED,
+    }
+}
+
+fn defaults<D: Descriptor>() -> ParamMap {
+    D::Params::default().to_map()
+}
+
+fn canonical<D: Descriptor>(map: &ParamMap) -> Result<ParamMap> {
+    D::canonical(&D::Params::from_map(map)?)
+}
+
+fn build<D: Descriptor>(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
+    D::build(&D::Params::from_map(map)?, inputs)
+}
+
+fn chunk_invariant<D: Descriptor>(map: &ParamMap) -> bool {
+    D::Params::from_map(map).is_ok_and(|p| D::chunk_invariant(&p))
+}
+
+fn extra_inputs<D: Descriptor>(map: &ParamMap) -> &'static [&'static str] {
+    D::Params::from_map(map).map_or(&[], |p| D::extra_inputs(&p))
+}
+
+/// Every request, in dependency order: one line per processor module.
+static REQUESTS: &[&RequestDef] = &[
+    &pre_proc::REQUEST,
+    &butterworth::REQUEST,
+    &gammatone::REQUEST,
+    &ihc::REQUEST,
+    &ratemap::REQUEST,
+    &ild::REQUEST,
+    &crosscorrelation::REQUEST,
+    &itd::REQUEST,
+    &ic::REQUEST,
 ];
 
 /// Every request this build knows, in dependency order.
-pub fn requests() -> &'static [RequestDef] {
+pub fn requests() -> &'static [&'static RequestDef] {
     REQUESTS
 }
 
@@ -310,6 +181,7 @@ pub fn find_request(name: &str) -> Result<&'static RequestDef> {
     REQUESTS
         .iter()
         .find(|r| r.name == name)
+        .copied()
         .ok_or_else(|| Error::UnknownRequest {
             name: name.to_string(),
             known: REQUESTS
@@ -324,15 +196,35 @@ pub fn find_request(name: &str) -> Result<&'static RequestDef> {
 mod tests {
     use super::*;
 
+    /// Dependencies and extra inputs resolve to earlier requests (the list is in
+    /// dependency order); a parameter name declared by several requests (`trm_*` of the
+    /// onset and offset maps) means the same thing in each; defaults are valid.
     #[test]
-    fn every_dependency_resolves_and_parameter_names_are_unique() {
-        let mut names = std::collections::BTreeSet::new();
-        for r in requests() {
-            assert!(r.dependency == "input" || find_request(r.dependency).is_ok());
-            for p in r.params {
-                assert!(names.insert(p.name), "{} declared twice", p.name);
+    fn registry_is_in_dependency_order_and_names_mean_one_thing() {
+        let mut specs: std::collections::BTreeMap<&str, &ParamSpec> = Default::default();
+        for (i, r) in requests().iter().enumerate() {
+            let earlier = |name: &str| requests()[..i].iter().any(|d| d.name == name);
+            assert!(
+                r.dependency == "input" || earlier(r.dependency),
+                "{}",
+                r.name
+            );
+            let defaults = (r.defaults)();
+            for extra in (r.extra_inputs)(&defaults) {
+                assert!(earlier(extra), "{} reads {extra}", r.name);
             }
-            assert!((r.canonical)(&(r.defaults)()).is_ok());
+            for p in r.params {
+                if let Some(q) = specs.insert(p.name, p) {
+                    assert_eq!(
+                        (q.kind, q.unit, q.description),
+                        (p.kind, p.unit, p.description),
+                        "{} declared twice with different meanings",
+                        p.name
+                    );
+                }
+            }
+            assert!((r.canonical)(&defaults).is_ok(), "{}", r.name);
+            assert!(requests().iter().filter(|d| d.name == r.name).count() == 1);
         }
     }
 
