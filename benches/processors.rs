@@ -2,14 +2,14 @@
 //! request set, on 1 s of the binaural example signal (`data/example_binaural.wav`,
 //! 44.1 kHz, made by `tools/make_example_wav.py`).
 //!
-//! * One group per request (`time`, `filterbank`, `innerhaircell`, `ratemap`, `ild`,
-//!   `crosscorrelation`, `itd`, `ic`, `butterworth`): the manager holds that request alone,
+//! * One group per registered request (`time`, `filterbank`, ..., every name `afe list`
+//!   shows), named after it: the manager holds that request alone,
 //!   i.e. its whole chain from the input, which is what placing the request costs; the
 //!   whole signal goes through `process_signal`. `time` runs with `pp_bNormalizeRMS = 1`
 //!   so that the pre-processing has work to do.
 //! * Group `chain`: `ratemap`, `ild`, `itd` and `ic` together at default parameters, fed
 //!   whole and in chunks of 441 (10 ms) and 2205 (50 ms) samples through `process_chunk`.
-//!
+//!   Group `all`: every registered request at once, fed the same way.
 //! * Group `gammatone`: the filterbank kernel alone, one ear, 16/32/64 channels, in
 //!   channel-samples per second.
 //! * Group `stages`: each processor after the filterbank alone (`innerhaircell` and
@@ -33,19 +33,6 @@ use std::time::Duration;
 
 use afe::{Manager, ParamMap, RequestHandle};
 use criterion::{criterion_main, BenchmarkId, Criterion, Throughput};
-
-/// The per-request groups, with their extra parameters.
-const REQUESTS: &[&str] = &[
-    "time",
-    "filterbank",
-    "innerhaircell",
-    "ratemap",
-    "ild",
-    "crosscorrelation",
-    "itd",
-    "ic",
-    "butterworth",
-];
 
 /// The request set of the `chain` group.
 const CHAIN: &[&str] = &["ratemap", "ild", "itd", "ic"];
@@ -89,9 +76,11 @@ fn frames(mgr: &Manager, handles: &[RequestHandle]) -> usize {
         .sum()
 }
 
+/// Every registered request alone, at its defaults (the pre-processing with its AGC on,
+/// since by default it copies its input).
 fn per_request(c: &mut Criterion) {
     let (fs, left, right) = example();
-    for &name in REQUESTS {
+    for name in afe::requests().iter().map(|r| r.name) {
         let mut params = ParamMap::new();
         if name == "time" {
             params.insert("pp_bNormalizeRMS".into(), serde_json::Value::Bool(true));
@@ -113,10 +102,19 @@ fn per_request(c: &mut Criterion) {
     }
 }
 
+/// The binaural chain `CHAIN` (group `chain`), and every registered request at once in
+/// one manager (group `all`), in 10-ms and 50-ms chunks and on the whole signal.
 fn chain(c: &mut Criterion) {
+    let all: Vec<&str> = afe::requests().iter().map(|r| r.name).collect();
+    for (name, requests) in [("chain", CHAIN), ("all", all.as_slice())] {
+        request_set(c, name, requests);
+    }
+}
+
+fn request_set(c: &mut Criterion, name: &str, requests: &[&str]) {
     let (fs, left, right) = example();
-    let (mut mgr, handles) = manager(fs, CHAIN, &ParamMap::new());
-    let mut group = c.benchmark_group("chain");
+    let (mut mgr, handles) = manager(fs, requests, &ParamMap::new());
+    let mut group = c.benchmark_group(name);
     group.sample_size(10);
     group.warm_up_time(Duration::from_secs(1));
     group.measurement_time(Duration::from_secs(4));
