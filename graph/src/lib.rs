@@ -10,6 +10,7 @@ mod protocol;
 mod stress;
 mod sync;
 mod trace;
+mod wakeup;
 
 pub use engine::{is_worker_thread, MAX_THREADS};
 pub use graph::{Channel, OutputRef};
