@@ -1,7 +1,7 @@
 //! The wake-up and parking path of the concurrent scheduler: the ready set the workers
 //! take claimed nodes from, the word in which the parked caller says what it waits for,
 //! and the idle mask through which parked workers are woken. `tests/loom_wakeup.rs`
-//! can include this file, like `protocol.rs`, against loom's atomics and threads.
+//! includes this file, like `protocol.rs`, against loom's atomics and threads.
 //!
 //! Memory-ordering rules. Every wake-up is a store-buffering pattern: one side publishes
 //! its own state, then reads the other's, with a SeqCst fence in between on *both* sides,
@@ -191,6 +191,9 @@ impl Wakeup {
     /// picks it); call [`Wakeup::awake`] after the park either way.
     pub(crate) fn going_idle(&self, id: usize, ready: &ReadySet) -> bool {
         self.idle.fetch_or(1 << id, Ordering::SeqCst);
+        // The SeqCst RMW above is no fence for the load below (C++ memory model; loom
+        // finds the lost wake-up without this fence).
+        fence(Ordering::SeqCst);
         ready.is_empty()
     }
 
