@@ -19,9 +19,10 @@ use std::time::{Duration, Instant};
 use afe_core::{Block, Error, Processor, Result};
 
 use crate::graph::{Graph, OutputRef, MAX_INPUTS};
-use crate::protocol::{consumed, is_ready, next_chunk, release, try_claim, Links, NodeSync};
-use crate::sync::{fence, AtomicBool, AtomicU64, Ordering};
+use crate::protocol::{consumed, is_ready, next_chunk, release, Links, NodeSync};
+use crate::sync::{AtomicBool, AtomicU64, Ordering};
 use crate::trace::{TraceEvent, Tracer};
+use crate::wakeup::{ReadySet, Wakeup, WAIT_CHUNK, WAIT_IDLE, WAIT_SOURCE};
 
 /// How long an idle worker spins before parking: long enough to bridge the gaps between
 /// the nodes of a chunk without a futex round trip. (The caller never spins: it would
@@ -29,14 +30,6 @@ use crate::trace::{TraceEvent, Tracer};
 const SPIN: Duration = Duration::from_micros(50);
 /// Safety net for a missed unpark: parked threads re-check this often.
 const PARK_TIMEOUT: Duration = Duration::from_millis(2);
-/// The caller is not parked.
-const NOT_WAITING: u64 = 0;
-/// The caller waits for the source's next slot to be free.
-const WAIT_SOURCE: u64 = 1;
-/// The caller waits for the pool to go idle.
-const WAIT_IDLE: u64 = u64::MAX;
-/// The caller waits for chunk `c` to complete: `WAIT_CHUNK + c`.
-const WAIT_CHUNK: u64 = 2;
 
 /// Largest pool: one bit per worker in the idle mask.
 pub const MAX_THREADS: usize = 64;
@@ -48,44 +41,6 @@ thread_local! {
 /// True on the scheduler's worker threads (used by allocation-counting tests).
 pub fn is_worker_thread() -> bool {
     IS_WORKER.with(std::cell::Cell::get)
-}
-
-/// Lock-free set of claimed nodes waiting for a worker: one bit per node.
-struct ReadySet {
-    words: Box<[AtomicU64]>,
-}
-
-impl ReadySet {
-    fn new(nodes: usize) -> Self {
-        ReadySet {
-            words: (0..nodes.div_ceil(64)).map(|_| AtomicU64::new(0)).collect(),
-        }
-    }
-
-    fn push(&self, n: usize) {
-        self.words[n / 64].fetch_or(1 << (n % 64), Ordering::AcqRel);
-    }
-
-    /// Takes the deepest ready node (highest index: children before parents drains the
-    /// pipeline and frees slots first).
-    fn pop(&self) -> Option<usize> {
-        for (w, word) in self.words.iter().enumerate().rev() {
-            let mut bits = word.load(Ordering::Acquire);
-            while bits != 0 {
-                let b = 63 - bits.leading_zeros() as usize;
-                let prev = word.fetch_and(!(1 << b), Ordering::AcqRel);
-                if prev & (1 << b) != 0 {
-                    return Some(w * 64 + b);
-                }
-                bits = prev & !(1 << b);
-            }
-        }
-        None
-    }
-
-    fn is_empty(&self) -> bool {
-        self.words.iter().all(|w| w.load(Ordering::Acquire) == 0)
-    }
 }
 
 /// One node as the pool sees it.
@@ -113,11 +68,8 @@ struct Shared {
     swapping: AtomicBool,
     /// Workers currently using the table.
     active: AtomicUsize,
-    /// What the parked caller waits for: [`NOT_WAITING`], [`WAIT_SOURCE`], [`WAIT_IDLE`],
-    /// or `WAIT_CHUNK + c` for chunk `c` to complete. Workers wake the caller only when
-    /// that has come true: on this kind of machine an unpark costs the waker ~70 µs.
-    wait: AtomicU64,
-    idle: AtomicU64,
+    /// What the parked caller and the parked workers wait for.
+    wakeup: Wakeup,
     shutdown: AtomicBool,
     poisoned: AtomicBool,
     workers: std::sync::OnceLock<Box<[Thread]>>,
@@ -146,75 +98,37 @@ impl Shared {
         }
     }
 
-    /// Offers node `n` to the scheduler: claims it if READY and queues it. Returns whether
-    /// it was queued. Offering the source wakes the caller instead.
+    /// Offers node `n` to the scheduler (see [`Wakeup::offer`]). Returns whether it was
+    /// queued.
     fn offer(&self, table: &Table, n: usize) -> bool {
-        if n == 0 {
-            self.wake_caller_if(WAIT_SOURCE);
-            return false;
-        }
-        if try_claim(&table.sync, &table.links, n) {
-            table.rt[n]
-                .claimed_at_ns
-                .store(self.now_ns(), Ordering::Relaxed);
-            table.ready.push(n);
-            return true;
-        }
-        false
+        self.wakeup.offer(
+            &table.sync,
+            &table.links,
+            &table.ready,
+            n,
+            || self.caller(),
+            || {
+                table.rt[n]
+                    .claimed_at_ns
+                    .store(self.now_ns(), Ordering::Relaxed);
+            },
+        )
     }
 
-    /// Wakes the caller if it waits for `what` (once: the first waker clears the wait).
+    /// Unparks the caller if it waits for `what`.
     fn wake_caller_if(&self, what: u64) {
-        fence(Ordering::SeqCst);
-        if self.wait.load(Ordering::SeqCst) == what
-            && self
-                .wait
-                .compare_exchange(what, NOT_WAITING, Ordering::SeqCst, Ordering::SeqCst)
-                .is_ok()
-        {
-            self.caller().unpark();
-        }
-    }
-
-    /// After leaf `n` published chunk `k`: wakes the caller if it waits for a chunk that
-    /// is now complete (the last node of a chunk to publish is always a leaf).
-    fn chunk_published(&self, table: &Table, n: usize, k: u64) {
-        if !table.links[n].children.is_empty() {
-            return;
-        }
-        fence(Ordering::SeqCst);
-        let w = self.wait.load(Ordering::SeqCst);
-        if w == NOT_WAITING || w == WAIT_SOURCE || w == WAIT_IDLE || k < w - WAIT_CHUNK {
-            return;
-        }
-        let c = w - WAIT_CHUNK;
-        if table
-            .sync
-            .iter()
-            .all(|s| s.produced.load(Ordering::Acquire) > c)
-        {
-            self.wake_caller_if(w);
-        }
+        self.wakeup.wake_caller_if(what, || self.caller());
     }
 
     /// Wakes up to `count` parked workers.
-    fn wake(&self, mut count: usize) {
-        fence(Ordering::SeqCst);
-        let Some(workers) = self.workers.get() else {
-            return;
-        };
-        let mut idle = self.idle.load(Ordering::Acquire);
-        while count > 0 && idle != 0 {
-            let w = idle.trailing_zeros() as usize;
-            idle &= !(1 << w);
-            workers[w].unpark();
-            count -= 1;
+    fn wake(&self, count: usize) {
+        if let Some(workers) = self.workers.get() {
+            self.wakeup.wake(count, workers);
         }
     }
 
     fn worker_loop(&self, id: usize) {
         IS_WORKER.with(|w| w.set(true));
-        let bit = 1u64 << id;
         while !self.shutdown.load(Ordering::Acquire) {
             self.active.fetch_add(1, Ordering::SeqCst);
             if self.swapping.load(Ordering::SeqCst) {
@@ -238,8 +152,7 @@ impl Shared {
                     break;
                 }
             }
-            self.idle.fetch_or(bit, Ordering::SeqCst);
-            let nothing = table.ready.is_empty();
+            let nothing = self.wakeup.going_idle(id, &table.ready);
             self.active.fetch_sub(1, Ordering::SeqCst);
             if nothing {
                 self.wake_caller_if(WAIT_IDLE);
@@ -247,7 +160,7 @@ impl Shared {
             if nothing && !self.shutdown.load(Ordering::Acquire) {
                 thread::park_timeout(PARK_TIMEOUT);
             }
-            self.idle.fetch_and(!bit, Ordering::SeqCst);
+            self.wakeup.awake(id);
         }
     }
 
@@ -291,7 +204,8 @@ impl Shared {
         });
         // This worker takes one of the newly ready nodes itself; wake others for the rest.
         self.wake(queued.saturating_sub(1));
-        self.chunk_published(table, n, k);
+        self.wakeup
+            .chunk_published(&table.sync, &table.links, n, k, || self.caller());
         self.tracer.record(
             worker,
             TraceEvent {
@@ -351,8 +265,7 @@ impl Engine {
             table: UnsafeCell::new(empty_table()),
             swapping: AtomicBool::new(false),
             active: AtomicUsize::new(0),
-            wait: AtomicU64::new(NOT_WAITING),
-            idle: AtomicU64::new(0),
+            wakeup: Wakeup::new(),
             shutdown: AtomicBool::new(false),
             poisoned: AtomicBool::new(false),
             workers: std::sync::OnceLock::new(),
@@ -421,21 +334,19 @@ impl Engine {
             if done(self.table()) {
                 return Ok(());
             }
-            self.shared.wait.store(code, Ordering::SeqCst);
-            fence(Ordering::SeqCst);
-            if done(self.table()) {
-                self.shared.wait.store(NOT_WAITING, Ordering::SeqCst);
-                return Ok(());
-            }
             if began.elapsed() > self.stall_timeout {
-                self.shared.wait.store(NOT_WAITING, Ordering::SeqCst);
                 return Err(Error::InvalidInput(format!(
                     "scheduler stalled while waiting for {what}:\n{}",
                     self.dump()
                 )));
             }
-            thread::park_timeout(PARK_TIMEOUT);
-            self.shared.wait.store(NOT_WAITING, Ordering::SeqCst);
+            if self.shared.wakeup.park_unless(
+                code,
+                || done(self.table()),
+                || thread::park_timeout(PARK_TIMEOUT),
+            ) {
+                return Ok(());
+            }
         }
     }
 

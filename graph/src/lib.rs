@@ -11,6 +11,7 @@ mod resolve;
 mod stress;
 mod sync;
 mod trace;
+mod wakeup;
 
 pub use engine::{is_worker_thread, MAX_THREADS};
 pub use graph::{Channel, OutputRef};

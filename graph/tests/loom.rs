@@ -1,8 +1,10 @@
 //! Model check (loom) of the scheduler's token protocol: the very `protocol.rs` the engine
 //! runs, compiled here against loom's atomics, on a 3-node chain and on a 1-parent /
 //! 2-child fan-out, over four chunks (two in flight, slots reused while a reader may
-//! still be on them) and two threads. Loom explores the interleavings (bounded preemptions) and fails on a data
-//! race on a slot, a lost wake-up (work left undone), or a wrong value.
+//! still be on them) and two threads. Loom explores the interleavings (bounded
+//! preemptions) and fails on a data race on a slot, a lost wake-up (work left undone), or
+//! a wrong value. The engine's ready set, the caller's wait and the parking of idle
+//! threads are checked by `tests/loom_wakeup.rs`.
 //!
 //! No thread spins (loom cannot explore spin loops): the source is a node like the
 //! others, READY while chunks remain and its slot is free, and every thread runs ready
