@@ -79,10 +79,21 @@ fn params(pairs: &[(&str, serde_json::Value)]) -> ParamMap {
         .collect()
 }
 
-/// Parameter sets covering every chunk-invariant option of the core processors.
+/// Every registered request that is chunk-invariant at its defaults (spec 00-overview
+/// §11), from the registry, so that a new processor is covered as soon as it is listed.
+fn invariant_requests() -> Vec<&'static str> {
+    afe::requests()
+        .iter()
+        .filter(|r| (r.chunk_invariant)(&(r.defaults)()))
+        .map(|r| r.name)
+        .collect()
+}
+
+/// Parameter sets covering every chunk-invariant option of the core processors, and
+/// every chunk-invariant request at its defaults.
 fn configurations() -> Vec<(Vec<&'static str>, ParamMap)> {
     vec![
-        (vec!["ratemap", "ild", "itd", "ic"], ParamMap::new()),
+        (invariant_requests(), ParamMap::new()),
         (
             vec!["ratemap", "crosscorrelation"],
             params(&[

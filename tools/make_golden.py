@@ -1,11 +1,13 @@
 #!/usr/bin/env python3
 """Trim the MATLAB AFE oracle into the golden arrays committed under data/golden/.
 
-usage: make_golden.py ORACLE_DIR [OUT_DIR]   (needs numpy)
+usage: make_golden.py ORACLE_DIR [OUT_DIR]   (needs numpy and a built `afe` CLI:
+       $AFE_CLI, else target/release/afe)
 
 ORACLE_DIR is ../shared/oracle (inputs/, ref/). For every case whose requests afe
-implements, every stored signal (except the raw input) is copied with its first rows
-only: full-rate signals keep KEEP_FULL_RATE samples, framed signals KEEP_FRAMES frames.
+implements (the requests `afe list --json` names), every stored signal (except the raw
+input) is copied with its first rows only: full-rate signals keep KEEP_FULL_RATE
+samples, framed signals KEEP_FRAMES frames.
 The arrays keep the oracle's dtype (float32 where the oracle stored float32) and are
 deduplicated like the oracle (one file per source array). The input WAV is copied too.
 data/golden/cases.json lists each case: requests, non-default parameters, mode, chunk
@@ -14,12 +16,12 @@ sizes, and its signals (output key, golden file, full shape).
 import json
 import os
 import shutil
+import subprocess
 import sys
 
 import numpy as np
 
-SUPPORTED = {"time", "filterbank", "innerhaircell", "ratemap", "ild",
-             "crosscorrelation", "itd", "ic"}
+ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 KEEP_FULL_RATE = 4410   # 0.1 s at 44.1 kHz
 KEEP_FRAMES = 40        # 0.4 s of frames at 100 Hz
 
@@ -31,6 +33,10 @@ def main(argv):
     oracle = argv[1]
     out = argv[2] if len(argv) > 2 else os.path.join(os.path.dirname(__file__), "..", "data", "golden")
     os.makedirs(out, exist_ok=True)
+    cli = os.environ.get("AFE_CLI") or os.path.join(ROOT, "target", "release", "afe")
+    listing = json.loads(subprocess.run([cli, "list", "--json"], check=True,
+                                        capture_output=True, text=True).stdout)
+    supported = {r["name"] for r in listing}
     cases = []
     copied = {}
     for input_name in sorted(os.listdir(os.path.join(oracle, "ref"))):
@@ -42,7 +48,7 @@ def main(argv):
             if not os.path.isfile(meta_path):
                 continue
             meta = json.load(open(meta_path))
-            if not set(meta["requests"]) <= SUPPORTED or meta["nondefault_params"].get("fb_type") == "drnl":
+            if not set(meta["requests"]) <= supported or meta["nondefault_params"].get("fb_type") == "drnl":
                 continue
             signals = []
             for sig in meta["signals"]:
