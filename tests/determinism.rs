@@ -118,6 +118,37 @@ proptest! {
     }
 }
 
+/// Every registered request at once (from the registry, so each new processor is covered
+/// when it is listed), in uneven chunks: every thread count gives the sequential output.
+#[test]
+fn every_registered_request_matches_sequential() {
+    let (left, right) = signal(9000);
+    let sizes = [1000, 37, 2205, 1, 441, 3000];
+    let run = |threads: usize| {
+        let mut mgr = manager(threads);
+        for r in afe::requests() {
+            mgr.add_request(r.name, &ParamMap::new())
+                .unwrap_or_else(|e| panic!("{}: {e}", r.name));
+        }
+        let mut rec = Recorder::new(true);
+        feed(&mut mgr, &mut rec, &left, &right, &sizes);
+        rec
+    };
+    let reference = run(0);
+    assert_eq!(
+        reference.signals().len(),
+        reference
+            .signals()
+            .iter()
+            .map(|s| &s.key)
+            .collect::<std::collections::BTreeSet<_>>()
+            .len()
+    );
+    for threads in [1, 2, 3] {
+        assert_eq!(identical(&reference, &run(threads)), Ok(()), "threads {threads}");
+    }
+}
+
 #[test]
 fn whole_signal_and_process_chunk_match_sequential() {
     let (left, right) = signal(8000);
