@@ -11,6 +11,9 @@ use crate::ild::{Ild, IldParams};
 use crate::itd::Itd;
 use crate::pre_proc::{PreProc, PreProcParams};
 use crate::ratemap::{Ratemap, RatemapParams};
+use crate::spectral_features::{SpectralFeatures, SpectralFeaturesParams};
+use crate::transient::{OffsetParams, OnsetParams, TransientStrength};
+use crate::transient_map::{TransientMap, TransientMapParams};
 
 /// How a processor relates to the ears (the AFE's binaural flag).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -134,12 +137,50 @@ fn build_ic(_: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
     Ok(built(p, vec![out]))
 }
 
+fn build_onset_strength(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
+    let (p, out) = TransientStrength::onset(&OnsetParams::from_map(map)?, &inputs[0])?;
+    Ok(built(p, vec![out]))
+}
+
+fn build_offset_strength(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
+    let (p, out) = TransientStrength::offset(&OffsetParams::from_map(map)?, &inputs[0])?;
+    Ok(built(p, vec![out]))
+}
+
+/// Onset and offset maps; the ratemap input that `trm_minValuedB` reads is the second
+/// input when given (the constructor refuses `trm_minValuedB` without it).
+fn build_transient_map(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
+    let (p, out) = TransientMap::new(
+        &TransientMapParams::from_map(map)?,
+        &inputs[0],
+        inputs.get(1),
+    )?;
+    Ok(built(p, vec![out]))
+}
+
+/// The spectral features' own parameters with `sf_requests = 'all'` expanded, as the AFE
+/// verifies them.
+fn canonical_spectral_features(map: &ParamMap) -> Result<ParamMap> {
+    let mut p = SpectralFeaturesParams::from_map(map)?;
+    p.requests = p.features()?;
+    Ok(p.to_map())
+}
+
+fn build_spectral_features(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
+    let (p, out) = SpectralFeatures::new(&SpectralFeaturesParams::from_map(map)?, &inputs[0])?;
+    Ok(built(p, vec![out]))
+}
+
 fn no_params(_: &ParamMap) -> Result<ParamMap> {
     Ok(ParamMap::new())
 }
 
 fn always(_: &ParamMap) -> bool {
     true
+}
+
+fn never(_: &ParamMap) -> bool {
+    false
 }
 
 /// The AGC seeds its running mean from the first chunk.
@@ -262,6 +303,66 @@ static REQUESTS: &[RequestDef] = &[
         build: build_ic,
         chunk_invariant: always,
     },
+    RequestDef {
+        name: "onsetStrength",
+        dependency: "ratemap",
+        ears: Ears::PerEar,
+        description: "rise of the ratemap level from the previous frame, per frame and channel",
+        output_unit: "dB",
+        params: OnsetParams::SPECS,
+        defaults: defaults::<OnsetParams>,
+        canonical: canonical::<OnsetParams>,
+        build: build_onset_strength,
+        chunk_invariant: always,
+    },
+    RequestDef {
+        name: "offsetStrength",
+        dependency: "ratemap",
+        ears: Ears::PerEar,
+        description: "fall of the ratemap level from the previous frame, per frame and channel",
+        output_unit: "dB",
+        params: OffsetParams::SPECS,
+        defaults: defaults::<OffsetParams>,
+        canonical: canonical::<OffsetParams>,
+        build: build_offset_strength,
+        chunk_invariant: always,
+    },
+    RequestDef {
+        name: "onsetMap",
+        dependency: "onsetStrength",
+        ears: Ears::PerEar,
+        description: "binary map of salient onsets per frame and channel",
+        output_unit: "",
+        params: TransientMapParams::SPECS,
+        defaults: defaults::<TransientMapParams>,
+        canonical: canonical::<TransientMapParams>,
+        build: build_transient_map,
+        chunk_invariant: never,
+    },
+    RequestDef {
+        name: "offsetMap",
+        dependency: "offsetStrength",
+        ears: Ears::PerEar,
+        description: "binary map of salient offsets per frame and channel",
+        output_unit: "",
+        params: TransientMapParams::SPECS,
+        defaults: defaults::<TransientMapParams>,
+        canonical: canonical::<TransientMapParams>,
+        build: build_transient_map,
+        chunk_invariant: never,
+    },
+    RequestDef {
+        name: "spectralFeatures",
+        dependency: "ratemap",
+        ears: Ears::PerEar,
+        description: "spectral shape descriptors of each ratemap frame",
+        output_unit: "",
+        params: SpectralFeaturesParams::SPECS,
+        defaults: defaults::<SpectralFeaturesParams>,
+        canonical: canonical_spectral_features,
+        build: build_spectral_features,
+        chunk_invariant: always,
+    },
 ];
 
 /// Every request this build knows, in dependency order.
@@ -290,13 +391,35 @@ mod tests {
 
     #[test]
     fn every_dependency_resolves_and_parameter_names_are_unique() {
-        let mut names = std::collections::BTreeSet::new();
+        // A name declared by several requests (the `trm_*` of onsetMap and offsetMap)
+        // must be declared identically by each.
+        let mut specs: std::collections::BTreeMap<&str, &ParamSpec> = Default::default();
         for r in requests() {
             assert!(r.dependency == "input" || find_request(r.dependency).is_ok());
             for p in r.params {
-                assert!(names.insert(p.name), "{} declared twice", p.name);
+                if let Some(q) = specs.insert(p.name, p) {
+                    assert!(
+                        q.kind == p.kind && q.unit == p.unit && q.description == p.description,
+                        "{} declared twice, differently",
+                        p.name
+                    );
+                }
             }
             assert!((r.canonical)(&(r.defaults)()).is_ok());
+        }
+    }
+
+    #[test]
+    fn min_value_db_is_refused_until_the_ratemap_is_wired() {
+        let map = ParamMap::from([("trm_minValuedB".to_string(), serde_json::json!(-40))]);
+        let strength = SignalInfo::time_frequency(44100.0, vec![100.0; 4]).framed(100.0);
+        for name in ["onsetMap", "offsetMap"] {
+            let r = find_request(name).expect("registered");
+            let e = (r.build)(&map, std::slice::from_ref(&strength))
+                .err()
+                .expect("refused")
+                .to_string();
+            assert!(e.contains("trm_minValuedB") && e.contains("ratemap"), "{e}");
         }
     }
 
