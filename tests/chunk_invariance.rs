@@ -118,6 +118,13 @@ fn configurations() -> Vec<(Vec<&'static str>, ParamMap)> {
             ]),
         ),
         (
+            vec!["onsetStrength", "offsetStrength", "spectralFeatures"],
+            params(&[
+                ("fb_nChannels", json!(6)),
+                ("sf_requests", json!(["variation", "flux", "rolloff"])),
+            ]),
+        ),
+        (
             vec!["innerhaircell", "butterworth"],
             params(&[
                 ("ihc_method", json!("halfwave")),

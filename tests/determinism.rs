@@ -145,7 +145,11 @@ fn every_registered_request_matches_sequential() {
             .len()
     );
     for threads in [1, 2, 3] {
-        assert_eq!(identical(&reference, &run(threads)), Ok(()), "threads {threads}");
+        assert_eq!(
+            identical(&reference, &run(threads)),
+            Ok(()),
+            "threads {threads}"
+        );
     }
 }
 

@@ -26,6 +26,9 @@ pub enum ParamKind {
     Flag,
     /// One string out of the listed choices.
     Choice(&'static [&'static str]),
+    /// A list of strings out of the listed choices (a single string is taken as a list
+    /// of one).
+    Choices(&'static [&'static str]),
     /// A vector of finite numbers (a scalar is taken as a vector of one).
     Numbers,
 }
@@ -38,6 +41,7 @@ impl ParamKind {
             ParamKind::Count => "a positive integer".into(),
             ParamKind::Flag => "a flag (true/false or 1/0)".into(),
             ParamKind::Choice(c) => format!("one of {}", quoted(c)),
+            ParamKind::Choices(c) => format!("one or a list of {}", quoted(c)),
             ParamKind::Numbers => "a number or an array of numbers".into(),
         }
     }
@@ -49,6 +53,7 @@ impl ParamKind {
             ParamKind::Count => "integer",
             ParamKind::Flag => "flag",
             ParamKind::Choice(_) => "string",
+            ParamKind::Choices(_) => "strings",
             ParamKind::Numbers => "numbers",
         }
     }
@@ -120,6 +125,20 @@ impl ParamSpec {
                 Some(s) if choices.contains(&s) => Value::from(s),
                 _ => return Err(bad()),
             },
+            ParamKind::Choices(choices) => {
+                let choice = |v: &Value| {
+                    v.as_str()
+                        .filter(|s| choices.contains(s))
+                        .map(Value::from)
+                        .ok_or_else(bad)
+                };
+                match value {
+                    Value::Array(items) => {
+                        Value::Array(items.iter().map(choice).collect::<Result<_>>()?)
+                    }
+                    _ => Value::Array(vec![choice(value)?]),
+                }
+            }
             ParamKind::Numbers => match value {
                 Value::Array(items) => Value::Array(
                     items
@@ -241,6 +260,27 @@ mod tests {
             err.contains("ihc_method") && err.contains("'dau', 'none'"),
             "{err}"
         );
+    }
+
+    #[test]
+    fn choice_lists_accept_single_strings_and_reject_unknown_entries() {
+        let spec = ParamSpec {
+            name: "sf_requests",
+            kind: ParamKind::Choices(&["all", "crest"]),
+            unit: "",
+            description: "",
+        };
+        assert_eq!(
+            spec.normalize(&json!("all")).ok(),
+            Some(Some(json!(["all"])))
+        );
+        assert_eq!(
+            spec.normalize(&json!(["crest", "all"])).ok(),
+            Some(Some(json!(["crest", "all"])))
+        );
+        let err = spec.normalize(&json!(["crest", "crust"])).unwrap_err();
+        assert!(err.to_string().contains("sf_requests"), "{err}");
+        assert!(spec.normalize(&json!(3)).is_err());
     }
 
     #[test]

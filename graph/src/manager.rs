@@ -776,4 +776,52 @@ mod tests {
         assert!(Manager::new(f64::NAN, 2).is_err());
         assert!(Manager::new(16000.0, 3).is_err());
     }
+
+    /// With `trm_minValuedB` an onset map reads the ratemap beside its onset strength: the
+    /// ratemap is the shared one, and a level no frame reaches empties the map.
+    #[test]
+    fn a_map_reads_the_ratemap_beside_its_strength() {
+        let mut m = Manager::new(16000.0, 2).expect("valid");
+        let plain = m.add_request("onsetMap", &ParamMap::new()).expect("ok");
+        let before = m.processor_count();
+        let gated = m
+            .add_request("onsetMap", &params(&[("trm_minValuedB", json!(200))]))
+            .expect("ratemap wired");
+        assert_eq!(m.processor_count(), before + 2, "one new map per ear");
+        let map = m.request_signals(gated).expect("ok")[0].source.node;
+        let strength = m.request_signals(plain).expect("ok")[0].source.node;
+        let parents: Vec<&str> = m.graph.nodes[map]
+            .parents
+            .iter()
+            .map(|p| m.graph.nodes[p.node].name)
+            .collect();
+        assert_eq!(parents, ["onsetStrength", "ratemap"]);
+        assert_eq!(
+            m.graph.nodes[map].parents[0].node,
+            m.graph.nodes[strength].parents[0].node
+        );
+        // noise bursts of 0.1 s every 0.3 s: clear onsets
+        let mut state = 1u64;
+        let x: Vec<f64> = (0..16000)
+            .map(|t| {
+                state = state.wrapping_mul(6364136223846793005).wrapping_add(1);
+                let noise = (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+                if t % 4800 < 1600 {
+                    noise
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        m.process_signal(&[&x, &x]).expect("process");
+        let ones = |h| -> f64 {
+            m.request_signals(h).expect("ok")[0]
+                .new
+                .as_slice()
+                .iter()
+                .sum()
+        };
+        assert!(ones(plain) > 0.0, "the bursts have onsets");
+        assert_eq!(ones(gated), 0.0, "no ratemap frame reaches 200 dB");
+    }
 }

@@ -17,5 +17,8 @@ pub mod middle_ear;
 pub mod pre_proc;
 pub mod ratemap;
 mod registry;
+pub mod spectral_features;
+pub mod transient;
+pub mod transient_map;
 
 pub use registry::{find_request, requests, Built, Ears, RequestDef};

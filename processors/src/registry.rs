@@ -4,7 +4,10 @@
 
 use afe_core::{Error, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo};
 
-use crate::{butterworth, crosscorrelation, gammatone, ic, ihc, ild, itd, pre_proc, ratemap};
+use crate::{
+    butterworth, crosscorrelation, gammatone, ic, ihc, ild, itd, pre_proc, ratemap,
+    spectral_features, transient, transient_map,
+};
 
 /// How a processor relates to the ears (the AFE's binaural flag).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -169,6 +172,11 @@ static REQUESTS: &[&RequestDef] = &[
     &crosscorrelation::REQUEST,
     &itd::REQUEST,
     &ic::REQUEST,
+    &transient::ONSET_REQUEST,
+    &transient::OFFSET_REQUEST,
+    &transient_map::ONSET_REQUEST,
+    &transient_map::OFFSET_REQUEST,
+    &spectral_features::REQUEST,
 ];
 
 /// Every request this build knows, in dependency order.
