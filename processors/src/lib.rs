@@ -4,10 +4,12 @@
 //! Each module holds the processor's parameter struct (AFE names, AFE defaults), its
 //! design code and its tests; nothing here knows about graphs or threads.
 
+pub mod ams_features;
 pub mod butterworth;
 mod cpu;
 pub mod crosscorrelation;
 mod framed;
+pub mod gabor;
 pub mod gammatone;
 pub mod ic;
 pub mod ihc;
@@ -17,5 +19,6 @@ pub mod middle_ear;
 pub mod pre_proc;
 pub mod ratemap;
 mod registry;
+pub mod stft;
 
 pub use registry::{find_request, requests, Built, Ears, RequestDef};

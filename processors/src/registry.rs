@@ -2,8 +2,10 @@
 
 use afe_core::{Error, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo};
 
+use crate::ams_features::{AmsFeatures, AmsParams};
 use crate::butterworth::{Butterworth, ButterworthParams};
 use crate::crosscorrelation::{Crosscorrelation, CrosscorrelationParams};
+use crate::gabor::{Gabor, GaborParams};
 use crate::gammatone::{Gammatone, GammatoneParams};
 use crate::ic::Ic;
 use crate::ihc::{Ihc, IhcParams};
@@ -11,6 +13,7 @@ use crate::ild::{Ild, IldParams};
 use crate::itd::Itd;
 use crate::pre_proc::{PreProc, PreProcParams};
 use crate::ratemap::{Ratemap, RatemapParams};
+use crate::stft::{Stft, StftParams};
 
 /// How a processor relates to the ears (the AFE's binaural flag).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -134,12 +137,32 @@ fn build_ic(_: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
     Ok(built(p, vec![out]))
 }
 
+fn build_stft(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
+    let (p, out) = Stft::new(&StftParams::from_map(map)?, &inputs[0])?;
+    Ok(built(p, vec![out]))
+}
+
+fn build_ams_features(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
+    let (p, out) = AmsFeatures::new(&AmsParams::from_map(map)?, &inputs[0])?;
+    Ok(built(p, vec![out]))
+}
+
+fn build_gabor(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
+    let (p, out) = Gabor::new(&GaborParams::from_map(map)?, &inputs[0])?;
+    Ok(built(p, vec![out]))
+}
+
 fn no_params(_: &ParamMap) -> Result<ParamMap> {
     Ok(ParamMap::new())
 }
 
 fn always(_: &ParamMap) -> bool {
     true
+}
+
+/// The Gabor features take their dB floor, padding and normalisation from each chunk.
+fn never(_: &ParamMap) -> bool {
+    false
 }
 
 /// The AGC seeds its running mean from the first chunk.
@@ -260,6 +283,42 @@ static REQUESTS: &[RequestDef] = &[
         defaults: ParamMap::new,
         canonical: no_params,
         build: build_ic,
+        chunk_invariant: always,
+    },
+    RequestDef {
+        name: "amsFeatures",
+        dependency: "innerhaircell",
+        ears: Ears::PerEar,
+        description: "amplitude-modulation spectrogram: IHC envelope energy per frame, channel and modulation band",
+        output_unit: "",
+        params: AmsParams::SPECS,
+        defaults: defaults::<AmsParams>,
+        canonical: canonical::<AmsParams>,
+        build: build_ams_features,
+        chunk_invariant: always,
+    },
+    RequestDef {
+        name: "gabor",
+        dependency: "ratemap",
+        ears: Ears::PerEar,
+        description: "spectro-temporal Gabor filter-bank features of the log ratemap, normalised per chunk",
+        output_unit: "",
+        params: GaborParams::SPECS,
+        defaults: defaults::<GaborParams>,
+        canonical: canonical::<GaborParams>,
+        build: build_gabor,
+        chunk_invariant: never,
+    },
+    RequestDef {
+        name: "stft",
+        dependency: "time",
+        ears: Ears::PerEar,
+        description: "short-time Fourier transform (Hamming window, 50 % overlap), complex per bin",
+        output_unit: "",
+        params: StftParams::SPECS,
+        defaults: defaults::<StftParams>,
+        canonical: canonical::<StftParams>,
+        build: build_stft,
         chunk_invariant: always,
     },
 ];
