@@ -11,7 +11,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use afe::npy::{decode, Array};
+use afe::npy::{decode, is_complex, Array};
 use afe::wav::read_wav;
 use afe::{Manager, ParamMap, Recorder};
 use serde_json::Value;
@@ -193,6 +193,8 @@ struct Rule {
     rel: f64,
     /// Peak-pick outliers allowed: (fraction of cells, lag steps, tie tolerance).
     outliers: Option<(f64, f64, f64)>,
+    /// Single-precision rounding flips allowed: (fraction of cells, float32 ulps).
+    f32_ulp_outliers: Option<(f64, f64)>,
 }
 
 /// The rule of `signal` in `case` for a reference stored as float32 or float64: a case's
@@ -218,6 +220,9 @@ fn rule(table: &Value, case: &str, signal: &str, float32: bool) -> Rule {
                 num(o, "tie_rel"),
             )
         }),
+        f32_ulp_outliers: entry
+            .get("f32_ulp_outliers")
+            .map(|o| (num(o, "max_fraction"), num(o, "max_ulps"))),
     }
 }
 
@@ -259,6 +264,90 @@ fn cell_errors(out: &[f64], reference: &Array) -> Vec<f64> {
             diff / if s > 0.0 { s } else { 1e-300 }
         })
         .collect()
+}
+
+/// compare.py's per-element error for a complex reference (`shape` elements, stored as
+/// (re, im) pairs in `data`, as is `out`): the modulus of the difference over the max
+/// modulus of the element's channel (axis 1, e.g. the STFT bin); NaN in either part on
+/// both sides = 0, on one side = ∞. One error per complex element.
+fn complex_cell_errors(out: &[f64], reference: &Array) -> Vec<f64> {
+    let rows = reference.shape[0];
+    let per_row = reference.data.len() / 2 / rows.max(1);
+    let channels = reference.shape.get(1).copied().unwrap_or(1);
+    let inner = per_row / channels.max(1);
+    let channel_of = |i: usize| (i % per_row) / inner.max(1);
+    let pairs =
+        |d: &[f64]| -> Vec<(f64, f64)> { d.chunks_exact(2).map(|p| (p[0], p[1])).collect() };
+    let (ours, refs) = (pairs(out), pairs(&reference.data));
+    let nan = |(re, im): (f64, f64)| re.is_nan() || im.is_nan();
+    let mut scale = vec![0.0f64; channels];
+    for (i, r) in refs.iter().enumerate() {
+        if !nan(*r) {
+            let c = channel_of(i);
+            scale[c] = scale[c].max(r.0.hypot(r.1));
+        }
+    }
+    ours.iter()
+        .zip(&refs)
+        .enumerate()
+        .map(|(i, (o, r))| {
+            let diff = if nan(*o) && nan(*r) {
+                0.0
+            } else {
+                let d = (o.0 - r.0).hypot(o.1 - r.1);
+                if d.is_nan() {
+                    f64::INFINITY
+                } else {
+                    d
+                }
+            };
+            let s = scale[channel_of(i)];
+            diff / if s > 0.0 { s } else { 1e-300 }
+        })
+        .collect()
+}
+
+/// Checks the cells of a signal the AFE rounds to single precision (the STFT) over
+/// `rule.rel`: few, and each a rounding flip: every value of the cell (both parts of a
+/// complex one) is a float32 on both sides and they differ by at most the allowed number
+/// of float32 ulps. `ours` and `reference` hold `ours.len() / errors.len()` values per
+/// cell. Returns the problems found.
+fn check_f32_ulp_outliers(
+    ours: &[f64],
+    reference: &[f64],
+    errors: &[f64],
+    (max_fraction, max_ulps): (f64, f64),
+    rel: f64,
+) -> Vec<String> {
+    let per_cell = ours.len() / errors.len().max(1);
+    let over: Vec<usize> = (0..errors.len()).filter(|&i| errors[i] > rel).collect();
+    let mut problems = Vec::new();
+    let fraction = over.len() as f64 / errors.len().max(1) as f64;
+    if fraction > max_fraction {
+        problems.push(format!(
+            "{:.3}% of cells over {rel:.1e} (at most {:.3}%)",
+            100.0 * fraction,
+            100.0 * max_fraction
+        ));
+    }
+    let ulps = |a: f64, b: f64| -> Option<u64> {
+        let (fa, fb) = (a as f32, b as f32);
+        let exact = f64::from(fa) == a && f64::from(fb) == b;
+        let same_sign = fa.is_sign_negative() == fb.is_sign_negative();
+        (exact && same_sign).then(|| u64::from(fa.to_bits().abs_diff(fb.to_bits())))
+    };
+    for &i in &over {
+        let cell = i * per_cell..(i + 1) * per_cell;
+        let pairs = ours[cell.clone()].iter().zip(&reference[cell]);
+        for (a, b) in pairs {
+            if ulps(*a, *b).is_none_or(|u| u as f64 > max_ulps) {
+                problems.push(format!(
+                    "cell {i}: {a:e} vs {b:e}: not a flip of at most {max_ulps} float32 ulp(s)"
+                ));
+            }
+        }
+    }
+    problems
 }
 
 /// The cross-correlation an ITD output was picked from: `[frame, channel, lag]` values
@@ -344,13 +433,25 @@ fn check(cases: &[Case]) {
             let float32 = stored_as_f32(&bytes);
             let signal = key.rsplit_once('_').map_or(key.as_str(), |(s, _)| s);
             let rule = rule(&table, &case.name, signal, float32);
-            let errors = cell_errors(out.data.as_slice(), &reference);
+            let errors = if is_complex(&reference.shape, &reference.data) {
+                complex_cell_errors(out.data.as_slice(), &reference)
+            } else {
+                cell_errors(out.data.as_slice(), &reference)
+            };
             let worst = errors.iter().fold(0.0f64, |a, e| a.max(*e));
             report.insert(
                 format!("{}/{key}", case.name),
                 (worst, rule.rel, if float32 { "f32" } else { "f64" }),
             );
-            if worst > rule.rel {
+            if let (true, Some(allowed)) = (worst > rule.rel, rule.f32_ulp_outliers) {
+                let data = out.data.as_slice();
+                for p in check_f32_ulp_outliers(data, &reference.data, &errors, allowed, rule.rel) {
+                    failures.push(format!(
+                        "{}: {key} rel {worst:.3e} over {:.1e}: {p}",
+                        case.name, rule.rel
+                    ));
+                }
+            } else if worst > rule.rel {
                 let ccf = rec
                     .get(&key.replacen("itd", "crosscorrelation", 1))
                     .map(|c| Ccf {
@@ -401,6 +502,28 @@ fn full_oracle_matches_when_available() {
     check(&oracle_cases(Path::new(&dir)));
 }
 
+/// Complex references compare as compare.py does: per bin, the modulus of the
+/// difference over the largest modulus of the bin.
+#[test]
+fn complex_references_compare_by_modulus() {
+    // Two frames of two bins; bin 0 peaks at |3 + 4i| = 5, bin 1 at |0 + 1i| = 1.
+    let reference = Array {
+        shape: vec![2, 2],
+        data: vec![3.0, 4.0, 0.0, 1.0, 0.6, 0.8, 0.0, 0.5],
+    };
+    let mut out = reference.data.clone();
+    out[4] += 3e-9;
+    out[5] += 4e-9;
+    out[7] += 1e-9;
+    let e = complex_cell_errors(&out, &reference);
+    assert_eq!(e.len(), 4);
+    assert!(
+        (e[2] - 1e-9).abs() < 1e-15 && (e[3] - 1e-9).abs() < 1e-15,
+        "{e:?}"
+    );
+    assert_eq!((e[0], e[1]), (0.0, 0.0));
+}
+
 /// Each rule of the tolerance table fails a wrong output: a 1e-9 relative change in a
 /// float64 signal, a one-ulp-of-float32 change in a float32 one, and an ITD outlier of
 /// two lag steps or one that is not a tie.
@@ -445,4 +568,27 @@ fn the_tolerance_rules_reject_what_they_must() {
     assert!(!outcome(1, 1.0 / fs, &tie).is_empty());
     assert!(!outcome(3000, 2.0 / fs, &tie).is_empty());
     assert!(!outcome(3000, 1.0 / fs, &no_tie).is_empty());
+
+    // STFT: one cell of 2000 whose real part is one float32 ulp off passes; two ulps, a
+    // value that is no float32, or too many flipped cells fail.
+    let stft_rule = rule(&table, "default_stft", "stft", false);
+    let allowed = stft_rule.f32_ulp_outliers.expect("stft flips allowed");
+    let flip = |cells: usize, value: f64| {
+        let reference = Array {
+            shape: vec![cells, 1],
+            data: (0..2 * cells)
+                .map(|i| f64::from(1.0f32 + i as f32))
+                .collect(),
+        };
+        let mut ours = reference.data.clone();
+        ours[0] = value;
+        let errors = complex_cell_errors(&ours, &reference);
+        check_f32_ulp_outliers(&ours, &reference.data, &errors, allowed, stft_rule.rel)
+    };
+    let one_ulp = f64::from(f32::from_bits(1.0f32.to_bits() + 1));
+    let two_ulps = f64::from(f32::from_bits(1.0f32.to_bits() + 2));
+    assert_eq!(flip(2000, one_ulp), Vec::<String>::new());
+    assert!(!flip(2000, two_ulps).is_empty());
+    assert!(!flip(2000, 1.0 + 1e-6).is_empty());
+    assert!(!flip(10, one_ulp).is_empty());
 }

@@ -4,10 +4,12 @@
 //! Each module holds the processor's parameter struct (AFE names, AFE defaults), its
 //! design code and its tests; nothing here knows about graphs or threads.
 
+pub mod ams_features;
 pub mod butterworth;
 mod cpu;
 pub mod crosscorrelation;
 mod framed;
+pub mod gabor;
 pub mod gammatone;
 pub mod ic;
 pub mod ihc;
@@ -18,6 +20,7 @@ pub mod pre_proc;
 pub mod ratemap;
 mod registry;
 pub mod spectral_features;
+pub mod stft;
 pub mod transient;
 pub mod transient_map;
 

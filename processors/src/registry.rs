@@ -5,8 +5,8 @@
 use afe_core::{Error, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo};
 
 use crate::{
-    butterworth, crosscorrelation, gammatone, ic, ihc, ild, itd, pre_proc, ratemap,
-    spectral_features, transient, transient_map,
+    ams_features, butterworth, crosscorrelation, gabor, gammatone, ic, ihc, ild, itd, pre_proc,
+    ratemap, spectral_features, stft, transient, transient_map,
 };
 
 /// How a processor relates to the ears (the AFE's binaural flag).
@@ -177,6 +177,9 @@ static REQUESTS: &[&RequestDef] = &[
     &transient_map::ONSET_REQUEST,
     &transient_map::OFFSET_REQUEST,
     &spectral_features::REQUEST,
+    &ams_features::REQUEST,
+    &gabor::REQUEST,
+    &stft::REQUEST,
 ];
 
 /// Every request this build knows, in dependency order.

@@ -1,0 +1,762 @@
+//! `amsFeatures`: amplitude-modulation spectrogram of the IHC envelope, with a bank of
+//! IIR modulation filters (`log`) or an FFT with linearly spaced triangular weights
+//! (`lin`), after a decimation without anti-aliasing filter (specs 15-ams-modulation and
+//! 31-downSampler).
+
+use std::sync::Arc;
+
+use afe_core::butter::{butter, ButterType};
+use afe_core::erb::linspace;
+use afe_core::filter::Df2t;
+use afe_core::framing::FrameBuffer;
+use afe_core::window::{window, WINDOW_NAMES};
+use afe_core::{
+    Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
+};
+use realfft::num_complex::Complex64;
+use realfft::{RealFftPlanner, RealToComplex};
+use serde::{Deserialize, Serialize};
+
+use crate::framed::MAX_WINDOW;
+
+use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
+
+/// How the modulation bands are computed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum AmsFbType {
+    /// Log-spaced IIR modulation filters; each band is the mean |filter output| over a
+    /// frame.
+    #[serde(rename = "log")]
+    Log,
+    /// Linearly spaced triangular weights on the magnitude spectrum of each frame.
+    #[serde(rename = "lin")]
+    Lin,
+}
+
+/// Parameters of the modulation spectrogram, under their AFE names.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AmsParams {
+    /// Filterbank type (AFE `ams_fbType`).
+    #[serde(rename = "ams_fbType")]
+    pub fb_type: AmsFbType,
+    /// Number of modulation bands (AFE `ams_nFilters`).
+    #[serde(rename = "ams_nFilters")]
+    pub n_filters: usize,
+    /// Lowest modulation centre frequency in Hz (`log`), or the lower edge of the
+    /// triangles (`lin`) (AFE `ams_lowFreqHz`).
+    #[serde(rename = "ams_lowFreqHz")]
+    pub low_freq_hz: f64,
+    /// Highest modulation centre frequency in Hz (`log`), or the upper edge of the
+    /// triangles (`lin`) (AFE `ams_highFreqHz`).
+    #[serde(rename = "ams_highFreqHz")]
+    pub high_freq_hz: f64,
+    /// Explicit modulation centre frequencies in Hz, `log` only; empty = from the range
+    /// (AFE `ams_cfHz`, which crashes in the AFE itself).
+    #[serde(rename = "ams_cfHz")]
+    pub cf_hz: Vec<f64>,
+    /// Decimation factor applied to the envelope first (AFE `ams_dsRatio`).
+    #[serde(rename = "ams_dsRatio")]
+    pub ds_ratio: usize,
+    /// Frame length in s (AFE `ams_wSizeSec`).
+    #[serde(rename = "ams_wSizeSec")]
+    pub w_size_sec: f64,
+    /// Frame hop in s (AFE `ams_hSizeSec`).
+    #[serde(rename = "ams_hSizeSec")]
+    pub h_size_sec: f64,
+    /// Window applied to each frame (AFE `ams_wname`).
+    #[serde(rename = "ams_wname")]
+    pub wname: String,
+}
+
+impl Default for AmsParams {
+    fn default() -> Self {
+        AmsParams {
+            fb_type: AmsFbType::Log,
+            n_filters: 15,
+            low_freq_hz: 4.0,
+            high_freq_hz: 1024.0,
+            cf_hz: Vec::new(),
+            ds_ratio: 4,
+            w_size_sec: 0.032,
+            h_size_sec: 0.016,
+            wname: "rectwin".into(),
+        }
+    }
+}
+
+impl Params for AmsParams {
+    const SPECS: &'static [ParamSpec] = &[
+        ParamSpec {
+            name: "ams_fbType",
+            kind: ParamKind::Choice(&["log", "lin"]),
+            unit: "",
+            description:
+                "log-spaced IIR modulation filters ('log') or linear FFT triangles ('lin')",
+        },
+        ParamSpec {
+            name: "ams_nFilters",
+            kind: ParamKind::Count,
+            unit: "",
+            description: "number of modulation bands",
+        },
+        ParamSpec {
+            name: "ams_lowFreqHz",
+            kind: ParamKind::Number,
+            unit: "Hz",
+            description: "lowest modulation frequency",
+        },
+        ParamSpec {
+            name: "ams_highFreqHz",
+            kind: ParamKind::Number,
+            unit: "Hz",
+            description: "highest modulation frequency",
+        },
+        ParamSpec {
+            name: "ams_cfHz",
+            kind: ParamKind::Numbers,
+            unit: "Hz",
+            description:
+                "explicit modulation centre frequencies ('log' only; empty: from the range)",
+        },
+        ParamSpec {
+            name: "ams_dsRatio",
+            kind: ParamKind::Count,
+            unit: "",
+            description: "decimation factor of the envelope (no anti-aliasing filter)",
+        },
+        ParamSpec {
+            name: "ams_wSizeSec",
+            kind: ParamKind::Number,
+            unit: "s",
+            description: "frame length",
+        },
+        ParamSpec {
+            name: "ams_hSizeSec",
+            kind: ParamKind::Number,
+            unit: "s",
+            description: "hop between frames",
+        },
+        ParamSpec {
+            name: "ams_wname",
+            kind: ParamKind::Choice(WINDOW_NAMES),
+            unit: "",
+            description: "window applied to each frame",
+        },
+    ];
+}
+
+fn invalid(name: &str, value: impl ToString, reason: impl Into<String>) -> Error {
+    Error::InvalidParameter {
+        name: name.into(),
+        value: value.to_string(),
+        reason: reason.into(),
+    }
+}
+
+/// Keeps the stream samples whose global index is a multiple of the ratio, whatever the
+/// chunking (spec 31-downSampler).
+#[derive(Debug, Clone, PartialEq)]
+struct DownSampler {
+    ratio: usize,
+    /// Index, in the next chunk, of its first sample to keep.
+    skip: usize,
+}
+
+impl DownSampler {
+    /// Appends the kept rows (`width` values each) of `input` to `out` (cleared first).
+    fn run(&mut self, input: &[f64], width: usize, out: &mut Vec<f64>) {
+        out.clear();
+        let n = input.len() / width.max(1);
+        if n <= self.skip {
+            self.skip -= n;
+            return;
+        }
+        let kept = (n - self.skip - 1) / self.ratio + 1;
+        for i in 0..kept {
+            let r = self.skip + i * self.ratio;
+            out.extend_from_slice(&input[r * width..(r + 1) * width]);
+        }
+        self.skip = self.skip + kept * self.ratio - n;
+    }
+}
+
+/// The band computation of one variant.
+enum Bands {
+    /// One IIR filter per band over all audio channels.
+    Log { filters: Vec<Df2t> },
+    /// Triangular weights `(first bin, weights)` per band over `|FFT|/nfft`.
+    Lin {
+        weights: Vec<(usize, Vec<f64>)>,
+        fft: Arc<dyn RealToComplex<f64>>,
+        time: Vec<f64>,
+        spectrum: Vec<Complex64>,
+        magnitude: Vec<f64>,
+        scratch: Vec<Complex64>,
+    },
+}
+
+/// The modulation spectrogram of one ear: IHC `[time][channel]` in,
+/// `[frame][channel × modulation band]` out (band index fastest).
+pub struct AmsFeatures {
+    channels: usize,
+    bands: usize,
+    win: Vec<f64>,
+    down: DownSampler,
+    kind: Bands,
+    frames: FrameBuffer,
+    decimated: Vec<f64>,
+    filtered: Vec<f64>,
+    interleaved: Vec<f64>,
+}
+
+impl std::fmt::Debug for AmsFeatures {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("AmsFeatures")
+            .field("channels", &self.channels)
+            .field("bands", &self.bands)
+            .field("window", &self.win.len())
+            .finish_non_exhaustive()
+    }
+}
+
+/// Log-spaced (or explicit) centre frequencies and one Butterworth filter per band: a
+/// first-order low-pass for the first, first-order band-passes (Q = 1) for the others.
+fn log_bank(p: &AmsParams, fs_ds: f64, channels: usize) -> Result<(Vec<f64>, Vec<Df2t>)> {
+    let mf = if p.cf_hz.is_empty() {
+        linspace(p.low_freq_hz.log2(), p.high_freq_hz.log2(), p.n_filters)
+            .into_iter()
+            .map(|e| 2f64.powf(e))
+            .collect()
+    } else {
+        if p.cf_hz.iter().any(|f| *f <= 0.0) {
+            return Err(invalid(
+                "ams_cfHz",
+                format!("{:?}", p.cf_hz),
+                "centre frequencies must be > 0 Hz",
+            ));
+        }
+        p.cf_hz.clone()
+    };
+    let nyq = fs_ds / 2.0;
+    let q = 1.0f64;
+    let root = (1.0 + 1.0 / (4.0 * q * q)).sqrt();
+    let too_high = |f: f64| {
+        let name = if p.cf_hz.is_empty() {
+            "ams_highFreqHz"
+        } else {
+            "ams_cfHz"
+        };
+        invalid(
+            name,
+            f,
+            format!(
+                "modulation filters must stay below the Nyquist frequency {nyq} Hz of the \
+                 envelope decimated by ams_dsRatio"
+            ),
+        )
+    };
+    let mut filters = Vec::with_capacity(mf.len());
+    for (j, &f) in mf.iter().enumerate() {
+        let w0 = f / nyq;
+        if w0 >= 1.0 {
+            return Err(too_high(f));
+        }
+        let (b, a) = if j == 0 {
+            butter(1, &[w0], ButterType::Low)
+        } else {
+            let f1 = f * (root - 1.0 / (2.0 * q));
+            let f2 = f * (root + 1.0 / (2.0 * q));
+            if f2 / nyq >= 1.0 {
+                return Err(too_high(f));
+            }
+            butter(1, &[f1 / nyq, f2 / nyq], ButterType::BandPass)
+        };
+        filters.push(Df2t::new(&b, &a, channels));
+    }
+    Ok((mf, filters))
+}
+
+/// Centre frequencies and triangular weights of `p` bands spaced linearly between
+/// `fl` and `fh` on the bins `k·fs/nfft`, `k = 0..nfft/2` (the AFE's `melbankm` on a
+/// linear axis).
+fn lin_weights(
+    p: usize,
+    fl: f64,
+    fh: f64,
+    fs: f64,
+    nfft: usize,
+) -> (Vec<f64>, Vec<(usize, Vec<f64>)>) {
+    let delta = (fh - fl) / (p + 1) as f64;
+    let centres = (1..=p).map(|j| fl + j as f64 * delta).collect();
+    let weights = (1..=p)
+        .map(|j| {
+            let w: Vec<(usize, f64)> = (0..=nfft / 2)
+                .filter_map(|k| {
+                    let f = k as f64 * fs / nfft as f64;
+                    let q = (f - fl) / delta;
+                    let v = 1.0 - (q - j as f64).abs();
+                    (f > fl && f < fh && v > 0.0).then_some((k, v))
+                })
+                .collect();
+            let first = w.first().map_or(0, |(k, _)| *k);
+            (first, w.into_iter().map(|(_, v)| v).collect())
+        })
+        .collect();
+    (centres, weights)
+}
+
+impl AmsFeatures {
+    /// Builds the modulation spectrogram for the IHC signal `input`.
+    pub fn new(params: &AmsParams, input: &SignalInfo) -> Result<(Self, SignalInfo)> {
+        let p = params;
+        if p.ds_ratio == 0 {
+            return Err(invalid("ams_dsRatio", 0, "must be a positive integer"));
+        }
+        if p.n_filters == 0 {
+            return Err(invalid("ams_nFilters", 0, "must be a positive integer"));
+        }
+        if p.low_freq_hz <= 0.0 {
+            return Err(invalid("ams_lowFreqHz", p.low_freq_hz, "must be > 0 Hz"));
+        }
+        if p.high_freq_hz <= p.low_freq_hz {
+            return Err(invalid(
+                "ams_highFreqHz",
+                p.high_freq_hz,
+                format!("must be above ams_lowFreqHz = {} Hz", p.low_freq_hz),
+            ));
+        }
+        let fs_ds = input.fs_hz / p.ds_ratio as f64;
+        let w = (2.0 * (p.w_size_sec * fs_ds / 2.0).round()).max(0.0) as usize;
+        if p.w_size_sec <= 0.0 || !(2..=MAX_WINDOW).contains(&w) {
+            return Err(invalid(
+                "ams_wSizeSec",
+                p.w_size_sec,
+                format!(
+                    "the frame must span between 2 and {MAX_WINDOW} samples at the decimated \
+                     rate {fs_ds} Hz"
+                ),
+            ));
+        }
+        let h = (w as f64 / (p.w_size_sec / p.h_size_sec)).round();
+        if p.h_size_sec <= 0.0 || !(1.0..=w as f64).contains(&h) {
+            return Err(invalid(
+                "ams_hSizeSec",
+                p.h_size_sec,
+                format!(
+                    "the hop must be at least one sample at {fs_ds} Hz and at most the frame \
+                     (ams_wSizeSec = {} s)",
+                    p.w_size_sec
+                ),
+            ));
+        }
+        let h = h as usize;
+        let win = window(&p.wname, w, "ams_wname")?;
+        let channels = input.channels();
+        let (mod_cf_hz, kind, width) = match p.fb_type {
+            AmsFbType::Log => {
+                let (mf, filters) = log_bank(p, fs_ds, channels)?;
+                let width = channels * mf.len();
+                (mf, Bands::Log { filters }, width)
+            }
+            AmsFbType::Lin => {
+                if !p.cf_hz.is_empty() {
+                    return Err(invalid(
+                        "ams_cfHz",
+                        format!("{:?}", p.cf_hz),
+                        "explicit centre frequencies need ams_fbType = 'log'",
+                    ));
+                }
+                let nfft = (2 * w).next_power_of_two();
+                let (centres, weights) =
+                    lin_weights(p.n_filters, p.low_freq_hz, p.high_freq_hz, fs_ds, nfft);
+                let fft = RealFftPlanner::<f64>::new().plan_fft_forward(nfft);
+                let kind = Bands::Lin {
+                    weights,
+                    time: fft.make_input_vec(),
+                    spectrum: fft.make_output_vec(),
+                    magnitude: vec![0.0; nfft / 2 + 1],
+                    scratch: fft.make_scratch_vec(),
+                    fft,
+                };
+                (centres, kind, channels)
+            }
+        };
+        let ams = AmsFeatures {
+            channels,
+            bands: mod_cf_hz.len(),
+            win,
+            down: DownSampler {
+                ratio: p.ds_ratio,
+                skip: 0,
+            },
+            kind,
+            frames: FrameBuffer::new(width, w, h),
+            decimated: Vec::new(),
+            filtered: Vec::new(),
+            interleaved: Vec::new(),
+        };
+        let info = SignalInfo {
+            kind: SignalKind::Modulation,
+            mod_cf_hz,
+            ..input.framed(fs_ds / h as f64)
+        };
+        Ok((ams, info))
+    }
+}
+
+impl Processor for AmsFeatures {
+    fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
+        let nc = self.channels;
+        let nb = self.bands;
+        self.down.run(inputs[0].as_slice(), nc, &mut self.decimated);
+        let w_len = self.win.len() as f64;
+        match &mut self.kind {
+            Bands::Log { filters } => {
+                let len = self.decimated.len();
+                self.filtered.resize(len, 0.0);
+                self.interleaved.resize(len * nb, 0.0);
+                for (j, filter) in filters.iter_mut().enumerate() {
+                    filter.process_from(&self.decimated, &mut self.filtered);
+                    for (row, src) in self
+                        .interleaved
+                        .chunks_exact_mut(nc * nb)
+                        .zip(self.filtered.chunks_exact(nc))
+                    {
+                        for (c, v) in src.iter().enumerate() {
+                            row[c * nb + j] = *v;
+                        }
+                    }
+                }
+                let input = &self.interleaved;
+                let n = self.frames.available(input);
+                let out = outputs[0].reset_to(n);
+                for (k, row) in out.chunks_exact_mut(nc * nb).enumerate() {
+                    for (w, z) in self.win.iter().zip(self.frames.frame(input, k).rows()) {
+                        for (acc, v) in row.iter_mut().zip(z) {
+                            *acc += (w * v).abs();
+                        }
+                    }
+                    for v in row.iter_mut() {
+                        *v /= w_len;
+                    }
+                }
+                self.frames.advance(input, n);
+            }
+            Bands::Lin {
+                weights,
+                fft,
+                time,
+                spectrum,
+                magnitude,
+                scratch,
+            } => {
+                let input = &self.decimated;
+                let n = self.frames.available(input);
+                let nfft = time.len() as f64;
+                let out = outputs[0].reset_to(n);
+                for (k, row) in out.chunks_exact_mut(nc * nb).enumerate() {
+                    let frame = self.frames.frame(input, k);
+                    for c in 0..nc {
+                        for ((t, w), z) in time.iter_mut().zip(&self.win).zip(frame.rows()) {
+                            *t = w * z[c];
+                        }
+                        time[self.win.len()..].fill(0.0);
+                        // Buffers made by the plan: the lengths match, this cannot fail.
+                        let _ = fft.process_with_scratch(time, spectrum, scratch);
+                        for (m, s) in magnitude.iter_mut().zip(spectrum.iter()) {
+                            *m = (s / nfft).norm();
+                        }
+                        for (j, (first, tri)) in weights.iter().enumerate() {
+                            row[c * nb + j] = tri
+                                .iter()
+                                .zip(&magnitude[*first..])
+                                .map(|(a, b)| a * b)
+                                .sum();
+                        }
+                    }
+                }
+                self.frames.advance(input, n);
+            }
+        }
+    }
+
+    /// Back to the state after construction: the AFE keeps its filter states and the
+    /// decimation phase across a reset (a second offline run continues them); afe resets
+    /// them, so that every run starts alike.
+    fn reset(&mut self) {
+        self.down.skip = 0;
+        self.frames.reset();
+        if let Bands::Log { filters } = &mut self.kind {
+            for f in filters {
+                f.reset();
+            }
+        }
+    }
+}
+
+impl Descriptor for AmsFeatures {
+    type Params = AmsParams;
+    const NAME: &'static str = "amsFeatures";
+    const DEPENDENCY: &'static str = "innerhaircell";
+    const EARS: Ears = Ears::PerEar;
+    const DESCRIPTION: &'static str =
+        "amplitude-modulation spectrogram: IHC envelope energy per frame, channel and modulation band";
+    const OUTPUT_UNIT: &'static str = "";
+
+    fn build(params: &AmsParams, inputs: &[SignalInfo]) -> Result<Built> {
+        let (p, out) = AmsFeatures::new(params, &inputs[0])?;
+        Ok(Built::new(p, vec![out]))
+    }
+}
+
+/// The registry entry of `amsFeatures`.
+pub static REQUEST: RequestDef = request_def::<AmsFeatures>();
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn ihc(fs: f64, channels: usize) -> SignalInfo {
+        SignalInfo::time_frequency(fs, (0..channels).map(|c| 100.0 * (c + 1) as f64).collect())
+    }
+
+    /// Positive envelopes with a few modulation rates.
+    fn envelope(len: usize, channels: usize) -> Vec<f64> {
+        (0..len)
+            .flat_map(|t| {
+                (0..channels).map(move |c| {
+                    let t = t as f64;
+                    1.0 + (0.01 * (c + 1) as f64 * t).sin() + 0.5 * (0.37 * t * t / 1e3).cos()
+                })
+            })
+            .collect()
+    }
+
+    fn run(ams: &mut AmsFeatures, x: &[f64], nc: usize, chunks: &[usize]) -> Vec<f64> {
+        let mut all = Vec::new();
+        let mut out = vec![Block::new(ams.channels * ams.bands)];
+        let mut start = 0usize;
+        let rows = x.len() / nc;
+        for &c in chunks.iter().chain(std::iter::once(&usize::MAX)) {
+            let end = start.saturating_add(c).min(rows);
+            let block = Block::from_vec(x[start * nc..end * nc].to_vec(), nc);
+            ams.process(&[&block], &mut out);
+            all.extend_from_slice(out[0].as_slice());
+            start = end;
+        }
+        all
+    }
+
+    #[test]
+    fn specs_match_struct() {
+        afe_core::params::check_param_specs::<AmsParams>();
+    }
+
+    #[test]
+    fn derived_sizes_follow_the_spec() {
+        for (fs, w, h, rate) in [
+            (16000.0, 128, 64, 62.5),
+            (44100.0, 352, 176, 11025.0 / 176.0),
+        ] {
+            let (ams, info) = AmsFeatures::new(&AmsParams::default(), &ihc(fs, 3)).expect("valid");
+            assert_eq!((ams.win.len(), ams.frames.window()), (w, w));
+            assert_eq!(info.fs_hz, rate, "hop {h}");
+            assert_eq!(info.width(), 3 * 15);
+            assert_eq!(info.mod_cf_hz[0], 4.0);
+            assert!((info.mod_cf_hz[14] - 1024.0).abs() < 1e-9);
+        }
+        let lin = AmsParams {
+            fb_type: AmsFbType::Lin,
+            ..AmsParams::default()
+        };
+        let (ams, info) = AmsFeatures::new(&lin, &ihc(44100.0, 2)).expect("valid");
+        assert!((info.mod_cf_hz[0] - 67.75).abs() < 1e-12);
+        let Bands::Lin { time, .. } = &ams.kind else {
+            panic!("lin bank expected")
+        };
+        assert_eq!(time.len(), 1024);
+    }
+
+    #[test]
+    fn downsampling_keeps_multiples_of_the_ratio_whatever_the_chunking() {
+        let mut d = DownSampler { ratio: 4, skip: 0 };
+        let mut kept = Vec::new();
+        let mut out = Vec::new();
+        let mut start = 0;
+        for len in [10, 1, 1, 3, 7, 0, 2, 9] {
+            let x: Vec<f64> = (start..start + len).map(|i| i as f64).collect();
+            d.run(&x, 1, &mut out);
+            kept.extend_from_slice(&out);
+            start += len;
+        }
+        let expect: Vec<f64> = (0..start).step_by(4).map(|i| i as f64).collect();
+        assert_eq!(kept, expect);
+    }
+
+    #[test]
+    fn a_constant_envelope_lands_in_the_lowest_band() {
+        let fs = 16000.0;
+        let (mut ams, _) = AmsFeatures::new(&AmsParams::default(), &ihc(fs, 1)).expect("valid");
+        let out = run(&mut ams, &vec![1.0; 64000], 1, &[]);
+        let last = &out[out.len() - 15..];
+        assert!((last[0] - 1.0).abs() < 1e-6, "{last:?}");
+        assert!(last[1..].iter().all(|v| *v < 0.05), "{last:?}");
+    }
+
+    #[test]
+    fn a_modulated_envelope_peaks_at_its_rate_in_both_banks() {
+        let fs = 16000.0;
+        // 64 Hz modulation: log band 7 (4·2^(8/14·7) = 64 Hz; band 0, the low-pass, holds
+        // the mean and is left out); lin triangle 0 (67.75 Hz).
+        let x: Vec<f64> = (0..64000)
+            .map(|t| 1.0 + (2.0 * std::f64::consts::PI * 64.0 * t as f64 / fs).sin())
+            .collect();
+        for (fb_type, from, expect) in [(AmsFbType::Log, 1, 7), (AmsFbType::Lin, 0, 0)] {
+            let p = AmsParams {
+                fb_type,
+                ..AmsParams::default()
+            };
+            let (mut ams, _) = AmsFeatures::new(&p, &ihc(fs, 1)).expect("valid");
+            let out = run(&mut ams, &x, 1, &[]);
+            let last = &out[out.len() - 15..];
+            let top = (from..15).max_by(|&a, &b| last[a].total_cmp(&last[b]));
+            assert_eq!(top, Some(expect), "{fb_type:?}: {last:?}");
+        }
+    }
+
+    #[test]
+    fn bad_parameters_name_themselves() {
+        let info = ihc(16000.0, 2);
+        let d = AmsParams::default();
+        let cases = [
+            (
+                "ams_lowFreqHz",
+                AmsParams {
+                    low_freq_hz: 0.0,
+                    ..d.clone()
+                },
+            ),
+            (
+                "ams_highFreqHz",
+                AmsParams {
+                    high_freq_hz: 2.0,
+                    ..d.clone()
+                },
+            ),
+            (
+                "ams_highFreqHz",
+                AmsParams {
+                    high_freq_hz: 1900.0,
+                    ..d.clone()
+                },
+            ),
+            (
+                "ams_wSizeSec",
+                AmsParams {
+                    w_size_sec: 0.0,
+                    ..d.clone()
+                },
+            ),
+            (
+                "ams_hSizeSec",
+                AmsParams {
+                    h_size_sec: 0.1,
+                    ..d.clone()
+                },
+            ),
+            (
+                "ams_hSizeSec",
+                AmsParams {
+                    h_size_sec: -1.0,
+                    ..d.clone()
+                },
+            ),
+            (
+                "ams_dsRatio",
+                AmsParams {
+                    ds_ratio: 0,
+                    ..d.clone()
+                },
+            ),
+            (
+                "ams_nFilters",
+                AmsParams {
+                    n_filters: 0,
+                    ..d.clone()
+                },
+            ),
+            (
+                "ams_wname",
+                AmsParams {
+                    wname: "kaiser".into(),
+                    ..d.clone()
+                },
+            ),
+            (
+                "ams_cfHz",
+                AmsParams {
+                    cf_hz: vec![4.0, -8.0],
+                    ..d.clone()
+                },
+            ),
+            (
+                "ams_cfHz",
+                AmsParams {
+                    cf_hz: vec![4.0, 5000.0],
+                    ..d.clone()
+                },
+            ),
+            (
+                "ams_cfHz",
+                AmsParams {
+                    cf_hz: vec![4.0],
+                    fb_type: AmsFbType::Lin,
+                    ..d.clone()
+                },
+            ),
+        ];
+        for (name, p) in cases {
+            let e = AmsFeatures::new(&p, &info).unwrap_err().to_string();
+            assert!(e.contains(name), "{name}: {e}");
+        }
+        let mut map = d.to_map();
+        map.insert("ams_fbType".into(), serde_json::json!("mel"));
+        let e = AmsParams::from_map(&map).unwrap_err().to_string();
+        assert!(e.contains("ams_fbType"), "{e}");
+    }
+
+    #[test]
+    fn reset_restarts_the_stream() {
+        let x = envelope(3000, 2);
+        let (mut ams, _) =
+            AmsFeatures::new(&AmsParams::default(), &ihc(16000.0, 2)).expect("valid");
+        let first = run(&mut ams, &x, 2, &[1001]);
+        ams.reset();
+        assert_eq!(run(&mut ams, &x, 2, &[1001]), first);
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 48, failure_persistence: None, ..ProptestConfig::default() })]
+
+        #[test]
+        fn any_chunking_is_bit_identical(
+            chunks in prop::collection::vec(prop_oneof![Just(1usize), 1usize..100, 100usize..1500], 1..20),
+            lin in any::<bool>(),
+            ratio in 1usize..6,
+        ) {
+            let x = envelope(4000, 9);
+            let p = AmsParams {
+                fb_type: if lin { AmsFbType::Lin } else { AmsFbType::Log },
+                ds_ratio: ratio,
+                high_freq_hz: 256.0,
+                ..AmsParams::default()
+            };
+            let info = ihc(8000.0, 9);
+            let (mut a, _) = AmsFeatures::new(&p, &info).expect("valid");
+            let (mut b, _) = AmsFeatures::new(&p, &info).expect("valid");
+            prop_assert_eq!(run(&mut a, &x, 9, &[]), run(&mut b, &x, 9, &chunks));
+        }
+    }
+}

@@ -1,0 +1,483 @@
+//! `gabor`: spectro-temporal Gabor filter-bank features (GBFB) of the log-compressed
+//! ratemap, normalised per chunk (spec 27-gabor).
+//!
+//! Every quantity of a chunk (the dB floor, the edge padding, the mean and variance of
+//! each feature) comes from that chunk alone, as in the AFE: the output depends on the
+//! chunking.
+
+use std::f64::consts::PI;
+
+use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
+use rustfft::num_complex::Complex64;
+use rustfft::FftPlanner;
+use serde::{Deserialize, Serialize};
+
+use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
+
+/// Parameters of the Gabor features, under their AFE names.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GaborParams {
+    /// Dynamic range kept below the chunk's largest ratemap value, in dB
+    /// (AFE `gb_maxDynamicRangeDB`).
+    #[serde(rename = "gb_maxDynamicRangeDB")]
+    pub max_dynamic_range_db: f64,
+}
+
+impl Default for GaborParams {
+    fn default() -> Self {
+        GaborParams {
+            max_dynamic_range_db: 80.0,
+        }
+    }
+}
+
+impl Params for GaborParams {
+    const SPECS: &'static [ParamSpec] = &[ParamSpec {
+        name: "gb_maxDynamicRangeDB",
+        kind: ParamKind::Number,
+        unit: "dB",
+        description: "dynamic range kept below the chunk's maximum before the log",
+    }];
+}
+
+/// Largest modulation frequencies (spectral, temporal), rad per channel / per frame.
+const OMEGA_MAX: [f64; 2] = [PI / 2.0, PI / 2.0];
+/// Half-waves under the envelope (spectral, temporal).
+const NU: [f64; 2] = [3.5, 3.5];
+/// Spacing of neighbouring filters (spectral, temporal).
+const DISTANCE: [f64; 2] = [0.3, 0.2];
+/// Largest temporal filter extent in frames; the spectral one is three times the number
+/// of channels.
+const SIZE_MAX_TIME: f64 = 40.0;
+/// Frames of edge padding on each side of a chunk: `floor(SIZE_MAX_TIME/2)`.
+const CONTEXT: usize = 20;
+
+/// One Gabor filter, reduced to what the features need: the real part of the filter
+/// (the features are real), the DC-map weights where the AFE subtracts a DC map, and the
+/// kept output rows.
+#[derive(Debug, Clone)]
+struct Filter {
+    /// Spectral half-length: taps `−half_k ..= half_k`.
+    half_k: usize,
+    /// Temporal half-length.
+    half_n: usize,
+    /// `Re G`, `[2·half_k + 1][2·half_n + 1]`.
+    real: Vec<f64>,
+    /// `|G|/Σ|G|` (same layout) when the AFE subtracts a DC map, i.e. when `Re G` has a
+    /// negative tap.
+    dc_weights: Option<Vec<f64>>,
+    /// Kept channels and, per channel, the sums of `Re G` and of the DC weights over the
+    /// taps that fall on the spectrogram (the all-ones convolutions of the DC map).
+    rows: Vec<(usize, f64, f64)>,
+}
+
+/// The symmetric Hann envelope of width `w`: `0.5·(1 + cos(2πj/w))` for the integers
+/// `|j| < w/2` (the zero end points excluded, robustly when `w/2` is an integer).
+fn hann_envelope(w: f64) -> Vec<f64> {
+    let m = (1..)
+        .take_while(|&i| (i as f64) < w / 2.0 - 1e-9 * w)
+        .count() as isize;
+    (-m..=m)
+        .map(|j| 0.5 * (1.0 + (2.0 * PI * j as f64 / w).cos()))
+        .collect()
+}
+
+/// The modulation frequencies along one axis: `ω_max/s^i` while above `ω_min`.
+fn omega_list(d: usize, size_max: f64) -> Vec<f64> {
+    let omega_min = PI * NU[d] / size_max;
+    let c = DISTANCE[d] * 8.0 / NU[d];
+    let s = (1.0 + c / 2.0) / (1.0 - c / 2.0);
+    let mut list = vec![OMEGA_MAX[d]];
+    let mut i = 1;
+    while (OMEGA_MAX[d] / s.powi(i - 1)) / s > omega_min {
+        list.push(OMEGA_MAX[d] / s.powi(i));
+        i += 1;
+    }
+    list
+}
+
+/// Largest modulus of the 2-D DFT of `g` (`[rows][cols]`).
+fn max_dft_modulus(g: &[Complex64], rows: usize, cols: usize) -> f64 {
+    let mut planner = FftPlanner::<f64>::new();
+    let mut data = g.to_vec();
+    let along_cols = planner.plan_fft_forward(cols);
+    for row in data.chunks_exact_mut(cols) {
+        along_cols.process(row);
+    }
+    let along_rows = planner.plan_fft_forward(rows);
+    let mut column = vec![Complex64::new(0.0, 0.0); rows];
+    let mut peak = 0.0f64;
+    for c in 0..cols {
+        for (r, v) in column.iter_mut().enumerate() {
+            *v = data[r * cols + c];
+        }
+        along_rows.process(&mut column);
+        peak = column.iter().fold(peak, |m, v| m.max(v.norm()));
+    }
+    peak
+}
+
+/// The filter for modulation frequencies `(omega_k, omega_n)` over `channels` channels.
+fn design(mut omega_k: f64, mut omega_n: f64, channels: usize) -> Filter {
+    let size_max_k = 3.0 * channels as f64;
+    let width = |omega: f64, d: usize| (2.0 * PI / omega.abs()) * NU[d] / 2.0;
+    let mut w_n = width(omega_n, 1);
+    if w_n > SIZE_MAX_TIME {
+        w_n = SIZE_MAX_TIME;
+        omega_n = 0.0;
+    }
+    let mut w_k = width(omega_k, 0);
+    if w_k > size_max_k {
+        w_k = size_max_k;
+        omega_k = 0.0;
+    }
+    let (h_k, h_n) = (hann_envelope(w_k), hann_envelope(w_n));
+    let (lk, ln) = (h_k.len(), h_n.len());
+    let (half_k, half_n) = (lk / 2, ln / 2);
+    let envelope: Vec<f64> = h_k
+        .iter()
+        .flat_map(|a| h_n.iter().map(move |b| a * b))
+        .collect();
+    let mut g: Vec<Complex64> = envelope
+        .iter()
+        .enumerate()
+        .map(|(i, e)| {
+            let k = (i / ln) as f64 - half_k as f64;
+            let n = (i % ln) as f64 - half_n as f64;
+            e * Complex64::new(0.0, omega_n * n + omega_k * k).exp()
+        })
+        .collect();
+    let count = g.len() as f64;
+    if omega_n != 0.0 || omega_k != 0.0 {
+        let mean_e = envelope.iter().sum::<f64>() / count;
+        let mean_g = g.iter().sum::<Complex64>() / count;
+        for (v, e) in g.iter_mut().zip(&envelope) {
+            *v -= (e / mean_e) * mean_g;
+        }
+    } else {
+        for v in g.iter_mut() {
+            *v += Complex64::new(0.0, 1.0) * *v;
+        }
+    }
+    let peak = max_dft_modulus(&g, lk, ln);
+    for v in g.iter_mut() {
+        *v /= peak;
+    }
+    let real: Vec<f64> = g.iter().map(|v| v.re).collect();
+    let dc_weights = real.iter().any(|v| *v < 0.0).then(|| {
+        let total: f64 = g.iter().map(|v| v.norm()).sum();
+        g.iter().map(|v| v.norm() / total).collect::<Vec<f64>>()
+    });
+    let step = (lk / 4).max(1);
+    let rows = ((channels / 2) % step..channels)
+        .step_by(step)
+        .map(|r| {
+            // Taps a with 0 ≤ r + half_k − a < channels fall on the spectrogram; every
+            // temporal tap does (the padding is wider than any filter).
+            let first = (r + half_k + 1).saturating_sub(channels);
+            let last = (r + half_k).min(lk - 1);
+            let sum = |taps: &[f64]| -> f64 {
+                (first..=last)
+                    .flat_map(|a| taps[a * ln..(a + 1) * ln].iter())
+                    .sum()
+            };
+            let dc = dc_weights.as_deref().map_or(0.0, sum);
+            (r, sum(&real), dc)
+        })
+        .collect();
+    Filter {
+        half_k,
+        half_n,
+        real,
+        dc_weights,
+        rows,
+    }
+}
+
+/// The Gabor features of one ear: ratemap `[frame][channel]` in, `[frame][feature]` out.
+#[derive(Debug, Clone)]
+pub struct Gabor {
+    range_db: f64,
+    channels: usize,
+    filters: Vec<Filter>,
+    features: usize,
+    /// Log spectrogram with edge padding, `[channel][CONTEXT + frames + CONTEXT]`.
+    spectrogram: Vec<f64>,
+    /// Features before the transpose, `[feature][frame]`.
+    rows: Vec<f64>,
+    acc_real: Vec<f64>,
+    acc_dc: Vec<f64>,
+}
+
+impl Gabor {
+    /// Builds the feature extractor for the ratemap `input`.
+    pub fn new(params: &GaborParams, input: &SignalInfo) -> Result<(Self, SignalInfo)> {
+        if params.max_dynamic_range_db <= 0.0 {
+            return Err(Error::InvalidParameter {
+                name: "gb_maxDynamicRangeDB".into(),
+                value: params.max_dynamic_range_db.to_string(),
+                reason: "must be > 0 dB".into(),
+            });
+        }
+        let channels = input.channels();
+        if channels == 0 {
+            return Err(Error::InvalidInput(
+                "gabor needs a ratemap with at least one channel".into(),
+            ));
+        }
+        let spectral = omega_list(0, 3.0 * channels as f64);
+        let temporal = omega_list(1, SIZE_MAX_TIME);
+        let omega_n: Vec<f64> = std::iter::once(0.0)
+            .chain(temporal.iter().rev().copied())
+            .collect();
+        let omega_k: Vec<f64> = spectral
+            .iter()
+            .map(|v| -v)
+            .chain(std::iter::once(0.0))
+            .chain(spectral.iter().rev().copied())
+            .collect();
+        let filters: Vec<Filter> = omega_n
+            .iter()
+            .flat_map(|n| omega_k.iter().map(move |k| (*k, *n)))
+            .filter(|(k, n)| !(*k < 0.0 && *n == 0.0))
+            .map(|(k, n)| design(k, n, channels))
+            .collect();
+        let features = filters.iter().map(|f| f.rows.len()).sum();
+        let names = (1..=features).map(|i| i.to_string()).collect();
+        let gabor = Gabor {
+            range_db: params.max_dynamic_range_db,
+            channels,
+            filters,
+            features,
+            spectrogram: Vec::new(),
+            rows: Vec::new(),
+            acc_real: Vec::new(),
+            acc_dc: Vec::new(),
+        };
+        Ok((
+            gabor,
+            SignalInfo::feature(input.fs_hz, input.audio_fs_hz, names),
+        ))
+    }
+
+    /// The padded log spectrogram of a chunk of `frames` ratemap rows.
+    fn log_spectrogram(&mut self, input: &[f64], frames: usize) {
+        let k = self.channels;
+        let padded = frames + 2 * CONTEXT;
+        let peak = input.iter().fold(f64::NAN, |m, v| m.max(*v));
+        let floor = 10f64.powf(-(self.range_db - 10.0 * peak.log10()) / 10.0);
+        self.spectrogram.resize(k * padded, 0.0);
+        for (c, row) in self.spectrogram.chunks_exact_mut(padded).enumerate() {
+            for (t, v) in row[CONTEXT..CONTEXT + frames].iter_mut().enumerate() {
+                *v = 10.0 * (input[t * k + c] + floor).log10();
+            }
+            let (first, last) = (row[CONTEXT], row[CONTEXT + frames - 1]);
+            row[..CONTEXT].fill(first);
+            row[CONTEXT + frames..].fill(last);
+        }
+    }
+}
+
+impl Processor for Gabor {
+    fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
+        let frames = inputs[0].frames();
+        if frames == 0 {
+            outputs[0].reset_to(0);
+            return;
+        }
+        self.log_spectrogram(inputs[0].as_slice(), frames);
+        let padded = frames + 2 * CONTEXT;
+        let k = self.channels;
+        self.rows.resize(self.features * frames, 0.0);
+        self.acc_real.resize(frames, 0.0);
+        self.acc_dc.resize(frames, 0.0);
+        let mut feature = 0;
+        for f in &self.filters {
+            let ln = 2 * f.half_n + 1;
+            for &(r, sum_real, sum_dc) in &f.rows {
+                self.acc_real.fill(0.0);
+                self.acc_dc.fill(0.0);
+                // 'same' convolution: out[r, t] = Σ G[a, b]·S[r + half_k − a, t + half_n − b].
+                for a in 0..2 * f.half_k + 1 {
+                    let Some(src) = (r + f.half_k)
+                        .checked_sub(a)
+                        .filter(|s| *s < k)
+                        .map(|s| &self.spectrogram[s * padded..(s + 1) * padded])
+                    else {
+                        continue;
+                    };
+                    for b in 0..ln {
+                        let start = CONTEXT + f.half_n - b;
+                        let s = &src[start..start + frames];
+                        let g = f.real[a * ln + b];
+                        for (acc, x) in self.acc_real.iter_mut().zip(s) {
+                            *acc += g * x;
+                        }
+                        if let Some(dc) = &f.dc_weights {
+                            let w = dc[a * ln + b];
+                            for (acc, x) in self.acc_dc.iter_mut().zip(s) {
+                                *acc += w * x;
+                            }
+                        }
+                    }
+                }
+                let row = &mut self.rows[feature * frames..(feature + 1) * frames];
+                if f.dc_weights.is_some() {
+                    for ((o, g), d) in row.iter_mut().zip(&self.acc_real).zip(&self.acc_dc) {
+                        *o = g - d / sum_dc * sum_real;
+                    }
+                } else {
+                    row.copy_from_slice(&self.acc_real);
+                }
+                feature += 1;
+            }
+        }
+        let out = outputs[0].resize_to(frames);
+        let n = frames as f64;
+        for (j, row) in self.rows.chunks_exact(frames).enumerate() {
+            let mean = row.iter().sum::<f64>() / n;
+            let var = row.iter().map(|x| x * x).sum::<f64>() / n - mean * mean;
+            let sd = var.sqrt();
+            for (t, x) in row.iter().enumerate() {
+                out[t * self.features + j] = (x - mean) / sd;
+            }
+        }
+    }
+
+    fn reset(&mut self) {}
+}
+
+impl Descriptor for Gabor {
+    type Params = GaborParams;
+    const NAME: &'static str = "gabor";
+    const DEPENDENCY: &'static str = "ratemap";
+    const EARS: Ears = Ears::PerEar;
+    const DESCRIPTION: &'static str =
+        "spectro-temporal Gabor filter-bank features of the log ratemap, normalised per chunk";
+    const OUTPUT_UNIT: &'static str = "";
+
+    fn build(params: &GaborParams, inputs: &[SignalInfo]) -> Result<Built> {
+        let (p, out) = Gabor::new(params, &inputs[0])?;
+        Ok(Built::new(p, vec![out]))
+    }
+
+    /// The dB floor, padding and normalisation come from each chunk, as in the AFE.
+    fn chunk_invariant(_: &GaborParams) -> bool {
+        false
+    }
+}
+
+/// The registry entry of `gabor`.
+pub static REQUEST: RequestDef = request_def::<Gabor>();
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ratemap(channels: usize) -> SignalInfo {
+        SignalInfo::time_frequency(
+            44100.0,
+            (0..channels).map(|c| 100.0 * (c + 1) as f64).collect(),
+        )
+        .framed(100.0)
+    }
+
+    #[test]
+    fn specs_match_struct() {
+        afe_core::params::check_param_specs::<GaborParams>();
+    }
+
+    #[test]
+    fn feature_counts_match_the_gbfb() {
+        for (k, n) in [(23, 311), (16, 221), (31, 455), (32, 464), (64, 923)] {
+            let (g, info) = Gabor::new(&GaborParams::default(), &ratemap(k)).expect("valid");
+            assert_eq!((g.features, info.width()), (n, n), "K = {k}");
+            assert_eq!(info.features[0], "1");
+        }
+    }
+
+    #[test]
+    fn modulation_axes_follow_the_spec() {
+        let n = omega_list(1, SIZE_MAX_TIME);
+        let expect = [PI / 2.0, 0.9863, 0.6193, 0.3889];
+        assert_eq!(n.len(), 4);
+        for (a, b) in n.iter().zip(expect) {
+            assert!((a - b).abs() < 1e-4, "{n:?}");
+        }
+        assert_eq!(omega_list(0, 69.0).len(), 4);
+        assert_eq!(omega_list(0, 48.0).len(), 3);
+    }
+
+    #[test]
+    fn hann_envelope_excludes_exact_end_points() {
+        // w = 8: |j| < 4, 7 taps; w = 8.5: |j| ≤ 4, 9 taps.
+        assert_eq!(hann_envelope(8.0).len(), 7);
+        assert_eq!(hann_envelope(8.5).len(), 9);
+        assert_eq!(hann_envelope(8.0)[3], 1.0);
+    }
+
+    #[test]
+    fn features_are_normalised_per_chunk() {
+        let k = 16;
+        let (mut g, info) = Gabor::new(&GaborParams::default(), &ratemap(k)).expect("valid");
+        let frames = 50;
+        let x: Vec<f64> = (0..frames * k)
+            .map(|i| {
+                let (t, c) = ((i / k) as f64, (i % k) as f64);
+                1e-3 * (1.5 + (0.3 * t + 0.5 * c).sin()) * (1.0 + 0.1 * c)
+            })
+            .collect();
+        let mut out = vec![Block::new(info.width())];
+        g.process(&[&Block::from_vec(x, k)], &mut out);
+        assert_eq!(out[0].frames(), frames);
+        for j in 0..info.width() {
+            let col: Vec<f64> = out[0].rows().map(|r| r[j]).collect();
+            let mean = col.iter().sum::<f64>() / frames as f64;
+            let var = col.iter().map(|v| v * v).sum::<f64>() / frames as f64;
+            assert!(mean.abs() < 1e-9 && (var - 1.0).abs() < 1e-9, "feature {j}");
+        }
+        g.process(&[&Block::new(k)], &mut out);
+        assert!(out[0].is_empty());
+    }
+
+    /// Each chunk is processed on its own (floor, padding, normalisation from the chunk):
+    /// two chunks give what two fresh extractors give on each, not the one-call output.
+    #[test]
+    fn each_chunk_stands_alone() {
+        let k = 8;
+        let x: Vec<f64> = (0..60 * k)
+            .map(|i| 1e-2 * (2.0 + (0.2 * (i / k) as f64 + (i % k) as f64).cos()))
+            .collect();
+        let info = ratemap(k);
+        let p = GaborParams::default();
+        let run = |rows: &[f64]| {
+            let (mut g, out_info) = Gabor::new(&p, &info).expect("valid");
+            let mut out = vec![Block::new(out_info.width())];
+            g.process(&[&Block::from_vec(rows.to_vec(), k)], &mut out);
+            out.remove(0).into_vec()
+        };
+        let (mut g, out_info) = Gabor::new(&p, &info).expect("valid");
+        let mut out = vec![Block::new(out_info.width())];
+        let mut chunked = Vec::new();
+        for part in [&x[..25 * k], &x[25 * k..]] {
+            g.process(&[&Block::from_vec(part.to_vec(), k)], &mut out);
+            chunked.extend_from_slice(out[0].as_slice());
+        }
+        let mut separate = run(&x[..25 * k]);
+        separate.extend(run(&x[25 * k..]));
+        assert_eq!(chunked, separate);
+        assert_ne!(chunked, run(&x));
+    }
+
+    #[test]
+    fn bad_range_names_the_parameter() {
+        for v in [0.0, -10.0] {
+            let p = GaborParams {
+                max_dynamic_range_db: v,
+            };
+            let e = Gabor::new(&p, &ratemap(8)).unwrap_err().to_string();
+            assert!(e.contains("gb_maxDynamicRangeDB"), "{e}");
+        }
+    }
+}
