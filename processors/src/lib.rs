@@ -4,6 +4,7 @@
 //! Each module holds the processor's parameter struct (AFE names, AFE defaults), its
 //! design code and its tests; nothing here knows about graphs or threads.
 
+pub mod adaptation;
 pub mod butterworth;
 mod cpu;
 pub mod crosscorrelation;

@@ -2,6 +2,7 @@
 
 use afe_core::{Error, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo};
 
+use crate::adaptation::{Adaptation, AdaptationParams};
 use crate::butterworth::{Butterworth, ButterworthParams};
 use crate::crosscorrelation::{Crosscorrelation, CrosscorrelationParams};
 use crate::gammatone::{Gammatone, GammatoneParams};
@@ -134,6 +135,17 @@ fn build_ic(_: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
     Ok(built(p, vec![out]))
 }
 
+/// The adaptation's own parameters after its preset (the AFE applies presets when it
+/// verifies parameters, so two requests reaching the same values share the node).
+fn canonical_adaptation(map: &ParamMap) -> Result<ParamMap> {
+    Ok(AdaptationParams::from_map(map)?.with_preset().to_map())
+}
+
+fn build_adaptation(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
+    let (p, out) = Adaptation::new(&AdaptationParams::from_map(map)?, &inputs[0])?;
+    Ok(built(p, vec![out]))
+}
+
 fn no_params(_: &ParamMap) -> Result<ParamMap> {
     Ok(ParamMap::new())
 }
@@ -260,6 +272,18 @@ static REQUESTS: &[RequestDef] = &[
         defaults: ParamMap::new,
         canonical: no_params,
         build: build_ic,
+        chunk_invariant: always,
+    },
+    RequestDef {
+        name: "adaptation",
+        dependency: "innerhaircell",
+        ears: Ears::PerEar,
+        description: "adaptation loops: compressed IHC envelope per frequency channel",
+        output_unit: "model units",
+        params: AdaptationParams::SPECS,
+        defaults: defaults::<AdaptationParams>,
+        canonical: canonical_adaptation,
+        build: build_adaptation,
         chunk_invariant: always,
     },
 ];
