@@ -5,6 +5,7 @@
 //! design code and its tests; nothing here knows about graphs or threads.
 
 pub mod adaptation;
+pub mod autocorrelation;
 pub mod butterworth;
 mod cpu;
 pub mod crosscorrelation;

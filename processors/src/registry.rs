@@ -3,6 +3,7 @@
 use afe_core::{Error, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo};
 
 use crate::adaptation::{Adaptation, AdaptationParams};
+use crate::autocorrelation::{Autocorrelation, AutocorrelationParams};
 use crate::butterworth::{Butterworth, ButterworthParams};
 use crate::crosscorrelation::{Crosscorrelation, CrosscorrelationParams};
 use crate::gammatone::{Gammatone, GammatoneParams};
@@ -146,6 +147,11 @@ fn build_adaptation(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
     Ok(built(p, vec![out]))
 }
 
+fn build_autocorrelation(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
+    let (p, out) = Autocorrelation::new(&AutocorrelationParams::from_map(map)?, &inputs[0])?;
+    Ok(built(p, vec![out]))
+}
+
 fn no_params(_: &ParamMap) -> Result<ParamMap> {
     Ok(ParamMap::new())
 }
@@ -284,6 +290,18 @@ static REQUESTS: &[RequestDef] = &[
         defaults: defaults::<AdaptationParams>,
         canonical: canonical_adaptation,
         build: build_adaptation,
+        chunk_invariant: always,
+    },
+    RequestDef {
+        name: "autocorrelation",
+        dependency: "innerhaircell",
+        ears: Ears::PerEar,
+        description: "centre-clipped normalised autocorrelation per frame, channel and lag",
+        output_unit: "",
+        params: AutocorrelationParams::SPECS,
+        defaults: defaults::<AutocorrelationParams>,
+        canonical: canonical::<AutocorrelationParams>,
+        build: build_autocorrelation,
         chunk_invariant: always,
     },
 ];
