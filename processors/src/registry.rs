@@ -11,6 +11,7 @@ use crate::ic::Ic;
 use crate::ihc::{Ihc, IhcParams};
 use crate::ild::{Ild, IldParams};
 use crate::itd::Itd;
+use crate::pitch::{Pitch, PitchParams};
 use crate::pre_proc::{PreProc, PreProcParams};
 use crate::ratemap::{Ratemap, RatemapParams};
 
@@ -150,6 +151,16 @@ fn build_adaptation(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
 fn build_autocorrelation(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
     let (p, out) = Autocorrelation::new(&AutocorrelationParams::from_map(map)?, &inputs[0])?;
     Ok(built(p, vec![out]))
+}
+
+fn build_pitch(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
+    let (p, out) = Pitch::new(&PitchParams::from_map(map)?, &inputs[0])?;
+    Ok(built(p, vec![out]))
+}
+
+/// The AFE's pitch thresholds and smooths per chunk.
+fn never(_: &ParamMap) -> bool {
+    false
 }
 
 fn no_params(_: &ParamMap) -> Result<ParamMap> {
@@ -303,6 +314,18 @@ static REQUESTS: &[RequestDef] = &[
         canonical: canonical::<AutocorrelationParams>,
         build: build_autocorrelation,
         chunk_invariant: always,
+    },
+    RequestDef {
+        name: "pitch",
+        dependency: "autocorrelation",
+        ears: Ears::PerEar,
+        description: "pitch per frame from the summary autocorrelation, raw pitch and confidence",
+        output_unit: "Hz",
+        params: PitchParams::SPECS,
+        defaults: defaults::<PitchParams>,
+        canonical: canonical::<PitchParams>,
+        build: build_pitch,
+        chunk_invariant: never,
     },
 ];
 
