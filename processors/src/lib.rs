@@ -4,7 +4,9 @@
 //! Each module holds the processor's parameter struct (AFE names, AFE defaults), its
 //! design code and its tests; nothing here knows about graphs or threads.
 
+pub mod adaptation;
 pub mod ams_features;
+pub mod autocorrelation;
 pub mod butterworth;
 mod cpu;
 pub mod crosscorrelation;
@@ -16,6 +18,7 @@ pub mod ihc;
 pub mod ild;
 pub mod itd;
 pub mod middle_ear;
+pub mod pitch;
 pub mod pre_proc;
 pub mod ratemap;
 mod registry;

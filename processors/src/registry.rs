@@ -5,8 +5,8 @@
 use afe_core::{Error, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo};
 
 use crate::{
-    ams_features, butterworth, crosscorrelation, gabor, gammatone, ic, ihc, ild, itd, pre_proc,
-    ratemap, spectral_features, stft, transient, transient_map,
+    adaptation, ams_features, autocorrelation, butterworth, crosscorrelation, gabor, gammatone, ic,
+    ihc, ild, itd, pitch, pre_proc, ratemap, spectral_features, stft, transient, transient_map,
 };
 
 /// How a processor relates to the ears (the AFE's binaural flag).
@@ -167,11 +167,14 @@ static REQUESTS: &[&RequestDef] = &[
     &butterworth::REQUEST,
     &gammatone::REQUEST,
     &ihc::REQUEST,
+    &adaptation::REQUEST,
     &ratemap::REQUEST,
     &ild::REQUEST,
     &crosscorrelation::REQUEST,
     &itd::REQUEST,
     &ic::REQUEST,
+    &autocorrelation::REQUEST,
+    &pitch::REQUEST,
     &transient::ONSET_REQUEST,
     &transient::OFFSET_REQUEST,
     &transient_map::ONSET_REQUEST,

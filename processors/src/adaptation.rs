@@ -1,0 +1,501 @@
+//! `adaptation`: a chain of non-linear adaptation loops per IHC channel (Dau et al.
+//! 1996/1997 and variants), with optional overshoot limitation (spec 14-adaptation).
+//!
+//! Each loop divides the signal by its own low-passed output, which compresses
+//! stationary input and passes fast changes: the output is in model units, 0 at the
+//! level floor. Exactly chunk-invariant: the loop states carry over between chunks.
+
+use afe_core::erb::linspace;
+use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
+use serde::{Deserialize, Serialize};
+
+use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
+
+/// A named parameter preset of the AFE (`adpt_model`), which overrides `adpt_lim`,
+/// `adpt_mindB` and `adpt_tau`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum AdaptationModel {
+    /// No preset: the three parameters as given.
+    #[default]
+    #[serde(rename = "")]
+    None,
+    /// Dau et al. (1996): limitation 10, floor 0 dB SPL, the five standard time constants.
+    #[serde(rename = "adt_dau")]
+    Dau,
+    /// Püschel (1988): no limitation, time constants evenly spaced from 5 to 500 ms.
+    #[serde(rename = "adt_puschel")]
+    Puschel,
+    /// Breebaart et al. (2001): limitation 10, time constants evenly spaced from 5 to 500 ms.
+    #[serde(rename = "adt_breebaart")]
+    Breebaart,
+    /// van Dorp Schuitman (2009): no limitation, standard time constants, and a floor per
+    /// channel at the absolute threshold of hearing of its centre frequency.
+    #[serde(rename = "adt_vandorpschuitman")]
+    VanDorpSchuitman,
+}
+
+/// The accepted `adpt_model` names (`''` for no preset).
+pub const ADAPTATION_MODELS: &[&str] = &[
+    "",
+    "adt_dau",
+    "adt_puschel",
+    "adt_breebaart",
+    "adt_vandorpschuitman",
+];
+
+/// Parameters of the adaptation loops, under their AFE names.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AdaptationParams {
+    /// Overshoot limitation factor; at most 1 disables the limitation (AFE `adpt_lim`).
+    #[serde(rename = "adpt_lim")]
+    pub lim: f64,
+    /// Lowest signal level in dB SPL (amplitude 1 is 100 dB SPL), the floor every input is
+    /// raised to (AFE `adpt_mindB`).
+    #[serde(rename = "adpt_mindB")]
+    pub min_db_spl: f64,
+    /// Time constant of each loop in s, one loop per value (AFE `adpt_tau`).
+    #[serde(rename = "adpt_tau")]
+    pub tau_sec: Vec<f64>,
+    /// Preset overriding the three others (AFE `adpt_model`).
+    #[serde(rename = "adpt_model")]
+    pub model: AdaptationModel,
+}
+
+/// The five time constants of Dau et al., in s.
+const DAU_TAU_SEC: [f64; 5] = [0.005, 0.05, 0.129, 0.253, 0.5];
+
+impl Default for AdaptationParams {
+    fn default() -> Self {
+        AdaptationParams {
+            lim: 10.0,
+            min_db_spl: 0.0,
+            tau_sec: DAU_TAU_SEC.to_vec(),
+            model: AdaptationModel::None,
+        }
+    }
+}
+
+impl Params for AdaptationParams {
+    const SPECS: &'static [ParamSpec] = &[
+        ParamSpec {
+            name: "adpt_lim",
+            kind: ParamKind::Number,
+            unit: "",
+            description: "overshoot limitation factor (at most 1: no limitation)",
+        },
+        ParamSpec {
+            name: "adpt_mindB",
+            kind: ParamKind::Number,
+            unit: "dB SPL",
+            description: "lowest signal level, the floor of the input",
+        },
+        ParamSpec {
+            name: "adpt_tau",
+            kind: ParamKind::Numbers,
+            unit: "s",
+            description: "time constant of each adaptation loop",
+        },
+        ParamSpec {
+            name: "adpt_model",
+            kind: ParamKind::Choice(ADAPTATION_MODELS),
+            unit: "",
+            description: "preset overriding adpt_lim, adpt_mindB and adpt_tau ('' for none)",
+        },
+    ];
+}
+
+/// `linspace(0.005, 0.5, 5)`, the time constants of the Püschel and Breebaart presets.
+fn spaced_tau_sec() -> Vec<f64> {
+    linspace(0.005, 0.5, 5)
+}
+
+impl AdaptationParams {
+    /// The parameters after the AFE's verification: a preset replaces `adpt_lim`,
+    /// `adpt_mindB` and `adpt_tau` by its own values (the model name is kept).
+    pub fn with_preset(&self) -> Self {
+        let (lim, tau) = match self.model {
+            AdaptationModel::None => return self.clone(),
+            AdaptationModel::Dau => (10.0, DAU_TAU_SEC.to_vec()),
+            AdaptationModel::Puschel => (0.0, spaced_tau_sec()),
+            AdaptationModel::Breebaart => (10.0, spaced_tau_sec()),
+            AdaptationModel::VanDorpSchuitman => (0.0, DAU_TAU_SEC.to_vec()),
+        };
+        AdaptationParams {
+            lim,
+            min_db_spl: 0.0,
+            tau_sec: tau,
+            model: self.model,
+        }
+    }
+}
+
+/// Absolute threshold of hearing in dB SPL at `f_hz` (the van Dorp Schuitman floor).
+fn threshold_of_hearing_db(f_hz: f64) -> f64 {
+    let f = f_hz / 1000.0;
+    3.64 * f.powf(-0.8) - 6.5 * (-0.6 * (f - 3.3) * (f - 3.3)).exp() + 1e-3 * f.powi(4)
+}
+
+/// The adaptation loops of one ear: IHC `[time][channel]` in, the same shape out.
+#[derive(Debug, Clone)]
+pub struct Adaptation {
+    /// Loop feedback coefficient `a1 = exp(−1/(τ·fs))` and input gain `1 − a1`, per loop.
+    a1: Vec<f64>,
+    b0: Vec<f64>,
+    /// Per channel: the floor, and the output offset and scale `(v − corr)·mult`.
+    min_level: Vec<f64>,
+    corr: Vec<f64>,
+    mult: Vec<f64>,
+    /// Initial loop states `minLevel^(1/2^j)`, `[loop][channel]`.
+    initial: Vec<f64>,
+    /// Overshoot limitation constants `F`, `Ex`, `Off`, `[loop][channel]`; empty when
+    /// the limitation is off.
+    limit: Vec<[f64; 3]>,
+    /// Loop states, `[loop][channel]`.
+    state: Vec<f64>,
+}
+
+impl Adaptation {
+    /// Builds the loops for the IHC signal `input` (its `cf_hz` gives the van Dorp
+    /// Schuitman floor); `params` are taken after their preset (see
+    /// [`AdaptationParams::with_preset`]).
+    pub fn new(params: &AdaptationParams, input: &SignalInfo) -> Result<(Self, SignalInfo)> {
+        let p = params.with_preset();
+        let fs = input.fs_hz;
+        if p.tau_sec.is_empty() || p.tau_sec.iter().any(|t| *t <= 0.0) {
+            return Err(Error::InvalidParameter {
+                name: "adpt_tau".into(),
+                value: format!("{:?}", p.tau_sec),
+                reason: "needs at least one time constant, each > 0 s".into(),
+            });
+        }
+        let floor_db: Vec<f64> = match p.model {
+            AdaptationModel::VanDorpSchuitman => input
+                .cf_hz
+                .iter()
+                .map(|&f| threshold_of_hearing_db(f))
+                .collect(),
+            _ => vec![p.min_db_spl; input.channels()],
+        };
+        if let Some(db) = floor_db.iter().find(|db| db.is_nan() || **db >= 100.0) {
+            let (name, value) = match p.model {
+                AdaptationModel::VanDorpSchuitman => {
+                    ("adpt_model", "\"adt_vandorpschuitman\"".to_string())
+                }
+                _ => ("adpt_mindB", p.min_db_spl.to_string()),
+            };
+            return Err(Error::InvalidParameter {
+                name: name.into(),
+                value,
+                reason: format!(
+                    "the level floor ({db} dB SPL) must be below 100 dB SPL (amplitude 1); \
+                     the van Dorp Schuitman floor exceeds it above about 17.8 kHz"
+                ),
+            });
+        }
+        let loops = p.tau_sec.len();
+        let a1: Vec<f64> = p.tau_sec.iter().map(|t| (-1.0 / (t * fs)).exp()).collect();
+        let b0 = a1.iter().map(|a| 1.0 - a).collect();
+        let min_level: Vec<f64> = floor_db
+            .iter()
+            .map(|db| 10f64.powf((db - 100.0) / 20.0))
+            .collect();
+        let initial: Vec<f64> = (1..=loops)
+            .flat_map(|j| {
+                let e = 1.0 / 2f64.powi(j as i32);
+                min_level.iter().map(move |m| m.powf(e))
+            })
+            .collect();
+        let corr: Vec<f64> = min_level
+            .iter()
+            .map(|m| m.powf(1.0 / 2f64.powi(loops as i32)))
+            .collect();
+        let mult = corr.iter().map(|c| 100.0 / (1.0 - c)).collect();
+        let limit = if p.lim > 1.0 {
+            let constants: Vec<[f64; 3]> = initial
+                .iter()
+                .map(|s0| {
+                    let m = (1.0 - s0 * s0) * p.lim - 1.0;
+                    [2.0 * m, -2.0 / m, m - 1.0]
+                })
+                .collect();
+            if constants.iter().any(|[f, _, _]| f.is_nan() || *f <= 0.0) {
+                return Err(Error::InvalidParameter {
+                    name: "adpt_lim".into(),
+                    value: p.lim.to_string(),
+                    reason: "above 1, the limitation factor must exceed 1/(1 − s0²) of every \
+                             loop's initial state s0 (use at most 1 to disable it)"
+                        .into(),
+                });
+            }
+            constants
+        } else {
+            Vec::new()
+        };
+        let adaptation = Adaptation {
+            a1,
+            b0,
+            min_level,
+            corr,
+            mult,
+            state: initial.clone(),
+            initial,
+            limit,
+        };
+        Ok((adaptation, input.clone()))
+    }
+}
+
+impl Processor for Adaptation {
+    fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
+        let input = inputs[0];
+        let nc = self.min_level.len();
+        let out = outputs[0].resize_to(input.frames());
+        for (x, y) in input.rows().zip(out.chunks_exact_mut(nc.max(1))) {
+            for ((v, &x), &m) in y.iter_mut().zip(x).zip(&self.min_level) {
+                *v = x.max(m);
+            }
+            for (j, states) in self.state.chunks_exact_mut(nc.max(1)).enumerate() {
+                let (a1, b0) = (self.a1[j], self.b0[j]);
+                if self.limit.is_empty() {
+                    for (v, s) in y.iter_mut().zip(states.iter_mut()) {
+                        *v /= *s;
+                        *s = a1 * *s + b0 * *v;
+                    }
+                } else {
+                    let limit = &self.limit[j * nc..(j + 1) * nc];
+                    for ((v, s), [f, ex, off]) in y.iter_mut().zip(states.iter_mut()).zip(limit) {
+                        *v /= *s;
+                        if *v > 1.0 {
+                            *v = f / (1.0 + (ex * (*v - 1.0)).exp()) - off;
+                        }
+                        *s = a1 * *s + b0 * *v;
+                    }
+                }
+            }
+            for ((v, c), m) in y.iter_mut().zip(&self.corr).zip(&self.mult) {
+                *v = (*v - c) * m;
+            }
+        }
+    }
+
+    fn reset(&mut self) {
+        self.state.copy_from_slice(&self.initial);
+    }
+}
+
+impl Descriptor for Adaptation {
+    type Params = AdaptationParams;
+    const NAME: &'static str = "adaptation";
+    const DEPENDENCY: &'static str = "innerhaircell";
+    const EARS: Ears = Ears::PerEar;
+    const DESCRIPTION: &'static str =
+        "adaptation loops: compressed IHC envelope per frequency channel";
+    const OUTPUT_UNIT: &'static str = "model units";
+
+    fn build(params: &AdaptationParams, inputs: &[SignalInfo]) -> Result<Built> {
+        let (p, out) = Adaptation::new(params, &inputs[0])?;
+        Ok(Built::new(p, vec![out]))
+    }
+
+    /// The parameters after the preset (the AFE applies presets when it verifies
+    /// parameters, so two requests reaching the same values share the node).
+    fn canonical(params: &AdaptationParams) -> Result<afe_core::ParamMap> {
+        Ok(params.clone().with_preset().to_map())
+    }
+}
+
+/// The registry entry of `adaptation`.
+pub static REQUEST: RequestDef = request_def::<Adaptation>();
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    #[test]
+    fn specs_match_struct() {
+        afe_core::params::check_param_specs::<AdaptationParams>();
+    }
+
+    fn ihc(nc: usize) -> SignalInfo {
+        SignalInfo::time_frequency(16000.0, (0..nc).map(|c| 200.0 * (c + 1) as f64).collect())
+    }
+
+    fn run(p: &AdaptationParams, nc: usize, x: &[f64], chunks: &[usize]) -> Vec<f64> {
+        let (mut a, _) = Adaptation::new(p, &ihc(nc)).expect("valid");
+        let mut out = Vec::new();
+        let mut block = vec![Block::new(nc)];
+        let mut start = 0;
+        for &n in chunks.iter().cycle() {
+            if start >= x.len() / nc {
+                break;
+            }
+            let end = (start + n).min(x.len() / nc);
+            let chunk = Block::from_vec(x[start * nc..end * nc].to_vec(), nc);
+            a.process(&[&chunk], &mut block);
+            out.extend_from_slice(block[0].as_slice());
+            start = end;
+        }
+        out
+    }
+
+    #[test]
+    fn floor_input_gives_zero_and_constant_input_settles_to_the_closed_form() {
+        // No limitation, so that the stationary value is (v0^(1/2^L) − corr)·mult.
+        let p = AdaptationParams {
+            lim: 0.0,
+            ..Default::default()
+        };
+        let silent = run(&p, 1, &[0.0; 100], &[100]);
+        assert!(silent.iter().all(|v| v.abs() < 1e-9), "{silent:?}");
+        let v0: f64 = 0.01;
+        let y = run(&p, 1, &vec![v0; 160_000], &[160_000]);
+        let corr = 1e-5f64.powf(1.0 / 32.0);
+        let want = (v0.powf(1.0 / 32.0) - corr) * 100.0 / (1.0 - corr);
+        let last = y[y.len() - 1];
+        assert!((last - want).abs() < 1e-6 * want, "{last} vs {want}");
+    }
+
+    #[test]
+    fn limitation_bounds_the_onset_overshoot() {
+        let x: Vec<f64> = (0..4000).map(|n| if n < 100 { 0.0 } else { 1.0 }).collect();
+        let limited = run(&AdaptationParams::default(), 1, &x, &[4000]);
+        let free = run(
+            &AdaptationParams {
+                lim: 1.0,
+                ..Default::default()
+            },
+            1,
+            &x,
+            &[4000],
+        );
+        let peak = |y: &[f64]| y.iter().fold(0.0f64, |a, v| a.max(*v));
+        assert!(peak(&limited) < peak(&free) / 10.0);
+        assert!(peak(&limited) > 0.0);
+    }
+
+    #[test]
+    fn presets_override_the_other_parameters() {
+        let p = AdaptationParams {
+            lim: 3.0,
+            min_db_spl: 20.0,
+            tau_sec: vec![0.1],
+            model: AdaptationModel::Puschel,
+        }
+        .with_preset();
+        assert_eq!((p.lim, p.min_db_spl), (0.0, 0.0));
+        let want = [0.005, 0.12875, 0.2525, 0.37625, 0.5];
+        assert!(p
+            .tau_sec
+            .iter()
+            .zip(want)
+            .all(|(t, w)| (t - w).abs() < 1e-15));
+        let map: afe_core::ParamMap = [(
+            "adpt_model".to_string(),
+            serde_json::json!("adt_vandorpschuitman"),
+        )]
+        .into_iter()
+        .collect();
+        let p = AdaptationParams::from_map(&map).expect("valid");
+        assert_eq!(p.model, AdaptationModel::VanDorpSchuitman);
+        // the floor follows the threshold of hearing, so silence gives 0 in every channel
+        let y = run(&p, 3, &[0.0; 300], &[100]);
+        assert!(y.iter().all(|v| v.abs() < 1e-9));
+        let (a, _) = Adaptation::new(&p, &ihc(3)).expect("valid");
+        assert!(a.min_level[0] > a.min_level[2]);
+    }
+
+    #[test]
+    fn bad_parameters_are_errors_naming_them() {
+        let cases = [
+            (
+                AdaptationParams {
+                    tau_sec: vec![],
+                    ..Default::default()
+                },
+                "adpt_tau",
+            ),
+            (
+                AdaptationParams {
+                    tau_sec: vec![0.01, -0.1],
+                    ..Default::default()
+                },
+                "adpt_tau",
+            ),
+            (
+                AdaptationParams {
+                    min_db_spl: 100.0,
+                    ..Default::default()
+                },
+                "adpt_mindB",
+            ),
+            (
+                AdaptationParams {
+                    lim: 1.000_001,
+                    min_db_spl: 99.0,
+                    ..Default::default()
+                },
+                "adpt_lim",
+            ),
+        ];
+        for (p, name) in cases {
+            let e = Adaptation::new(&p, &ihc(2)).expect_err(name).to_string();
+            assert!(e.contains(name), "{e}");
+        }
+        let vds = AdaptationParams {
+            model: AdaptationModel::VanDorpSchuitman,
+            ..Default::default()
+        };
+        let high = SignalInfo::time_frequency(44100.0, vec![1000.0, 19000.0]);
+        let e = Adaptation::new(&vds, &high).expect_err("floor").to_string();
+        assert!(e.contains("adpt_model"), "{e}");
+        let map: afe_core::ParamMap = [("adpt_model".to_string(), serde_json::json!("dau"))]
+            .into_iter()
+            .collect();
+        let e = AdaptationParams::from_map(&map)
+            .expect_err("model")
+            .to_string();
+        assert!(e.contains("adpt_model"), "{e}");
+    }
+
+    #[test]
+    fn reset_restarts_from_the_initial_states() {
+        let p = AdaptationParams::default();
+        let x: Vec<f64> = (0..600).map(|n| (n as f64 * 0.05).sin().abs()).collect();
+        let (mut a, _) = Adaptation::new(&p, &ihc(2)).expect("valid");
+        let chunk = Block::from_vec(x, 2);
+        let mut first = vec![Block::new(2)];
+        a.process(&[&chunk], &mut first);
+        a.reset();
+        let mut second = vec![Block::new(2)];
+        a.process(&[&chunk], &mut second);
+        assert_eq!(first, second);
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 64, failure_persistence: None, ..ProptestConfig::default() })]
+
+        /// Any chunking gives the output of one call, bit for bit.
+        #[test]
+        fn any_chunking_is_bit_identical(
+            seed in 0u64..1000,
+            chunks in prop::collection::vec(1usize..300, 1..8),
+            limited in any::<bool>(),
+        ) {
+            let nc = 3;
+            let x: Vec<f64> = (0..1500 * nc)
+                .map(|i| {
+                    let t = (i as u64).wrapping_mul(6_364_136_223_846_793_005).wrapping_add(seed);
+                    let u = (t >> 11) as f64 / (1u64 << 53) as f64;
+                    if i % 97 < 40 { 0.0 } else { u * u }
+                })
+                .collect();
+            let p = AdaptationParams { lim: if limited { 10.0 } else { 0.0 }, ..Default::default() };
+            let whole = run(&p, nc, &x, &[1500]);
+            let chunked = run(&p, nc, &x, &chunks);
+            prop_assert_eq!(whole.len(), chunked.len());
+            prop_assert!(whole.iter().zip(&chunked).all(|(a, b)| a.to_bits() == b.to_bits()));
+        }
+    }
+}

@@ -1,0 +1,517 @@
+//! `autocorrelation`: short-time, centre-clipped, normalised autocorrelation per channel
+//! and frame, the correlogram the pitch estimator reads (spec 21-autocorrelation).
+//!
+//! Each frame is windowed, centre-clipped, and correlated with itself through a
+//! zero-padded real FFT (`|X|^K`, the generalised ACF), scaled by the AFE's off-by-one
+//! "unbiased" divisor and normalised by lag 0. Chunk-invariant: only un-framed samples
+//! carry over.
+
+use std::sync::Arc;
+
+use afe_core::framing::FrameBuffer;
+use afe_core::window::{window, WINDOW_NAMES};
+use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
+use realfft::num_complex::Complex64;
+use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
+use serde::{Deserialize, Serialize};
+
+use crate::framed::check_framing;
+
+use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
+
+/// How a frame is centre-clipped (AFE `ac_clipMethod`): samples between the thresholds
+/// become 0, the others are kept as below.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum ClipMethod {
+    /// Kept samples are moved towards 0 by the threshold (centre clipping and compression).
+    #[serde(rename = "clc")]
+    Compress,
+    /// Kept samples keep their value.
+    #[default]
+    #[serde(rename = "clp")]
+    Keep,
+    /// Kept samples become +1 (above) or −1 (below).
+    #[serde(rename = "sgn")]
+    Sign,
+}
+
+/// Parameters of the autocorrelation, under their AFE names.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AutocorrelationParams {
+    /// Window name (AFE `ac_wname`).
+    #[serde(rename = "ac_wname")]
+    pub wname: String,
+    /// Window length in s (AFE `ac_wSizeSec`).
+    #[serde(rename = "ac_wSizeSec")]
+    pub w_size_sec: f64,
+    /// Hop in s (AFE `ac_hSizeSec`).
+    #[serde(rename = "ac_hSizeSec")]
+    pub h_size_sec: f64,
+    /// Centre-clipping method (AFE `ac_clipMethod`).
+    #[serde(rename = "ac_clipMethod")]
+    pub clip_method: ClipMethod,
+    /// Clipping thresholds as a fraction of the frame's largest and smallest value, in
+    /// [0, 1] (AFE `ac_clipAlpha`).
+    #[serde(rename = "ac_clipAlpha")]
+    pub clip_alpha: f64,
+    /// Exponent of the magnitude spectrum: 2 gives the plain autocorrelation, smaller
+    /// values whiten it (AFE `ac_K`).
+    #[serde(rename = "ac_K")]
+    pub spectral_exponent: f64,
+}
+
+impl Default for AutocorrelationParams {
+    fn default() -> Self {
+        AutocorrelationParams {
+            wname: "hann".into(),
+            w_size_sec: 0.02,
+            h_size_sec: 0.01,
+            clip_method: ClipMethod::Keep,
+            clip_alpha: 0.6,
+            spectral_exponent: 2.0,
+        }
+    }
+}
+
+impl Params for AutocorrelationParams {
+    const SPECS: &'static [ParamSpec] = &[
+        ParamSpec {
+            name: "ac_wname",
+            kind: ParamKind::Choice(WINDOW_NAMES),
+            unit: "",
+            description: "window applied to each frame",
+        },
+        ParamSpec {
+            name: "ac_wSizeSec",
+            kind: ParamKind::Number,
+            unit: "s",
+            description: "window length",
+        },
+        ParamSpec {
+            name: "ac_hSizeSec",
+            kind: ParamKind::Number,
+            unit: "s",
+            description: "hop between frames",
+        },
+        ParamSpec {
+            name: "ac_clipMethod",
+            kind: ParamKind::Choice(&["clc", "clp", "sgn"]),
+            unit: "",
+            description: "centre clipping: compress ('clc'), keep ('clp') or sign ('sgn')",
+        },
+        ParamSpec {
+            name: "ac_clipAlpha",
+            kind: ParamKind::Number,
+            unit: "",
+            description: "clipping threshold as a fraction of the frame's extreme values",
+        },
+        ParamSpec {
+            name: "ac_K",
+            kind: ParamKind::Number,
+            unit: "",
+            description: "exponent of the magnitude spectrum (2: plain autocorrelation)",
+        },
+    ];
+}
+
+/// The autocorrelation of one ear: IHC `[time][channel]` in, `[frame][channel][lag]` out
+/// over lags `0..W−1` samples.
+pub struct Autocorrelation {
+    params: AutocorrelationParams,
+    win: Vec<f64>,
+    frames: FrameBuffer,
+    /// `(W − 1)/(W − 1 − j)` per lag `j`: the AFE's unbiased scaling over that of lag 0.
+    scale: Vec<f64>,
+    fft: Arc<dyn RealToComplex<f64>>,
+    ifft: Arc<dyn ComplexToReal<f64>>,
+    /// Windowed frame, `[channel][time]`.
+    columns: Vec<f64>,
+    time: Vec<f64>,
+    spectrum: Vec<Complex64>,
+    scratch: Vec<Complex64>,
+}
+
+impl std::fmt::Debug for Autocorrelation {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Autocorrelation")
+            .field("params", &self.params)
+            .field("fft_len", &self.time.len())
+            .finish_non_exhaustive()
+    }
+}
+
+impl Autocorrelation {
+    /// Builds the autocorrelation for the IHC signal `input`.
+    pub fn new(params: &AutocorrelationParams, input: &SignalInfo) -> Result<(Self, SignalInfo)> {
+        let fs = input.fs_hz;
+        let (w, h) = check_framing(
+            ("ac_wSizeSec", params.w_size_sec),
+            ("ac_hSizeSec", params.h_size_sec),
+            fs,
+        )?;
+        if !(0.0..=1.0).contains(&params.clip_alpha) {
+            return Err(Error::InvalidParameter {
+                name: "ac_clipAlpha".into(),
+                value: params.clip_alpha.to_string(),
+                reason: "must be between 0 and 1 (a fraction of the frame's extreme values)".into(),
+            });
+        }
+        if params.spectral_exponent <= 0.0 {
+            return Err(Error::InvalidParameter {
+                name: "ac_K".into(),
+                value: params.spectral_exponent.to_string(),
+                reason: "must be > 0 (2 gives the plain autocorrelation)".into(),
+            });
+        }
+        let win = window(&params.wname, w, "ac_wname")?;
+        let nc = input.channels();
+        // The AFE's transform length 2^nextpow2(2W − 1): no wrap-around up to lag W − 1.
+        let nfft = (2 * w - 1).next_power_of_two();
+        let mut planner = RealFftPlanner::<f64>::new();
+        let fft = planner.plan_fft_forward(nfft);
+        let ifft = planner.plan_fft_inverse(nfft);
+        let scratch_len = fft.get_scratch_len().max(ifft.get_scratch_len());
+        let top = (w - 1) as f64;
+        let ac = Autocorrelation {
+            params: params.clone(),
+            frames: FrameBuffer::new(nc, w, h),
+            scale: (0..w - 1).map(|j| top / (top - j as f64)).collect(),
+            columns: vec![0.0; nc * w],
+            time: fft.make_input_vec(),
+            spectrum: fft.make_output_vec(),
+            scratch: vec![Complex64::new(0.0, 0.0); scratch_len],
+            fft,
+            ifft,
+            win,
+        };
+        let lags_s = (0..w - 1).map(|k| k as f64 / fs).collect();
+        let info = input.correlation(1.0 / params.h_size_sec, lags_s);
+        Ok((ac, info))
+    }
+
+    /// The normalised ACF of the windowed frame `f` into `out` (`W − 1` lags).
+    fn correlate(&mut self, c: usize, out: &mut [f64]) {
+        let w = self.win.len();
+        let f = &self.columns[c * w..(c + 1) * w];
+        clip(
+            f,
+            self.params.clip_method,
+            self.params.clip_alpha,
+            &mut self.time[..w],
+        );
+        self.time[w..].fill(0.0);
+        // Lengths match by construction, so the FFTs cannot fail.
+        let _ =
+            self.fft
+                .process_with_scratch(&mut self.time, &mut self.spectrum, &mut self.scratch);
+        let k = self.params.spectral_exponent;
+        if k == 2.0 {
+            for x in &mut self.spectrum {
+                *x = Complex64::new(x.norm_sqr(), 0.0);
+            }
+        } else {
+            for x in &mut self.spectrum {
+                *x = Complex64::new(x.norm().powf(k), 0.0);
+            }
+        }
+        let _ =
+            self.ifft
+                .process_with_scratch(&mut self.spectrum, &mut self.time, &mut self.scratch);
+        // An all-zero frame gives 0/0 = NaN at every lag, as in the AFE.
+        let inv = 1.0 / self.time[0];
+        for ((o, v), s) in out.iter_mut().zip(&self.time).zip(&self.scale) {
+            *o = v * s * inv;
+        }
+    }
+}
+
+/// Centre-clips frame `f` into `g` (spec step 2): samples at or above `α·|max f|` and at
+/// or below `−α·|min f|` are kept (per `method`), the others become 0; a sample in both
+/// sets (zero, when both thresholds are 0) is treated as below.
+fn clip(f: &[f64], method: ClipMethod, alpha: f64, g: &mut [f64]) {
+    let (max, min) = f
+        .iter()
+        .fold((f64::NAN, f64::NAN), |(hi, lo), v| (hi.max(*v), lo.min(*v)));
+    let hi = alpha * max.abs();
+    let lo = alpha * min.abs();
+    for (y, &x) in g.iter_mut().zip(f) {
+        let below = x <= -lo;
+        let above = x >= hi;
+        *y = match method {
+            ClipMethod::Keep if below || above => x,
+            ClipMethod::Compress if below => x + lo,
+            ClipMethod::Compress if above => x - hi,
+            ClipMethod::Sign if below => -1.0,
+            ClipMethod::Sign if above => 1.0,
+            _ => 0.0,
+        };
+    }
+}
+
+impl Processor for Autocorrelation {
+    fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
+        let input = inputs[0].as_slice();
+        let nc = inputs[0].width();
+        let w = self.win.len();
+        let n = self.frames.available(input);
+        let out = outputs[0].resize_to(n);
+        for (k, frame_out) in out.chunks_exact_mut((nc * (w - 1)).max(1)).enumerate() {
+            let frame = self.frames.frame(input, k);
+            for (t, (row, wv)) in frame.rows().zip(&self.win).enumerate() {
+                for (c, x) in row.iter().enumerate() {
+                    self.columns[c * w + t] = wv * x;
+                }
+            }
+            for (c, o) in frame_out.chunks_exact_mut(w - 1).enumerate() {
+                self.correlate(c, o);
+            }
+        }
+        self.frames.advance(input, n);
+    }
+
+    fn reset(&mut self) {
+        self.frames.reset();
+    }
+}
+
+impl Descriptor for Autocorrelation {
+    type Params = AutocorrelationParams;
+    const NAME: &'static str = "autocorrelation";
+    const DEPENDENCY: &'static str = "innerhaircell";
+    const EARS: Ears = Ears::PerEar;
+    const DESCRIPTION: &'static str =
+        "centre-clipped normalised autocorrelation per frame, channel and lag";
+    const OUTPUT_UNIT: &'static str = "";
+
+    fn build(params: &AutocorrelationParams, inputs: &[SignalInfo]) -> Result<Built> {
+        let (p, out) = Autocorrelation::new(params, &inputs[0])?;
+        Ok(Built::new(p, vec![out]))
+    }
+}
+
+/// The registry entry of `autocorrelation`.
+pub static REQUEST: RequestDef = request_def::<Autocorrelation>();
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    #[test]
+    fn specs_match_struct() {
+        afe_core::params::check_param_specs::<AutocorrelationParams>();
+    }
+
+    fn ihc(fs: f64, nc: usize) -> SignalInfo {
+        SignalInfo::time_frequency(fs, (0..nc).map(|c| 100.0 * (c + 1) as f64).collect())
+    }
+
+    fn signal(len: usize, seed: u64) -> Vec<f64> {
+        (0..len)
+            .map(|i| {
+                let t = (i as u64 ^ seed).wrapping_mul(6_364_136_223_846_793_005);
+                let u = (t >> 11) as f64 / (1u64 << 53) as f64;
+                (i as f64 * 0.3).sin().max(0.0) + 0.2 * u
+            })
+            .collect()
+    }
+
+    fn run(p: &AutocorrelationParams, nc: usize, x: &[f64], chunks: &[usize]) -> (usize, Vec<f64>) {
+        let (mut ac, info) = Autocorrelation::new(p, &ihc(1000.0, nc)).expect("valid");
+        let mut out = vec![Block::new(info.width())];
+        let mut all = Vec::new();
+        let mut start = 0;
+        for &n in chunks.iter().cycle() {
+            if start >= x.len() / nc {
+                break;
+            }
+            let end = (start + n).min(x.len() / nc);
+            let chunk = Block::from_vec(x[start * nc..end * nc].to_vec(), nc);
+            ac.process(&[&chunk], &mut out);
+            all.extend_from_slice(out[0].as_slice());
+            start = end;
+        }
+        (info.lags_s.len(), all)
+    }
+
+    #[test]
+    fn clipping_follows_the_afe() {
+        let f = [-2.0, -1.0, 0.0, 1.0, 3.0, 2.0];
+        let mut g = [0.0; 6];
+        // hi = 0.5·3 = 1.5, lo = 0.5·2 = 1
+        clip(&f, ClipMethod::Keep, 0.5, &mut g);
+        assert_eq!(g, [-2.0, -1.0, 0.0, 0.0, 3.0, 2.0]);
+        clip(&f, ClipMethod::Compress, 0.5, &mut g);
+        assert_eq!(g, [-1.0, 0.0, 0.0, 0.0, 1.5, 0.5]);
+        clip(&f, ClipMethod::Sign, 0.5, &mut g);
+        assert_eq!(g, [-1.0, -1.0, 0.0, 0.0, 1.0, 1.0]);
+        // an all-zero frame: every sample is both above and below
+        clip(&[0.0; 3], ClipMethod::Sign, 0.6, &mut g[..3]);
+        assert_eq!(g[..3], [-1.0; 3]);
+        clip(&[0.0; 3], ClipMethod::Keep, 0.6, &mut g[..3]);
+        assert_eq!(g[..3], [0.0; 3]);
+    }
+
+    #[test]
+    fn matches_the_direct_sum() {
+        let nc = 2;
+        let x = signal(60 * nc, 7);
+        for method in [ClipMethod::Keep, ClipMethod::Compress, ClipMethod::Sign] {
+            let p = AutocorrelationParams {
+                clip_method: method,
+                ..Default::default()
+            };
+            let (nl, out) = run(&p, nc, &x, &[60]);
+            // W = 20, H = 10: 5 frames of 19 lags
+            assert_eq!((nl, out.len()), (19, 5 * nc * 19));
+            let win = window("hann", 20, "").expect("hann");
+            for t in 0..5 {
+                for c in 0..nc {
+                    let f: Vec<f64> = (0..20).map(|n| win[n] * x[(t * 10 + n) * nc + c]).collect();
+                    let mut g = vec![0.0; 20];
+                    clip(&f, method, 0.6, &mut g);
+                    let acf = |j: usize| (0..20 - j).map(|n| g[n] * g[n + j]).sum::<f64>();
+                    for j in 0..19 {
+                        let want = acf(j) / (19 - j) as f64 / (acf(0) / 19.0);
+                        let got = out[(t * nc + c) * 19 + j];
+                        assert!((got - want).abs() < 1e-12, "{method:?} {t} {c} {j}");
+                    }
+                }
+            }
+        }
+    }
+
+    /// `real(ifft(|fft(g, L)|^K))` by direct DFTs, independent of the FFT library.
+    fn generalised_acf(g: &[f64], l: usize, k: f64) -> Vec<f64> {
+        use std::f64::consts::PI;
+        let power: Vec<f64> = (0..l)
+            .map(|b| {
+                let (re, im) = g.iter().enumerate().fold((0.0, 0.0), |(re, im), (n, v)| {
+                    let a = -2.0 * PI * ((b * n) % l) as f64 / l as f64;
+                    (re + v * a.cos(), im + v * a.sin())
+                });
+                (re * re + im * im).sqrt().powf(k)
+            })
+            .collect();
+        (0..l)
+            .map(|j| {
+                let sum: f64 = (0..l)
+                    .map(|b| power[b] * (2.0 * PI * ((b * j) % l) as f64 / l as f64).cos())
+                    .sum();
+                sum / l as f64
+            })
+            .collect()
+    }
+
+    #[test]
+    fn other_spectral_exponents_match_direct_transforms() {
+        let x = signal(40, 3);
+        let win = window("hann", 20, "").expect("hann");
+        for k in [1.0, 0.5, 3.0] {
+            let p = AutocorrelationParams {
+                spectral_exponent: k,
+                ..Default::default()
+            };
+            let (nl, out) = run(&p, 1, &x, &[40]);
+            let f: Vec<f64> = (0..20).map(|n| win[n] * x[n]).collect();
+            let mut g = vec![0.0; 20];
+            clip(&f, ClipMethod::Keep, 0.6, &mut g);
+            // W = 20: L = 2^nextpow2(39) = 64
+            let c = generalised_acf(&g, 64, k);
+            for j in 0..nl {
+                let want = c[j] / (19 - j) as f64 / (c[0] / 19.0);
+                assert!(
+                    (out[j] - want).abs() < 1e-11,
+                    "K = {k}, lag {j}: {} vs {want}",
+                    out[j]
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn silent_frames_are_nan_except_with_sign_clipping() {
+        let (_, out) = run(&AutocorrelationParams::default(), 1, &[0.0; 20], &[20]);
+        assert!(!out.is_empty() && out.iter().all(|v| v.is_nan()));
+        let p = AutocorrelationParams {
+            clip_method: ClipMethod::Sign,
+            ..Default::default()
+        };
+        let (_, out) = run(&p, 1, &[0.0; 20], &[20]);
+        assert!(out.iter().all(|v| v.is_finite()));
+        assert_eq!(out[0], 1.0);
+    }
+
+    #[test]
+    fn bad_parameters_are_errors_naming_them() {
+        let info = ihc(16000.0, 2);
+        let cases = [
+            (
+                AutocorrelationParams {
+                    clip_alpha: 1.5,
+                    ..Default::default()
+                },
+                "ac_clipAlpha",
+            ),
+            (
+                AutocorrelationParams {
+                    spectral_exponent: 0.0,
+                    ..Default::default()
+                },
+                "ac_K",
+            ),
+            (
+                AutocorrelationParams {
+                    w_size_sec: 0.0,
+                    ..Default::default()
+                },
+                "ac_wSizeSec",
+            ),
+            (
+                AutocorrelationParams {
+                    h_size_sec: 0.05,
+                    ..Default::default()
+                },
+                "ac_hSizeSec",
+            ),
+            (
+                AutocorrelationParams {
+                    wname: "hanning2".into(),
+                    ..Default::default()
+                },
+                "ac_wname",
+            ),
+        ];
+        for (p, name) in cases {
+            let e = Autocorrelation::new(&p, &info).expect_err(name).to_string();
+            assert!(e.contains(name), "{e}");
+        }
+        let map: afe_core::ParamMap = [("ac_clipMethod".to_string(), serde_json::json!("clip"))]
+            .into_iter()
+            .collect();
+        let e = AutocorrelationParams::from_map(&map)
+            .expect_err("method")
+            .to_string();
+        assert!(e.contains("ac_clipMethod"), "{e}");
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 64, failure_persistence: None, ..ProptestConfig::default() })]
+
+        /// Any chunking gives the output of one call, bit for bit.
+        #[test]
+        fn any_chunking_is_bit_identical(
+            seed in 0u64..1000,
+            chunks in prop::collection::vec(prop_oneof![Just(1usize), 1usize..40, 40usize..200], 1..8),
+        ) {
+            let nc = 3;
+            let x = signal(400 * nc, seed);
+            let p = AutocorrelationParams::default();
+            let (_, whole) = run(&p, nc, &x, &[400]);
+            let (_, chunked) = run(&p, nc, &x, &chunks);
+            prop_assert_eq!(whole.len(), chunked.len());
+            prop_assert!(whole.iter().zip(&chunked).all(|(a, b)| a.to_bits() == b.to_bits()));
+        }
+    }
+}
