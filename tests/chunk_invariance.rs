@@ -247,6 +247,32 @@ fn hilbert_methods_depend_on_the_chunking_as_in_the_afe() {
     );
 }
 
+/// With processors that depend on chunk boundaries in the graph (every registered request
+/// is placed), `process_signal` still equals one call bit for bit, on both executors:
+/// the invariant chain runs in blocks, the others once on the joined signal.
+#[test]
+fn process_signal_with_per_chunk_processors_equals_one_call() {
+    let fs = 16000.0;
+    let len = 3 * afe::extract::WHOLE_SIGNAL_BLOCK + 1234;
+    let (left, right) = signal(fs, len);
+    let all: Vec<&str> = afe::requests().iter().map(|r| r.name).collect();
+    let p = params(&[("ihc_method", json!("hilbert"))]);
+    for params in [ParamMap::new(), p] {
+        let want = run(fs, &all, &params, &left, &right, None);
+        for threads in [0, 2] {
+            let mut mgr = Manager::with_threads(fs, 2, threads).expect("manager");
+            for r in &all {
+                mgr.add_request(r, &params).expect("request");
+            }
+            assert!(!mgr.is_chunk_invariant());
+            mgr.process_signal(&[&left, &right]).expect("process");
+            let mut got = Recorder::new(true);
+            got.record(&mgr);
+            assert_identical(&want, &got);
+        }
+    }
+}
+
 #[test]
 fn process_signal_resets_state_between_calls() {
     let fs = 16000.0;

@@ -101,16 +101,72 @@ impl Graph {
     /// Runs every node once, in order, on its parents' new output.
     pub fn run_sequential(&mut self) {
         for i in 1..self.nodes.len() {
-            let (before, rest) = self.nodes.split_at_mut(i);
-            let node = &mut rest[0];
-            let first = node.parents[0];
-            let first_block = &before[first.node].outputs[first.output];
-            let mut inputs: [&Block; MAX_INPUTS] = [first_block; MAX_INPUTS];
-            for (slot, p) in inputs.iter_mut().zip(&node.parents).skip(1) {
-                *slot = &before[p.node].outputs[p.output];
+            self.run_node(i);
+        }
+    }
+
+    /// Runs node `i` on its parents' new output.
+    fn run_node(&mut self, i: usize) {
+        let (before, rest) = self.nodes.split_at_mut(i);
+        let node = &mut rest[0];
+        let first = node.parents[0];
+        let first_block = &before[first.node].outputs[first.output];
+        let mut inputs: [&Block; MAX_INPUTS] = [first_block; MAX_INPUTS];
+        for (slot, p) in inputs.iter_mut().zip(&node.parents).skip(1) {
+            *slot = &before[p.node].outputs[p.output];
+        }
+        if let Some(proc_) = node.processor.as_mut() {
+            proc_.process(&inputs[..node.parents.len()], &mut node.outputs);
+        }
+    }
+
+    /// Which nodes have a chunk-invariant processor and only such nodes below them.
+    pub fn invariant_nodes(&self) -> Vec<bool> {
+        let mut invariant = vec![true; self.nodes.len()];
+        for (i, node) in self.nodes.iter().enumerate().skip(1) {
+            invariant[i] = node
+                .def
+                .is_none_or(|d| (d.chunk_invariant)(&node.build_params))
+                && node.parents.iter().all(|p| invariant[p.node]);
+        }
+        invariant
+    }
+
+    /// Processes a whole signal (one slice per ear) as one call would, appending every
+    /// node's output to `whole` (per node and output): the nodes whose whole chain is
+    /// chunk-invariant run in blocks of `block` samples (bit-identical to one call, with
+    /// the intermediate signals in cache), then every other node runs once, in order, on
+    /// its parents' joined outputs, as the AFE's `processSignal` calls it.
+    pub fn run_whole(&mut self, signal: &[&[f64]], block: usize, whole: &mut [Vec<Block>]) {
+        let invariant = self.invariant_nodes();
+        let len = signal.first().map_or(0, |c| c.len());
+        for start in (0..len).step_by(block.max(1)) {
+            let end = (start + block).min(len);
+            let part: Vec<&[f64]> = signal.iter().map(|c| &c[start..end]).collect();
+            self.load_input(&part);
+            for i in 0..self.nodes.len() {
+                if invariant[i] {
+                    if i > 0 {
+                        self.run_node(i);
+                    }
+                    for (acc, out) in whole[i].iter_mut().zip(&self.nodes[i].outputs) {
+                        acc.extend_from(out);
+                    }
+                }
             }
+        }
+        for i in (0..self.nodes.len()).filter(|&i| !invariant[i]) {
+            let node = &mut self.nodes[i];
+            let inputs: Vec<&Block> = node
+                .parents
+                .iter()
+                .map(|p| &whole[p.node][p.output])
+                .collect();
             if let Some(proc_) = node.processor.as_mut() {
-                proc_.process(&inputs[..node.parents.len()], &mut node.outputs);
+                proc_.process(&inputs, &mut node.outputs);
+            }
+            for (acc, out) in whole[i].iter_mut().zip(&node.outputs) {
+                acc.extend_from(out);
             }
         }
     }

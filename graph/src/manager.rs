@@ -457,7 +457,10 @@ impl Manager {
     /// Processes a whole signal from a fresh state (every processor is reset first), as
     /// the AFE's `processSignal`. A chunk-invariant graph runs it in blocks of
     /// [`WHOLE_SIGNAL_BLOCK`] samples, bit-identical to one call and faster (the
-    /// intermediate signals stay in cache), and joins each output's blocks.
+    /// intermediate signals stay in cache), and joins each output's blocks. In a graph
+    /// with processors that depend on chunk boundaries (pitch, the maps, gabor, the
+    /// Hilbert IHC, the AGC), those get the whole signal in one call, and the invariant
+    /// chain below them still runs in blocks (on this thread).
     pub fn process_signal(&mut self, signal: &[&[f64]]) -> Result<()> {
         self.check_chunk(signal)?;
         let len = signal[0].len();
@@ -465,7 +468,7 @@ impl Manager {
             return Err(Error::InvalidInput("the signal is empty".into()));
         }
         self.reset()?;
-        if len <= WHOLE_SIGNAL_BLOCK || !self.is_chunk_invariant() {
+        if len <= WHOLE_SIGNAL_BLOCK {
             return self.process_chunk(signal);
         }
         let mut whole = std::mem::take(&mut self.whole);
@@ -484,6 +487,17 @@ impl Manager {
                 .collect();
         }
         whole.iter_mut().flatten().for_each(Block::clear);
+        if !self.is_chunk_invariant() {
+            // The nodes that depend on chunk boundaries must see the signal in one call:
+            // the graph runs on this thread, its invariant part in blocks.
+            self.edit(|m| {
+                m.graph.run_whole(signal, WHOLE_SIGNAL_BLOCK, &mut whole);
+                Ok(())
+            })?;
+            self.whole = whole;
+            self.whole_shown = true;
+            return Ok(());
+        }
         for start in (0..len).step_by(WHOLE_SIGNAL_BLOCK) {
             let end = (start + WHOLE_SIGNAL_BLOCK).min(len);
             let part: Vec<&[f64]> = signal.iter().map(|c| &c[start..end]).collect();
@@ -823,5 +837,34 @@ mod tests {
         };
         assert!(ones(plain) > 0.0, "the bursts have onsets");
         assert_eq!(ones(gated), 0.0, "no ratemap frame reaches 200 dB");
+    }
+
+    /// Every parameter of every registered request turns an ill-typed value into an error
+    /// that names the parameter and says what it accepts, and places nothing.
+    #[test]
+    fn every_parameter_rejects_an_ill_typed_value_by_name() {
+        use afe_core::ParamKind;
+        for r in requests() {
+            for spec in r.params {
+                let bad = match spec.kind {
+                    ParamKind::Choice(_) | ParamKind::Choices(_) => json!("no-such-choice"),
+                    ParamKind::Flag => json!("maybe"),
+                    _ => json!("many"),
+                };
+                let mut m = Manager::new(16000.0, 2).expect("valid");
+                let e = m
+                    .add_request(r.name, &params(&[(spec.name, bad)]))
+                    .expect_err("ill-typed")
+                    .to_string();
+                assert!(e.contains(spec.name), "{}/{}: {e}", r.name, spec.name);
+                assert!(
+                    e.contains("expected") || e.contains("one of"),
+                    "{}/{}: {e}",
+                    r.name,
+                    spec.name
+                );
+                assert_eq!(m.processor_count(), 0, "{}/{}", r.name, spec.name);
+            }
+        }
     }
 }

@@ -1,5 +1,6 @@
 """The Python API: catalogue, WAV reading, streaming, run-time edits, errors."""
 import os
+import subprocess
 import threading
 import time
 import wave
@@ -74,6 +75,46 @@ def test_metadata_and_layouts():
     info = m.info()["crosscorrelation_mono"]
     assert info["fs_hz"] == 100.0 and len(info["cf_hz"]) == 8 and len(info["lags_s"]) == 37
     assert info["lags_s"][0] == pytest.approx(-18 / 16000)
+
+
+def test_every_signal_class_reaches_numpy_with_its_description(cli, tmp_path):
+    """Spectra are complex128, features carry their names, modulation spectra their
+    modulation frequencies, maps are 0/1; the CLI's .npz holds the same arrays."""
+    reqs = ["stft", "pitch", "amsFeatures", "spectralFeatures", "onsetMap", "adaptation"]
+    m = afe.Manager(16000, 2)
+    for r in reqs:
+        m.add_request(r)
+    x = signal(8000)
+    out = m.process_signal(x)
+    info = m.info()
+    stft = out["stft_left"]
+    assert stft.dtype == np.complex128 and stft.shape[1] == len(info["stft_left"]["cf_hz"])
+    assert info["stft_left"]["dtype"] == "complex128" and info["stft_left"]["kind"] == "spectrum"
+    assert np.abs(stft.imag).max() > 0
+    assert info["pitch_left"]["features"] == ["pitch", "rawPitch", "confidence"]
+    assert out["pitch_left"].shape[1] == 3
+    sf = info["spectralFeatures_left"]["features"]
+    assert sf[0] == "centroid" and len(sf) == 14 == out["spectralFeatures_left"].shape[1]
+    ams = out["amsFeatures_left"]
+    assert ams.ndim == 3 and ams.shape[2] == len(info["amsFeatures_left"]["mod_cf_hz"])
+    assert set(np.unique(out["onsetMap_left"])) <= {0.0, 1.0}
+    assert info["onsetMap_left"]["afe_class"] == "BinaryMask"
+    assert out["adaptation_left"].shape == (8000, 31)
+
+    wav = tmp_path / "x.wav"
+    with wave.open(str(wav), "wb") as w:
+        w.setnchannels(2)
+        w.setsampwidth(2)
+        w.setframerate(16000)
+        w.writeframes((np.clip(x, -1, 1) * 32767).astype("<i2").tobytes())
+    npz = tmp_path / "out.npz"
+    subprocess.run([cli, "extract", str(wav), "-r", ",".join(reqs), "-o", str(npz)], check=True)
+    saved = np.load(npz)
+    expected = afe.process(str(wav), None, reqs)
+    assert sorted(saved.files) == sorted(expected)
+    assert saved["stft_right"].dtype == np.complex128
+    for k in saved.files:
+        np.testing.assert_array_equal(saved[k], expected[k], err_msg=k)
 
 
 def test_run_time_edits():
