@@ -195,6 +195,9 @@ struct Rule {
     outliers: Option<(f64, f64, f64)>,
     /// Single-precision rounding flips allowed: (fraction of cells, float32 ulps).
     f32_ulp_outliers: Option<(f64, f64)>,
+    /// Pitch: confidence below which a frame's raw pitch is FFT round-off (see
+    /// [`exempt_round_off_pitch`]).
+    round_off_confidence: Option<f64>,
 }
 
 /// The rule of `signal` in `case` for a reference stored as float32 or float64: a case's
@@ -223,7 +226,36 @@ fn rule(table: &Value, case: &str, signal: &str, float32: bool) -> Rule {
         f32_ulp_outliers: entry
             .get("f32_ulp_outliers")
             .map(|o| (num(o, "max_fraction"), num(o, "max_ulps"))),
+        round_off_confidence: entry
+            .get("round_off_frames")
+            .map(|o| num(o, "max_confidence")),
     }
+}
+
+/// Pitch outputs (`[frame][pitch, rawPitch, confidence]`): in frames whose confidence is
+/// below `max_confidence` on both sides, the summary ACF's peaks are FFT round-off
+/// (~1e-16) and the raw pitch differs between FFT libraries (spec 22-pitch). Such a
+/// frame's raw-pitch error is set to 0 when both sides leave it unvoiced (pitch NaN);
+/// its pitch and confidence are still compared. Returns the frames exempted.
+fn exempt_round_off_pitch(
+    ours: &[f64],
+    reference: &[f64],
+    errors: &mut [f64],
+    max_confidence: f64,
+) -> Vec<usize> {
+    let mut exempted = Vec::new();
+    for (t, (o, r)) in ours
+        .chunks_exact(3)
+        .zip(reference.chunks_exact(3))
+        .enumerate()
+    {
+        let tiny = o[2] < max_confidence && r[2] < max_confidence;
+        if tiny && o[0].is_nan() && r[0].is_nan() && errors[3 * t + 1] > 0.0 {
+            errors[3 * t + 1] = 0.0;
+            exempted.push(t);
+        }
+    }
+    exempted
 }
 
 /// Whether an `.npy` file stores float32 values.
@@ -433,11 +465,22 @@ fn check(cases: &[Case]) {
             let float32 = stored_as_f32(&bytes);
             let signal = key.rsplit_once('_').map_or(key.as_str(), |(s, _)| s);
             let rule = rule(&table, &case.name, signal, float32);
-            let errors = if is_complex(&reference.shape, &reference.data) {
+            let mut errors = if is_complex(&reference.shape, &reference.data) {
                 complex_cell_errors(out.data.as_slice(), &reference)
             } else {
                 cell_errors(out.data.as_slice(), &reference)
             };
+            if let Some(max_confidence) = rule.round_off_confidence {
+                let ours = out.data.as_slice();
+                let frames =
+                    exempt_round_off_pitch(ours, &reference.data, &mut errors, max_confidence);
+                if !frames.is_empty() {
+                    println!(
+                        "{}/{key}: raw pitch of round-off frames {frames:?} not compared",
+                        case.name
+                    );
+                }
+            }
             let worst = errors.iter().fold(0.0f64, |a, e| a.max(*e));
             report.insert(
                 format!("{}/{key}", case.name),

@@ -6,6 +6,7 @@
 //! last 5 s including later frames of the same chunk, and the median filter runs over
 //! each chunk on its own with zero padding at both ends.
 
+use std::cmp::Ordering;
 use std::collections::VecDeque;
 
 use afe_core::{
@@ -129,7 +130,7 @@ impl Pitch {
             ));
         }
         let order = params.median_order.round();
-        if order < 1.0 || order > 1e6 {
+        if !(1.0..=1e6).contains(&order) {
             return Err(bad(
                 "pi_medianOrder",
                 params.median_order.to_string(),
@@ -186,7 +187,7 @@ fn largest_peak(x: &[f64]) -> Option<(f64, usize)> {
             // a rise lands at `a`; the plateau runs while there is neither rise nor fall
             let a = i + 1;
             let mut b = a;
-            while b + 1 < n && !(x[b + 1] > x[b]) && !(x[b + 1] < x[b]) {
+            while b + 1 < n && matches!(x[b + 1].partial_cmp(&x[b]), Some(Ordering::Equal) | None) {
                 b += 1;
             }
             if b + 1 < n && x[b + 1] < x[b] {
@@ -394,7 +395,7 @@ mod tests {
             frame(nc, nl, 0, 0.0),
         ];
         let p = PitchParams::default();
-        let whole = run(&p, &[frames.clone()], nc, nl);
+        let whole = run(&p, std::slice::from_ref(&frames), nc, nl);
         let want_raw = [200.0, 200.0, 200.0, 250.0, 200.0, 0.0];
         let want_conf = [0.9, 0.8, 0.9, 0.9, 0.3, 0.0];
         // thr = 0.63: frame 4 is unvoiced; median of 3, zero-padded, smooths out frame 3
