@@ -266,36 +266,13 @@ fn stored_as_f32(bytes: &[u8]) -> bool {
 /// compare.py's per-cell error: |out − ref| over the max |ref| of the cell's channel
 /// (NaN on both sides = 0, NaN on one side = ∞), for the first `reference.shape[0]` rows.
 fn cell_errors(out: &[f64], reference: &Array) -> Vec<f64> {
-    let rows = reference.shape[0];
-    let per_row = reference.data.len() / rows.max(1);
-    let channels = reference.shape.get(1).copied().unwrap_or(1);
-    let inner = per_row / channels.max(1);
-    let channel_of = |i: usize| (i % per_row) / inner.max(1);
-    let mut scale = vec![0.0f64; channels];
-    for (i, r) in reference.data.iter().enumerate() {
-        if !r.is_nan() {
-            let c = channel_of(i);
-            scale[c] = scale[c].max(r.abs());
-        }
-    }
-    out.iter()
+    let diffs = out
+        .iter()
         .zip(&reference.data)
-        .enumerate()
-        .map(|(i, (o, r))| {
-            let diff = if o.is_nan() && r.is_nan() {
-                0.0
-            } else {
-                let d = (o - r).abs();
-                if d.is_nan() {
-                    f64::INFINITY
-                } else {
-                    d
-                }
-            };
-            let s = scale[channel_of(i)];
-            diff / if s > 0.0 { s } else { 1e-300 }
-        })
-        .collect()
+        .map(|(o, r)| difference(o.is_nan() && r.is_nan(), (o - r).abs()))
+        .collect();
+    let magnitudes: Vec<f64> = reference.data.iter().map(|r| r.abs()).collect();
+    scaled_by_channel(diffs, &magnitudes, &reference.shape)
 }
 
 /// compare.py's per-element error for a complex reference (`shape` elements, stored as
@@ -303,38 +280,48 @@ fn cell_errors(out: &[f64], reference: &Array) -> Vec<f64> {
 /// modulus of the element's channel (axis 1, e.g. the STFT bin); NaN in either part on
 /// both sides = 0, on one side = ∞. One error per complex element.
 fn complex_cell_errors(out: &[f64], reference: &Array) -> Vec<f64> {
-    let rows = reference.shape[0];
-    let per_row = reference.data.len() / 2 / rows.max(1);
-    let channels = reference.shape.get(1).copied().unwrap_or(1);
+    let nan = |p: &[f64]| p[0].is_nan() || p[1].is_nan();
+    let diffs = out
+        .chunks_exact(2)
+        .zip(reference.data.chunks_exact(2))
+        .map(|(o, r)| difference(nan(o) && nan(r), (o[0] - r[0]).hypot(o[1] - r[1])))
+        .collect();
+    let magnitudes: Vec<f64> = reference
+        .data
+        .chunks_exact(2)
+        .map(|r| r[0].hypot(r[1]))
+        .collect();
+    scaled_by_channel(diffs, &magnitudes, &reference.shape)
+}
+
+/// A cell's difference: 0 where both sides are NaN, ∞ where one is.
+fn difference(both_nan: bool, d: f64) -> f64 {
+    match (both_nan, d.is_nan()) {
+        (true, _) => 0.0,
+        (false, true) => f64::INFINITY,
+        (false, false) => d,
+    }
+}
+
+/// Each of `diffs` (one per element of an array of `shape`, row-major) over the largest
+/// non-NaN `magnitudes` of its channel (axis 1).
+fn scaled_by_channel(diffs: Vec<f64>, magnitudes: &[f64], shape: &[usize]) -> Vec<f64> {
+    let per_row = magnitudes.len() / shape[0].max(1);
+    let channels = shape.get(1).copied().unwrap_or(1);
     let inner = per_row / channels.max(1);
     let channel_of = |i: usize| (i % per_row) / inner.max(1);
-    let pairs =
-        |d: &[f64]| -> Vec<(f64, f64)> { d.chunks_exact(2).map(|p| (p[0], p[1])).collect() };
-    let (ours, refs) = (pairs(out), pairs(&reference.data));
-    let nan = |(re, im): (f64, f64)| re.is_nan() || im.is_nan();
     let mut scale = vec![0.0f64; channels];
-    for (i, r) in refs.iter().enumerate() {
-        if !nan(*r) {
-            let c = channel_of(i);
-            scale[c] = scale[c].max(r.0.hypot(r.1));
+    for (i, m) in magnitudes.iter().enumerate() {
+        if !m.is_nan() {
+            scale[channel_of(i)] = scale[channel_of(i)].max(*m);
         }
     }
-    ours.iter()
-        .zip(&refs)
+    diffs
+        .into_iter()
         .enumerate()
-        .map(|(i, (o, r))| {
-            let diff = if nan(*o) && nan(*r) {
-                0.0
-            } else {
-                let d = (o.0 - r.0).hypot(o.1 - r.1);
-                if d.is_nan() {
-                    f64::INFINITY
-                } else {
-                    d
-                }
-            };
+        .map(|(i, d)| {
             let s = scale[channel_of(i)];
-            diff / if s > 0.0 { s } else { 1e-300 }
+            d / if s > 0.0 { s } else { 1e-300 }
         })
         .collect()
 }
