@@ -1,6 +1,7 @@
 //! The registry: every request this build computes, as a list of the descriptors that
 //! the processor modules declare (each module implements [`Descriptor`] for its processor
-//! and exports the type-erased [`RequestDef`] the graph works with as `REQUEST`).
+//! and exports the type-erased [`RequestDef`] the graph works with as `REQUEST`, or one
+//! per request where a module serves two, e.g. `ONSET_REQUEST` and `OFFSET_REQUEST`).
 
 use afe_core::{Error, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo};
 
