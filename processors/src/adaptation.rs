@@ -324,20 +324,7 @@ mod tests {
 
     fn run(p: &AdaptationParams, nc: usize, x: &[f64], chunks: &[usize]) -> Vec<f64> {
         let (mut a, _) = Adaptation::new(p, &ihc(nc)).expect("valid");
-        let mut out = Vec::new();
-        let mut block = vec![Block::new(nc)];
-        let mut start = 0;
-        for &n in chunks.iter().cycle() {
-            if start >= x.len() / nc {
-                break;
-            }
-            let end = (start + n).min(x.len() / nc);
-            let chunk = Block::from_vec(x[start * nc..end * nc].to_vec(), nc);
-            a.process(&[&chunk], &mut block);
-            out.extend_from_slice(block[0].as_slice());
-            start = end;
-        }
-        out
+        crate::chunked::feed(&mut a, x, nc, nc, chunks.iter().copied().cycle())
     }
 
     #[test]

@@ -535,18 +535,9 @@ mod tests {
     }
 
     fn run(ams: &mut AmsFeatures, x: &[f64], nc: usize, chunks: &[usize]) -> Vec<f64> {
-        let mut all = Vec::new();
-        let mut out = vec![Block::new(ams.channels * ams.bands)];
-        let mut start = 0usize;
-        let rows = x.len() / nc;
-        for &c in chunks.iter().chain(std::iter::once(&usize::MAX)) {
-            let end = start.saturating_add(c).min(rows);
-            let block = Block::from_vec(x[start * nc..end * nc].to_vec(), nc);
-            ams.process(&[&block], &mut out);
-            all.extend_from_slice(out[0].as_slice());
-            start = end;
-        }
-        all
+        let width = ams.channels * ams.bands;
+        let then_the_rest = chunks.iter().copied().chain([usize::MAX]);
+        crate::chunked::feed(ams, x, nc, width, then_the_rest)
     }
 
     #[test]

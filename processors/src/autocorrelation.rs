@@ -319,19 +319,8 @@ mod tests {
 
     fn run(p: &AutocorrelationParams, nc: usize, x: &[f64], chunks: &[usize]) -> (usize, Vec<f64>) {
         let (mut ac, info) = Autocorrelation::new(p, &ihc(1000.0, nc)).expect("valid");
-        let mut out = vec![Block::new(info.width())];
-        let mut all = Vec::new();
-        let mut start = 0;
-        for &n in chunks.iter().cycle() {
-            if start >= x.len() / nc {
-                break;
-            }
-            let end = (start + n).min(x.len() / nc);
-            let chunk = Block::from_vec(x[start * nc..end * nc].to_vec(), nc);
-            ac.process(&[&chunk], &mut out);
-            all.extend_from_slice(out[0].as_slice());
-            start = end;
-        }
+        let cycled = chunks.iter().copied().cycle();
+        let all = crate::chunked::feed(&mut ac, x, nc, info.width(), cycled);
         (info.lags_s.len(), all)
     }
 

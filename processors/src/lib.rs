@@ -8,6 +8,8 @@ pub mod adaptation;
 pub mod ams_features;
 pub mod autocorrelation;
 pub mod butterworth;
+#[cfg(test)]
+mod chunked;
 mod cpu;
 pub mod crosscorrelation;
 mod framed;

@@ -194,16 +194,8 @@ mod tests {
     }
 
     fn run(stft: &mut Stft, x: &[f64], chunks: &[usize]) -> Vec<f64> {
-        let mut all = Vec::new();
-        let mut out = vec![Block::new(2 * stft.bins)];
-        let mut start = 0usize;
-        for &c in chunks.iter().chain(std::iter::once(&usize::MAX)) {
-            let end = start.saturating_add(c).min(x.len());
-            stft.process(&[&Block::from_vec(x[start..end].to_vec(), 1)], &mut out);
-            all.extend_from_slice(out[0].as_slice());
-            start = end;
-        }
-        all
+        let then_the_rest = chunks.iter().copied().chain([usize::MAX]);
+        crate::chunked::feed(stft, x, 1, 2 * stft.bins, then_the_rest)
     }
 
     #[test]
