@@ -327,35 +327,29 @@ impl Detection {
     }
 }
 
-/// The `onsetMap` request (spec 25), from the onset strength.
-pub struct OnsetMap;
-/// The `offsetMap` request (spec 25), from the offset strength.
-pub struct OffsetMap;
+/// The `onsetMap` (`ONSET`) or `offsetMap` request (spec 25): the two differ only in the
+/// strength they read.
+pub struct MapRequest<const ONSET: bool>;
 
-/// A map reads the ratemap beside its strength when `trm_minValuedB` is set.
-fn map_inputs(params: &TransientMapParams) -> &'static [&'static str] {
-    if params.min_value_db.is_some() {
-        &["ratemap"]
+impl<const ONSET: bool> Descriptor for MapRequest<ONSET> {
+    type Params = TransientMapParams;
+    const NAME: &'static str = if ONSET { "onsetMap" } else { "offsetMap" };
+    const DEPENDENCY: &'static str = if ONSET {
+        "onsetStrength"
     } else {
-        &[]
-    }
-}
-
-fn build_map(params: &TransientMapParams, inputs: &[SignalInfo]) -> Result<Built> {
-    let (p, out) = TransientMap::new(params, &inputs[0], inputs.get(1))?;
-    Ok(Built::new(p, vec![out]))
-}
-
-impl Descriptor for OnsetMap {
-    type Params = TransientMapParams;
-    const NAME: &'static str = "onsetMap";
-    const DEPENDENCY: &'static str = "onsetStrength";
+        "offsetStrength"
+    };
     const EARS: Ears = Ears::PerEar;
-    const DESCRIPTION: &'static str = "binary map of salient onsets per frame and channel";
+    const DESCRIPTION: &'static str = if ONSET {
+        "binary map of salient onsets per frame and channel"
+    } else {
+        "binary map of salient offsets per frame and channel"
+    };
     const OUTPUT_UNIT: &'static str = "";
 
     fn build(params: &TransientMapParams, inputs: &[SignalInfo]) -> Result<Built> {
-        build_map(params, inputs)
+        let (p, out) = TransientMap::new(params, &inputs[0], inputs.get(1))?;
+        Ok(Built::new(p, vec![out]))
     }
 
     /// Peak picking and connected components see only the buffer and the chunk.
@@ -363,37 +357,20 @@ impl Descriptor for OnsetMap {
         false
     }
 
+    /// The ratemap, beside the strength, when `trm_minValuedB` is set.
     fn extra_inputs(params: &TransientMapParams) -> &'static [&'static str] {
-        map_inputs(params)
-    }
-}
-
-impl Descriptor for OffsetMap {
-    type Params = TransientMapParams;
-    const NAME: &'static str = "offsetMap";
-    const DEPENDENCY: &'static str = "offsetStrength";
-    const EARS: Ears = Ears::PerEar;
-    const DESCRIPTION: &'static str = "binary map of salient offsets per frame and channel";
-    const OUTPUT_UNIT: &'static str = "";
-
-    fn build(params: &TransientMapParams, inputs: &[SignalInfo]) -> Result<Built> {
-        build_map(params, inputs)
-    }
-
-    /// Peak picking and connected components see only the buffer and the chunk.
-    fn chunk_invariant(_: &TransientMapParams) -> bool {
-        false
-    }
-
-    fn extra_inputs(params: &TransientMapParams) -> &'static [&'static str] {
-        map_inputs(params)
+        if params.min_value_db.is_some() {
+            &["ratemap"]
+        } else {
+            &[]
+        }
     }
 }
 
 /// The registry entry of `onsetMap`.
-pub static ONSET_REQUEST: RequestDef = request_def::<OnsetMap>();
+pub static ONSET_REQUEST: RequestDef = request_def::<MapRequest<true>>();
 /// The registry entry of `offsetMap`.
-pub static OFFSET_REQUEST: RequestDef = request_def::<OffsetMap>();
+pub static OFFSET_REQUEST: RequestDef = request_def::<MapRequest<false>>();
 
 #[cfg(test)]
 mod tests {
