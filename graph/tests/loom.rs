@@ -20,6 +20,8 @@ mod sync {
 #[path = "../src/protocol.rs"]
 mod protocol;
 
+mod model;
+
 use loom::cell::UnsafeCell;
 use loom::sync::atomic::{AtomicU64, Ordering};
 use loom::sync::Arc;
@@ -36,21 +38,9 @@ struct Model {
 impl Model {
     fn new(parents: &[&[usize]], chunks: u64) -> Self {
         let n = parents.len();
-        let mut children = vec![Vec::new(); n];
-        for (i, ps) in parents.iter().enumerate() {
-            for &p in ps.iter() {
-                children[p].push(i);
-            }
-        }
         Model {
             sync: (0..n).map(|_| NodeSync::new()).collect(),
-            links: (0..n)
-                .map(|i| Links {
-                    parents: parents[i].to_vec().into(),
-                    children: children[i].clone().into(),
-                    readers: children[i].len() as u32,
-                })
-                .collect(),
+            links: model::links(parents, false),
             slots: (0..n)
                 .map(|_| [UnsafeCell::new(0), UnsafeCell::new(0)])
                 .collect(),
@@ -71,18 +61,9 @@ impl Model {
         }
     }
 
-    /// What node `n` must hold for chunk `k`: the source holds k + 1; every other node
-    /// the sum of its parents plus its own index.
+    /// What node `n` must hold for chunk `k` (see [`model::expected`]).
     fn expected(&self, n: usize, k: u64) -> u64 {
-        if n == 0 {
-            return k + 1;
-        }
-        self.links[n]
-            .parents
-            .iter()
-            .map(|&p| self.expected(p, k))
-            .sum::<u64>()
-            + n as u64
+        model::expected(&self.links, n, k)
     }
 
     /// Process + Release of a claimed node (the source publishes k + 1).

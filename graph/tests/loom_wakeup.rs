@@ -27,6 +27,9 @@ mod sync {
 
 #[path = "../src/protocol.rs"]
 mod protocol;
+
+mod model;
+
 #[path = "../src/wakeup.rs"]
 mod wakeup;
 
@@ -63,21 +66,9 @@ impl Model {
     /// node but the source has the caller as an extra reader.
     fn new(parents: &[&[usize]]) -> Self {
         let n = parents.len();
-        let mut children = vec![Vec::new(); n];
-        for (i, ps) in parents.iter().enumerate() {
-            for &p in ps.iter() {
-                children[p].push(i);
-            }
-        }
         Model {
             sync: (0..n).map(|_| NodeSync::new()).collect(),
-            links: (0..n)
-                .map(|i| Links {
-                    parents: parents[i].to_vec().into(),
-                    children: children[i].clone().into(),
-                    readers: children[i].len() as u32 + u32::from(i != 0),
-                })
-                .collect(),
+            links: model::links(parents, true),
             slots: (0..n)
                 .map(|_| [UnsafeCell::new(0), UnsafeCell::new(0)])
                 .collect(),
@@ -108,18 +99,9 @@ impl Model {
         }
     }
 
-    /// What node `n` holds for chunk `k`: the source k + 1, every other node the sum of
-    /// its parents plus its own index.
+    /// What node `n` must hold for chunk `k` (see [`model::expected`]).
     fn expected(&self, n: usize, k: u64) -> u64 {
-        if n == 0 {
-            return k + 1;
-        }
-        self.links[n]
-            .parents
-            .iter()
-            .map(|&p| self.expected(p, k))
-            .sum::<u64>()
-            + n as u64
+        model::expected(&self.links, n, k)
     }
 
     /// `Shared::worker_loop`, without the spinning.
