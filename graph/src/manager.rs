@@ -264,10 +264,7 @@ impl Manager {
     /// Whether every processor gives the same output for any chunking (false with the
     /// Hilbert-based IHC methods or the AGC, whose output depends on chunk boundaries).
     pub fn is_chunk_invariant(&self) -> bool {
-        self.graph
-            .nodes
-            .iter()
-            .all(|n| n.def.is_none_or(|d| (d.chunk_invariant)(&n.build_params)))
+        self.graph.invariant_nodes().iter().all(|i| *i)
     }
 
     /// Number of processor instances in the graph (the input node excluded).
