@@ -86,6 +86,7 @@ pub fn run_source(
         ));
     }
     let mut rec = Recorder::new(job.all);
+    mgr.set_keep_all(job.all);
     let mut buf = vec![Vec::new(); ears];
     let empty = || Error::InvalidInput("the signal is empty".into());
     let block = match job.chunk {
@@ -98,7 +99,7 @@ pub fn run_source(
             }
             let refs: Vec<&[f64]> = buf.iter().map(Vec::as_slice).collect();
             mgr.process_signal(&refs)?;
-            rec.record(mgr);
+            rec.record_whole(mgr);
             return Ok(rec);
         }
         None => {

@@ -55,6 +55,30 @@ impl Recorder {
         }
     }
 
+    /// Records the output of [`Manager::process_signal`], moving it out of `manager`
+    /// (see [`Manager::take_whole`]) rather than copying it.
+    pub fn record_whole(&mut self, manager: &mut Manager) {
+        let found: Vec<(String, SignalInfo, OutputRef)> = manager
+            .signals(self.all)
+            .iter()
+            .map(|s| (s.key(), s.info.clone(), s.source))
+            .collect();
+        for (key, info, source) in found {
+            let Some(data) = manager.take_whole(source) else {
+                continue;
+            };
+            match self.signals.iter_mut().find(|r| r.source == source) {
+                Some(r) => r.data.extend_from(&data),
+                None => self.signals.push(Recorded {
+                    key,
+                    info,
+                    data,
+                    source,
+                }),
+            }
+        }
+    }
+
     /// The recorded signals, in graph order.
     pub fn signals(&self) -> &[Recorded] {
         &self.signals

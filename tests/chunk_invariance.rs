@@ -265,6 +265,7 @@ fn process_signal_with_per_chunk_processors_equals_one_call() {
                 mgr.add_request(r, &params).expect("request");
             }
             assert!(!mgr.is_chunk_invariant());
+            mgr.set_keep_all(true);
             mgr.process_signal(&[&left, &right]).expect("process");
             let mut got = Recorder::new(true);
             got.record(&mgr);
@@ -286,6 +287,41 @@ fn process_signal_resets_state_between_calls() {
     assert_eq!(&first, mgr.signals(false)[0].new);
 }
 
+/// Without `set_keep_all`, `process_signal` joins only the requested signals (the
+/// intermediate ones are not there to take memory), with the same values, and
+/// `record_whole` moves them out of the manager.
+#[test]
+fn process_signal_keeps_only_the_requested_signals_by_default() {
+    let fs = 16000.0;
+    let len = 2 * afe::extract::WHOLE_SIGNAL_BLOCK + 99;
+    let (left, right) = signal(fs, len);
+    for requests in [&["ratemap", "itd"][..], &["ratemap", "pitch"][..]] {
+        let want = run(fs, requests, &ParamMap::new(), &left, &right, None);
+        for threads in [0, 2] {
+            let mut mgr = Manager::with_threads(fs, 2, threads).expect("manager");
+            for r in requests {
+                mgr.add_request(r, &ParamMap::new()).expect("request");
+            }
+            mgr.process_signal(&[&left, &right]).expect("process");
+            let keys: Vec<String> = mgr.signals(true).iter().map(|s| s.key()).collect();
+            assert!(
+                !keys.iter().any(|k| k.starts_with("filterbank")),
+                "{keys:?}"
+            );
+            let mut got = Recorder::new(false);
+            got.record_whole(&mut mgr);
+            assert!(mgr.signals(false).is_empty(), "moved out of the manager");
+            assert!(!got.signals().is_empty());
+            for s in got.signals() {
+                let w = want.get(&s.key).expect("requested signal");
+                let bits = |b: &afe::Block| b.as_slice().iter().map(|v| v.to_bits()).collect();
+                let (a, b): (Vec<u64>, Vec<u64>) = (bits(&s.data), bits(&w.data));
+                assert_eq!(a, b, "{} with {requests:?}", s.key);
+            }
+        }
+    }
+}
+
 #[test]
 fn process_signal_in_blocks_equals_one_call() {
     // Longer than three blocks and not a multiple of one; every intermediate signal too,
@@ -301,6 +337,7 @@ fn process_signal_in_blocks_equals_one_call() {
         for r in requests {
             mgr.add_request(r, &ParamMap::new()).expect("request");
         }
+        mgr.set_keep_all(true);
         mgr.process_signal(&[&left, &right]).expect("process");
         let mut got = Recorder::new(true);
         got.record(&mgr);

@@ -158,12 +158,14 @@ fn whole_signal_and_process_chunk_match_sequential() {
     let (left, right) = signal(8000);
     let mut seq = manager(0);
     place_requests(&mut seq);
+    seq.set_keep_all(true);
     seq.process_signal(&[&left, &right]).expect("process");
     let mut a = Recorder::new(true);
     a.record(&seq);
     for threads in [1, 2, 4] {
         let mut par = manager(threads);
         place_requests(&mut par);
+        par.set_keep_all(true);
         par.process_signal(&[&left, &right]).expect("process");
         let mut b = Recorder::new(true);
         b.record(&par);

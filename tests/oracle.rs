@@ -163,6 +163,7 @@ fn run_case(case: &Case) -> Recorder {
         mgr.add_request(r, &case.params).expect("request");
     }
     let mut rec = Recorder::new(true);
+    mgr.set_keep_all(true);
     let ears: Vec<&[f64]> = audio.channels.iter().map(Vec::as_slice).collect();
     if case.chunks.is_empty() {
         mgr.process_signal(&ears).expect("process");

@@ -133,11 +133,12 @@ impl Graph {
     }
 
     /// Processes a whole signal (one slice per ear) as one call would, appending every
-    /// node's output to `whole` (per node and output): the nodes whose whole chain is
+    /// node's output to `whole` (per node and output) where it has a block, which it
+    /// must for every input of a node that is not chunk-invariant: the nodes whose whole chain is
     /// chunk-invariant run in blocks of `block` samples (bit-identical to one call, with
     /// the intermediate signals in cache), then every other node runs once, in order, on
     /// its parents' joined outputs, as the AFE's `processSignal` calls it.
-    pub fn run_whole(&mut self, signal: &[&[f64]], block: usize, whole: &mut [Vec<Block>]) {
+    pub fn run_whole(&mut self, signal: &[&[f64]], block: usize, whole: &mut [Vec<Option<Block>>]) {
         let invariant = self.invariant_nodes();
         let len = signal.first().map_or(0, |c| c.len());
         for start in (0..len).step_by(block.max(1)) {
@@ -150,23 +151,27 @@ impl Graph {
                         self.run_node(i);
                     }
                     for (acc, out) in whole[i].iter_mut().zip(&self.nodes[i].outputs) {
-                        acc.extend_from(out);
+                        if let Some(acc) = acc {
+                            acc.extend_from(out);
+                        }
                     }
                 }
             }
         }
         for i in (0..self.nodes.len()).filter(|&i| !invariant[i]) {
             let node = &mut self.nodes[i];
-            let inputs: Vec<&Block> = node
+            let inputs: Option<Vec<&Block>> = node
                 .parents
                 .iter()
-                .map(|p| &whole[p.node][p.output])
+                .map(|p| whole[p.node][p.output].as_ref())
                 .collect();
-            if let Some(proc_) = node.processor.as_mut() {
+            if let (Some(proc_), Some(inputs)) = (node.processor.as_mut(), inputs) {
                 proc_.process(&inputs, &mut node.outputs);
             }
             for (acc, out) in whole[i].iter_mut().zip(&node.outputs) {
-                acc.extend_from(out);
+                if let Some(acc) = acc {
+                    acc.extend_from(out);
+                }
             }
         }
     }

@@ -7,7 +7,7 @@ use afe_processors::requests;
 use serde_json::Value;
 
 use crate::engine::Engine;
-use crate::graph::{Channel, Graph, Node, OutputRef};
+use crate::graph::{Channel, Graph, OutputRef};
 use crate::resolve::chain_of;
 
 /// Highest input sampling rate accepted, in Hz.
@@ -93,10 +93,12 @@ pub struct Manager {
     /// name a bad sample by its position in the stream.
     position: u64,
     /// Whole-signal outputs of the last [`Manager::process_signal`] run in blocks, per
-    /// node and output: what the signals show while `whole_shown` (until the next chunk
-    /// or edit). Kept allocated for the next call.
-    whole: Vec<Vec<Block>>,
+    /// node and output (`None` where not kept): what the signals show while
+    /// `whole_shown` (until the next chunk or edit). Kept allocated for the next call.
+    whole: Vec<Vec<Option<Block>>>,
     whole_shown: bool,
+    /// Whether `process_signal` keeps every intermediate signal, not only the requested.
+    keep_all: bool,
 }
 
 /// Block length in samples in which a whole signal goes through a chunk-invariant graph:
@@ -174,6 +176,7 @@ impl Manager {
             position: 0,
             whole: Vec::new(),
             whole_shown: false,
+            keep_all: false,
         })
     }
 
@@ -468,23 +471,21 @@ impl Manager {
         if len <= WHOLE_SIGNAL_BLOCK {
             return self.process_chunk(signal);
         }
+        let invariant = self.graph.invariant_nodes();
+        let kept = self.kept_outputs(&invariant);
         let mut whole = std::mem::take(&mut self.whole);
-        let widths = |n: &Node| n.infos.iter().map(SignalInfo::width).collect::<Vec<_>>();
-        let same_shape = whole.len() == self.graph.nodes.len()
-            && whole
-                .iter()
-                .zip(&self.graph.nodes)
-                .all(|(w, n)| w.iter().map(Block::width).eq(widths(n)));
-        if !same_shape {
-            whole = self
-                .graph
-                .nodes
-                .iter()
-                .map(|n| n.infos.iter().map(|i| Block::new(i.width())).collect())
-                .collect();
+        whole.resize_with(kept.len(), Vec::new);
+        for ((acc, keep), node) in whole.iter_mut().zip(&kept).zip(&self.graph.nodes) {
+            acc.resize_with(keep.len(), || None);
+            for ((slot, &k), info) in acc.iter_mut().zip(keep).zip(&node.infos) {
+                match (k, slot.as_mut()) {
+                    (false, _) => *slot = None,
+                    (true, Some(b)) if b.width() == info.width() => b.clear(),
+                    (true, _) => *slot = Some(Block::new(info.width())),
+                }
+            }
         }
-        whole.iter_mut().flatten().for_each(Block::clear);
-        if !self.is_chunk_invariant() {
+        if invariant.iter().any(|i| !i) {
             // The nodes that depend on chunk boundaries must see the signal in one call:
             // the graph runs on this thread, its invariant part in blocks.
             self.edit(|m| {
@@ -513,13 +514,55 @@ impl Manager {
         Ok(())
     }
 
-    /// Appends the new output of every node to `whole` (per node and output).
-    fn append_outputs(&self, whole: &mut [Vec<Block>]) {
+    /// Appends the new output of every kept signal to `whole` (per node and output).
+    fn append_outputs(&self, whole: &mut [Vec<Option<Block>>]) {
         for (node, outputs) in whole.iter_mut().enumerate() {
             for (output, acc) in outputs.iter_mut().enumerate() {
-                acc.extend_from(self.signal(OutputRef { node, output }).new);
+                let r = OutputRef { node, output };
+                if let (Some(acc), Some(s)) = (acc, self.signal(r)) {
+                    acc.extend_from(s.new);
+                }
             }
         }
+    }
+
+    /// Which outputs `process_signal` joins, per node and output: the requested ones
+    /// (every one with [`Manager::set_keep_all`]) and, in a graph with per-chunk nodes
+    /// (`invariant` false), those nodes' inputs. The rest (the full-rate filterbank and
+    /// IHC signals are 2.8 MB per second and channel pair) is never joined.
+    fn kept_outputs(&self, invariant: &[bool]) -> Vec<Vec<bool>> {
+        let nodes = &self.graph.nodes;
+        let mut kept: Vec<Vec<bool>> = nodes
+            .iter()
+            .enumerate()
+            .map(|(i, n)| vec![self.keep_all && i > 0; n.outputs.len()])
+            .collect();
+        for r in self.requests.iter().flatten().flat_map(|r| &r.outputs) {
+            kept[r.node][r.output] = true;
+        }
+        for (node, _) in nodes.iter().zip(invariant).filter(|(_, inv)| !**inv) {
+            for p in &node.parents {
+                kept[p.node][p.output] = true;
+            }
+        }
+        kept
+    }
+
+    /// After [`Manager::process_signal`], moves the joined output `r` out of the manager
+    /// (it then no longer appears among the signals) instead of copying a signal that
+    /// may be hundreds of MB; `None` after a chunk or edit, or when already taken.
+    pub fn take_whole(&mut self, r: OutputRef) -> Option<Block> {
+        if !self.whole_shown {
+            return None;
+        }
+        self.whole.get_mut(r.node)?.get_mut(r.output)?.take()
+    }
+
+    /// Whether [`Manager::process_signal`] keeps every intermediate signal for
+    /// [`Manager::signals`]`(true)` (`true`), or only the requested ones (`false`, the
+    /// default: less memory and time).
+    pub fn set_keep_all(&mut self, keep: bool) {
+        self.keep_all = keep;
     }
 
     /// Returns every processor to its initial state (chunks in flight are finished and
@@ -629,11 +672,13 @@ impl Manager {
             .get(handle.0)
             .and_then(Option::as_ref)
             .ok_or(Error::UnknownHandle(handle.0))?;
-        Ok(req.outputs.iter().map(|r| self.signal(*r)).collect())
+        Ok(req.outputs.iter().filter_map(|r| self.signal(*r)).collect())
     }
 
     /// Signals of the graph: the requested ones, or (`all`) every processor output,
-    /// including intermediate ones (time, filterbank, innerhaircell, ...).
+    /// including intermediate ones (time, filterbank, innerhaircell, ...). After
+    /// [`Manager::process_signal`], intermediate signals are there only if
+    /// [`Manager::set_keep_all`] was on.
     pub fn signals(&self, all: bool) -> Vec<Signal<'_>> {
         let mut refs: Vec<OutputRef> = if all {
             self.graph
@@ -654,23 +699,24 @@ impl Manager {
         };
         let mut seen = std::collections::HashSet::new();
         refs.retain(|r| seen.insert(*r));
-        refs.into_iter().map(|r| self.signal(r)).collect()
+        refs.into_iter().filter_map(|r| self.signal(r)).collect()
     }
 
-    fn signal(&self, r: OutputRef) -> Signal<'_> {
+    /// Output `r`'s signal; `None` for one that the last `process_signal` did not keep.
+    fn signal(&self, r: OutputRef) -> Option<Signal<'_>> {
         let node = &self.graph.nodes[r.node];
-        Signal {
+        Some(Signal {
             name: node.name,
             instance: node.instance,
             channel: node.channels[r.output],
             info: &node.infos[r.output],
             new: match (self.whole_shown, &self.engine) {
-                (true, _) => &self.whole[r.node][r.output],
+                (true, _) => self.whole[r.node][r.output].as_ref()?,
                 (false, Some(e)) => e.block(r),
                 (false, None) => &node.outputs[r.output],
             },
             source: r,
-        }
+        })
     }
 }
 

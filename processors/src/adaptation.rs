@@ -148,9 +148,8 @@ pub struct Adaptation {
     mult: Vec<f64>,
     /// Initial loop states `minLevel^(1/2^j)`, `[loop][channel]`.
     initial: Vec<f64>,
-    /// Overshoot limitation constants `F`, `Ex`, `Off`, `[loop][channel]`; empty when
-    /// the limitation is off.
-    limit: Vec<[f64; 3]>,
+    /// Overshoot limitation constants, `None` when the limitation is off.
+    limit: Option<Limit>,
     /// Loop states, `[loop][channel]`.
     state: Vec<f64>,
 }
@@ -228,9 +227,13 @@ impl Adaptation {
                         .into(),
                 });
             }
-            constants
+            Some(Limit {
+                f: constants.iter().map(|c| c[0]).collect(),
+                ex: constants.iter().map(|c| c[1]).collect(),
+                off: constants.iter().map(|c| c[2]).collect(),
+            })
         } else {
-            Vec::new()
+            None
         };
         let adaptation = Adaptation {
             a1,
@@ -249,38 +252,58 @@ impl Adaptation {
 impl Processor for Adaptation {
     fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
         let input = inputs[0];
-        let nc = self.min_level.len();
         let out = outputs[0].resize_to(input.frames());
-        for (x, y) in input.rows().zip(out.chunks_exact_mut(nc.max(1))) {
-            for ((v, &x), &m) in y.iter_mut().zip(x).zip(&self.min_level) {
-                *v = x.max(m);
-            }
-            for (j, states) in self.state.chunks_exact_mut(nc.max(1)).enumerate() {
-                let (a1, b0) = (self.a1[j], self.b0[j]);
-                if self.limit.is_empty() {
-                    for (v, s) in y.iter_mut().zip(states.iter_mut()) {
-                        *v /= *s;
-                        *s = a1 * *s + b0 * *v;
-                    }
-                } else {
-                    let limit = &self.limit[j * nc..(j + 1) * nc];
-                    for ((v, s), [f, ex, off]) in y.iter_mut().zip(states.iter_mut()).zip(limit) {
-                        *v /= *s;
-                        if *v > 1.0 {
-                            *v = f / (1.0 + (ex * (*v - 1.0)).exp()) - off;
-                        }
-                        *s = a1 * *s + b0 * *v;
-                    }
-                }
-            }
-            for ((v, c), m) in y.iter_mut().zip(&self.corr).zip(&self.mult) {
-                *v = (*v - c) * m;
-            }
-        }
+        adapt(self, input.as_slice(), out);
     }
 
     fn reset(&mut self) {
         self.state.copy_from_slice(&self.initial);
+    }
+}
+
+/// Overshoot limitation constants per `[loop][channel]`: above 1, a loop's output `v`
+/// becomes `f / (1 + exp(ex·(v − 1))) − off`.
+#[derive(Debug, Clone)]
+struct Limit {
+    f: Vec<f64>,
+    ex: Vec<f64>,
+    off: Vec<f64>,
+}
+
+/// Runs the loops over `input` (`[time][channel]`) into `out`. Each step is a pass over
+/// the channels of one sample, so the divisions and state updates vectorise; the
+/// overshoot limitation, whose `exp` only applies above 1, is a pass of its own.
+#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2+fma"))]
+fn adapt(a: &mut Adaptation, input: &[f64], out: &mut [f64]) {
+    let nc = a.min_level.len().max(1);
+    for (x, y) in input.chunks_exact(nc).zip(out.chunks_exact_mut(nc)) {
+        for ((v, &x), &m) in y.iter_mut().zip(x).zip(&a.min_level) {
+            *v = x.max(m);
+        }
+        for (j, states) in a.state.chunks_exact_mut(nc).enumerate() {
+            let (a1, b0) = (a.a1[j], a.b0[j]);
+            for (v, s) in y.iter_mut().zip(states.iter()) {
+                *v /= *s;
+            }
+            if let Some(l) = &a.limit {
+                let at = j * nc..(j + 1) * nc;
+                let lanes = l.f[at.clone()]
+                    .iter()
+                    .zip(&l.ex[at.clone()])
+                    .zip(&l.off[at]);
+                for (v, ((f, ex), off)) in y.iter_mut().zip(lanes) {
+                    if *v > 1.0 {
+                        *v = f / (1.0 + (ex * (*v - 1.0)).exp()) - off;
+                    }
+                }
+            }
+            for (s, v) in states.iter_mut().zip(y.iter()) {
+                *s = a1 * *s + b0 * *v;
+            }
+        }
+        for ((v, c), m) in y.iter_mut().zip(&a.corr).zip(&a.mult) {
+            *v = (*v - c) * m;
+        }
     }
 }
 
