@@ -207,7 +207,10 @@ pub struct AmsFeatures {
     frames: FrameBuffer,
     decimated: Vec<f64>,
     filtered: Vec<f64>,
-    interleaved: Vec<f64>,
+    /// The log filterbank's output, `[time][band][channel]`.
+    banded: Vec<f64>,
+    /// One frame's sums per `[band][channel]`.
+    sums: Vec<f64>,
 }
 
 impl std::fmt::Debug for AmsFeatures {
@@ -394,7 +397,8 @@ impl AmsFeatures {
             frames: FrameBuffer::new(width, w, h),
             decimated: Vec::new(),
             filtered: Vec::new(),
-            interleaved: Vec::new(),
+            banded: Vec::new(),
+            sums: vec![0.0; width],
         };
         let info = SignalInfo {
             kind: SignalKind::Modulation,
@@ -405,6 +409,9 @@ impl AmsFeatures {
     }
 }
 
+/// Rows of the decimated signal filtered by every band before the next rows.
+const ROWS: usize = 64;
+
 impl Processor for AmsFeatures {
     fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
         let nc = self.channels;
@@ -414,31 +421,42 @@ impl Processor for AmsFeatures {
         match &mut self.kind {
             Bands::Log { filters } => {
                 let len = self.decimated.len();
-                self.filtered.resize(len, 0.0);
-                self.interleaved.resize(len * nb, 0.0);
-                for (j, filter) in filters.iter_mut().enumerate() {
-                    filter.process_from(&self.decimated, &mut self.filtered);
-                    for (row, src) in self
-                        .interleaved
-                        .chunks_exact_mut(nc * nb)
-                        .zip(self.filtered.chunks_exact(nc))
-                    {
-                        for (c, v) in src.iter().enumerate() {
-                            row[c * nb + j] = *v;
+                self.filtered.resize((ROWS * nc).min(len), 0.0);
+                self.banded.resize(len * nb, 0.0);
+                // Block by block of rows, so that the block stays in cache while every
+                // band's filter writes into it (the filters keep their state from block
+                // to block).
+                let blocks = self
+                    .decimated
+                    .chunks((ROWS * nc).max(1))
+                    .zip(self.banded.chunks_mut((ROWS * nc * nb).max(1)));
+                for (x, rows) in blocks {
+                    let filtered = &mut self.filtered[..x.len()];
+                    for (j, filter) in filters.iter_mut().enumerate() {
+                        filter.process_from(x, filtered);
+                        for (row, src) in rows
+                            .chunks_exact_mut(nc * nb)
+                            .zip(filtered.chunks_exact(nc))
+                        {
+                            row[j * nc..(j + 1) * nc].copy_from_slice(src);
                         }
                     }
                 }
-                let input = &self.interleaved;
+                let input = &self.banded;
                 let n = self.frames.available(input);
                 let out = outputs[0].reset_to(n);
                 for (k, row) in out.chunks_exact_mut(nc * nb).enumerate() {
+                    self.sums.fill(0.0);
                     for (w, z) in self.win.iter().zip(self.frames.frame(input, k).rows()) {
-                        for (acc, v) in row.iter_mut().zip(z) {
+                        for (acc, v) in self.sums.iter_mut().zip(z) {
                             *acc += (w * v).abs();
                         }
                     }
-                    for v in row.iter_mut() {
-                        *v /= w_len;
+                    // band-major sums into the channel-major output row
+                    for (j, sums) in self.sums.chunks_exact(nc).enumerate() {
+                        for (c, v) in sums.iter().enumerate() {
+                            row[c * nb + j] = v / w_len;
+                        }
                     }
                 }
                 self.frames.advance(input, n);
