@@ -288,8 +288,8 @@ fn process_signal_resets_state_between_calls() {
 }
 
 /// Without `set_keep_all`, `process_signal` joins only the requested signals (the
-/// intermediate ones are not there to take memory), with the same values, and
-/// `record_whole` moves them out of the manager.
+/// intermediate ones are not there to take memory), with the same values as one call,
+/// and `record_whole` moves them out of the manager.
 #[test]
 fn process_signal_keeps_only_the_requested_signals_by_default() {
     let fs = 16000.0;

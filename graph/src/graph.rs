@@ -107,6 +107,11 @@ impl Graph {
 
     /// Runs node `i` on its parents' new output.
     fn run_node(&mut self, i: usize) {
+        self.feed_node(i, |p, inputs, outputs| p.process(inputs, outputs));
+    }
+
+    /// Calls `f` with node `i`'s processor, its parents' new output and its outputs.
+    fn feed_node(&mut self, i: usize, f: impl FnOnce(&mut dyn Processor, &[&Block], &mut [Block])) {
         let (before, rest) = self.nodes.split_at_mut(i);
         let node = &mut rest[0];
         let first = node.parents[0];
@@ -116,8 +121,30 @@ impl Graph {
             *slot = &before[p.node].outputs[p.output];
         }
         if let Some(proc_) = node.processor.as_mut() {
-            proc_.process(&inputs[..node.parents.len()], &mut node.outputs);
+            f(
+                proc_.as_mut(),
+                &inputs[..node.parents.len()],
+                &mut node.outputs,
+            );
         }
+    }
+
+    /// Which nodes a whole signal reaches block by block although they are not
+    /// chunk-invariant (`invariant` from [`Graph::invariant_nodes`]): those whose
+    /// processor absorbs a whole signal and whose parents are all invariant, so that
+    /// their input need not be joined.
+    pub fn absorbing_nodes(&self, invariant: &[bool]) -> Vec<bool> {
+        self.nodes
+            .iter()
+            .zip(invariant)
+            .map(|(node, inv)| {
+                !inv && node
+                    .processor
+                    .as_ref()
+                    .is_some_and(|p| p.absorbs_whole_signal())
+                    && node.parents.iter().all(|p| invariant[p.node])
+            })
+            .collect()
     }
 
     /// Which nodes have a chunk-invariant processor and only such nodes below them.
@@ -134,19 +161,24 @@ impl Graph {
 
     /// Processes a whole signal (one slice per ear) as one call would, appending every
     /// node's output to `whole` (per node and output) where it has a block, which it
-    /// must for every input of a node that is not chunk-invariant: the nodes whose whole chain is
+    /// must for every input of a node that is not chunk-invariant and does not absorb
+    /// (see [`Graph::absorbing_nodes`]; those take the blocks as they come and finish
+    /// once): the nodes whose whole chain is
     /// chunk-invariant run in blocks of `block` samples (bit-identical to one call, with
     /// the intermediate signals in cache), then every other node runs once, in order, on
     /// its parents' joined outputs, as the AFE's `processSignal` calls it.
     pub fn run_whole(&mut self, signal: &[&[f64]], block: usize, whole: &mut [Vec<Option<Block>>]) {
         let invariant = self.invariant_nodes();
+        let absorbing = self.absorbing_nodes(&invariant);
         let len = signal.first().map_or(0, |c| c.len());
         for start in (0..len).step_by(block.max(1)) {
             let end = (start + block).min(len);
             let part: Vec<&[f64]> = signal.iter().map(|c| &c[start..end]).collect();
             self.load_input(&part);
             for i in 0..self.nodes.len() {
-                if invariant[i] {
+                if absorbing[i] {
+                    self.feed_node(i, |p, inputs, _| p.absorb(inputs));
+                } else if invariant[i] {
                     if i > 0 {
                         self.run_node(i);
                     }
@@ -165,8 +197,10 @@ impl Graph {
                 .iter()
                 .map(|p| whole[p.node][p.output].as_ref())
                 .collect();
-            if let (Some(proc_), Some(inputs)) = (node.processor.as_mut(), inputs) {
-                proc_.process(&inputs, &mut node.outputs);
+            match (node.processor.as_mut(), inputs) {
+                (Some(proc_), _) if absorbing[i] => proc_.finish(&mut node.outputs),
+                (Some(proc_), Some(inputs)) => proc_.process(&inputs, &mut node.outputs),
+                _ => {}
             }
             for (acc, out) in whole[i].iter_mut().zip(&node.outputs) {
                 if let Some(acc) = acc {

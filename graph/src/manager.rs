@@ -472,30 +472,20 @@ impl Manager {
             return self.process_chunk(signal);
         }
         let invariant = self.graph.invariant_nodes();
-        let kept = self.kept_outputs(&invariant);
-        let mut whole = std::mem::take(&mut self.whole);
-        whole.resize_with(kept.len(), Vec::new);
-        for ((acc, keep), node) in whole.iter_mut().zip(&kept).zip(&self.graph.nodes) {
-            acc.resize_with(keep.len(), || None);
-            for ((slot, &k), info) in acc.iter_mut().zip(keep).zip(&node.infos) {
-                match (k, slot.as_mut()) {
-                    (false, _) => *slot = None,
-                    (true, Some(b)) if b.width() == info.width() => b.clear(),
-                    (true, _) => *slot = Some(Block::new(info.width())),
-                }
-            }
-        }
         if invariant.iter().any(|i| !i) {
             // The nodes that depend on chunk boundaries must see the signal in one call:
-            // the graph runs on this thread, its invariant part in blocks.
+            // the graph runs on this thread, its invariant part in blocks (and the
+            // processors are in the graph, which tells which nodes absorb blocks).
             self.edit(|m| {
+                let mut whole = m.whole_buffers(&invariant);
                 m.graph.run_whole(signal, WHOLE_SIGNAL_BLOCK, &mut whole);
+                m.whole = whole;
                 Ok(())
             })?;
-            self.whole = whole;
             self.whole_shown = true;
             return Ok(());
         }
+        let mut whole = self.whole_buffers(&invariant);
         for start in (0..len).step_by(WHOLE_SIGNAL_BLOCK) {
             let end = (start + WHOLE_SIGNAL_BLOCK).min(len);
             let part: Vec<&[f64]> = signal.iter().map(|c| &c[start..end]).collect();
@@ -514,6 +504,25 @@ impl Manager {
         Ok(())
     }
 
+    /// Empty buffers for the outputs that `process_signal` joins, per node and output,
+    /// `None` for the others (reusing the last call's allocations).
+    fn whole_buffers(&mut self, invariant: &[bool]) -> Vec<Vec<Option<Block>>> {
+        let kept = self.kept_outputs(invariant);
+        let mut whole = std::mem::take(&mut self.whole);
+        whole.resize_with(kept.len(), Vec::new);
+        for ((acc, keep), node) in whole.iter_mut().zip(&kept).zip(&self.graph.nodes) {
+            acc.resize_with(keep.len(), || None);
+            for ((slot, &k), info) in acc.iter_mut().zip(keep).zip(&node.infos) {
+                match (k, slot.as_mut()) {
+                    (false, _) => *slot = None,
+                    (true, Some(b)) if b.width() == info.width() => b.clear(),
+                    (true, _) => *slot = Some(Block::new(info.width())),
+                }
+            }
+        }
+        whole
+    }
+
     /// Appends the new output of every kept signal to `whole` (per node and output).
     fn append_outputs(&self, whole: &mut [Vec<Option<Block>>]) {
         for (node, outputs) in whole.iter_mut().enumerate() {
@@ -528,7 +537,7 @@ impl Manager {
 
     /// Which outputs `process_signal` joins, per node and output: the requested ones
     /// (every one with [`Manager::set_keep_all`]) and, in a graph with per-chunk nodes
-    /// (`invariant` false), those nodes' inputs. The rest (the full-rate filterbank and
+    /// (`invariant` false), the inputs of those that do not absorb blocks. The rest (the full-rate filterbank and
     /// IHC signals are 2.8 MB per second and channel pair) is never joined.
     fn kept_outputs(&self, invariant: &[bool]) -> Vec<Vec<bool>> {
         let nodes = &self.graph.nodes;
@@ -540,7 +549,9 @@ impl Manager {
         for r in self.requests.iter().flatten().flat_map(|r| &r.outputs) {
             kept[r.node][r.output] = true;
         }
-        for (node, _) in nodes.iter().zip(invariant).filter(|(_, inv)| !**inv) {
+        let absorbing = self.graph.absorbing_nodes(invariant);
+        let joined = invariant.iter().zip(&absorbing).map(|(i, a)| !i && !a);
+        for (node, _) in nodes.iter().zip(joined).filter(|(_, j)| *j) {
             for p in &node.parents {
                 kept[p.node][p.output] = true;
             }

@@ -235,39 +235,48 @@ fn clip(f: &[f64], method: ClipMethod, alpha: f64, g: &mut [f64]) {
         .fold((f64::NAN, f64::NAN), |(hi, lo), v| (hi.max(*v), lo.min(*v)));
     let hi = alpha * max.abs();
     let lo = alpha * min.abs();
-    for (y, &x) in g.iter_mut().zip(f) {
-        let below = x <= -lo;
-        let above = x >= hi;
-        *y = match method {
-            ClipMethod::Keep if below || above => x,
-            ClipMethod::Compress if below => x + lo,
-            ClipMethod::Compress if above => x - hi,
-            ClipMethod::Sign if below => -1.0,
-            ClipMethod::Sign if above => 1.0,
-            _ => 0.0,
-        };
+    let pairs = g.iter_mut().zip(f);
+    // One loop per method, each branch-free, so that it vectorises.
+    match method {
+        ClipMethod::Keep => pairs.for_each(|(y, &x)| {
+            *y = if x <= -lo || x >= hi { x } else { 0.0 };
+        }),
+        ClipMethod::Compress => pairs.for_each(|(y, &x)| {
+            let above = if x >= hi { x - hi } else { 0.0 };
+            *y = if x <= -lo { x + lo } else { above };
+        }),
+        ClipMethod::Sign => pairs.for_each(|(y, &x)| {
+            let above = if x >= hi { 1.0 } else { 0.0 };
+            *y = if x <= -lo { -1.0 } else { above };
+        }),
+    }
+}
+
+/// Windows each complete frame of `input` into columns and correlates every channel,
+/// into `out` (`[frame][channel][lag]`).
+#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2+fma"))]
+fn correlate_frames(ac: &mut Autocorrelation, input: &Block, out: &mut [f64]) {
+    let nc = input.width();
+    let w = ac.win.len();
+    for (k, frame_out) in out.chunks_exact_mut((nc * (w - 1)).max(1)).enumerate() {
+        let frame = ac.frames.frame(input.as_slice(), k);
+        for (t, (row, wv)) in frame.rows().zip(&ac.win).enumerate() {
+            for (c, x) in row.iter().enumerate() {
+                ac.columns[c * w + t] = wv * x;
+            }
+        }
+        for (c, o) in frame_out.chunks_exact_mut(w - 1).enumerate() {
+            ac.correlate(c, o);
+        }
     }
 }
 
 impl Processor for Autocorrelation {
     fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
-        let input = inputs[0].as_slice();
-        let nc = inputs[0].width();
-        let w = self.win.len();
-        let n = self.frames.available(input);
+        let n = self.frames.available(inputs[0].as_slice());
         let out = outputs[0].resize_to(n);
-        for (k, frame_out) in out.chunks_exact_mut((nc * (w - 1)).max(1)).enumerate() {
-            let frame = self.frames.frame(input, k);
-            for (t, (row, wv)) in frame.rows().zip(&self.win).enumerate() {
-                for (c, x) in row.iter().enumerate() {
-                    self.columns[c * w + t] = wv * x;
-                }
-            }
-            for (c, o) in frame_out.chunks_exact_mut(w - 1).enumerate() {
-                self.correlate(c, o);
-            }
-        }
-        self.frames.advance(input, n);
+        correlate_frames(self, inputs[0], out);
+        self.frames.advance(inputs[0].as_slice(), n);
     }
 
     fn reset(&mut self) {

@@ -217,12 +217,19 @@ fn median(v: &mut [f64]) -> f64 {
 
 impl Processor for Pitch {
     fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
-        let input = inputs[0];
-        let frames = input.frames();
+        self.absorb(inputs);
+        self.finish(outputs);
+    }
+
+    fn absorbs_whole_signal(&self) -> bool {
+        true
+    }
+
+    /// The per-frame part: the SACF's largest peak gives the raw pitch and confidence,
+    /// and the confidence joins the history.
+    fn absorb(&mut self, inputs: &[&Block]) {
         let (nc, nl) = (self.channels, self.lags);
-        self.raw.clear();
-        self.conf.clear();
-        for row in input.rows() {
+        for row in inputs[0].rows() {
             self.sacf.fill(0.0);
             for acf in row.chunks_exact(nl) {
                 let lags = &acf[self.first_lag..self.first_lag + self.sacf.len()];
@@ -246,6 +253,12 @@ impl Processor for Pitch {
             self.conf.push(conf.max(0.0));
             self.raw.push(raw);
         }
+    }
+
+    /// The per-chunk part over the absorbed frames: the threshold from the history
+    /// (which holds this chunk's frames too) and the zero-padded median.
+    fn finish(&mut self, outputs: &mut [Block]) {
+        let frames = self.raw.len();
         // No peak ever: no history, and every raw pitch is 0 anyway.
         let thr = self.conf_thres * self.history.iter().fold(0.0f64, |a, v| a.max(*v));
         self.voiced.clear();
@@ -272,12 +285,16 @@ impl Processor for Pitch {
             o[1] = self.raw[t];
             o[2] = self.conf[t];
         }
+        self.raw.clear();
+        self.conf.clear();
     }
 
     /// Also forgets the past confidences (the AFE keeps them across resets, which mixes
     /// an earlier run into the threshold of the next).
     fn reset(&mut self) {
         self.history.clear();
+        self.raw.clear();
+        self.conf.clear();
     }
 }
 
@@ -416,6 +433,27 @@ mod tests {
         louder[5] = frame(nc, nl, 5, 2.0);
         let out = run(&p, &[louder], nc, nl);
         assert!(out[1][0].is_nan() && out[1][1] == 200.0);
+    }
+
+    /// Absorbing blocks and finishing once gives one call's output, whatever the blocks.
+    #[test]
+    fn absorbed_blocks_give_one_calls_output() {
+        let (nc, nl) = (2, 20);
+        let frames: Vec<Vec<f64>> = (0..9)
+            .map(|t| frame(nc, nl, 4 + t % 3, 0.3 + 0.1 * t as f64))
+            .collect();
+        let p = PitchParams::default();
+        let whole = run(&p, std::slice::from_ref(&frames), nc, nl);
+        let (mut pitch, _) = Pitch::new(&p, &acf_info(1000.0, nc, nl)).expect("valid");
+        assert!(pitch.absorbs_whole_signal());
+        for part in [&frames[..2], &frames[2..3], &frames[3..]] {
+            pitch.absorb(&[&Block::from_vec(part.concat(), nc * nl)]);
+        }
+        let mut out = vec![Block::new(3)];
+        pitch.finish(&mut out);
+        let got: Vec<u64> = out[0].as_slice().iter().map(|v| v.to_bits()).collect();
+        let want: Vec<u64> = whole.iter().flatten().map(|v| v.to_bits()).collect();
+        assert_eq!(got, want);
     }
 
     #[test]
