@@ -190,7 +190,9 @@ impl Autocorrelation {
         Ok((ac, info))
     }
 
-    /// The normalised ACF of the windowed frame `f` into `out` (`W − 1` lags).
+    /// The normalised ACF of the windowed frame `f` into `out` (`W − 1` lags); inlined
+    /// into [`correlate_frames`] so that its loops get that function's vector width.
+    #[inline(always)]
     fn correlate(&mut self, c: usize, out: &mut [f64]) {
         let w = self.win.len();
         let f = &self.columns[c * w..(c + 1) * w];
@@ -229,6 +231,7 @@ impl Autocorrelation {
 /// Centre-clips frame `f` into `g` (spec step 2): samples at or above `α·|max f|` and at
 /// or below `−α·|min f|` are kept (per `method`), the others become 0; a sample in both
 /// sets (zero, when both thresholds are 0) is treated as below.
+#[inline(always)]
 fn clip(f: &[f64], method: ClipMethod, alpha: f64, g: &mut [f64]) {
     let (max, min) = f
         .iter()
@@ -259,14 +262,42 @@ fn correlate_frames(ac: &mut Autocorrelation, input: &Block, out: &mut [f64]) {
     let nc = input.width();
     let w = ac.win.len();
     for (k, frame_out) in out.chunks_exact_mut((nc * (w - 1)).max(1)).enumerate() {
-        let frame = ac.frames.frame(input.as_slice(), k);
-        for (t, (row, wv)) in frame.rows().zip(&ac.win).enumerate() {
-            for (c, x) in row.iter().enumerate() {
-                ac.columns[c * w + t] = wv * x;
-            }
-        }
+        window_columns(
+            &ac.frames.frame(input.as_slice(), k),
+            &ac.win,
+            &mut ac.columns,
+        );
         for (c, o) in frame_out.chunks_exact_mut(w - 1).enumerate() {
             ac.correlate(c, o);
+        }
+    }
+}
+
+/// Writes the windowed rows of `frame` (`[time][channel]`) into `columns`
+/// (`[channel][time]`), four rows at a time so that each column gets four adjacent
+/// values per pass.
+#[inline(always)]
+fn window_columns(frame: &afe_core::framing::Frame<'_>, win: &[f64], columns: &mut [f64]) {
+    let w = win.len();
+    let mut rows = frame.rows().zip(win);
+    let mut t = 0;
+    loop {
+        let quad: [Option<(&[f64], &f64)>; 4] = std::array::from_fn(|_| rows.next());
+        if let [Some(a), Some(b), Some(c), Some(d)] = quad {
+            let cols = columns.chunks_exact_mut(w);
+            let xs = a.0.iter().zip(b.0).zip(c.0.iter().zip(d.0));
+            for (col, ((xa, xb), (xc, xd))) in cols.zip(xs) {
+                col[t..t + 4].copy_from_slice(&[a.1 * xa, b.1 * xb, c.1 * xc, d.1 * xd]);
+            }
+            t += 4;
+        } else {
+            for (row, wv) in quad.into_iter().flatten() {
+                for (col, x) in columns.chunks_exact_mut(w).zip(row) {
+                    col[t] = wv * x;
+                }
+                t += 1;
+            }
+            break;
         }
     }
 }
