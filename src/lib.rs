@@ -22,6 +22,7 @@
 pub mod catalog;
 pub mod extract;
 pub mod npy;
+pub mod output;
 mod recorder;
 pub mod stream;
 pub mod wav;

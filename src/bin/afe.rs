@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 
 use afe::bass_source::Pacing;
 use afe::extract::{run_source, run_with, Job};
+use afe::output::OutputFile;
 use afe::stream::{SourceSpec, StreamJob, StreamReport};
 use afe::wav::{Audio, WavBlocks};
 use afe::{Manager, ParamMap};
@@ -63,8 +64,8 @@ enum Command {
         chunk: Option<u64>,
         #[command(flatten)]
         threads: Threads,
-        /// Number of timed runs (the median is reported).
-        #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u64).range(1..))]
+        /// Number of timed runs (the median is reported), at most 100000.
+        #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u64).range(1..=100_000))]
         repeat: u64,
         /// Print the result as one JSON object.
         #[arg(long)]
@@ -368,6 +369,17 @@ fn extract(input: &Path, job: Job, trace: Option<&Path>, output: &Path) -> Resul
     if trace.is_some() && job.threads == 0 {
         return Err("--trace records the concurrent scheduler: use --threads 1 or more".into());
     }
+    // every output is checked before the computation, so that none is found unwritable
+    // after it (or written while another is not)
+    let output = checked_output(output, input)?;
+    let trace = match trace {
+        Some(t) => {
+            let t = checked_output(t, input)?;
+            t.check_distinct(&output).map_err(|e| e.to_string())?;
+            Some(t)
+        }
+        None => None,
+    };
     let mut wav = open_input(input)?;
     // trace events preallocated per worker (48 bytes each): 12 MiB, ~5000 chunks of 11 nodes
     let capacity = if trace.is_some() { 1 << 18 } else { 0 };
@@ -380,28 +392,39 @@ fn extract(input: &Path, job: Job, trace: Option<&Path>, output: &Path) -> Resul
             .map_err(|e| afe::Error::InvalidInput(e.to_string()))
     })
     .map_err(|e| e.to_string())?;
-    save(&rec, output)?;
-    if let Some(path) = trace {
-        let t = mgr.trace().map_err(|e| e.to_string())?.unwrap_or_default();
-        write_atomically(path, |mut file| {
-            std::io::Write::write_all(&mut file, t.to_string().as_bytes())
-        })?;
+    let events = match &trace {
+        Some(_) => Some(mgr.trace().map_err(|e| e.to_string())?.unwrap_or_default()),
+        None => None,
+    };
+    save(&rec, &output)?;
+    if let (Some(t), Some(events)) = (trace, events) {
+        t.write(|file| file.write_all(events.to_string().as_bytes()))
+            .map_err(|e| e.to_string())?;
     }
     Ok(())
 }
 
+/// Checks `path` as an output of a run reading `input` (see [`OutputFile::check`]).
+fn checked_output(path: &Path, input: &Path) -> Result<OutputFile, String> {
+    let out = OutputFile::check(path).map_err(|e| e.to_string())?;
+    out.check_not_input(input).map_err(|e| e.to_string())?;
+    Ok(out)
+}
+
 /// Saves every recorded signal as a float64 array `<request>_<ear>` in an .npz.
-fn save(rec: &afe::Recorder, output: &Path) -> Result<(), String> {
+fn save(rec: &afe::Recorder, output: &OutputFile) -> Result<(), String> {
     let arrays: Vec<(String, Vec<usize>, &[f64])> = rec
         .signals()
         .iter()
         .map(|s| (s.key.clone(), s.shape(), s.data.as_slice()))
         .collect();
-    write_atomically(output, |file| afe::npy::write_npz(file, &arrays))?;
+    output
+        .write(|file| afe::npy::write_npz(file, &arrays))
+        .map_err(|e| e.to_string())?;
     eprintln!(
         "wrote {} array(s) to {}: {}",
         arrays.len(),
-        output.display(),
+        output.path().display(),
         arrays
             .iter()
             .map(|(k, s, _)| format!("{k} {s:?}"))
@@ -409,24 +432,6 @@ fn save(rec: &afe::Recorder, output: &Path) -> Result<(), String> {
             .join(", ")
     );
     Ok(())
-}
-
-/// Writes `path` through a temporary file renamed into place, so that a failure leaves
-/// no partial output.
-fn write_atomically(
-    path: &Path,
-    write: impl FnOnce(std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
-) -> Result<(), String> {
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".partial");
-    let tmp = PathBuf::from(tmp);
-    let result = std::fs::File::create(&tmp)
-        .and_then(|f| write(std::io::BufWriter::new(f)))
-        .and_then(|()| std::fs::rename(&tmp, path));
-    result.map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        format!("cannot write '{}': {e}", path.display())
-    })
 }
 
 fn bench(input: &Path, job: &Job, repeat: usize, as_json: bool) -> Result<(), String> {
@@ -527,12 +532,17 @@ fn stream(
         }
         _ => {}
     }
+    let output = match (output, &spec) {
+        (Some(o), SourceSpec::Wav(input)) => Some(checked_output(o, input)?),
+        (Some(o), _) => Some(OutputFile::check(o).map_err(|e| e.to_string())?),
+        (None, _) => None,
+    };
     job.pacing = pacing.unwrap_or_else(|| spec.default_pacing());
     let mut status = Status::new(!as_json && std::io::stderr().is_terminal());
     let out =
         afe::stream::run_spec(&spec, &job, |t| status.update(t)).map_err(|e| e.to_string())?;
     status.finish();
-    if let Some(path) = output {
+    if let Some(path) = &output {
         save(&out.recorded, path)?;
     }
     let r = &out.report;

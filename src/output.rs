@@ -1,0 +1,313 @@
+//! Output files that are checked before any computation, never left half-written, and
+//! never replace what they should not: a symlink keeps pointing at its file, a device
+//! stays a device.
+
+use std::io::{BufWriter, Cursor, Seek, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Why an output file cannot be written.
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    /// The file's directory does not exist (or is not a directory).
+    #[error("cannot write '{path}': directory '{dir}' does not exist")]
+    NoDirectory {
+        /// The output as given.
+        path: PathBuf,
+        /// The directory it would go in.
+        dir: PathBuf,
+    },
+    /// The output names a directory.
+    #[error("cannot write '{0}': it is a directory, give a file name")]
+    IsDirectory(PathBuf),
+    /// Two outputs of one run name the same file.
+    #[error("'{0}' is given as two outputs of one run: give each its own file")]
+    SameFile(PathBuf),
+    /// The input would be overwritten.
+    #[error("'{0}' is the input file: give the output another name")]
+    IsInput(PathBuf),
+    /// Writing failed (disk full, permissions, ...); nothing was left behind.
+    #[error("cannot write '{path}': {source}")]
+    Write {
+        /// The output as given.
+        path: PathBuf,
+        /// What the system said.
+        source: std::io::Error,
+    },
+}
+
+/// What an output is written to: a file, or a buffer for a device (both can seek, as
+/// the zip writer needs).
+pub trait WriteSeek: Write + Seek {}
+
+impl<W: Write + Seek> WriteSeek for W {}
+
+/// Distinguishes the temporary files of one process.
+static TEMPORARIES: AtomicU64 = AtomicU64::new(0);
+
+/// Most symlinks followed from an output name (as the kernel's limit, 40).
+const MAX_LINKS: usize = 40;
+
+/// An output file, checked when the run starts.
+#[derive(Debug, Clone)]
+pub struct OutputFile {
+    /// The name as given, for messages.
+    given: PathBuf,
+    /// The file it names once symlinks are followed.
+    target: PathBuf,
+    /// Whether the target exists and is not a regular file (a device, a FIFO): it is
+    /// written in place instead of being replaced.
+    in_place: bool,
+}
+
+impl OutputFile {
+    /// Checks `path` as an output: symlinks are followed to the file they name; a new
+    /// file needs an existing directory; a directory is refused.
+    pub fn check(path: &Path) -> Result<OutputFile, OutputError> {
+        let target = follow_links(path).map_err(|source| OutputError::Write {
+            path: path.into(),
+            source,
+        })?;
+        let in_place = match std::fs::metadata(&target) {
+            Ok(m) if m.is_dir() => return Err(OutputError::IsDirectory(path.into())),
+            Ok(m) => !m.is_file(),
+            Err(_) => {
+                let dir = directory_of(&target);
+                if !dir.is_dir() {
+                    return Err(OutputError::NoDirectory {
+                        path: path.into(),
+                        dir,
+                    });
+                }
+                false
+            }
+        };
+        Ok(OutputFile {
+            given: path.into(),
+            target,
+            in_place,
+        })
+    }
+
+    /// Refuses an output that is the same file as `other` (another output or the input).
+    pub fn check_distinct(&self, other: &OutputFile) -> Result<(), OutputError> {
+        if self.same_file(&other.target) {
+            return Err(OutputError::SameFile(self.given.clone()));
+        }
+        Ok(())
+    }
+
+    /// Refuses an output that would overwrite the input file `input`.
+    pub fn check_not_input(&self, input: &Path) -> Result<(), OutputError> {
+        match follow_links(input) {
+            Ok(i) if self.same_file(&i) => Err(OutputError::IsInput(self.given.clone())),
+            _ => Ok(()),
+        }
+    }
+
+    fn same_file(&self, other: &Path) -> bool {
+        match (self.target.canonicalize(), other.canonicalize()) {
+            (Ok(a), Ok(b)) => a == b,
+            _ => absolute(&self.target) == absolute(other),
+        }
+    }
+
+    /// The name as given.
+    pub fn path(&self) -> &Path {
+        &self.given
+    }
+
+    /// Writes the file with `write`: a regular file through a temporary file of its own
+    /// beside the target, renamed into place when complete (a failure or a concurrent
+    /// run never leaves a partial or mixed file); a device or FIFO in place, through a
+    /// buffer in memory (so that `write` may seek).
+    pub fn write(
+        &self,
+        write: impl FnOnce(&mut dyn WriteSeek) -> std::io::Result<()>,
+    ) -> Result<(), OutputError> {
+        let failed = |source| OutputError::Write {
+            path: self.given.clone(),
+            source,
+        };
+        if self.in_place {
+            let mut buf = Cursor::new(Vec::new());
+            write(&mut buf).map_err(failed)?;
+            let mut file = std::fs::OpenOptions::new()
+                .write(true)
+                .open(&self.target)
+                .map_err(failed)?;
+            return file
+                .write_all(buf.get_ref())
+                .and_then(|()| file.flush())
+                .map_err(failed);
+        }
+        let tmp = self.temporary();
+        let result = std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&tmp)
+            .and_then(|f| {
+                let mut w = BufWriter::new(f);
+                write(&mut w)?;
+                w.into_inner().map_err(|e| e.into_error())?.sync_all()
+            })
+            .and_then(|()| std::fs::rename(&tmp, &self.target));
+        result.map_err(|e| {
+            let _ = std::fs::remove_file(&tmp);
+            failed(e)
+        })
+    }
+
+    /// A name beside the target that no other run or output of this run uses.
+    fn temporary(&self) -> PathBuf {
+        let name = self
+            .target
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let n = TEMPORARIES.fetch_add(1, Ordering::Relaxed);
+        directory_of(&self.target).join(format!(".{name}.{}.{n}.partial", std::process::id()))
+    }
+}
+
+/// The directory a file named `path` is in (`.` for a bare name).
+fn directory_of(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+fn absolute(path: &Path) -> PathBuf {
+    std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf())
+}
+
+/// Follows `path` through symlinks (also dangling ones) to the name of a file that is
+/// not a symlink.
+fn follow_links(path: &Path) -> std::io::Result<PathBuf> {
+    let mut p = path.to_path_buf();
+    for _ in 0..MAX_LINKS {
+        match std::fs::symlink_metadata(&p) {
+            Ok(m) if m.file_type().is_symlink() => {
+                let link = std::fs::read_link(&p)?;
+                p = directory_of(&p).join(link);
+            }
+            _ => return Ok(p),
+        }
+    }
+    Err(std::io::Error::other(format!(
+        "more than {MAX_LINKS} symbolic links"
+    )))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn dir(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("afe-output-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).expect("temp dir");
+        d
+    }
+
+    fn entries(d: &Path) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(d)
+            .expect("dir")
+            .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn a_symlink_keeps_pointing_at_the_file_it_names() {
+        let d = dir("link");
+        std::fs::write(d.join("real.npz"), b"old").expect("write");
+        std::os::unix::fs::symlink("real.npz", d.join("link.npz")).expect("link");
+        let out = OutputFile::check(&d.join("link.npz")).expect("ok");
+        out.write(|w| w.write_all(b"new")).expect("write");
+        assert!(std::fs::symlink_metadata(d.join("link.npz"))
+            .expect("link")
+            .file_type()
+            .is_symlink());
+        assert_eq!(std::fs::read(d.join("real.npz")).expect("read"), b"new");
+        assert_eq!(entries(&d), ["link.npz", "real.npz"], "no temporary left");
+    }
+
+    #[test]
+    fn a_device_is_written_in_place_and_its_errors_reported() {
+        let null = OutputFile::check(Path::new("/dev/null")).expect("ok");
+        null.write(|w| w.write_all(b"x")).expect("write");
+        assert!(!std::fs::metadata("/dev/null").expect("dev").is_file());
+        if Path::new("/dev/full").exists() {
+            let full = OutputFile::check(Path::new("/dev/full")).expect("ok");
+            let e = full.write(|w| w.write_all(&[0; 4096])).expect_err("full");
+            assert!(e.to_string().contains("/dev/full"), "{e}");
+            assert!(!std::fs::metadata("/dev/full").expect("dev").is_file());
+        }
+    }
+
+    #[test]
+    fn missing_directories_and_directories_are_refused_up_front() {
+        let d = dir("missing");
+        let e = OutputFile::check(&d.join("nope/out.npz")).expect_err("missing");
+        assert!(matches!(e, OutputError::NoDirectory { .. }), "{e}");
+        assert!(e.to_string().contains("nope"), "{e}");
+        let e = OutputFile::check(&d).expect_err("directory");
+        assert!(matches!(e, OutputError::IsDirectory(_)), "{e}");
+        assert!(OutputFile::check(Path::new("bare-name.npz")).is_ok());
+    }
+
+    #[test]
+    fn a_failed_write_leaves_nothing_and_keeps_the_old_file() {
+        let d = dir("fail");
+        std::fs::write(d.join("out.npz"), b"old").expect("write");
+        let out = OutputFile::check(&d.join("out.npz")).expect("ok");
+        out.write(|_| Err(std::io::Error::other("boom")))
+            .expect_err("failed");
+        assert_eq!(std::fs::read(d.join("out.npz")).expect("read"), b"old");
+        assert_eq!(entries(&d), ["out.npz"]);
+    }
+
+    #[test]
+    fn the_same_file_twice_or_the_input_is_refused() {
+        let d = dir("same");
+        std::fs::write(d.join("in.wav"), b"RIFF").expect("write");
+        std::os::unix::fs::symlink("in.wav", d.join("alias.npz")).expect("link");
+        let a = OutputFile::check(&d.join("out.npz")).expect("ok");
+        let b = OutputFile::check(&d.join(".").join("out.npz")).expect("ok");
+        assert!(matches!(
+            a.check_distinct(&b),
+            Err(OutputError::SameFile(_))
+        ));
+        let alias = OutputFile::check(&d.join("alias.npz")).expect("ok");
+        assert!(matches!(
+            alias.check_not_input(&d.join("in.wav")),
+            Err(OutputError::IsInput(_))
+        ));
+        assert!(a.check_not_input(&d.join("in.wav")).is_ok());
+    }
+
+    #[test]
+    fn concurrent_writers_each_leave_a_whole_file() {
+        let d = dir("race");
+        let target = d.join("out.npz");
+        std::thread::scope(|s| {
+            for k in 0..8u8 {
+                let target = &target;
+                s.spawn(move || {
+                    let out = OutputFile::check(target).expect("ok");
+                    out.write(|w| w.write_all(&[k; 100_000])).expect("write");
+                });
+            }
+        });
+        let bytes = std::fs::read(&target).expect("read");
+        assert_eq!(bytes.len(), 100_000);
+        assert!(
+            bytes.iter().all(|b| *b == bytes[0]),
+            "one writer's file, whole"
+        );
+        assert_eq!(entries(&d), ["out.npz"]);
+    }
+}
