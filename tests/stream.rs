@@ -162,6 +162,19 @@ fn every_bad_stream_is_one_clear_line() {
         "tone=abc: expected a finite number",
         &o,
     );
+    // issue 13, item 4: a finite amplitude that would overflow is refused, not NaN
+    assert_clear_error(
+        &run(&[
+            "--source",
+            "synth:tone=440,amp=1e200",
+            "--for",
+            "1",
+            "-r",
+            "ild",
+        ]),
+        "the processing overflows (full scale is 1.0: scale the input)",
+        &o,
+    );
     assert_clear_error(
         &run(&["--source", "wav:/nonexistent/x.wav", "-r", "ild"]),
         "cannot open '/nonexistent/x.wav'",

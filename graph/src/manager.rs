@@ -101,6 +101,11 @@ pub struct Manager {
     keep_all: bool,
 }
 
+/// Largest input amplitude accepted (full scale is 1.0): far above any real recording
+/// (raw 32-bit PCM counts are 2.1e9), and low enough that the squares, filter gains and
+/// sums of the processing stay finite.
+pub const MAX_AMPLITUDE: f64 = 1e100;
+
 /// Block length in samples in which a whole signal goes through a chunk-invariant graph:
 /// bit-identical to one call, and the intermediate signals stay in cache.
 pub const WHOLE_SIGNAL_BLOCK: usize = 4096;
@@ -335,13 +340,22 @@ impl Manager {
         }
         let names = ["left", "right"];
         for (e, ear) in chunk.iter().enumerate() {
-            if let Some(i) = ear.iter().position(|v| !v.is_finite()) {
+            // NaN fails the comparison too
+            if let Some(i) = ear.iter().position(|v| !(v.abs() <= MAX_AMPLITUDE)) {
                 let which = if self.ears == 2 { names[e] } else { "mono" };
-                return Err(Error::InvalidInput(format!(
-                    "sample {} of the {which} channel is {} (the input must be finite)",
-                    self.position + i as u64,
-                    ear[i]
-                )));
+                let at = self.position + i as u64;
+                return Err(Error::InvalidInput(if ear[i].is_finite() {
+                    format!(
+                        "sample {at} of the {which} channel is {:e}: beyond ±{MAX_AMPLITUDE:e} \
+                         the processing overflows (full scale is 1.0: scale the input)",
+                        ear[i]
+                    )
+                } else {
+                    format!(
+                        "sample {at} of the {which} channel is {} (the input must be finite)",
+                        ear[i]
+                    )
+                }));
             }
         }
         Ok(())
@@ -837,6 +851,17 @@ mod tests {
             e.to_string().contains("sample 4 of the left channel"),
             "{e}"
         );
+        // issue 13, item 4: finite but overflowing input is refused, not turned into NaN
+        let huge = [0.0, 1e200];
+        let e = m.process_chunk(&[&huge, &huge]).expect_err("overflow");
+        let msg = e.to_string();
+        assert!(
+            msg.contains("sample 4 of the left channel is 1e200"),
+            "{msg}"
+        );
+        assert!(msg.contains("scale the input"), "{msg}");
+        m.process_chunk(&[&[MAX_AMPLITUDE; 2], &[-MAX_AMPLITUDE; 2]])
+            .expect("the largest accepted amplitude");
         let e = m.process_chunk(&[&x]).expect_err("mono chunk");
         assert!(e.to_string().contains("got 1 channel(s)"), "{e}");
         let e = m.process_signal(&[&[], &[]]).expect_err("empty");

@@ -163,6 +163,13 @@ pub struct PreProc {
     norm: [Vec<f64>; 2],
 }
 
+/// Levels accepted for `pp_refSPLdB`, in dB SPL: a level-scaling gain `10^((100 − L)/20)`
+/// within `10^±20`, so that the scaled signal can neither overflow nor vanish.
+const REF_SPL_DB_RANGE: (f64, f64) = (-300.0, 500.0);
+
+/// Largest `|pp_coefPreEmphasis|` accepted.
+const MAX_PRE_EMPHASIS: f64 = 1e3;
+
 fn invalid(name: &str, value: impl std::fmt::Display, reason: impl Into<String>) -> Error {
     Error::InvalidParameter {
         name: name.into(),
@@ -206,6 +213,30 @@ impl PreProc {
                 "pp_refSPLdB",
                 format!("{:?}", p.ref_spl_db),
                 "expected one value or two ([left, right])",
+            ));
+        }
+        let (lo, hi) = REF_SPL_DB_RANGE;
+        if let Some(db) = p.ref_spl_db.iter().find(|db| !(lo..=hi).contains(*db)) {
+            return Err(invalid(
+                "pp_refSPLdB",
+                format!("{:?}", p.ref_spl_db),
+                format!(
+                    "{db} dB would scale the signal by 10^({:.3e}/20): give levels between {lo} and \
+                     {hi} dB SPL (a gain within 10^±20), beyond which the output over- or \
+                     underflows",
+                    100.0 - db
+                ),
+            ));
+        }
+        if !(p.coef_pre_emphasis.abs() <= MAX_PRE_EMPHASIS) {
+            return Err(invalid(
+                "pp_coefPreEmphasis",
+                p.coef_pre_emphasis,
+                format!(
+                    "the pre-emphasis y[n] = x[n] − |c|·x[n−1] takes |c| up to \
+                     {MAX_PRE_EMPHASIS} (usually just below 1, AFE default 0.97); larger \
+                     values overflow the processing"
+                ),
             ));
         }
         let dc = p.remove_dc.then(|| {
@@ -474,5 +505,47 @@ mod tests {
         };
         let e = PreProc::new(&p, 16000.0, 2).expect_err("three values");
         assert!(e.to_string().contains("pp_refSPLdB"));
+    }
+
+    /// Issue 13, item 4: levels and coefficients that would give NaN or all-zero output
+    /// are refused, naming the user's value; the ends of the accepted ranges work.
+    #[test]
+    fn overflowing_levels_and_coefficients_are_refused() {
+        for db in [-1e6, 1e6, f64::NAN] {
+            let p = PreProcParams {
+                level_scaling: true,
+                ref_spl_db: vec![db],
+                ..Default::default()
+            };
+            let e = PreProc::new(&p, 16000.0, 2).expect_err("level");
+            assert!(e.to_string().contains("pp_refSPLdB"), "{e}");
+            assert!(e.to_string().contains(&format!("{db}")), "{e}");
+        }
+        let p = PreProcParams {
+            pre_emphasis: true,
+            coef_pre_emphasis: 1e200,
+            ..Default::default()
+        };
+        let e = PreProc::new(&p, 16000.0, 1).expect_err("coefficient");
+        assert!(e.to_string().contains("pp_coefPreEmphasis"), "{e}");
+        let (lo, hi) = REF_SPL_DB_RANGE;
+        for db in [lo, hi] {
+            let p = PreProcParams {
+                level_scaling: true,
+                pre_emphasis: true,
+                coef_pre_emphasis: -MAX_PRE_EMPHASIS,
+                ref_spl_db: vec![db],
+                ..Default::default()
+            };
+            let (mut pre, _) = PreProc::new(&p, 16000.0, 1).expect("accepted");
+            let x = Block::from_vec(vec![1.0, -1.0, 0.5, 0.25], 1);
+            let mut out = vec![Block::new(1)];
+            pre.process(&[&x], &mut out);
+            let y = out[0].as_slice();
+            assert!(
+                y.iter().all(|v| v.is_finite()) && y.iter().any(|v| *v != 0.0),
+                "{y:?}"
+            );
+        }
     }
 }
