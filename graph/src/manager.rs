@@ -340,8 +340,10 @@ impl Manager {
         }
         let names = ["left", "right"];
         for (e, ear) in chunk.iter().enumerate() {
-            // NaN fails the comparison too
-            if let Some(i) = ear.iter().position(|v| !(v.abs() <= MAX_AMPLITUDE)) {
+            if let Some(i) = ear
+                .iter()
+                .position(|v| v.is_nan() || v.abs() > MAX_AMPLITUDE)
+            {
                 let which = if self.ears == 2 { names[e] } else { "mono" };
                 let at = self.position + i as u64;
                 return Err(Error::InvalidInput(if ear[i].is_finite() {

@@ -228,7 +228,7 @@ impl PreProc {
                 ),
             ));
         }
-        if !(p.coef_pre_emphasis.abs() <= MAX_PRE_EMPHASIS) {
+        if p.coef_pre_emphasis.is_nan() || p.coef_pre_emphasis.abs() > MAX_PRE_EMPHASIS {
             return Err(invalid(
                 "pp_coefPreEmphasis",
                 p.coef_pre_emphasis,
