@@ -2,6 +2,7 @@
 
 use std::path::Path;
 
+use afe_bass_source::{WavReadError, WavReader, WavSamples};
 use thiserror::Error;
 
 /// A decoded audio file.
@@ -34,55 +35,35 @@ pub enum WavError {
     },
 }
 
-/// A WAV file read block by block into per-ear `f64` signals (PCM 8/16/24/32-bit scaled
-/// to ±1.0, or IEEE float), so that long files need not be held in memory whole.
-pub struct WavBlocks {
-    reader: hound::WavReader<std::io::BufReader<std::fs::File>>,
-    path: String,
-    fs: f64,
-    channels: usize,
-    /// `Some(1/2^(bits−1))` for integer samples.
-    int_scale: Option<f64>,
+impl From<WavReadError> for WavError {
+    fn from(e: WavReadError) -> Self {
+        match e {
+            WavReadError::Open { path, source } => WavError::Open { path, source },
+            WavReadError::Format { path, reason } => WavError::Format { path, reason },
+        }
+    }
 }
 
-impl std::fmt::Debug for WavBlocks {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("WavBlocks")
-            .field("path", &self.path)
-            .field("fs", &self.fs)
-            .field("channels", &self.channels)
-            .finish_non_exhaustive()
-    }
+/// A WAV file read block by block into per-ear `f64` signals (PCM 8/16/24/32-bit scaled
+/// to ±1.0, or IEEE float), so that long files need not be held in memory whole.
+#[derive(Debug)]
+pub struct WavBlocks {
+    reader: WavReader,
+    fs: f64,
+    channels: usize,
+    samples: WavSamples,
 }
 
 impl WavBlocks {
     /// Opens `path` and reads its header.
     pub fn open(path: &Path) -> Result<Self, WavError> {
-        let shown = path.display().to_string();
-        let file = std::fs::File::open(path).map_err(|source| WavError::Open {
-            path: shown.clone(),
-            source,
-        })?;
-        let reader =
-            hound::WavReader::new(std::io::BufReader::new(file)).map_err(|e| WavError::Format {
-                path: shown.clone(),
-                reason: e.to_string(),
-            })?;
-        let spec = reader.spec();
-        if spec.channels == 0 {
-            return Err(WavError::Format {
-                path: shown,
-                reason: "the file declares 0 channels".into(),
-            });
-        }
-        let int_scale = (spec.sample_format == hound::SampleFormat::Int)
-            .then(|| 1.0 / f64::from(1u32 << (spec.bits_per_sample.clamp(1, 32) - 1)));
+        let reader = WavReader::open(path)?;
+        let format = reader.format();
         Ok(WavBlocks {
             reader,
-            path: shown,
-            fs: f64::from(spec.sample_rate),
-            channels: usize::from(spec.channels),
-            int_scale,
+            fs: f64::from(format.sample_rate),
+            channels: usize::from(format.channels),
+            samples: WavSamples::Int(Vec::new()),
         })
     }
 
@@ -98,7 +79,7 @@ impl WavBlocks {
 
     /// Frames the header declares.
     pub fn frames(&self) -> u64 {
-        u64::from(self.reader.duration())
+        self.reader.frames()
     }
 
     /// Reads the rest of the file.
@@ -114,34 +95,22 @@ impl WavBlocks {
     /// Reads up to `frames` frames into `out` (one vector per channel, replaced) and
     /// returns how many it read: 0 at the end of the file.
     pub fn read(&mut self, frames: usize, out: &mut [Vec<f64>]) -> Result<usize, WavError> {
-        for o in out.iter_mut() {
-            o.clear();
-        }
+        let got = self.reader.read(frames, &mut self.samples)?;
         let nch = self.channels;
-        let wanted = frames.saturating_mul(nch);
-        let mut push = |i: usize, v: f64| out[i % nch].push(v);
-        let result = match self.int_scale {
-            None => self
-                .reader
-                .samples::<f32>()
-                .take(wanted)
-                .enumerate()
-                .try_for_each(|(i, s)| s.map(|v| push(i, f64::from(v)))),
-            Some(scale) => self
-                .reader
-                .samples::<i32>()
-                .take(wanted)
-                .enumerate()
-                .try_for_each(|(i, s)| s.map(|v| push(i, f64::from(v) * scale))),
-        };
-        result.map_err(|e| WavError::Format {
-            path: self.path.clone(),
-            reason: e.to_string(),
-        })?;
-        // a truncated last frame is dropped
-        let got = out.iter().map(Vec::len).min().unwrap_or(0);
-        for o in out.iter_mut() {
-            o.truncate(got);
+        for (c, o) in out.iter_mut().enumerate().take(nch) {
+            o.clear();
+            match &self.samples {
+                // integers come at 32-bit full scale: 2^-31 is exact
+                WavSamples::Int(v) => o.extend(
+                    v.iter()
+                        .skip(c)
+                        .step_by(nch)
+                        .map(|s| f64::from(*s) / 2f64.powi(31)),
+                ),
+                WavSamples::Float(v) => {
+                    o.extend(v.iter().skip(c).step_by(nch).map(|s| f64::from(*s)));
+                }
+            }
         }
         Ok(got)
     }

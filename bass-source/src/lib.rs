@@ -44,6 +44,7 @@ mod sample;
 mod source;
 mod synth;
 mod wav;
+mod wav_reader;
 
 #[cfg(feature = "alsa")]
 pub use alsa::{list_devices, AlsaConfig, AlsaSource, CaptureDevice};
@@ -56,3 +57,4 @@ pub use sample::Sample;
 pub use source::{Clock, Source};
 pub use synth::{Synth, SynthSpec};
 pub use wav::{open_wav, WavSource};
+pub use wav_reader::{WavFormat, WavReadError, WavReader, WavSamples};

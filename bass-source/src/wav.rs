@@ -4,6 +4,7 @@ use std::path::Path;
 
 use crate::error::{Error, Result};
 use crate::replay::Replay;
+use crate::wav_reader::{WavReadError, WavReader, WavSamples};
 
 /// A WAV file ready to replay, in the sample type the file stores.
 #[derive(Debug, Clone)]
@@ -26,46 +27,32 @@ pub enum WavSource {
 /// # Ok::<(), afe_bass_source::Error>(())
 /// ```
 pub fn open_wav(path: &Path, looping: bool) -> Result<WavSource> {
-    let shown = path.display().to_string();
-    let file = std::fs::File::open(path).map_err(|e| Error::Open {
-        path: shown.clone(),
-        reason: e.to_string(),
+    let mut reader = WavReader::open(path).map_err(|e| match e {
+        WavReadError::Open { path, source } => Error::Open {
+            path,
+            reason: source.to_string(),
+        },
+        WavReadError::Format { path, reason } => Error::Wav { path, reason },
     })?;
     let wav = |reason: String| Error::Wav {
-        path: shown.clone(),
+        path: path.display().to_string(),
         reason,
     };
-    let mut reader = hound::WavReader::new(std::io::BufReader::new(file))
-        .map_err(|e| wav(format!("not a WAV file this reader understands ({e})")))?;
-    let spec = reader.spec();
-    let nch = usize::from(spec.channels);
-    if nch == 0 {
-        return Err(wav("the file declares 0 channels".into()));
-    }
-    if reader.len() == 0 {
+    let format = reader.format();
+    if reader.frames() == 0 {
         return Err(wav("the file holds no samples".into()));
     }
-    match spec.sample_format {
-        hound::SampleFormat::Float => {
-            let samples = reader
-                .samples::<f32>()
-                .collect::<std::result::Result<Vec<f32>, _>>()
-                .map_err(|e| wav(e.to_string()))?;
-            Replay::new(spec.sample_rate, deinterleave(&samples, nch), looping)
-                .map(WavSource::Float)
+    let nch = usize::from(format.channels);
+    let mut samples = WavSamples::Int(Vec::new());
+    reader
+        .read(usize::MAX, &mut samples)
+        .map_err(|e| wav(e.to_string()))?;
+    match samples {
+        WavSamples::Int(v) => {
+            Replay::new(format.sample_rate, deinterleave(&v, nch), looping).map(WavSource::Int)
         }
-        hound::SampleFormat::Int => {
-            let bits = spec.bits_per_sample;
-            if !(1..=32).contains(&bits) {
-                return Err(wav(format!("{bits}-bit integer samples are not supported")));
-            }
-            let shift = u32::from(32 - bits);
-            let samples = reader
-                .samples::<i32>()
-                .map(|s| s.map(|v| v << shift))
-                .collect::<std::result::Result<Vec<i32>, _>>()
-                .map_err(|e| wav(e.to_string()))?;
-            Replay::new(spec.sample_rate, deinterleave(&samples, nch), looping).map(WavSource::Int)
+        WavSamples::Float(v) => {
+            Replay::new(format.sample_rate, deinterleave(&v, nch), looping).map(WavSource::Float)
         }
     }
     .map_err(|e| wav(e.to_string()))
