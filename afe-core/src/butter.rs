@@ -26,6 +26,73 @@ pub enum ButterType {
 /// # Panics
 /// If `order` is 0 or `wn` has the wrong length; callers validate user input first.
 pub fn butter(order: usize, wn: &[f64], kind: ButterType) -> (Vec<f64>, Vec<f64>) {
+    let (zeros, zpoles, w_norm) = butter_zpk(order, wn, kind);
+    let a = real_poly(&zpoles);
+    let b0 = real_poly(&zeros);
+    // Unity gain at w_norm: Re(A/B0) there, evaluated from the roots (∏(1 − r·e^{−iw})),
+    // which stays accurate where the expanded polynomial cancels (clustered poles at DC).
+    let gain = (response_from_roots(&zpoles, w_norm) / response_from_roots(&zeros, w_norm)).re;
+    (b0.iter().map(|v| v * gain).collect(), a)
+}
+
+/// `∏(1 − r·e^{−iw})` over `roots`: a monic polynomial's response at `w` rad/sample.
+fn response_from_roots(roots: &[Complex64], w: f64) -> Complex64 {
+    let e = Complex64::new(0.0, -w).exp();
+    roots
+        .iter()
+        .fold(Complex64::new(1.0, 0.0), |acc, r| acc * (1.0 - r * e))
+}
+
+/// One second-order section `(b0, b1, b2)`, `(1, a1, a2)` (a first-order one has zero
+/// `b2` and `a2`).
+pub type Biquad = ([f64; 3], [f64; 3]);
+
+/// The same design as [`butter`] as a cascade of second-order sections, each with a
+/// conjugate pole pair (or real poles) and unit gain where the whole filter has it:
+/// stable at any order, where the expanded transfer function of a narrow band or a
+/// low cut-off at high order is not (its coefficients lose the poles to round-off).
+pub fn butter_sos(order: usize, wn: &[f64], kind: ButterType) -> Vec<Biquad> {
+    let (zeros, poles, w_norm) = butter_zpk(order, wn, kind);
+    let (zeros, poles) = (pairs(zeros), pairs(poles));
+    zeros
+        .iter()
+        .zip(&poles)
+        .map(|(z, p)| {
+            let gain = (response_from_roots(p, w_norm) / response_from_roots(z, w_norm)).norm();
+            let (b, a) = (quadratic(z), quadratic(p));
+            ([b[0] * gain, b[1] * gain, b[2] * gain], a)
+        })
+        .collect()
+}
+
+/// Groups conjugate-symmetric `roots` into pairs: each complex root with its conjugate,
+/// the real ones smallest with largest (a lone real root last, on its own).
+fn pairs(roots: Vec<Complex64>) -> Vec<Vec<Complex64>> {
+    let tiny = |r: &Complex64| r.im.abs() <= 1e-12 * r.norm().max(1.0);
+    let (mut real, complex): (Vec<Complex64>, Vec<Complex64>) = roots.into_iter().partition(tiny);
+    let mut out: Vec<Vec<Complex64>> = complex
+        .iter()
+        .filter(|r| r.im > 0.0)
+        .map(|r| vec![*r, r.conj()])
+        .collect();
+    real.sort_by(|a, b| a.re.total_cmp(&b.re));
+    while real.len() >= 2 {
+        let (lo, hi) = (real.remove(0), real.remove(real.len() - 1));
+        out.push(vec![lo, hi]);
+    }
+    out.extend(real.into_iter().map(|r| vec![r]));
+    out
+}
+
+/// `[1, c1, c2]` of the monic polynomial with one or two roots (real, or a conjugate pair).
+fn quadratic(roots: &[Complex64]) -> [f64; 3] {
+    let c = real_poly(roots);
+    [c[0], c[1], c.get(2).copied().unwrap_or(0.0)]
+}
+
+/// Zeros, poles (z plane) and the normalised frequency of unit gain of [`butter`]'s
+/// design.
+fn butter_zpk(order: usize, wn: &[f64], kind: ButterType) -> (Vec<Complex64>, Vec<Complex64>, f64) {
     assert!(order > 0, "Butterworth order must be positive");
     let n = order;
     let warp = |w: f64| 4.0 * (PI * w / 2.0).tan();
@@ -75,19 +142,7 @@ pub fn butter(order: usize, wn: &[f64], kind: ButterType) -> (Vec<f64>, Vec<f64>
             }
         }
     };
-    let zpoles: Vec<Complex64> = poles.into_iter().map(bilinear).collect();
-    let a = real_poly(&zpoles);
-    let b0 = real_poly(&zeros);
-    // Unity gain at w_norm: Re(A/B0) there, evaluated from the roots (∏(1 − r·e^{−iw})),
-    // which stays accurate where the expanded polynomial cancels (clustered poles at DC).
-    let e = Complex64::new(0.0, -w_norm).exp();
-    let from_roots = |roots: &[Complex64]| {
-        roots
-            .iter()
-            .fold(Complex64::new(1.0, 0.0), |acc, r| acc * (1.0 - r * e))
-    };
-    let gain = (from_roots(&zpoles) / from_roots(&zeros)).re;
-    (b0.iter().map(|v| v * gain).collect(), a)
+    (zeros, poles.into_iter().map(bilinear).collect(), w_norm)
 }
 
 /// The bilinear map `z = (4 + s)/(4 − s)` (sampling period 1/2).
@@ -120,6 +175,84 @@ mod tests {
                 .fold(Complex64::new(0.0, 0.0), |acc, &v| acc * e + v)
         };
         (ev(b) / ev(a)).norm()
+    }
+
+    /// The cascade's response at `w` rad/sample.
+    fn sos_response(sections: &[Biquad], w: f64) -> f64 {
+        sections.iter().map(|(b, a)| response(b, a, w)).product()
+    }
+
+    /// The analog prototype's magnitude through the bilinear map, `w` in rad/sample.
+    fn ideal(order: usize, wn: &[f64], kind: ButterType, w: f64) -> f64 {
+        let warp = |x: f64| 4.0 * (x / 2.0).tan();
+        let om = warp(w);
+        let (u1, u2) = (warp(PI * wn[0]), wn.get(1).map_or(0.0, |v| warp(PI * v)));
+        let ratio = match kind {
+            ButterType::Low => om / u1,
+            ButterType::High => u1 / om,
+            ButterType::BandPass => (om * om - u1 * u2) / (om * (u2 - u1)),
+            ButterType::BandStop => (om * (u2 - u1)) / (om * om - u1 * u2),
+        };
+        1.0 / (1.0 + ratio.abs().powi(2 * order as i32)).sqrt()
+    }
+
+    #[test]
+    fn sections_give_the_transfer_function_where_it_is_well_conditioned() {
+        for (order, wn, kind) in [
+            (2, vec![0.05], ButterType::Low),
+            (5, vec![0.2], ButterType::High),
+            (3, vec![0.1, 0.3], ButterType::BandPass),
+            (2, vec![0.1, 0.3], ButterType::BandStop),
+        ] {
+            let (b, a) = butter(order, &wn, kind);
+            let sos = butter_sos(order, &wn, kind);
+            let bands = matches!(kind, ButterType::BandPass | ButterType::BandStop);
+            assert_eq!(sos.len(), if bands { order } else { order.div_ceil(2) });
+            for k in 1..64 {
+                let w = PI * k as f64 / 64.0;
+                let (tf, cascade) = (response(&b, &a, w), sos_response(&sos, w));
+                let want = ideal(order, &wn, kind, w);
+                assert!(
+                    (cascade - want).abs() <= 1e-12 * want,
+                    "{kind:?} {w}: {cascade}"
+                );
+                // the expanded coefficients lose digits deep in the stop band
+                let tol = 1e-12 + 1e-10 * want;
+                assert!((tf - cascade).abs() <= tol, "{kind:?} {w}: {tf}");
+            }
+        }
+    }
+
+    /// Issue 13, item 3: designs whose transfer function is unstable in double precision
+    /// (a narrow low band, a 10-Hz band stop, an order-8 low cut-off) keep the
+    /// Butterworth magnitude as sections, and every section's poles inside the circle.
+    #[test]
+    fn sections_keep_narrow_and_high_order_designs_stable() {
+        let fs = 44100.0;
+        for (order, hz, kind) in [
+            (4, vec![100.0, 200.0], ButterType::BandPass),
+            (4, vec![45.0, 55.0], ButterType::BandStop),
+            (8, vec![100.0], ButterType::Low),
+        ] {
+            let wn: Vec<f64> = hz.iter().map(|f| f / (fs / 2.0)).collect();
+            let sos = butter_sos(order, &wn, kind);
+            for (_, a) in &sos {
+                // a monic quadratic's roots are inside the unit circle iff |a2| < 1 and
+                // |a1| < 1 + a2 (the stability triangle)
+                assert!(
+                    a[2].abs() < 1.0 && a[1].abs() < 1.0 + a[2],
+                    "{kind:?}: {a:?}"
+                );
+            }
+            for f in [10.0, 50.0, 80.0, 100.0, 140.0, 200.0, 400.0, 2000.0] {
+                let w = 2.0 * PI * f / fs;
+                let (got, want) = (sos_response(&sos, w), ideal(order, &wn, kind, w));
+                assert!(
+                    (got - want).abs() <= 1e-9 * want.max(1e-6),
+                    "{kind:?} {f} Hz: {got} vs {want}"
+                );
+            }
+        }
     }
 
     #[test]

@@ -1,7 +1,7 @@
 //! `butterworth` (not in the AFE): a Butterworth low/high/band-pass/band-stop filter of
 //! free order on the time-domain signal of each ear, with the design shared with the IHC.
 
-use afe_core::butter::{butter, ButterType};
+use afe_core::butter::{butter, butter_sos, Biquad, ButterType};
 use afe_core::filter::Df2t;
 use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
@@ -57,8 +57,8 @@ impl Params for ButterworthParams {
 }
 
 impl ButterworthParams {
-    /// The `(b, a)` design at `fs` Hz, after checking the cut-offs.
-    pub fn design(&self, fs: f64) -> Result<(Vec<f64>, Vec<f64>)> {
+    /// Order, normalised cut-offs and type, after checking them.
+    fn checked(&self, fs: f64) -> Result<(usize, Vec<f64>, ButterType)> {
         let kind = match self.kind.as_str() {
             "high" => ButterType::High,
             "bandpass" => ButterType::BandPass,
@@ -93,30 +93,45 @@ impl ButterworthParams {
             return Err(Error::InvalidParameter {
                 name: "bw_order".into(),
                 value: self.order.to_string(),
-                reason: "orders above 32 are numerically meaningless in direct form".into(),
+                reason: "orders above 32 are not supported (the roll-off is then steeper than \
+                         double precision resolves)"
+                    .into(),
             });
         }
         let wn: Vec<f64> = fc.iter().map(|f| f / nyq).collect();
-        Ok(butter(self.order as usize, &wn, kind))
+        Ok((self.order as usize, wn, kind))
+    }
+
+    /// The transfer-function `(b, a)` of the design at `fs` Hz, as MATLAB's `butter`.
+    pub fn design(&self, fs: f64) -> Result<(Vec<f64>, Vec<f64>)> {
+        let (order, wn, kind) = self.checked(fs)?;
+        Ok(butter(order, &wn, kind))
+    }
+
+    /// The design at `fs` Hz as second-order sections, which the filter runs: stable
+    /// at every accepted order and band, where the transfer function is not.
+    pub fn sections(&self, fs: f64) -> Result<Vec<Biquad>> {
+        let (order, wn, kind) = self.checked(fs)?;
+        Ok(butter_sos(order, &wn, kind))
     }
 }
 
-/// The Butterworth filter of one ear: time-domain in and out.
+/// The Butterworth filter of one ear: time-domain in and out, through a cascade of
+/// second-order sections.
 #[derive(Debug, Clone)]
 pub struct Butterworth {
-    filter: Df2t,
+    sections: Vec<Df2t>,
 }
 
 impl Butterworth {
     /// Designs the filter for a time-domain input at `fs` Hz.
     pub fn new(params: &ButterworthParams, fs: f64) -> Result<(Self, SignalInfo)> {
-        let (b, a) = params.design(fs)?;
-        Ok((
-            Butterworth {
-                filter: Df2t::new(&b, &a, 1),
-            },
-            SignalInfo::time_domain(fs),
-        ))
+        let sections = params
+            .sections(fs)?
+            .iter()
+            .map(|(b, a)| Df2t::new(b, a, 1))
+            .collect();
+        Ok((Butterworth { sections }, SignalInfo::time_domain(fs)))
     }
 }
 
@@ -125,11 +140,13 @@ impl Processor for Butterworth {
         let out = &mut outputs[0];
         out.reset_to(0);
         out.extend_from(inputs[0]);
-        self.filter.process(out.as_mut_slice());
+        for s in &mut self.sections {
+            s.process(out.as_mut_slice());
+        }
     }
 
     fn reset(&mut self) {
-        self.filter.reset();
+        self.sections.iter_mut().for_each(Df2t::reset);
     }
 }
 
