@@ -555,6 +555,11 @@ fn outputs_are_checked_first_and_never_clobber() {
     );
     assert!(partials(&dir).is_empty(), "{:?}", partials(&dir));
 
+    // issue 13, item 9: an empty value is an error, not silently the default
+    let never = path("never.npz");
+    let out = extract_ild(&wav, &["-p", "fb_nChannels=", "-o", &s(&never)]);
+    assert_clear_error(&out, "'fb_nChannels=' has no value", &never);
+
     // an absurd repeat count is refused by the parser, without a panic
     let out = afe(&[
         "bench",

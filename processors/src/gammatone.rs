@@ -128,13 +128,18 @@ impl Params for GammatoneParams {
     ];
 }
 
-fn invalid(name: &str, value: impl std::fmt::Display, reason: impl Into<String>) -> Error {
+fn invalid(name: &str, value: impl std::fmt::Debug, reason: impl Into<String>) -> Error {
+    // Debug prints a float in its shortest form, 1e308 rather than 309 digits
     Error::InvalidParameter {
         name: name.into(),
-        value: value.to_string(),
+        value: format!("{value:?}"),
         reason: reason.into(),
     }
 }
+
+/// Highest `fb_highFreqHz` accepted, Hz: far above any sampling rate's Nyquist frequency,
+/// low enough that the ERB grid up to it stays countable.
+const MAX_HIGH_FREQ_HZ: f64 = 1e7;
 
 /// The centre-frequency grid and derived values of a parameter set (the AFE's verify step).
 #[derive(Debug, Clone, PartialEq)]
@@ -164,7 +169,7 @@ impl GammatoneParams {
             if self.cf_hz.len() > MAX_CHANNELS {
                 return Err(invalid(
                     "fb_cfHz",
-                    format!("[{} values]", self.cf_hz.len()),
+                    format_args!("[{} values]", self.cf_hz.len()),
                     format!("at most {MAX_CHANNELS} channels are supported"),
                 ));
             }
@@ -174,6 +179,13 @@ impl GammatoneParams {
         } else {
             if self.low_freq_hz <= 0.0 {
                 return Err(invalid("fb_lowFreqHz", self.low_freq_hz, "must be > 0 Hz"));
+            }
+            if self.high_freq_hz.is_nan() || self.high_freq_hz > MAX_HIGH_FREQ_HZ {
+                return Err(invalid(
+                    "fb_highFreqHz",
+                    self.high_freq_hz,
+                    "must be a frequency in Hz below the Nyquist frequency of the input",
+                ));
             }
             if self.high_freq_hz < self.low_freq_hz {
                 return Err(invalid(
@@ -416,19 +428,34 @@ impl Gammatone {
     fn with_width(params: &GammatoneParams, fs: f64, wide: bool) -> Result<(Self, SignalInfo)> {
         let grid = params.grid()?;
         if let Some(bad) = grid.cf_hz.iter().find(|f| **f >= fs / 2.0) {
-            let name = if params.cf_hz.is_empty() {
-                "fb_highFreqHz"
+            let nyquist = fs / 2.0;
+            return Err(if params.cf_hz.is_empty() {
+                let default = GammatoneParams::default().high_freq_hz;
+                let which = if params.high_freq_hz == default {
+                    " (the default)"
+                } else {
+                    ""
+                };
+                invalid(
+                    "fb_highFreqHz",
+                    params.high_freq_hz,
+                    format!(
+                        "{}{which} puts centre frequencies up to {bad:.0} Hz, above the Nyquist \
+                         frequency ({nyquist} Hz) of the {fs} Hz input: set fb_highFreqHz below \
+                         {nyquist} Hz",
+                        params.high_freq_hz
+                    ),
+                )
             } else {
-                "fb_cfHz"
-            };
-            return Err(invalid(
-                name,
-                bad,
-                format!(
-                    "centre frequencies must lie below the Nyquist frequency ({} Hz) of the {fs} Hz input",
-                    fs / 2.0
-                ),
-            ));
+                invalid(
+                    "fb_cfHz",
+                    bad,
+                    format!(
+                        "centre frequencies must lie below the Nyquist frequency ({nyquist} Hz) \
+                         of the {fs} Hz input"
+                    ),
+                )
+            });
         }
         let order = params.n_gamma as usize;
         if order > MAX_ORDER {
@@ -769,6 +796,26 @@ mod tests {
     fn rejects_channels_above_nyquist() {
         let err = Gammatone::new(&GammatoneParams::default(), 8000.0)
             .expect_err("the default grid reaches 7.6 kHz, above the 4 kHz Nyquist frequency");
-        assert!(err.to_string().contains("Nyquist"), "{err}");
+        // issue 13, item 9: the message names the value the user has (the default) and
+        // what to set, not a centre frequency as if it were fb_highFreqHz
+        let msg = err.to_string();
+        assert!(
+            msg.contains("invalid value 8000.0 for parameter 'fb_highFreqHz'"),
+            "{msg}"
+        );
+        assert!(
+            msg.contains("(the default)") && msg.contains("below 4000 Hz"),
+            "{msg}"
+        );
+        let p = GammatoneParams {
+            high_freq_hz: 1e308,
+            n_erbs: 1.0,
+            ..Default::default()
+        };
+        let msg = Gammatone::new(&p, 8000.0).expect_err("absurd").to_string();
+        assert!(
+            msg.contains("invalid value 1e308 for parameter 'fb_highFreqHz'"),
+            "{msg}"
+        );
     }
 }

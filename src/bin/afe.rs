@@ -303,6 +303,12 @@ fn parse_param(arg: &str) -> Result<(String, Value), String> {
     let (name, value) = arg
         .split_once('=')
         .ok_or_else(|| format!("parameter '{arg}' is not of the form NAME=VALUE"))?;
+    if value.trim().is_empty() {
+        return Err(format!(
+            "parameter '{arg}' has no value: give NAME=VALUE (leave the parameter out for \
+             its default)"
+        ));
+    }
     let value = serde_json::from_str(value).unwrap_or_else(|_| Value::String(value.to_string()));
     Ok((name.trim().to_string(), value))
 }
