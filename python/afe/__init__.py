@@ -75,7 +75,15 @@ def read_wav(path: Union[str, os.PathLike]) -> Tuple[np.ndarray, float]:
 
 def _as_channels(signal: Signal, channels: Optional[int] = None) -> np.ndarray:
     """A C-contiguous float64 ``[samples, channels]`` array, with clear errors."""
-    x = np.asarray(signal, dtype=np.float64)
+    raw = np.asarray(signal)
+    if np.issubdtype(raw.dtype, np.integer):
+        # raw PCM counts would be taken as amplitudes 32768 times too large
+        scale = 2.0 ** (8 * raw.dtype.itemsize - 1)
+        raise ValueError(
+            f"the signal holds integers ({raw.dtype}): afe takes float samples with full "
+            f"scale 1.0, e.g. x / {scale:.0f} for {raw.dtype} PCM"
+        )
+    x = np.asarray(raw, dtype=np.float64)
     if x.ndim == 1:
         x = x[:, None]
     if x.ndim != 2 or x.shape[1] not in (1, 2):
@@ -100,11 +108,25 @@ def _json(value: Any) -> str:
     return json.dumps(value, default=default)
 
 
+def _non_finite(value: Any) -> bool:
+    """Whether a parameter value holds a NaN or infinity (JSON has no such numbers)."""
+    if isinstance(value, (float, np.floating)):
+        return not np.isfinite(value)
+    if isinstance(value, np.ndarray):
+        return np.issubdtype(value.dtype, np.floating) and not bool(np.all(np.isfinite(value)))
+    if isinstance(value, (list, tuple)):
+        return any(_non_finite(v) for v in value)
+    return False
+
+
 def _params_json(params: Optional[Mapping[str, Any]]) -> str:
     if params is None:
         return "{}"
     if not isinstance(params, Mapping):
         raise ValueError("params must be a dict of AFE parameter names to values")
+    for name, value in params.items():
+        if _non_finite(value):
+            raise ValueError(f"parameter '{name}' is {value!r}: AFE parameters take finite numbers")
     return _json(dict(params))
 
 

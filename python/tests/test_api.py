@@ -157,6 +157,8 @@ def test_errors_are_python_exceptions_with_clear_messages(tmp_path):
         (lambda: afe.process(np.zeros((0, 2)), 16000, ["ratemap"]), ValueError, "empty"),
         (lambda: afe.process(np.full((10, 2), np.nan), 16000, ["ratemap"]), ValueError, "NaN"),
         (lambda: afe.process(x * 1e200, 16000, ["ratemap"]), ValueError, "scale the input"),
+        (lambda: afe.process((x * 1000).astype(np.int16), 16000, ["ratemap"]), ValueError, "x / 32768 for int16"),
+        (lambda: afe.process(x, 16000, ["ratemap"], {"rm_wSizeSec": float("nan")}), ValueError, "'rm_wSizeSec' is nan"),
         (lambda: afe.process(x, 16000, ["ratemap"], {"pp_bLevelScaling": True, "pp_refSPLdB": -1e6}), ValueError, "pp_refSPLdB"),
         (lambda: afe.process(x[:, 0], 16000, ["itd"]), ValueError, "binaural"),
         (lambda: afe.process(x, -5, ["ratemap"]), ValueError, "sampling rate"),
