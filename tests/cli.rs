@@ -555,6 +555,12 @@ fn outputs_are_checked_first_and_never_clobber() {
     );
     assert!(partials(&dir).is_empty(), "{:?}", partials(&dir));
 
+    // issue 13, item 9: argument errors exit with 1, as the README says of every error
+    let out = afe(&["extract", "--bogus"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--bogus"));
+    assert_eq!(afe(&["--help"]).status.code(), Some(0));
+
     // issue 13, item 9: an empty value is an error, not silently the default
     let never = path("never.npz");
     let out = extract_ild(&wav, &["-p", "fb_nChannels=", "-o", &s(&never)]);

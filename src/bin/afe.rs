@@ -168,7 +168,19 @@ impl Threads {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    // argument errors exit with 1 like every other error (clap's own code is 2); help
+    // and version print to stdout and exit with 0
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() {
+                ExitCode::FAILURE
+            } else {
+                ExitCode::SUCCESS
+            };
+        }
+    };
     let result = match cli.command {
         Command::List { json } => {
             list(json);
