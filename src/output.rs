@@ -20,6 +20,9 @@ pub enum OutputError {
     /// The output names a directory.
     #[error("cannot write '{0}': it is a directory, give a file name")]
     IsDirectory(PathBuf),
+    /// The output names no file (empty, or ending in a separator).
+    #[error("cannot write '{0}': give a file name")]
+    NotAFile(PathBuf),
     /// Two outputs of one run name the same file.
     #[error("'{0}' is given as two outputs of one run: give each its own file")]
     SameFile(PathBuf),
@@ -64,28 +67,40 @@ impl OutputFile {
     /// Checks `path` as an output: symlinks are followed to the file they name; a new
     /// file needs an existing directory; a directory is refused.
     pub fn check(path: &Path) -> Result<OutputFile, OutputError> {
+        let given = path.to_path_buf();
+        if path.as_os_str().is_empty() || path.file_name().is_none() || ends_in_separator(path) {
+            return Err(OutputError::NotAFile(given));
+        }
+        // the kernel follows the links (also /dev/stdout's, into /proc): a device or
+        // FIFO is written in place under the name given
+        match std::fs::metadata(path) {
+            Ok(m) if m.is_dir() => return Err(OutputError::IsDirectory(given)),
+            Ok(m) if !m.is_file() => {
+                return Ok(OutputFile {
+                    target: given.clone(),
+                    given,
+                    in_place: true,
+                })
+            }
+            _ => {}
+        }
         let target = follow_links(path).map_err(|source| OutputError::Write {
-            path: path.into(),
+            path: given.clone(),
             source,
         })?;
-        let in_place = match std::fs::metadata(&target) {
-            Ok(m) if m.is_dir() => return Err(OutputError::IsDirectory(path.into())),
-            Ok(m) => !m.is_file(),
-            Err(_) => {
-                let dir = directory_of(&target);
-                if !dir.is_dir() {
-                    return Err(OutputError::NoDirectory {
-                        path: path.into(),
-                        dir,
-                    });
-                }
-                false
+        if target.file_name().is_none() {
+            return Err(OutputError::NotAFile(given));
+        }
+        if !target.exists() {
+            let dir = directory_of(&target);
+            if !dir.is_dir() {
+                return Err(OutputError::NoDirectory { path: given, dir });
             }
-        };
+        }
         Ok(OutputFile {
-            given: path.into(),
+            given,
             target,
-            in_place,
+            in_place: false,
         })
     }
 
@@ -106,10 +121,7 @@ impl OutputFile {
     }
 
     fn same_file(&self, other: &Path) -> bool {
-        match (self.target.canonicalize(), other.canonicalize()) {
-            (Ok(a), Ok(b)) => a == b,
-            _ => absolute(&self.target) == absolute(other),
-        }
+        resolved(&self.target) == resolved(other)
     }
 
     /// The name as given.
@@ -178,8 +190,24 @@ fn directory_of(path: &Path) -> PathBuf {
     }
 }
 
-fn absolute(path: &Path) -> PathBuf {
-    std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf())
+/// `path` with its directory canonical (`..` and symlinked directories resolved), so
+/// that two names of one file, existing or not yet, compare equal.
+fn resolved(path: &Path) -> PathBuf {
+    if let Ok(p) = path.canonicalize() {
+        return p;
+    }
+    let dir = directory_of(path);
+    match (dir.canonicalize(), path.file_name()) {
+        (Ok(d), Some(name)) => d.join(name),
+        _ => std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf()),
+    }
+}
+
+/// Whether `path` is written with a trailing separator (`out/`), naming a directory.
+fn ends_in_separator(path: &Path) -> bool {
+    path.as_os_str()
+        .to_string_lossy()
+        .ends_with(std::path::MAIN_SEPARATOR)
 }
 
 /// Follows `path` through symlinks (also dangling ones) to the name of a file that is
@@ -287,6 +315,21 @@ mod tests {
             Err(OutputError::IsInput(_))
         ));
         assert!(a.check_not_input(&d.join("in.wav")).is_ok());
+    }
+
+    #[test]
+    fn two_names_of_one_new_file_are_the_same_output() {
+        let d = dir("names");
+        std::fs::create_dir_all(d.join("sub")).expect("sub");
+        std::os::unix::fs::symlink(".", d.join("here")).expect("link");
+        let a = OutputFile::check(&d.join("out.npz")).expect("ok");
+        for other in ["sub/../out.npz", "here/out.npz"] {
+            let b = OutputFile::check(&d.join(other)).expect("ok");
+            assert!(a.check_distinct(&b).is_err(), "{other}");
+        }
+        let e = OutputFile::check(Path::new("out.npz/")).expect_err("trailing slash");
+        assert!(matches!(e, OutputError::NotAFile(_)), "{e}");
+        assert!(OutputFile::check(Path::new("")).is_err());
     }
 
     #[test]

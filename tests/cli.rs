@@ -555,6 +555,28 @@ fn outputs_are_checked_first_and_never_clobber() {
     );
     assert!(partials(&dir).is_empty(), "{:?}", partials(&dir));
 
+    // standard output (a pipe here) is written in place: the zip reaches the reader
+    let out = extract_ild(&wav, &["-o", "/dev/stdout"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(out.stdout.starts_with(b"PK"), "a zip on stdout");
+
+    // a signal shorter than one block through a per-chunk request keeps its arrays
+    let short = path("short.wav");
+    write_wav(&short, 2, 16000, 4000, tone);
+    let pitch = path("pitch.npz");
+    let out = afe(&["extract", &s(&short), "-r", "pitch", "-o", &s(&pitch)]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let names: Vec<String> = npz_arrays(&pitch).into_iter().map(|a| a.0).collect();
+    assert_eq!(names, ["pitch_left", "pitch_right"]);
+
     // issue 13, item 9: argument errors exit with 1, as the README says of every error
     let out = afe(&["extract", "--bogus"]);
     assert_eq!(out.status.code(), Some(1));

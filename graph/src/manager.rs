@@ -484,9 +484,6 @@ impl Manager {
             return Err(Error::InvalidInput("the signal is empty".into()));
         }
         self.reset()?;
-        if len <= WHOLE_SIGNAL_BLOCK {
-            return self.process_chunk(signal);
-        }
         let invariant = self.graph.invariant_nodes();
         if invariant.iter().any(|i| !i) {
             // The nodes that depend on chunk boundaries must see the signal in one call:

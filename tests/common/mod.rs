@@ -86,6 +86,7 @@ pub fn library_arrays(
         mgr.add_request(r, &params).expect("request");
     }
     let ears: Vec<&[f64]> = audio.channels.iter().map(Vec::as_slice).collect();
+    mgr.set_keep_all(all);
     mgr.process_signal(&ears).expect("process");
     let mut rec = Recorder::new(all);
     rec.record(&mgr);
