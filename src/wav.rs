@@ -2,8 +2,7 @@
 
 use std::path::Path;
 
-use afe_bass_source::{WavReadError, WavReader, WavSamples};
-use thiserror::Error;
+use afe_bass_source::{WavReader, WavSamples};
 
 /// A decoded audio file.
 #[derive(Debug, Clone, PartialEq)]
@@ -14,35 +13,8 @@ pub struct Audio {
     pub channels: Vec<Vec<f64>>,
 }
 
-/// Problems reading a WAV file.
-#[derive(Debug, Error)]
-pub enum WavError {
-    /// The file cannot be opened.
-    #[error("cannot open '{path}': {source}")]
-    Open {
-        /// The path as given.
-        path: String,
-        /// The OS error.
-        source: std::io::Error,
-    },
-    /// The file is not a WAV file this reader understands, or is corrupt.
-    #[error("cannot read '{path}' as WAV: {reason}")]
-    Format {
-        /// The path as given.
-        path: String,
-        /// What is wrong.
-        reason: String,
-    },
-}
-
-impl From<WavReadError> for WavError {
-    fn from(e: WavReadError) -> Self {
-        match e {
-            WavReadError::Open { path, source } => WavError::Open { path, source },
-            WavReadError::Format { path, reason } => WavError::Format { path, reason },
-        }
-    }
-}
+/// Problems reading a WAV file (the reader's own error, shared with replay).
+pub use afe_bass_source::WavReadError as WavError;
 
 /// A WAV file read block by block into per-ear `f64` signals (PCM 8/16/24/32-bit scaled
 /// to ±1.0, or IEEE float), so that long files need not be held in memory whole.
