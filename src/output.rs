@@ -114,10 +114,11 @@ impl OutputFile {
 
     /// Refuses an output that would overwrite the input file `input`.
     pub fn check_not_input(&self, input: &Path) -> Result<(), OutputError> {
-        match follow_links(input) {
-            Ok(i) if self.same_file(&i) => Err(OutputError::IsInput(self.given.clone())),
-            _ => Ok(()),
+        // resolving an existing input follows its links already
+        if self.same_file(input) {
+            return Err(OutputError::IsInput(self.given.clone()));
         }
+        Ok(())
     }
 
     fn same_file(&self, other: &Path) -> bool {
