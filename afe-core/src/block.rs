@@ -69,6 +69,10 @@ pub struct SignalInfo {
     /// Rate in Hz of the audio this signal was computed from (equal to `fs_hz` for
     /// full-rate signals; framed signals keep the rate their frames were cut at).
     pub audio_fs_hz: f64,
+    /// Whether this output is fed back to a processor lower in the chain (the MOC's
+    /// gains for the DRNL) rather than being a signal of its own: it is not listed
+    /// among a graph's signals.
+    pub feedback: bool,
 }
 
 impl SignalInfo {

@@ -30,4 +30,11 @@ pub trait Processor: Send {
 
     /// Writes the output of one call over every block absorbed since the last `finish`.
     fn finish(&mut self, _outputs: &mut [Block]) {}
+
+    /// Takes the feedback output (see [`crate::SignalInfo::feedback`]) that a processor
+    /// above this one in the chain wrote in the previous chunk, before this one
+    /// processes the next chunk (the MOC's gains for the DRNL, spec 28-moc). Called only
+    /// with a non-empty block; ignored by default, as the gammatone filterbank ignores
+    /// the MOC in the AFE. [`Processor::reset`] undoes what it changed.
+    fn receive_feedback(&mut self, _feedback: &Block) {}
 }

@@ -51,6 +51,9 @@ struct NodeRt {
     /// Output blocks of chunk `k` live in `slots[k % 2]`.
     slots: [UnsafeCell<Vec<Block>>; 2],
     inputs: Box<[OutputRef]>,
+    /// The feedback output this node takes from the previous chunk (see
+    /// [`crate::protocol`]).
+    feedback: Option<OutputRef>,
     claimed_at_ns: AtomicU64,
 }
 
@@ -173,10 +176,14 @@ impl Shared {
         let start = self.now_ns();
         // SAFETY: we hold the claim of `n`, so its processor and its slot `k % 2` (free:
         // READY checked `readers_left == 0`) are ours alone; every parent has published
-        // chunk `k` into its slot `k % 2`, which stays untouched until we return our
-        // consumed-token in `release` below.
+        // chunk `k` into its slot `k % 2`, and a feedback source its chunk `k − 1` into
+        // its slot `(k + 1) % 2`, each untouched until we return our consumed-token in
+        // `release` below.
         #[allow(unsafe_code)]
         let ok = unsafe {
+            let feedback = rt
+                .feedback
+                .map(|f| &(&*table.rt[f.node].slots[1 - slot].get())[f.output]);
             let first = rt.inputs[0];
             let first_block = &(&*table.rt[first.node].slots[slot].get())[first.output];
             let mut inputs: [&Block; MAX_INPUTS] = [first_block; MAX_INPUTS];
@@ -187,6 +194,9 @@ impl Shared {
             let processor = &mut *rt.processor.get();
             catch_unwind(AssertUnwindSafe(|| {
                 if let Some(p) = processor.as_mut() {
+                    if let Some(f) = feedback.filter(|f| !f.is_empty()) {
+                        p.receive_feedback(f);
+                    }
                     p.process(&inputs[..rt.inputs.len()], outputs);
                 }
             }))
@@ -502,11 +512,15 @@ impl Engine {
     pub(crate) fn install(&mut self, graph: &mut Graph) {
         let n = graph.nodes.len();
         let mut children: Vec<Vec<usize>> = vec![Vec::new(); n];
+        let mut feedback_to: Vec<Vec<usize>> = vec![Vec::new(); n];
         for (i, node) in graph.nodes.iter().enumerate() {
             for p in &node.parents {
                 if !children[p.node].contains(&i) {
                     children[p.node].push(i);
                 }
+            }
+            if let Some(f) = node.feedback_from {
+                feedback_to[f.node].push(i);
             }
         }
         let links: Vec<Links> = graph
@@ -521,7 +535,9 @@ impl Engine {
                 Links {
                     parents: parents.into(),
                     children: children[i].clone().into(),
-                    readers: children[i].len() as u32 + sink,
+                    readers: (children[i].len() + feedback_to[i].len()) as u32 + sink,
+                    feedback_from: node.feedback_from.map(|f| f.node).into_iter().collect(),
+                    feedback_to: feedback_to[i].clone().into(),
                 }
             })
             .collect();
@@ -531,16 +547,23 @@ impl Engine {
             .map(|node| NodeRt {
                 label: format!("{}#{}", node.name, node.instance),
                 processor: UnsafeCell::new(node.processor.take()),
+                // slot 1 stands for chunk −1: a feedback source's last output before
+                // the table was built, which its targets take with their chunk 0
                 slots: [
                     UnsafeCell::new(node.outputs.iter().map(|b| Block::new(b.width())).collect()),
-                    UnsafeCell::new(node.outputs.iter().map(|b| Block::new(b.width())).collect()),
+                    UnsafeCell::new(node.outputs.clone()),
                 ],
                 inputs: node.parents.clone().into(),
+                feedback: node.feedback_from,
                 claimed_at_ns: AtomicU64::new(0),
             })
             .collect();
+        let sync: Vec<NodeSync> = (0..n).map(|_| NodeSync::new()).collect();
+        for (s, targets) in sync.iter().zip(&feedback_to) {
+            s.readers_left[1].store(targets.len() as u32, Ordering::Relaxed);
+        }
         let table = Table {
-            sync: (0..n).map(|_| NodeSync::new()).collect(),
+            sync,
             links,
             rt,
             ready: ReadySet::new(n),
@@ -572,8 +595,19 @@ impl Engine {
                 std::mem::replace(&mut *shared.table.get(), empty_table())
             }
         });
+        let sources: Vec<OutputRef> = graph.nodes.iter().filter_map(|n| n.feedback_from).collect();
         for (node, rt) in graph.nodes.iter_mut().zip(old.rt) {
             node.processor = rt.processor.into_inner();
+        }
+        // the feedback of the last collected chunk is still to be taken: keep it in the
+        // graph, where the next table finds it (without a chunk since `install`, the
+        // graph still holds what that table was built with)
+        if self.collected > 0 {
+            for f in sources {
+                if let Some(view) = self.views.get(f.node).and_then(|v| v.get(f.output)) {
+                    graph.nodes[f.node].outputs[f.output].clone_from(view);
+                }
+            }
         }
         self.views.clear();
         self.submitted = 0;

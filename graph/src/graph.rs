@@ -52,6 +52,9 @@ pub(crate) struct Node {
     pub params: ParamMap,
     /// Parent outputs, left then right for binaural nodes.
     pub parents: Vec<OutputRef>,
+    /// The feedback output of a node above this one (a later node) that this node takes
+    /// before each chunk from the previous chunk (the MOC feeding the filterbank).
+    pub feedback_from: Option<OutputRef>,
     /// The computation; `None` for the input node.
     pub processor: Option<Box<dyn Processor>>,
     /// New output of the last chunk, one block per output.
@@ -83,6 +86,7 @@ impl Graph {
             instance: 1,
             params: ParamMap::new(),
             parents: Vec::new(),
+            feedback_from: None,
             processor: None,
             outputs: vec![Block::new(1); ears],
             infos: vec![SignalInfo::time_domain(fs); ears],
@@ -98,9 +102,18 @@ impl Graph {
         }
     }
 
-    /// Runs every node once, in order, on its parents' new output.
+    /// Runs every node once, in order, on its parents' new output; a node that takes
+    /// feedback first receives its source's output of the previous chunk (still in the
+    /// source's blocks, since the source comes later).
     pub fn run_sequential(&mut self) {
         for i in 1..self.nodes.len() {
+            if let Some(f) = self.nodes[i].feedback_from {
+                let (below, above) = self.nodes.split_at_mut(f.node);
+                let block = &above[0].outputs[f.output];
+                if let (false, Some(p)) = (block.is_empty(), below[i].processor.as_mut()) {
+                    p.receive_feedback(block);
+                }
+            }
             self.run_node(i);
         }
     }
@@ -147,13 +160,16 @@ impl Graph {
             .collect()
     }
 
-    /// Which nodes have a chunk-invariant processor and only such nodes below them.
+    /// Which nodes have a chunk-invariant processor and only such nodes below them. A
+    /// node taking feedback is not: the feedback lags one chunk behind (and a whole
+    /// signal, as one call in the AFE, is processed without it).
     pub fn invariant_nodes(&self) -> Vec<bool> {
         let mut invariant = vec![true; self.nodes.len()];
         for (i, node) in self.nodes.iter().enumerate().skip(1) {
             invariant[i] = node
                 .def
                 .is_none_or(|d| (d.chunk_invariant)(&node.build_params))
+                && node.feedback_from.is_none()
                 && node.parents.iter().all(|p| invariant[p.node]);
         }
         invariant

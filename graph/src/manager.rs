@@ -313,6 +313,9 @@ impl Manager {
             }
             Err(e) => {
                 self.graph.nodes.truncate(rollback);
+                for node in &mut self.graph.nodes {
+                    node.feedback_from = node.feedback_from.filter(|f| f.node < rollback);
+                }
                 Err(e)
             }
         }
@@ -711,7 +714,11 @@ impl Manager {
                 .enumerate()
                 .skip(1)
                 .flat_map(|(node, n)| {
-                    (0..n.outputs.len()).map(move |output| OutputRef { node, output })
+                    n.infos
+                        .iter()
+                        .enumerate()
+                        .filter(|(_, info)| !info.feedback)
+                        .map(move |(output, _)| OutputRef { node, output })
                 })
                 .collect()
         } else {

@@ -8,6 +8,13 @@
 //! `readers_left = readers`), hands a "consumed" token back to each parent, and offers
 //! the children, the parents and the node itself to the scheduler.
 //!
+//! A feedback edge (the MOC feeding the filterbank below it) runs the other way: the
+//! target reads its source's chunk `k − 1` before processing chunk `k`. READY for the
+//! target's chunk `k` then also needs the source's `produced ≥ k`; the target counts among
+//! the source's readers and hands its token for chunk `k − 1` back at its RELEASE of chunk
+//! `k` (for `k = 0`, the token of a "chunk −1" slot the table is built with), and the
+//! source's RELEASE offers the target.
+//!
 //! Memory-ordering rules: publish with Release and check with Acquire; `fetch_sub`
 //! returns the previous value (last reader: `== 1`); a claim is re-validated after it is
 //! taken (TOCTOU); `try_claim` starts with a SeqCst fence, because each caller has just
@@ -44,12 +51,17 @@ pub(crate) struct Links {
     pub parents: Box<[usize]>,
     /// Distinct child nodes.
     pub children: Box<[usize]>,
-    /// Number of readers of each published slot: children, plus one when the caller
-    /// collects this node's output.
+    /// Number of readers of each published slot: children and feedback targets, plus
+    /// one when the caller collects this node's output.
     pub readers: u32,
+    /// Nodes whose feedback this node takes (their previous chunk).
+    pub feedback_from: Box<[usize]>,
+    /// Nodes that take this node's feedback.
+    pub feedback_to: Box<[usize]>,
 }
 
-/// READY for the node's next chunk: parents have it, the slot to write is free.
+/// READY for the node's next chunk: parents have it (feedback sources the chunk before),
+/// the slot to write is free.
 pub(crate) fn is_ready(nodes: &[NodeSync], links: &[Links], n: usize) -> bool {
     let k = nodes[n].produced.load(Ordering::Acquire);
     if nodes[n].readers_left[(k % 2) as usize].load(Ordering::Acquire) != 0 {
@@ -59,6 +71,10 @@ pub(crate) fn is_ready(nodes: &[NodeSync], links: &[Links], n: usize) -> bool {
         .parents
         .iter()
         .all(|&p| nodes[p].produced.load(Ordering::Acquire) > k)
+        && links[n]
+            .feedback_from
+            .iter()
+            .all(|&s| nodes[s].produced.load(Ordering::Acquire) >= k)
 }
 
 /// Claims node `n` if it is READY and unclaimed. On `true` the caller owns the node until
@@ -105,7 +121,11 @@ pub(crate) fn release(
     for &p in links[n].parents.iter() {
         consumed(nodes, p, k, &mut offer);
     }
-    for &c in links[n].children.iter() {
+    for &s in links[n].feedback_from.iter() {
+        // the source's chunk k − 1, in the slot of parity k + 1
+        consumed(nodes, s, k + 1, &mut offer);
+    }
+    for &c in links[n].children.iter().chain(links[n].feedback_to.iter()) {
         offer(c);
     }
     nodes[n].claimed.store(false, Ordering::Release);

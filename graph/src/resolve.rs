@@ -66,13 +66,53 @@ impl Graph {
                     Some(n) => n,
                     None => self.add_node(def, params, own.clone(), parents, instance)?,
                 };
+                if let Some(target) = def.feeds_back_to {
+                    self.connect_feedback(node, target)?;
+                }
                 next.extend(
-                    (0..self.nodes[node].outputs.len()).map(|output| OutputRef { node, output }),
+                    self.nodes[node]
+                        .infos
+                        .iter()
+                        .enumerate()
+                        .filter(|(_, info)| !info.feedback)
+                        .map(|(output, _)| OutputRef { node, output }),
                 );
             }
             level = next;
         }
         Ok(level)
+    }
+
+    /// Makes the nearest node named `target` below `source` (following first parents,
+    /// so on the same ear) take `source`'s feedback output. A node takes the feedback of
+    /// one source only: a second request that would feed the same filterbank from other
+    /// parameters is refused rather than letting two MOCs overwrite each other.
+    fn connect_feedback(&mut self, source: usize, target: &str) -> Result<()> {
+        let Some(output) = self.nodes[source].infos.iter().position(|i| i.feedback) else {
+            return Ok(());
+        };
+        let from = OutputRef {
+            node: source,
+            output,
+        };
+        let mut n = source;
+        while self.nodes[n].name != target {
+            match self.nodes[n].parents.first() {
+                Some(p) => n = p.node,
+                None => return Ok(()),
+            }
+        }
+        match self.nodes[n].feedback_from {
+            Some(f) if f != from => Err(Error::InvalidInput(format!(
+                "the {target} below this {} already takes the feedback of a {} with other \
+                 parameters; use one set of {} parameters per {target}",
+                self.nodes[source].name, self.nodes[f.node].name, self.nodes[source].name
+            ))),
+            _ => {
+                self.nodes[n].feedback_from = Some(from);
+                Ok(())
+            }
+        }
     }
 
     /// Whether `r` is the output of a binaural processor (a cue computed from both ears).
@@ -147,6 +187,7 @@ impl Graph {
             instance,
             params: own,
             parents,
+            feedback_from: None,
             processor: Some(built.processor),
             outputs,
             infos: built.outputs,
@@ -182,6 +223,13 @@ impl Graph {
                 for p in &mut node.parents {
                     p.node = new_index[p.node];
                 }
+                node.feedback_from = node
+                    .feedback_from
+                    .filter(|f| new_index[f.node] != usize::MAX)
+                    .map(|f| OutputRef {
+                        node: new_index[f.node],
+                        output: f.output,
+                    });
                 node
             })
             .collect();

@@ -1,5 +1,5 @@
 //! Stress test of the concurrent scheduler: random DAGs of up to 64 nodes with random
-//! fan-in (1–2 parents) and fan-out and random per-node work, run over many chunks on
+//! fan-in (1–2 parents) and fan-out, random feedback edges and random per-node work, run over many chunks on
 //! 1..8 workers, must give exactly the sequential executor's output. A stall fails with
 //! a dump of every node's protocol state (the engine's watchdog) instead of hanging.
 
@@ -41,6 +41,12 @@ impl Processor for Mix {
 
     fn reset(&mut self) {
         self.state = 0;
+    }
+
+    fn receive_feedback(&mut self, feedback: &Block) {
+        for v in feedback.as_slice() {
+            self.state = (self.state ^ v.to_bits()).wrapping_mul(0xff51_afd7_ed55_8ccd);
+        }
     }
 }
 
@@ -86,6 +92,7 @@ fn random_graph(seed: u64, nodes: usize) -> Graph {
             instance: i,
             params: ParamMap::new(),
             parents,
+            feedback_from: None,
             processor: Some(Box::new(Mix {
                 id: i as u64,
                 state: 0,
@@ -95,6 +102,17 @@ fn random_graph(seed: u64, nodes: usize) -> Graph {
             infos: vec![SignalInfo::time_domain(1000.0)],
             channels: vec![Channel::Mono],
         });
+    }
+    // feedback edges, as the MOC's to the filterbank: a node takes a later node's output
+    // of the previous chunk
+    for i in 1..nodes.saturating_sub(1) {
+        if rng.below(6) == 0 {
+            let source = i + 1 + rng.below((nodes - i - 1) as u64) as usize;
+            g.nodes[i].feedback_from = Some(OutputRef {
+                node: source,
+                output: 0,
+            });
+        }
     }
     g
 }

@@ -3,8 +3,9 @@
 //! 2-child fan-out, over four chunks (two in flight, slots reused while a reader may
 //! still be on them) and two threads. Loom explores the interleavings (bounded
 //! preemptions) and fails on a data race on a slot, a lost wake-up (work left undone), or
-//! a wrong value. The engine's ready set, the caller's wait and the parking of idle
-//! threads are checked by `tests/loom_wakeup.rs`.
+//! a wrong value. A third graph has a feedback edge (the MOC feeding the filterbank
+//! below it: the target reads its source's previous chunk). The engine's ready set, the
+//! caller's wait and the parking of idle threads are checked by `tests/loom_wakeup.rs`.
 //!
 //! No thread spins (loom cannot explore spin loops): the source is a node like the
 //! others, READY while chunks remain and its slot is free, and every thread runs ready
@@ -36,11 +37,17 @@ struct Model {
 }
 
 impl Model {
-    fn new(parents: &[&[usize]], chunks: u64) -> Self {
+    fn new(parents: &[&[usize]], feedback: &[(usize, usize)], chunks: u64) -> Self {
         let n = parents.len();
+        let links = model::links_with_feedback(parents, feedback, false);
+        let sync: Vec<NodeSync> = (0..n).map(|_| NodeSync::new()).collect();
+        // as `Engine::install`: slot 1 stands for chunk −1 of a feedback source (value 0)
+        for (s, l) in sync.iter().zip(&links) {
+            s.readers_left[1].store(l.feedback_to.len() as u32, Ordering::Relaxed);
+        }
         Model {
-            sync: (0..n).map(|_| NodeSync::new()).collect(),
-            links: model::links(parents, false),
+            sync,
+            links,
             slots: (0..n)
                 .map(|_| [UnsafeCell::new(0), UnsafeCell::new(0)])
                 .collect(),
@@ -78,6 +85,12 @@ impl Model {
                 .parents
                 .iter()
                 .map(|&p| self.slots[p][slot].with(|v| unsafe { *v }))
+                .chain(
+                    self.links[n]
+                        .feedback_from
+                        .iter()
+                        .map(|&s| self.slots[s][1 - slot].with(|v| unsafe { *v })),
+                )
                 .sum::<u64>()
                 + n as u64
         };
@@ -107,10 +120,14 @@ const WORKERS: usize = 1;
 const CHUNKS: u64 = 4;
 
 fn check(parents: &'static [&'static [usize]]) {
+    check_with_feedback(parents, &[]);
+}
+
+fn check_with_feedback(parents: &'static [&'static [usize]], feedback: &'static [(usize, usize)]) {
     let mut builder = loom::model::Builder::new();
     builder.preemption_bound = Some(2);
     builder.check(move || {
-        let m = Arc::new(Model::new(parents, CHUNKS));
+        let m = Arc::new(Model::new(parents, feedback, CHUNKS));
         m.offer(0);
         let workers: Vec<_> = (0..WORKERS)
             .map(|_| {
@@ -150,4 +167,11 @@ fn chain_of_three() {
 #[test]
 fn fan_out_to_two_children() {
     check(&[&[], &[0], &[1], &[1]]);
+}
+
+/// input → a → b → c, with c feeding a back: a's chunk k waits for c's chunk k − 1, and
+/// c's slot of chunk k − 1 stays pinned until a has read it.
+#[test]
+fn feedback_edge_to_a_lower_node() {
+    check_with_feedback(&[&[], &[0], &[1], &[2]], &[(3, 1)]);
 }

@@ -20,6 +20,7 @@ pub mod ihc;
 pub mod ild;
 pub mod itd;
 pub mod middle_ear;
+pub mod moc;
 pub mod pitch;
 pub mod pre_proc;
 pub mod ratemap;

@@ -7,7 +7,8 @@ use afe_core::{Error, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo
 
 use crate::{
     adaptation, ams_features, autocorrelation, butterworth, crosscorrelation, gabor, gammatone, ic,
-    ihc, ild, itd, pitch, pre_proc, ratemap, spectral_features, stft, transient, transient_map,
+    ihc, ild, itd, moc, pitch, pre_proc, ratemap, spectral_features, stft, transient,
+    transient_map,
 };
 
 /// How a processor relates to the ears (the AFE's binaural flag).
@@ -62,6 +63,9 @@ pub struct RequestDef {
     /// Parameters that cannot change at run time (as in the AFE): they fix what every
     /// representation above is laid out on.
     pub fixed: &'static [&'static str],
+    /// The request lower in the chain (same ear) that takes this processor's feedback
+    /// output from the next chunk on (the MOC feeds the filterbank), if any.
+    pub feeds_back_to: Option<&'static str>,
 }
 
 impl std::fmt::Debug for RequestDef {
@@ -101,6 +105,9 @@ pub trait Descriptor {
     const OUTPUT_UNIT: &'static str;
     /// Parameters that cannot change at run time (as in the AFE).
     const FIXED: &'static [&'static str] = &[];
+    /// The request lower in the chain that takes this processor's feedback output
+    /// (see [`RequestDef::feeds_back_to`]).
+    const FEEDS_BACK_TO: Option<&'static str> = None;
 
     /// Builds the processor for the parents' outputs `inputs` (the dependency's, then
     /// those of the extra inputs).
@@ -139,6 +146,7 @@ pub const fn request_def<D: Descriptor>() -> RequestDef {
         chunk_invariant: chunk_invariant::<D>,
         extra_inputs: extra_inputs::<D>,
         fixed: D::FIXED,
+        feeds_back_to: D::FEEDS_BACK_TO,
     }
 }
 
@@ -170,6 +178,7 @@ static REQUESTS: &[&RequestDef] = &[
     &ihc::REQUEST,
     &adaptation::REQUEST,
     &ratemap::REQUEST,
+    &moc::REQUEST,
     &ild::REQUEST,
     &crosscorrelation::REQUEST,
     &itd::REQUEST,
