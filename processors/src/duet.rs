@@ -319,18 +319,22 @@ impl Duet {
             let rho = divide(r + EPS, l + EPS);
             let a = rho.re.hypot(rho.im);
             let alpha = a - 1.0 / a;
-            let delta = -rho.im.atan2(rho.re) / omega;
             pair[0] = OUTSIDE;
             pair[1] = 0.0;
-            if alpha.abs() < ma && delta.abs() < md {
-                let ia = (1.0 + a1 * (alpha + ma) / (2.0 * ma)).round();
-                let id = (1.0 + d1 * (delta + md) / (2.0 * md)).round();
-                let ia = (ia as usize).clamp(1, self.bins_alpha) - 1;
-                let id = (id as usize).clamp(1, self.bins_delta) - 1;
-                let h = l.re.hypot(l.im) * r.re.hypot(r.im);
-                let w = (h * h) * (omega * omega);
-                pair[0] = (ia * self.bins_delta + id) as f64;
-                pair[1] = if k + 1 < half { 2.0 * w } else { w };
+            // The bin decisions use |ρ| and arg ρ as the AFE computes them (hypot, atan2);
+            // the weight `(|L|·|R|)²`, which decides nothing, is taken from the squared
+            // moduli without square roots (the same value to a few ulps).
+            if alpha.abs() < ma {
+                let delta = -rho.im.atan2(rho.re) / omega;
+                if delta.abs() < md {
+                    let ia = (1.0 + a1 * (alpha + ma) / (2.0 * ma)).round();
+                    let id = (1.0 + d1 * (delta + md) / (2.0 * md)).round();
+                    let ia = (ia as usize).clamp(1, self.bins_alpha) - 1;
+                    let id = (id as usize).clamp(1, self.bins_delta) - 1;
+                    let w = (l.norm_sqr() * r.norm_sqr()) * (omega * omega);
+                    pair[0] = (ia * self.bins_delta + id) as f64;
+                    pair[1] = if k + 1 < half { 2.0 * w } else { w };
+                }
             }
         }
     }
