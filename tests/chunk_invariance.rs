@@ -125,6 +125,16 @@ fn configurations() -> Vec<(Vec<&'static str>, ParamMap)> {
             ]),
         ),
         (
+            // Short STFT windows and blocks, so that 4000 samples hold several histograms.
+            vec!["duet"],
+            params(&[
+                ("duet_wSTFTSec", json!(0.01)),
+                ("duet_wDUETSec", json!(0.05)),
+                ("duet_hDUETSec", json!(0.02)),
+                ("duet_binsAlpha", json!(9)),
+            ]),
+        ),
+        (
             vec!["innerhaircell", "butterworth"],
             params(&[
                 ("ihc_method", json!("halfwave")),

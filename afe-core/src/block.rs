@@ -19,6 +19,9 @@ pub enum SignalKind {
     Spectrum,
     /// A 0/1 value per channel: `[frame, channel]`.
     BinaryMask,
+    /// A 2-D histogram per block of frames over attenuation and delay bins (DUET):
+    /// `[frame, alpha, delta]`.
+    DuetHistogram,
 }
 
 impl SignalKind {
@@ -32,6 +35,7 @@ impl SignalKind {
             SignalKind::Feature => "FeatureSignal",
             SignalKind::Spectrum => "STFTSignal",
             SignalKind::BinaryMask => "BinaryMask",
+            SignalKind::DuetHistogram => "DuetHistogramSignal",
         }
     }
 
@@ -45,6 +49,7 @@ impl SignalKind {
             SignalKind::Feature => &["frame", "feature"],
             SignalKind::Spectrum => &["frame", "bin"],
             SignalKind::BinaryMask => &["frame", "channel"],
+            SignalKind::DuetHistogram => &["frame", "alpha", "delta"],
         }
     }
 }
@@ -66,6 +71,12 @@ pub struct SignalInfo {
     pub mod_cf_hz: Vec<f64>,
     /// Name of each feature column, in output order (empty unless `kind` is `Feature`).
     pub features: Vec<String>,
+    /// Centre of each attenuation bin, `|ρ| − 1/|ρ|` for the ear ratio `ρ` (empty
+    /// unless `kind` is `DuetHistogram`).
+    pub alpha: Vec<f64>,
+    /// Centre of each delay bin in samples at `audio_fs_hz` (empty unless `kind` is
+    /// `DuetHistogram`).
+    pub delta_samples: Vec<f64>,
     /// Rate in Hz of the audio this signal was computed from (equal to `fs_hz` for
     /// full-rate signals; framed signals keep the rate their frames were cut at).
     pub audio_fs_hz: f64,
@@ -127,11 +138,12 @@ impl SignalInfo {
         }
     }
 
-    /// Number of frequency channels (1 for a time-domain signal, 0 for features).
+    /// Number of frequency channels (1 for a time-domain signal, 0 for features and
+    /// histograms).
     pub fn channels(&self) -> usize {
         match self.kind {
             SignalKind::TimeDomain => 1,
-            SignalKind::Feature => 0,
+            SignalKind::Feature | SignalKind::DuetHistogram => 0,
             _ => self.cf_hz.len(),
         }
     }
@@ -150,6 +162,7 @@ impl SignalInfo {
             SignalKind::Modulation => self.cf_hz.len() * self.mod_cf_hz.len(),
             SignalKind::Feature => self.features.len(),
             SignalKind::Spectrum => 2 * self.cf_hz.len(),
+            SignalKind::DuetHistogram => self.alpha.len() * self.delta_samples.len(),
         }
     }
 
@@ -164,6 +177,7 @@ impl SignalInfo {
             SignalKind::Correlation => vec![self.cf_hz.len(), self.lags_s.len()],
             SignalKind::Modulation => vec![self.cf_hz.len(), self.mod_cf_hz.len()],
             SignalKind::Feature => vec![self.features.len()],
+            SignalKind::DuetHistogram => vec![self.alpha.len(), self.delta_samples.len()],
         }
     }
 }
@@ -309,5 +323,16 @@ mod tests {
         let pitch = SignalInfo::feature(100.0, 1000.0, vec!["pitch".into(), "rawPitch".into()]);
         assert_eq!((pitch.width(), pitch.channels()), (2, 0));
         assert_eq!(pitch.kind.axes(), &["frame", "feature"]);
+        let duet = SignalInfo {
+            kind: SignalKind::DuetHistogram,
+            alpha: vec![-0.5, 0.0, 0.5],
+            delta_samples: vec![-1.0, -0.5, 0.0, 0.5, 1.0],
+            ..SignalInfo::default()
+        };
+        assert_eq!((duet.width(), duet.frame_shape()), (15, vec![3, 5]));
+        assert_eq!(
+            (duet.channels(), duet.kind.afe_class()),
+            (0, "DuetHistogramSignal")
+        );
     }
 }

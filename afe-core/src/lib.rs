@@ -1,7 +1,7 @@
 //! Core types of `afe`: time-major signal blocks, the [`Processor`] contract, AFE
 //! parameters, the error type, and the DSP primitives the processors are built from
 //! (DF2T filtering, Butterworth and `fir2` design, windows, the ERB scale, framing, the
-//! analytic signal). Nothing here knows a processor by name.
+//! analytic signal, Savitzky–Golay smoothing). Nothing here knows a processor by name.
 
 pub mod block;
 pub mod butter;
@@ -14,6 +14,7 @@ pub mod hilbert;
 pub mod lanes;
 pub mod params;
 pub mod processor;
+pub mod sgolay;
 pub mod window;
 
 pub use block::{Block, SignalInfo, SignalKind};

@@ -59,6 +59,15 @@ pub fn window(name: &str, n: usize, param: &str) -> Result<Vec<f64>> {
     Ok(w)
 }
 
+/// The periodic Hamming window of length `n` (MATLAB `hamming(n, 'periodic')`, spec
+/// zz-numerics N5): the first `n` samples of the symmetric window of length `n + 1`,
+/// `0.54 − 0.46·cos(2πk/n)`, its second half mirrored from the first as MATLAB builds it.
+pub fn hamming_periodic(n: usize) -> Vec<f64> {
+    (0..n)
+        .map(|k| 0.54 - 0.46 * (2.0 * PI * (k.min(n - k) as f64 / n as f64)).cos())
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -85,6 +94,19 @@ mod tests {
         let w = window("hanning", 3, "x").unwrap_or_default();
         assert!((w[0] - 0.5).abs() < 1e-15 && (w[1] - 1.0).abs() < 1e-15);
         assert_eq!(window("hamming", 1, "x").unwrap_or_default(), vec![1.0]);
+    }
+
+    #[test]
+    fn periodic_hamming_is_the_symmetric_one_of_length_n_plus_1_truncated() {
+        for n in [1, 2, 7, 882] {
+            let w = hamming_periodic(n);
+            let s = window("hamming", n + 1, "x").unwrap_or_default();
+            assert_eq!(w[..], s[..n], "length {n}");
+            for (k, v) in w.iter().enumerate() {
+                let f = 0.54 - 0.46 * (2.0 * PI * k as f64 / n as f64).cos();
+                assert!((v - f).abs() < 1e-15);
+            }
+        }
     }
 
     #[test]

@@ -827,6 +827,27 @@ mod tests {
         assert_eq!(m.request_signals(h).expect("ok")[0].key(), "ratemap_mono");
     }
 
+    /// A binaural request on `time` (duet) reads both outputs of the one pre-processor
+    /// (flag 2, one output per ear); on a mono input it is refused.
+    #[test]
+    fn a_binaural_request_on_time_reads_both_preproc_outputs() {
+        let mut m = Manager::new(16000.0, 2).expect("valid");
+        let h = m.add_request("duet", &ParamMap::new()).expect("ok");
+        let duet = m.request_signals(h).expect("ok")[0].source.node;
+        let parents: Vec<(&str, usize)> = m.graph.nodes[duet]
+            .parents
+            .iter()
+            .map(|p| (m.graph.nodes[p.node].name, p.output))
+            .collect();
+        assert_eq!(parents, [("time", 0), ("time", 1)]);
+        assert_eq!(m.request_signals(h).expect("ok")[0].key(), "duet_mono");
+        let mut mono = Manager::new(16000.0, 1).expect("valid");
+        let e = mono
+            .add_request("duet", &ParamMap::new())
+            .expect_err("mono");
+        assert!(matches!(e, Error::BinauralOnMono(ref r) if r == "duet"));
+    }
+
     #[test]
     fn unknown_names_and_bad_input_are_clear_errors() {
         let mut m = Manager::new(16000.0, 2).expect("valid");

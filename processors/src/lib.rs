@@ -12,6 +12,7 @@ pub mod butterworth;
 mod chunked;
 mod cpu;
 pub mod crosscorrelation;
+pub mod duet;
 mod framed;
 pub mod gabor;
 pub mod gammatone;

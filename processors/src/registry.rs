@@ -6,9 +6,9 @@
 use afe_core::{Error, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo};
 
 use crate::{
-    adaptation, ams_features, autocorrelation, butterworth, crosscorrelation, gabor, gammatone, ic,
-    ihc, ild, itd, moc, pitch, pre_proc, ratemap, spectral_features, stft, transient,
-    transient_map,
+    adaptation, ams_features, autocorrelation, butterworth, crosscorrelation, duet, gabor,
+    gammatone, ic, ihc, ild, itd, moc, pitch, pre_proc, ratemap, spectral_features, stft,
+    transient, transient_map,
 };
 
 /// How a processor relates to the ears (the AFE's binaural flag).
@@ -193,6 +193,7 @@ static REQUESTS: &[&RequestDef] = &[
     &ams_features::REQUEST,
     &gabor::REQUEST,
     &stft::REQUEST,
+    &duet::REQUEST,
 ];
 
 /// Every request this build knows, in dependency order.

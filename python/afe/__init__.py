@@ -221,13 +221,15 @@ class Manager:
 
     def info(self) -> Dict[str, Dict[str, Any]]:
         """For each output name: ``kind`` (``time-domain``, ``time-frequency``,
-        ``correlation``, ``modulation``, ``feature``, ``spectrum``, ``binary-mask``),
+        ``correlation``, ``modulation``, ``feature``, ``spectrum``, ``binary-mask``,
+        ``duet-histogram``),
         ``afe_class`` (the AFE's signal class), ``axes`` (array axis names), ``dtype``
         (``float64``, or ``complex128`` for spectra), ``fs_hz`` (output rate; frame rate
         of framed signals), ``audio_fs_hz``, ``cf_hz`` (channel centre frequencies; bin
         frequencies of a spectrum), ``lags_s`` (correlation lags, s), ``mod_cf_hz``
-        (modulation centre frequencies), ``features`` (feature names, in column order)
-        and ``frame_shape`` (shape of one time step)."""
+        (modulation centre frequencies), ``features`` (feature names, in column order),
+        ``alpha`` and ``delta_samples`` (DUET histogram bin centres: attenuation, and delay
+        in samples) and ``frame_shape`` (shape of one time step)."""
         return json.loads(self._m.info_json())
 
     def __repr__(self) -> str:

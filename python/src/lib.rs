@@ -267,6 +267,7 @@ impl PyManager {
                         afe::SignalKind::Feature => "feature",
                         afe::SignalKind::Spectrum => "spectrum",
                         afe::SignalKind::BinaryMask => "binary-mask",
+                        afe::SignalKind::DuetHistogram => "duet-histogram",
                     };
                     let value = serde_json::json!({
                         "kind": kind,
@@ -279,6 +280,8 @@ impl PyManager {
                         "lags_s": s.info.lags_s,
                         "mod_cf_hz": s.info.mod_cf_hz,
                         "features": s.info.features,
+                        "alpha": s.info.alpha,
+                        "delta_samples": s.info.delta_samples,
                         "frame_shape": s.info.frame_shape(),
                     });
                     (s.key(), value)
