@@ -147,16 +147,17 @@ fn request_set(c: &mut Criterion, name: &str, requests: &[&str]) {
 /// 16/32/64 channels, chunks of 441 (10 ms), 2205 (BASS default) and the whole signal.
 fn gammatone(c: &mut Criterion) {
     use afe_core::{Block, Processor};
-    use afe_processors::gammatone::{Gammatone, GammatoneParams};
+    use afe_processors::filterbank::FilterbankParams;
+    use afe_processors::gammatone::Gammatone;
     let (fs, left, _) = example();
     let mut group = c.benchmark_group("gammatone");
     group.sample_size(10);
     group.warm_up_time(Duration::from_secs(1));
     group.measurement_time(Duration::from_secs(2));
     for channels in [16u32, 32, 64] {
-        let params = GammatoneParams {
+        let params = FilterbankParams {
             n_channels: Some(channels),
-            ..GammatoneParams::default()
+            ..FilterbankParams::default()
         };
         let (mut fb, _) = Gammatone::new(&params, fs).expect("filterbank");
         group.throughput(Throughput::Elements(
@@ -187,7 +188,8 @@ fn gammatone(c: &mut Criterion) {
 fn stages(c: &mut Criterion) {
     use afe_core::{Block, Processor, SignalInfo};
     use afe_processors::crosscorrelation::{Crosscorrelation, CrosscorrelationParams};
-    use afe_processors::gammatone::{Gammatone, GammatoneParams};
+    use afe_processors::filterbank::FilterbankParams;
+    use afe_processors::gammatone::Gammatone;
     use afe_processors::ihc::{Ihc, IhcParams};
     use afe_processors::ild::{Ild, IldParams};
     use afe_processors::ratemap::{Ratemap, RatemapParams};
@@ -231,9 +233,9 @@ fn stages(c: &mut Criterion) {
     group.measurement_time(Duration::from_secs(1));
     group.throughput(Throughput::Elements(left.len() as u64));
     for channels in [16u32, 32, 64] {
-        let params = GammatoneParams {
+        let params = FilterbankParams {
             n_channels: Some(channels),
-            ..GammatoneParams::default()
+            ..FilterbankParams::default()
         };
         let mut fb_info = SignalInfo::time_domain(fs);
         let mut ihc_info = fb_info.clone();

@@ -12,6 +12,8 @@ pub mod butterworth;
 mod chunked;
 mod cpu;
 pub mod crosscorrelation;
+pub mod drnl;
+pub mod filterbank;
 mod framed;
 pub mod gabor;
 pub mod gammatone;

@@ -5,9 +5,12 @@
 
 use afe_core::butter::{butter, ButterType};
 use afe_core::filter::Df2t;
-use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
+use afe_core::{
+    Block, Error, ParamKind, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo,
+};
 use serde::{Deserialize, Serialize};
 
+use crate::filterbank::{fb_type_of, FbType};
 use crate::middle_ear;
 
 use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
@@ -371,6 +374,20 @@ impl Descriptor for PreProc {
     const DESCRIPTION: &'static str =
         "pre-processed ear signals (DC removal, pre-emphasis, AGC, level, middle ear)";
     const OUTPUT_UNIT: &'static str = "";
+
+    /// With `fb_type = 'drnl'` the middle-ear output is not unity-compensated
+    /// (`pp_bUnityComp = false`, spec 12-drnl): the DRNL's coefficients expect the
+    /// physical units. The AFE's DRNL sets this in the pre-processor it is prepared on;
+    /// here it follows from the request's parameters, which gives a DRNL chain its own
+    /// pre-processor, as the AFE's sharing rule does. (A request without a filterbank,
+    /// e.g. `stft`, given `fb_type = 'drnl'` is affected too, where the AFE would not be.)
+    fn params(map: &ParamMap) -> Result<PreProcParams> {
+        let mut params = PreProcParams::from_map(map)?;
+        if fb_type_of(map) == FbType::Drnl {
+            params.unity_comp = false;
+        }
+        Ok(params)
+    }
 
     fn build(params: &PreProcParams, inputs: &[SignalInfo]) -> Result<Built> {
         let (p, outputs) = PreProc::new(params, inputs[0].fs_hz, inputs.len())?;

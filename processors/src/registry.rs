@@ -6,7 +6,7 @@
 use afe_core::{Error, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo};
 
 use crate::{
-    adaptation, ams_features, autocorrelation, butterworth, crosscorrelation, gabor, gammatone, ic,
+    adaptation, ams_features, autocorrelation, butterworth, crosscorrelation, filterbank, gabor, ic,
     ihc, ild, itd, pitch, pre_proc, ratemap, spectral_features, stft, transient, transient_map,
 };
 
@@ -102,6 +102,14 @@ pub trait Descriptor {
     /// Parameters that cannot change at run time (as in the AFE).
     const FIXED: &'static [&'static str] = &[];
 
+    /// This processor's parameters in a request's map (defaults filled, values checked).
+    /// A processor whose parameters another processor of the chain changes (the DRNL
+    /// turns off the pre-processing's unity compensation) applies that here, so that its
+    /// node, its sharing and its listed parameters say what it computes.
+    fn params(map: &ParamMap) -> Result<Self::Params> {
+        Self::Params::from_map(map)
+    }
+
     /// Builds the processor for the parents' outputs `inputs` (the dependency's, then
     /// those of the extra inputs).
     fn build(params: &Self::Params, inputs: &[SignalInfo]) -> Result<Built>;
@@ -147,26 +155,26 @@ fn defaults<D: Descriptor>() -> ParamMap {
 }
 
 fn canonical<D: Descriptor>(map: &ParamMap) -> Result<ParamMap> {
-    D::canonical(&D::Params::from_map(map)?)
+    D::canonical(&D::params(map)?)
 }
 
 fn build<D: Descriptor>(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
-    D::build(&D::Params::from_map(map)?, inputs)
+    D::build(&D::params(map)?, inputs)
 }
 
 fn chunk_invariant<D: Descriptor>(map: &ParamMap) -> bool {
-    D::Params::from_map(map).is_ok_and(|p| D::chunk_invariant(&p))
+    D::params(map).is_ok_and(|p| D::chunk_invariant(&p))
 }
 
 fn extra_inputs<D: Descriptor>(map: &ParamMap) -> &'static [&'static str] {
-    D::Params::from_map(map).map_or(&[], |p| D::extra_inputs(&p))
+    D::params(map).map_or(&[], |p| D::extra_inputs(&p))
 }
 
 /// Every request, in dependency order: one line per processor module.
 static REQUESTS: &[&RequestDef] = &[
     &pre_proc::REQUEST,
     &butterworth::REQUEST,
-    &gammatone::REQUEST,
+    &filterbank::REQUEST,
     &ihc::REQUEST,
     &adaptation::REQUEST,
     &ratemap::REQUEST,
