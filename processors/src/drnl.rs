@@ -175,7 +175,7 @@ fn map_channel(f: f64, fs: f64) -> ChannelDesign {
 
 /// `x^(1/4 + delta)` for `x ≥ 0` and `|delta| ≲ 1e−8`, within a few ulps of `powf`:
 /// `sqrt(sqrt(x))` times `x^delta = exp(delta·ln x)` to second order, with a ln accurate
-/// to 1e−9 (its error is multiplied by `delta`). Vectorises, unlike `powf`: CASP's
+/// to 4e−8 (its error is multiplied by `delta`). Vectorises, unlike `powf`: CASP's
 /// exponent is 1/4 − 5e−9, and rounding it to 1/4 would move the compressed values by
 /// up to 1e−7 relative.
 #[inline(always)]
@@ -184,9 +184,24 @@ fn pow_quarter_plus(x: f64, delta: f64) -> f64 {
     x.sqrt().sqrt() * (1.0 + t * (1.0 + 0.5 * t))
 }
 
-/// `ln x` for `x ≥ 0` within 1e−9 for normal `x` (finite for 0, subnormals and ∞):
-/// exponent and mantissa from the bits, the mantissa brought into [√½, √2), and
-/// `ln m = 2·atanh((m − 1)/(m + 1))` by its series to the 9th power.
+/// Coefficients of `ln(1 + y)` on `y ∈ [√½ − 1, √2 − 1]`, lowest first: the degree-8
+/// interpolant at the Chebyshev nodes (maximum error 3.9e−8).
+const LN1P: [f64; 9] = [
+    2.87670076431255e-08,
+    0.9999999600344619,
+    -0.5000095634994474,
+    0.33334828194380944,
+    -0.24950976038480824,
+    0.1990183010152832,
+    -0.17437085825438994,
+    0.16247007808635738,
+    -0.09610568068805528,
+];
+
+/// `ln x` for `x ≥ 0` within 4e−8 for normal `x` (finite for 0, subnormals and ∞):
+/// exponent and mantissa from the bits, the mantissa `m` brought into [√½, √2), and
+/// `ln m` by the polynomial [`LN1P`] in `m − 1` (no division: the divider is busy with
+/// the square roots).
 #[inline(always)]
 fn ln_rough(x: f64) -> f64 {
     const TWO_52: f64 = 4_503_599_627_370_496.0;
@@ -197,10 +212,12 @@ fn ln_rough(x: f64) -> f64 {
     let high = m > SQRT_2;
     let m = if high { 0.5 * m } else { m };
     let e = biased - if high { 1022.0 } else { 1023.0 };
-    let s = (m - 1.0) / (m + 1.0);
-    let s2 = s * s;
-    let series = 1.0 + s2 * (1.0 / 3.0 + s2 * (0.2 + s2 * (1.0 / 7.0 + s2 * (1.0 / 9.0))));
-    e * LN_2 + 2.0 * s * series
+    let y = m - 1.0;
+    let mut p = LN1P[8];
+    for k in (0..8).rev() {
+        p = p * y + LN1P[k];
+    }
+    e * LN_2 + p
 }
 
 /// CASP's broken-stick non-linearity `sign(u)·min(a·|u|, b·|u|^c)`, `c = 1/4 + delta`.
@@ -228,44 +245,89 @@ fn map_compress(u: f64, a: f64, cts: f64, ct_bm: f64) -> f64 {
 /// (GT ×3 on each of the three stages).
 const STATES: usize = 11;
 
-/// One section's coefficients across `W` channels.
+/// A [`gt_section`] across `W` channels. Its `b2 = 0`, so the DF2T's `z1 = b2·x − a2·y`
+/// is `(−a2)·y`: the same value without the product by zero (only the sign of an exact
+/// zero state can differ).
 #[derive(Debug, Clone, Copy)]
-struct LaneBiquad<const W: usize> {
+struct LaneGt<const W: usize> {
     b0: [f64; W],
     b1: [f64; W],
-    b2: [f64; W],
-    a1: [f64; W],
-    a2: [f64; W],
+    /// `−a1`, `−a2`: `z + (−a)·y` is `z − a·y` bit for bit.
+    na1: [f64; W],
+    na2: [f64; W],
 }
 
-impl<const W: usize> LaneBiquad<W> {
-    const ZERO: Self = LaneBiquad {
+impl<const W: usize> LaneGt<W> {
+    const ZERO: Self = LaneGt {
         b0: [0.0; W],
         b1: [0.0; W],
-        b2: [0.0; W],
-        a1: [0.0; W],
-        a2: [0.0; W],
+        na1: [0.0; W],
+        na2: [0.0; W],
     };
 
     fn set(&mut self, lane: usize, s: &Biquad) {
         self.b0[lane] = s.b[0];
         self.b1[lane] = s.b[1];
-        self.b2[lane] = s.b[2];
-        self.a1[lane] = s.a[0];
-        self.a2[lane] = s.a[1];
+        self.na1[lane] = -s.a[0];
+        self.na2[lane] = -s.a[1];
     }
 
-    /// One DF2T step of every lane on `v`, in place (spec 01-P1 operation order:
-    /// `y = z0 + b0·x`, `z0 = (z1 − a1·y) + b1·x`, `z1 = b2·x − a2·y`).
+    /// The section over `buf` (rows of `W` channels) in place, state `z` carried: DF2T in
+    /// the reference's order, `y = z0 + b0·x`, `z0 = (z1 − a1·y) + b1·x`, `z1 = −a2·y`.
     #[inline(always)]
-    fn step(&self, z: &mut [[f64; W]; 2], v: &mut [f64; W]) {
-        for l in 0..W {
-            let x = v[l];
-            let y = z[0][l] + self.b0[l] * x;
-            z[0][l] = (z[1][l] - self.a1[l] * y) + self.b1[l] * x;
-            z[1][l] = self.b2[l] * x - self.a2[l] * y;
-            v[l] = y;
+    fn run(&self, z: &mut [[f64; W]; 2], buf: &mut [[f64; W]]) {
+        let [mut z0, mut z1] = *z;
+        for v in buf.iter_mut() {
+            for l in 0..W {
+                let x = v[l];
+                let y = z0[l] + self.b0[l] * x;
+                z0[l] = (z1[l] + self.na1[l] * y) + self.b1[l] * x;
+                z1[l] = self.na2[l] * y;
+                v[l] = y;
+            }
         }
+        *z = [z0, z1];
+    }
+}
+
+/// An [`lp_section`] across `W` channels. Its numerator is `[C, 2C, C]`, and `(2C)·x` is
+/// `C·x + C·x` bit for bit (scaling by 2 is exact), so one product serves all three.
+#[derive(Debug, Clone, Copy)]
+struct LaneLp<const W: usize> {
+    c: [f64; W],
+    /// `−a1`, `−a2`.
+    na1: [f64; W],
+    na2: [f64; W],
+}
+
+impl<const W: usize> LaneLp<W> {
+    const ZERO: Self = LaneLp {
+        c: [0.0; W],
+        na1: [0.0; W],
+        na2: [0.0; W],
+    };
+
+    fn set(&mut self, lane: usize, s: &Biquad) {
+        self.c[lane] = s.b[0];
+        self.na1[lane] = -s.a[0];
+        self.na2[lane] = -s.a[1];
+    }
+
+    /// The section over `buf` in place (see [`LaneGt::run`]): `y = z0 + C·x`,
+    /// `z0 = (z1 − a1·y) + 2C·x`, `z1 = C·x − a2·y`.
+    #[inline(always)]
+    fn run(&self, z: &mut [[f64; W]; 2], buf: &mut [[f64; W]]) {
+        let [mut z0, mut z1] = *z;
+        for v in buf.iter_mut() {
+            for l in 0..W {
+                let cx = self.c[l] * v[l];
+                let y = z0[l] + cx;
+                z0[l] = (z1[l] + self.na1[l] * y) + (cx + cx);
+                z1[l] = cx + self.na2[l] * y;
+                v[l] = y;
+            }
+        }
+        *z = [z0, z1];
     }
 }
 
@@ -276,99 +338,117 @@ struct Group<const W: usize> {
     lin_gain: [f64; W],
     /// Non-linear path input gain `mocIpsi·mocContra`.
     moc: [f64; W],
-    gt_lin: LaneBiquad<W>,
-    lp_lin: LaneBiquad<W>,
-    gt_nl: LaneBiquad<W>,
-    lp_nl: LaneBiquad<W>,
+    gt_lin: LaneGt<W>,
+    lp_lin: LaneLp<W>,
+    gt_nl: LaneGt<W>,
+    lp_nl: LaneLp<W>,
     /// The per-channel compression constants (see [`ChannelDesign::compression`]).
     comp: [[f64; W]; 2],
     z: [[[f64; W]; 2]; STATES],
 }
 
+/// The two paths of a group over one time block, `[time][lane]`.
+#[derive(Debug, Clone)]
+struct Paths<const W: usize> {
+    lin: Vec<[f64; W]>,
+    nl: Vec<[f64; W]>,
+}
+
+/// Fills the paths' first `x.len()` rows with `g·x` (linear) and `moc·x` (non-linear).
+#[inline(always)]
+fn inputs<const W: usize>(g: &Group<W>, x: &[f64], lin: &mut [[f64; W]], nl: &mut [[f64; W]]) {
+    for ((li, ni), &xv) in lin.iter_mut().zip(nl.iter_mut()).zip(x) {
+        for l in 0..W {
+            li[l] = g.lin_gain[l] * xv;
+            ni[l] = g.moc[l] * xv;
+        }
+    }
+}
+
+/// Writes `lin + nlin` row by row, `W` values at every `stride`.
+#[inline(always)]
+fn sum_out<const W: usize>(lin: &[[f64; W]], nl: &[[f64; W]], out: &mut [f64], stride: usize) {
+    for (t, (li, ni)) in lin.iter().zip(nl).enumerate() {
+        let row = &mut out[t * stride..t * stride + W];
+        for l in 0..W {
+            row[l] = li[l] + ni[l];
+        }
+    }
+}
+
 /// CASP: `lin = LP⁴(GT²(g·x))`, `nlin = LP(GT²(compress(GT²(moc·x))))`, out `lin + nlin`,
-/// for one group over a chunk, `stride` values per output row. Compiled for AVX-512 and
-/// AVX2 too, chosen at run time; every lane does the scalar operations in order, so the
-/// numbers do not depend on the instruction set or the lane.
+/// for one group over one time block (at most the paths' length), `stride` values per
+/// output row. Section by section over the block, so that each recursion keeps its
+/// state in registers and the lanes' independent recursions hide each other's latency.
+/// Compiled for AVX-512 and AVX2 too, chosen at run time; every lane does the scalar
+/// operations in order, so the numbers depend neither on the instruction set nor on the
+/// lane.
 #[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
 fn run_casp<const W: usize>(
     g: &mut Group<W>,
     delta: f64,
     x: &[f64],
+    paths: &mut Paths<W>,
     out: &mut [f64],
     stride: usize,
 ) {
-    let mut z = g.z;
-    let (gt_lin, lp_lin, gt_nl, lp_nl) = (&g.gt_lin, &g.lp_lin, &g.gt_nl, &g.lp_nl);
+    let lin = &mut paths.lin[..x.len()];
+    let nl = &mut paths.nl[..x.len()];
+    inputs(g, x, lin, nl);
+    let z = &mut g.z;
+    for zs in &mut z[0..2] {
+        g.gt_lin.run(zs, lin);
+    }
+    for zs in &mut z[2..6] {
+        g.lp_lin.run(zs, lin);
+    }
+    for zs in &mut z[6..8] {
+        g.gt_nl.run(zs, nl);
+    }
     let [ca, cb] = g.comp;
-    for (t, &xin) in x.iter().enumerate() {
-        let mut lin = [0.0; W];
-        let mut nl = [0.0; W];
+    for v in nl.iter_mut() {
         for l in 0..W {
-            lin[l] = g.lin_gain[l] * xin;
-            nl[l] = g.moc[l] * xin;
-        }
-        for zs in &mut z[0..2] {
-            gt_lin.step(zs, &mut lin);
-        }
-        for zs in &mut z[2..6] {
-            lp_lin.step(zs, &mut lin);
-        }
-        for zs in &mut z[6..8] {
-            gt_nl.step(zs, &mut nl);
-        }
-        for l in 0..W {
-            nl[l] = casp_compress(nl[l], ca[l], cb[l], delta);
-        }
-        for zs in &mut z[8..10] {
-            gt_nl.step(zs, &mut nl);
-        }
-        lp_nl.step(&mut z[10], &mut nl);
-        let row = &mut out[t * stride..t * stride + W];
-        for l in 0..W {
-            row[l] = lin[l] + nl[l];
+            v[l] = casp_compress(v[l], ca[l], cb[l], delta);
         }
     }
-    g.z = z;
+    for zs in &mut z[8..10] {
+        g.gt_nl.run(zs, nl);
+    }
+    g.lp_nl.run(&mut z[10], nl);
+    sum_out(lin, nl, out, stride);
 }
 
 /// MAP: `lin = GT³(500·x)`, `nlin = GT³(compress(GT³(moc·x)))`, out `lin + nlin`, for
-/// one group over a chunk of the middle-ear output (see [`run_casp`]).
+/// one group over one time block of the middle-ear output (see [`run_casp`]).
 #[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
 fn run_map<const W: usize>(
     g: &mut Group<W>,
     ct_bm: f64,
     x: &[f64],
+    paths: &mut Paths<W>,
     out: &mut [f64],
     stride: usize,
 ) {
-    let mut z = g.z;
-    let (gt_lin, gt_nl) = (&g.gt_lin, &g.gt_nl);
+    let lin = &mut paths.lin[..x.len()];
+    let nl = &mut paths.nl[..x.len()];
+    inputs(g, x, lin, nl);
+    let z = &mut g.z;
+    for zs in &mut z[0..3] {
+        g.gt_lin.run(zs, lin);
+    }
+    for zs in &mut z[3..6] {
+        g.gt_nl.run(zs, nl);
+    }
     let [ca, cts] = g.comp;
-    for (t, &xin) in x.iter().enumerate() {
-        let mut lin = [0.0; W];
-        let mut nl = [0.0; W];
+    for v in nl.iter_mut() {
         for l in 0..W {
-            lin[l] = g.lin_gain[l] * xin;
-            nl[l] = g.moc[l] * xin;
-        }
-        for zs in &mut z[0..3] {
-            gt_lin.step(zs, &mut lin);
-        }
-        for zs in &mut z[3..6] {
-            gt_nl.step(zs, &mut nl);
-        }
-        for l in 0..W {
-            nl[l] = map_compress(nl[l], ca[l], cts[l], ct_bm);
-        }
-        for zs in &mut z[6..9] {
-            gt_nl.step(zs, &mut nl);
-        }
-        let row = &mut out[t * stride..t * stride + W];
-        for l in 0..W {
-            row[l] = lin[l] + nl[l];
+            v[l] = map_compress(v[l], ca[l], cts[l], ct_bm);
         }
     }
-    g.z = z;
+    for zs in &mut z[6..9] {
+        g.gt_nl.run(zs, nl);
+    }
+    sum_out(lin, nl, out, stride);
 }
 
 /// MAP's middle-ear stage shared by all channels: `x1 = 20e−5·10^5·x`, tympanic-membrane
@@ -413,12 +493,13 @@ impl MapMiddleEar {
     }
 }
 
-/// Samples per pass over the groups: a long input's output rows stay in cache while
-/// every group writes its lanes of them, and MAP's middle-ear output fits a fixed buffer.
-const TIME_BLOCK: usize = 512;
-/// Channels per group: two AVX2 registers (one AVX-512 register) per operation. Wider
-/// groups only spill the eleven sections' states.
-const LANES: usize = 8;
+/// Samples per pass over the groups: both paths of a group stay in the L1 cache
+/// (2 × 8 KiB) from section to section.
+const TIME_BLOCK: usize = 64;
+/// Channels per group: four AVX2 registers per operation, whose independent recursions
+/// hide each other's latency while a section's state stays in registers (measured
+/// against 8 and 32: 8 waits on the recursion, 32 spills the state).
+const LANES: usize = 16;
 
 /// The DRNL filterbank of one ear: time-domain in, `[time][channel]` out.
 #[derive(Debug, Clone)]
@@ -435,6 +516,8 @@ pub struct Drnl {
     middle_ear: Option<MapMiddleEar>,
     /// MAP middle-ear output of the current time block.
     stage: Vec<f64>,
+    /// Both paths of the group being computed, one time block.
+    paths: Paths<LANES>,
     /// Full-width rows of a bank narrower than `LANES` channels (empty otherwise).
     partial: Vec<f64>,
     moc_ipsi: Vec<f64>,
@@ -465,10 +548,10 @@ impl Drnl {
         let empty = Group {
             lin_gain: [0.0; LANES],
             moc: [0.0; LANES],
-            gt_lin: LaneBiquad::ZERO,
-            lp_lin: LaneBiquad::ZERO,
-            gt_nl: LaneBiquad::ZERO,
-            lp_nl: LaneBiquad::ZERO,
+            gt_lin: LaneGt::ZERO,
+            lp_lin: LaneLp::ZERO,
+            gt_nl: LaneGt::ZERO,
+            lp_nl: LaneLp::ZERO,
             comp: [[0.0; LANES]; 2],
             z: [[[0.0; LANES]; 2]; STATES],
         };
@@ -502,6 +585,10 @@ impl Drnl {
                 Vec::new()
             },
             middle_ear,
+            paths: Paths {
+                lin: vec![[0.0; LANES]; TIME_BLOCK],
+                nl: vec![[0.0; LANES]; TIME_BLOCK],
+            },
             partial: if nc < LANES {
                 vec![0.0; TIME_BLOCK * LANES]
             } else {
@@ -577,10 +664,10 @@ impl Drnl {
             };
             for (g, &c0) in self.groups.iter_mut().zip(&self.starts) {
                 if nc >= LANES {
-                    run(g, konst, input, &mut out[c0..], nc);
+                    run(g, konst, input, &mut self.paths, &mut out[c0..], nc);
                 } else {
                     let rows = &mut self.partial[..input.len() * LANES];
-                    run(g, konst, input, rows, LANES);
+                    run(g, konst, input, &mut self.paths, rows, LANES);
                     for (o, r) in out.chunks_exact_mut(nc).zip(rows.chunks_exact(LANES)) {
                         o.copy_from_slice(&r[..nc]);
                     }
@@ -606,5 +693,357 @@ impl Processor for Drnl {
         if let Some(me) = &mut self.middle_ear {
             me.reset();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::chunked::feed;
+    use afe_core::Params;
+    use proptest::prelude::*;
+    use serde_json::Value;
+
+    /// `|H(e^{iω})|` of a section at `f` Hz.
+    fn gain_at(s: &Biquad, f: f64, fs: f64) -> f64 {
+        let w = 2.0 * PI * f / fs;
+        let (c1, s1, c2, s2) = (w.cos(), w.sin(), (2.0 * w).cos(), (2.0 * w).sin());
+        let num = (s.b[0] + s.b[1] * c1 + s.b[2] * c2).hypot(s.b[1] * s1 + s.b[2] * s2);
+        let den = (1.0 + s.a[0] * c1 + s.a[1] * c2).hypot(s.a[0] * s1 + s.a[1] * s2);
+        num / den
+    }
+
+    #[test]
+    fn gt_sections_have_unity_gain_at_their_centre() {
+        for (cf, bw, fs) in [
+            (80.0, 50.0, 44100.0),
+            (1000.0, 150.0, 16000.0),
+            (7000.0, 900.0, 44100.0),
+        ] {
+            let s = gt_section(cf, bw, fs);
+            assert!((gain_at(&s, cf, fs) - 1.0).abs() < 1e-12, "{cf} Hz");
+            assert!(gain_at(&s, cf + 3.0 * bw, fs) < 0.5, "{cf} Hz resonates");
+            assert_eq!(s.b[2], 0.0);
+        }
+    }
+
+    #[test]
+    fn lp_sections_are_butterworth_low_passes() {
+        for (fc, fs) in [(100.0, 44100.0), (1000.0, 16000.0), (7000.0, 44100.0)] {
+            let s = lp_section(fc, fs);
+            assert!((gain_at(&s, 0.0, fs) - 1.0).abs() < 1e-12);
+            assert!(
+                (gain_at(&s, fc, fs) - SQRT_2.recip()).abs() < 1e-12,
+                "{fc} Hz"
+            );
+            assert!(gain_at(&s, fs / 2.0, fs) < 1e-12);
+            assert_eq!((s.b[1], s.b[2]), (2.0 * s.b[0], s.b[0]));
+        }
+    }
+
+    /// The GT sections resonate at the low-pass cut-offs (the AFE's bug), and a and b
+    /// jump to their 1500-Hz values above 1000 Hz.
+    #[test]
+    fn casp_design_reproduces_the_afe() {
+        let fs = 44100.0;
+        for f in [250.0, 1000.0, 4000.0] {
+            let d = casp_channel(f, fs);
+            let lin_fc = 10f64.powf(-0.06762 + 1.01 * f.log10());
+            let declared = 10f64.powf(-0.06762 + 1.01679 * f.log10());
+            assert!((gain_at(&d.gt_lin, lin_fc, fs) - 1.0).abs() < 1e-12);
+            assert!((gain_at(&d.gt_lin, declared, fs) - 1.0).abs() > 1e-6);
+            assert_eq!(d.lp_lin, Some(lp_section(lin_fc, fs)));
+            let nl_fc = 10f64.powf(-0.05252 + 1.01 * f.log10());
+            assert!((gain_at(&d.gt_nl, nl_fc, fs) - 1.0).abs() < 1e-12);
+        }
+        let below = casp_channel(1000.0, fs).compression;
+        let above = casp_channel(1000.001, fs).compression;
+        assert!((below.0 - 10f64.powf(1.40298 + 0.81916 * 3.0)).abs() < 1e-9 * below.0);
+        assert_eq!(above, casp_channel(5000.0, fs).compression);
+        assert!(above.0 / below.0 > 1.39 && below.1 / above.1 > 1.39);
+    }
+
+    /// `|x|^c` within `ulps` of `powf` (relative).
+    fn close(got: f64, want: f64, ulps: f64) -> bool {
+        (got - want).abs() <= ulps * f64::EPSILON * want.abs()
+    }
+
+    #[test]
+    fn compressions_match_their_literal_formulas() {
+        let c = casp_exponent();
+        let delta = c - 0.25;
+        let ct_bm = map_threshold();
+        let (a, b) = casp_channel(2000.0, 44100.0).compression;
+        let (ma, cts) = map_channel(2000.0, 44100.0).compression;
+        for k in -300..=40 {
+            for u in [1.37f64.powi(k), -(1.29f64.powi(k))] {
+                let literal = u.signum() * (a * u.abs()).min(b * u.abs().powf(c));
+                let got = casp_compress(u, a, b, delta);
+                assert!(
+                    close(got, literal, 4.0),
+                    "CASP u={u:e}: {got:e} vs {literal:e}"
+                );
+                let literal = if u.abs() < cts {
+                    ma * u
+                } else {
+                    u.signum() * ct_bm * (0.25 * (ma * u.abs() / ct_bm).ln()).exp()
+                };
+                let got = map_compress(u, ma, cts, ct_bm);
+                assert!(
+                    close(got, literal, 8.0),
+                    "MAP u={u:e}: {got:e} vs {literal:e}"
+                );
+            }
+        }
+        for u in [0.0, -0.0] {
+            assert_eq!(casp_compress(u, a, b, delta), 0.0);
+            assert_eq!(map_compress(u, ma, cts, ct_bm), 0.0);
+        }
+        assert!(casp_compress(f64::INFINITY, a, b, delta).is_infinite());
+    }
+
+    fn params(model: DrnlModel, n_channels: u32) -> FilterbankParams {
+        FilterbankParams {
+            model,
+            n_channels: Some(n_channels),
+            ..Default::default()
+        }
+    }
+
+    fn signal(len: usize) -> Vec<f64> {
+        (0..len)
+            .map(|t| {
+                0.05 * (((t * 7919) % 1000) as f64 / 500.0 - 1.0) * (1.0 + (t as f64 * 0.003).sin())
+            })
+            .collect()
+    }
+
+    fn run(p: &FilterbankParams, x: &[f64]) -> Vec<f64> {
+        let (mut d, info) = Drnl::new(p, 44100.0).expect("valid");
+        let mut y = vec![0.0; x.len() * info.channels()];
+        d.filter(x, &mut y);
+        y
+    }
+
+    #[test]
+    fn silence_gives_exact_zeros() {
+        for model in [DrnlModel::Casp, DrnlModel::Map] {
+            let y = run(&params(model, 7), &vec![0.0; 3000]);
+            assert!(y.iter().all(|v| *v == 0.0), "{model:?}");
+        }
+    }
+
+    /// One channel as the spec writes it: generic DF2T sections (spec 01-P1) in series.
+    fn reference_channel(d: &ChannelDesign, model: DrnlModel, x: &[f64]) -> Vec<f64> {
+        let section = |s: &Biquad, v: &mut Vec<f64>| {
+            let mut z = [0.0; 2];
+            for x in v.iter_mut() {
+                let y = z[0] + s.b[0] * *x;
+                z[0] = (z[1] - s.a[0] * y) + s.b[1] * *x;
+                z[1] = s.b[2] * *x - s.a[1] * y;
+                *x = y;
+            }
+        };
+        let mut lin: Vec<f64> = x.iter().map(|v| d.lin_gain * v).collect();
+        let mut nl = x.to_vec();
+        let (gts, lps) = if model == DrnlModel::Casp {
+            (2, 4)
+        } else {
+            (3, 0)
+        };
+        for _ in 0..gts {
+            section(&d.gt_lin, &mut lin);
+            section(&d.gt_nl, &mut nl);
+        }
+        for _ in 0..lps {
+            section(&d.lp_lin.expect("CASP"), &mut lin);
+        }
+        let (a, b) = d.compression;
+        for v in &mut nl {
+            *v = match model {
+                DrnlModel::Casp => casp_compress(*v, a, b, casp_exponent() - 0.25),
+                DrnlModel::Map => map_compress(*v, a, b, map_threshold()),
+            };
+        }
+        for _ in 0..gts {
+            section(&d.gt_nl, &mut nl);
+        }
+        if let Some(lp) = &d.lp_nl {
+            section(lp, &mut nl);
+        }
+        lin.iter().zip(&nl).map(|(l, n)| l + n).collect()
+    }
+
+    #[test]
+    fn lanes_compute_the_plain_cascade() {
+        let fs = 44100.0;
+        let x = signal(2000);
+        for model in [DrnlModel::Casp, DrnlModel::Map] {
+            for nc in [5u32, 31] {
+                let p = params(model, nc);
+                let y = run(&p, &x);
+                let mut stage = x.clone();
+                if model == DrnlModel::Map {
+                    MapMiddleEar::new(fs).run(&x, &mut stage);
+                }
+                for (c, &f) in p.grid().expect("valid").cf_hz.iter().enumerate() {
+                    let d = match model {
+                        DrnlModel::Casp => casp_channel(f, fs),
+                        DrnlModel::Map => map_channel(f, fs),
+                    };
+                    let want = reference_channel(&d, model, &stage);
+                    let nc = nc as usize;
+                    for (t, w) in want.iter().enumerate() {
+                        assert!(w.abs() > 0.0 || t == 0);
+                        assert_eq!(y[t * nc + c], *w, "{model:?} channel {c} t={t}");
+                    }
+                }
+            }
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 32, failure_persistence: None, ..ProptestConfig::default() })]
+
+        /// Any chunking, empty chunks included, gives the output of one call, bit for bit.
+        #[test]
+        fn chunking_does_not_change_a_bit(
+            sizes in prop::collection::vec(prop_oneof![Just(0usize), 1usize..80, 80usize..900], 1..20),
+            map in any::<bool>(),
+            nc in prop_oneof![Just(3u32), Just(16u32), Just(21u32)],
+        ) {
+            let model = if map { DrnlModel::Map } else { DrnlModel::Casp };
+            let p = params(model, nc);
+            let x = signal(3000);
+            let whole = run(&p, &x);
+            let (mut d, _) = Drnl::new(&p, 44100.0).expect("valid");
+            let sizes = sizes.iter().copied().chain([500]).cycle();
+            let chunked = feed(&mut d, &x, 1, nc as usize, sizes.take(4000));
+            prop_assert_eq!(whole.len(), chunked.len());
+            let first = whole.iter().zip(&chunked).position(|(a, b)| a.to_bits() != b.to_bits());
+            prop_assert!(first.is_none(), "{:?} {} channels: first difference at {:?}", model, nc, first);
+        }
+    }
+
+    #[test]
+    fn reset_restarts_every_state_including_maps_middle_ear() {
+        let x = signal(1500);
+        for model in [DrnlModel::Casp, DrnlModel::Map] {
+            let p = params(model, 9);
+            let (mut d, _) = Drnl::new(&p, 44100.0).expect("valid");
+            let mut first = vec![0.0; x.len() * 9];
+            d.filter(&x, &mut first);
+            d.reset();
+            let mut second = vec![0.0; x.len() * 9];
+            d.filter(&x, &mut second);
+            assert_eq!(first, second, "{model:?}");
+        }
+    }
+
+    /// The non-linear path's gain is `ipsi·contra` per channel, from parameters or from
+    /// [`Drnl::set_moc`] between chunks.
+    #[test]
+    fn moc_gains_scale_the_non_linear_path() {
+        let x = signal(1200);
+        let nc = 4;
+        let base = params(DrnlModel::Casp, nc as u32);
+        let split = FilterbankParams {
+            moc_ipsi: vec![0.5],
+            moc_contra: vec![2.0, 2.0, 2.0, 2.0],
+            ..base.clone()
+        };
+        assert_eq!(run(&base, &x), run(&split, &x));
+        let off = FilterbankParams {
+            moc_ipsi: vec![0.0],
+            ..base.clone()
+        };
+        let (mut d, _) = Drnl::new(&base, 44100.0).expect("valid");
+        let mut y = vec![0.0; x.len() * nc];
+        d.set_moc(&[0.0; 4], &[1.0; 4]).expect("four channels");
+        assert_eq!(d.moc_ipsi(), &[0.0; 4]);
+        d.filter(&x, &mut y);
+        assert_eq!(y, run(&off, &x));
+        assert_ne!(y, run(&base, &x));
+        let e = d
+            .set_moc(&[1.0; 3], &[1.0; 4])
+            .expect_err("3 of 4")
+            .to_string();
+        assert!(
+            e.contains("'fb_mocIpsi'") && e.contains("expected 4 values"),
+            "{e}"
+        );
+    }
+
+    fn from_map(pairs: &[(&str, Value)]) -> Result<FilterbankParams> {
+        FilterbankParams::from_map(
+            &pairs
+                .iter()
+                .map(|(k, v)| (k.to_string(), v.clone()))
+                .collect(),
+        )
+    }
+
+    #[test]
+    fn bad_parameters_are_clear_errors() {
+        let e = from_map(&[("fb_type", json!("drnl")), ("fb_model", json!("casp"))])
+            .expect_err("unknown model")
+            .to_string();
+        assert!(
+            e.contains("'fb_model'") && e.contains("'CASP', 'MAP'"),
+            "{e}"
+        );
+        let e = from_map(&[("fb_type", json!("dnrl"))])
+            .expect_err("unknown type")
+            .to_string();
+        assert!(
+            e.contains("'fb_type'") && e.contains("'gammatone', 'drnl'"),
+            "{e}"
+        );
+        let p = from_map(&[("fb_type", json!("drnl")), ("fb_mocIpsi", json!([1, 1, 1]))])
+            .expect("a vector is accepted before the grid is known");
+        for e in [
+            Drnl::new(&p, 44100.0).expect_err("3 of 31").to_string(),
+            verified(&p).expect_err("3 of 31").to_string(),
+        ] {
+            assert!(
+                e.contains("'fb_mocIpsi'")
+                    && e.contains("expected one value or 31 (one per channel), got 3"),
+                "{e}"
+            );
+        }
+        let e = Drnl::new(&params(DrnlModel::Casp, 8), 15000.0)
+            .expect_err("8 kHz at 15 kHz")
+            .to_string();
+        assert!(
+            e.contains("'fb_highFreqHz'") && e.contains("Nyquist"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn verified_map_expands_the_moc_gains() {
+        let map = verified(&FilterbankParams {
+            moc_contra: vec![0.5],
+            ..Default::default()
+        })
+        .expect("valid");
+        assert_eq!(map["fb_mocContra"], json!(vec![0.5; 31]));
+        assert_eq!(map["fb_mocIpsi"], json!(vec![1.0; 31]));
+        assert_eq!(map["fb_model"], json!("CASP"));
+        let mut keys: Vec<&str> = map.keys().map(String::as_str).collect();
+        keys.sort_unstable();
+        assert_eq!(
+            keys,
+            [
+                "fb_cfHz",
+                "fb_highFreqHz",
+                "fb_lowFreqHz",
+                "fb_mocContra",
+                "fb_mocIpsi",
+                "fb_model",
+                "fb_nChannels",
+                "fb_nERBs"
+            ]
+        );
     }
 }

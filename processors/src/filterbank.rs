@@ -149,13 +149,15 @@ impl Params for FilterbankParams {
             name: "fb_mocIpsi",
             kind: ParamKind::Numbers,
             unit: "",
-            description: "ipsilateral MOC gain on the non-linear path, one or one per channel (drnl only)",
+            description:
+                "ipsilateral MOC gain on the non-linear path, one or one per channel (drnl only)",
         },
         ParamSpec {
             name: "fb_mocContra",
             kind: ParamKind::Numbers,
             unit: "",
-            description: "contralateral MOC gain on the non-linear path, one or one per channel (drnl only)",
+            description:
+                "contralateral MOC gain on the non-linear path, one or one per channel (drnl only)",
         },
         ParamSpec {
             name: "fb_model",
@@ -468,8 +470,14 @@ mod tests {
             e.contains("'fb_type'") && e.contains("'gammatone', 'drnl'"),
             "{e}"
         );
-        assert_eq!(fb_type_of(&map(&[("fb_type", json!("dnrl"))])), FbType::Gammatone);
-        assert_eq!(fb_type_of(&map(&[("fb_type", json!("drnl"))])), FbType::Drnl);
+        assert_eq!(
+            fb_type_of(&map(&[("fb_type", json!("dnrl"))])),
+            FbType::Gammatone
+        );
+        assert_eq!(
+            fb_type_of(&map(&[("fb_type", json!("drnl"))])),
+            FbType::Drnl
+        );
         assert_eq!(fb_type_of(&ParamMap::new()), FbType::Gammatone);
     }
 

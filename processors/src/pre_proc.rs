@@ -416,6 +416,23 @@ mod tests {
         outs.into_iter().map(Block::into_vec).collect()
     }
 
+    /// Under a DRNL the middle-ear output is not unity-compensated (spec 12-drnl), and
+    /// the node's parameters say so.
+    #[test]
+    fn drnl_requests_turn_unity_compensation_off() {
+        let map = |fb_type: &str| -> afe_core::ParamMap {
+            [("fb_type".to_string(), serde_json::json!(fb_type))]
+                .into_iter()
+                .collect()
+        };
+        let drnl = <PreProc as Descriptor>::params(&map("drnl")).expect("valid");
+        assert!(!drnl.unity_comp);
+        let gammatone = <PreProc as Descriptor>::params(&map("gammatone")).expect("valid");
+        assert!(gammatone.unity_comp);
+        let canonical = (REQUEST.canonical)(&map("drnl")).expect("valid");
+        assert_eq!(canonical["pp_bUnityComp"], serde_json::json!(false));
+    }
+
     #[test]
     fn specs_match_struct() {
         afe_core::params::check_param_specs::<PreProcParams>();

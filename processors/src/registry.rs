@@ -6,8 +6,8 @@
 use afe_core::{Error, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo};
 
 use crate::{
-    adaptation, ams_features, autocorrelation, butterworth, crosscorrelation, filterbank, gabor, ic,
-    ihc, ild, itd, pitch, pre_proc, ratemap, spectral_features, stft, transient, transient_map,
+    adaptation, ams_features, autocorrelation, butterworth, crosscorrelation, filterbank, gabor,
+    ic, ihc, ild, itd, pitch, pre_proc, ratemap, spectral_features, stft, transient, transient_map,
 };
 
 /// How a processor relates to the ears (the AFE's binaural flag).
