@@ -12,6 +12,8 @@
 //!   Group `all`: every registered request at once, fed the same way.
 //! * Group `gammatone`: the filterbank kernel alone, one ear, 16/32/64 channels, in
 //!   channel-samples per second.
+//! * Group `drnl`: the DRNL filterbank alone (`casp`, `map`), one ear, 16/32 channels,
+//!   in channel-samples per second.
 //! * Group `stages`: each processor after the filterbank alone (`innerhaircell` and
 //!   `ratemap` on one ear, `ild` and `crosscorrelation` on both), fed its real input
 //!   (the example's IHC envelopes), 16/32/64 channels, chunks of 441, 2205 and the whole
@@ -147,16 +149,17 @@ fn request_set(c: &mut Criterion, name: &str, requests: &[&str]) {
 /// 16/32/64 channels, chunks of 441 (10 ms), 2205 (BASS default) and the whole signal.
 fn gammatone(c: &mut Criterion) {
     use afe_core::{Block, Processor};
-    use afe_processors::gammatone::{Gammatone, GammatoneParams};
+    use afe_processors::filterbank::FilterbankParams;
+    use afe_processors::gammatone::Gammatone;
     let (fs, left, _) = example();
     let mut group = c.benchmark_group("gammatone");
     group.sample_size(10);
     group.warm_up_time(Duration::from_secs(1));
     group.measurement_time(Duration::from_secs(2));
     for channels in [16u32, 32, 64] {
-        let params = GammatoneParams {
+        let params = FilterbankParams {
             n_channels: Some(channels),
-            ..GammatoneParams::default()
+            ..FilterbankParams::default()
         };
         let (mut fb, _) = Gammatone::new(&params, fs).expect("filterbank");
         group.throughput(Throughput::Elements(
@@ -183,11 +186,57 @@ fn gammatone(c: &mut Criterion) {
     group.finish();
 }
 
+/// The DRNL filterbank alone (CASP and MAP), one ear, in channel-samples per second (one
+/// core): 16/32 channels, chunks of 441 (10 ms), 2205 (BASS default) and the whole signal.
+fn drnl(c: &mut Criterion) {
+    use afe_core::{Block, Processor};
+    use afe_processors::drnl::{Drnl, DrnlModel};
+    use afe_processors::filterbank::{FbType, FilterbankParams};
+    let (fs, left, _) = example();
+    let mut group = c.benchmark_group("drnl");
+    group.sample_size(10);
+    group.warm_up_time(Duration::from_secs(1));
+    group.measurement_time(Duration::from_secs(2));
+    for (model, name) in [(DrnlModel::Casp, "casp"), (DrnlModel::Map, "map")] {
+        for channels in [16u32, 32] {
+            let params = FilterbankParams {
+                fb_type: FbType::Drnl,
+                model,
+                n_channels: Some(channels),
+                ..FilterbankParams::default()
+            };
+            let (mut fb, _) = Drnl::new(&params, fs).expect("filterbank");
+            group.throughput(Throughput::Elements(
+                left.len() as u64 * u64::from(channels),
+            ));
+            for chunk in [441, 2205, left.len()] {
+                let blocks: Vec<Block> = left
+                    .chunks(chunk)
+                    .map(|c| Block::from_vec(c.to_vec(), 1))
+                    .collect();
+                let mut out = vec![Block::new(channels as usize)];
+                let id = BenchmarkId::new(format!("{name}/{channels}ch"), chunk);
+                group.bench_function(id, |b| {
+                    b.iter(|| {
+                        fb.reset();
+                        for x in &blocks {
+                            fb.process(&[black_box(x)], &mut out);
+                        }
+                        black_box(out[0].frames())
+                    })
+                });
+            }
+        }
+    }
+    group.finish();
+}
+
 /// The processors after the filterbank, each alone on its real input (see the crate doc).
 fn stages(c: &mut Criterion) {
     use afe_core::{Block, Processor, SignalInfo};
     use afe_processors::crosscorrelation::{Crosscorrelation, CrosscorrelationParams};
-    use afe_processors::gammatone::{Gammatone, GammatoneParams};
+    use afe_processors::filterbank::FilterbankParams;
+    use afe_processors::gammatone::Gammatone;
     use afe_processors::ihc::{Ihc, IhcParams};
     use afe_processors::ild::{Ild, IldParams};
     use afe_processors::ratemap::{Ratemap, RatemapParams};
@@ -231,9 +280,9 @@ fn stages(c: &mut Criterion) {
     group.measurement_time(Duration::from_secs(1));
     group.throughput(Throughput::Elements(left.len() as u64));
     for channels in [16u32, 32, 64] {
-        let params = GammatoneParams {
+        let params = FilterbankParams {
             n_channels: Some(channels),
-            ..GammatoneParams::default()
+            ..FilterbankParams::default()
         };
         let mut fb_info = SignalInfo::time_domain(fs);
         let mut ihc_info = fb_info.clone();
@@ -283,10 +332,10 @@ fn stages(c: &mut Criterion) {
 
 /// The benchmark list (in a private module: the macro makes an undocumented `pub fn`).
 mod list {
-    use super::{chain, gammatone, per_request, stages};
+    use super::{chain, drnl, gammatone, per_request, stages};
     use criterion::criterion_group;
 
-    criterion_group!(benches, per_request, chain, gammatone, stages);
+    criterion_group!(benches, per_request, chain, gammatone, drnl, stages);
 }
 
 criterion_main!(list::benches);

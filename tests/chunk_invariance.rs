@@ -135,6 +135,18 @@ fn configurations() -> Vec<(Vec<&'static str>, ParamMap)> {
             ]),
         ),
         (
+            vec!["ratemap", "ild", "crosscorrelation"],
+            params(&[("fb_type", json!("drnl")), ("fb_nChannels", json!(10))]),
+        ),
+        (
+            vec!["adaptation", "autocorrelation"],
+            params(&[
+                ("fb_type", json!("drnl")),
+                ("fb_model", json!("MAP")),
+                ("fb_cfHz", json!([300, 1200, 5000])),
+            ]),
+        ),
+        (
             vec!["innerhaircell", "butterworth"],
             params(&[
                 ("ihc_method", json!("halfwave")),

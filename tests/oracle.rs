@@ -35,7 +35,7 @@ fn supported(meta: &Value) -> bool {
     meta["requests"].as_array().is_some_and(|r| {
         r.iter()
             .all(|x| afe::find_request(x.as_str().unwrap_or("")).is_ok())
-    }) && meta["nondefault_params"]["fb_type"] != "drnl"
+    })
 }
 
 fn case_from(

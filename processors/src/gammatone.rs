@@ -4,248 +4,44 @@
 //! The coefficients follow the reference recipe operation by operation (component-wise
 //! division by fs, convolution as `a[k] + (−p)·a[k−1]`, textbook complex products, no FMA):
 //! the expanded polynomial is ill-conditioned at low centre frequencies, and this recipe
-//! reproduces the MATLAB AFE bit for bit.
+//! reproduces the MATLAB AFE bit for bit. The request and the grid are
+//! [`crate::filterbank`]'s.
 
 use std::f64::consts::PI;
 
-use afe_core::erb::{colon_range, erb2freq, freq2erb, linspace};
 use afe_core::lanes::vector_start;
-use afe_core::{
-    Block, Error, ParamKind, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo,
-};
-use serde::{Deserialize, Serialize};
-use serde_json::{json, Value};
+use afe_core::{Block, ParamMap, Processor, Result, SignalInfo};
+use serde_json::json;
 
 use crate::cpu::has_avx512;
+use crate::filterbank::{invalid, CfGrid, FilterbankParams};
 
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
-
-/// Parameters of the gammatone filterbank, under their AFE names.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct GammatoneParams {
-    /// Filterbank type (AFE `fb_type`); only `'gammatone'` is implemented.
-    #[serde(rename = "fb_type")]
-    pub fb_type: String,
-    /// Lowest centre frequency in Hz (AFE `fb_lowFreqHz`).
-    #[serde(rename = "fb_lowFreqHz")]
-    pub low_freq_hz: f64,
-    /// Highest requested centre frequency in Hz (AFE `fb_highFreqHz`).
-    #[serde(rename = "fb_highFreqHz")]
-    pub high_freq_hz: f64,
-    /// Channel spacing in ERBs (AFE `fb_nERBs`).
-    #[serde(rename = "fb_nERBs")]
-    pub n_erbs: f64,
-    /// Number of channels; overrides the spacing when given (AFE `fb_nChannels`).
-    #[serde(rename = "fb_nChannels")]
-    pub n_channels: Option<u32>,
-    /// Explicit centre frequencies in Hz; highest priority when given (AFE `fb_cfHz`).
-    #[serde(rename = "fb_cfHz")]
-    pub cf_hz: Vec<f64>,
-    /// Gammatone order (AFE `fb_nGamma`).
-    #[serde(rename = "fb_nGamma")]
-    pub n_gamma: u32,
-    /// Bandwidth in ERBs (AFE `fb_bwERBs`).
-    #[serde(rename = "fb_bwERBs")]
-    pub bw_erbs: f64,
-    /// Phase-align the impulse responses (AFE `fb_bAlign`).
-    #[serde(rename = "fb_bAlign")]
-    pub align: bool,
+/// The gammatone's verified parameters (the AFE's verify step): the grid, order,
+/// bandwidth, alignment and the informational per-channel delay `fb_delaySec`.
+pub(crate) fn verified(params: &FilterbankParams) -> Result<ParamMap> {
+    let (grid, delay_s) = grid_and_delays(params)?;
+    let mut map = ParamMap::new();
+    grid.insert_into(&mut map);
+    map.insert("fb_nGamma".into(), json!(params.n_gamma));
+    map.insert("fb_bwERBs".into(), json!(params.bw_erbs));
+    map.insert("fb_bAlign".into(), json!(params.align));
+    map.insert("fb_delaySec".into(), json!(delay_s));
+    Ok(map)
 }
 
-impl Default for GammatoneParams {
-    fn default() -> Self {
-        GammatoneParams {
-            fb_type: "gammatone".into(),
-            low_freq_hz: 80.0,
-            high_freq_hz: 8000.0,
-            n_erbs: 1.0,
-            n_channels: None,
-            cf_hz: Vec::new(),
-            n_gamma: 4,
-            bw_erbs: 1.018,
-            align: false,
-        }
+/// The grid and the envelope-peak delay per channel in s, `3/(2π·bw)` (informational,
+/// the constant 3 whatever the order, as in the AFE).
+fn grid_and_delays(params: &FilterbankParams) -> Result<(CfGrid, Vec<f64>)> {
+    if params.bw_erbs <= 0.0 {
+        return Err(invalid("fb_bwERBs", params.bw_erbs, "must be > 0"));
     }
-}
-
-impl Params for GammatoneParams {
-    const SPECS: &'static [ParamSpec] = &[
-        ParamSpec {
-            name: "fb_type",
-            kind: ParamKind::Choice(&["gammatone"]),
-            unit: "",
-            description: "filterbank type",
-        },
-        ParamSpec {
-            name: "fb_lowFreqHz",
-            kind: ParamKind::Number,
-            unit: "Hz",
-            description: "lowest centre frequency",
-        },
-        ParamSpec {
-            name: "fb_highFreqHz",
-            kind: ParamKind::Number,
-            unit: "Hz",
-            description: "highest requested centre frequency",
-        },
-        ParamSpec {
-            name: "fb_nERBs",
-            kind: ParamKind::Number,
-            unit: "ERB",
-            description: "channel spacing on the ERB-number scale",
-        },
-        ParamSpec {
-            name: "fb_nChannels",
-            kind: ParamKind::Count,
-            unit: "",
-            description: "number of channels (overrides fb_nERBs; [] = derive from the spacing)",
-        },
-        ParamSpec {
-            name: "fb_cfHz",
-            kind: ParamKind::Numbers,
-            unit: "Hz",
-            description: "explicit centre frequencies (overrides everything; [] = derive)",
-        },
-        ParamSpec {
-            name: "fb_nGamma",
-            kind: ParamKind::Count,
-            unit: "",
-            description: "gammatone filter order",
-        },
-        ParamSpec {
-            name: "fb_bwERBs",
-            kind: ParamKind::Number,
-            unit: "ERB",
-            description: "filter bandwidth in ERBs",
-        },
-        ParamSpec {
-            name: "fb_bAlign",
-            kind: ParamKind::Flag,
-            unit: "",
-            description: "phase-align the channels' impulse responses",
-        },
-    ];
-}
-
-fn invalid(name: &str, value: impl std::fmt::Debug, reason: impl Into<String>) -> Error {
-    // Debug prints a float in its shortest form, 1e308 rather than 309 digits
-    Error::InvalidParameter {
-        name: name.into(),
-        value: format!("{value:?}"),
-        reason: reason.into(),
-    }
-}
-
-/// Highest `fb_highFreqHz` accepted, Hz: far above any sampling rate's Nyquist frequency,
-/// low enough that the ERB grid up to it stays countable.
-const MAX_HIGH_FREQ_HZ: f64 = 1e7;
-
-/// The centre-frequency grid and derived values of a parameter set (the AFE's verify step).
-#[derive(Debug, Clone, PartialEq)]
-pub struct GammatoneGrid {
-    /// Centre frequencies in Hz.
-    pub cf_hz: Vec<f64>,
-    /// Envelope-peak delay per channel in s, `3/(2π·bw)` (informational).
-    pub delay_s: Vec<f64>,
-    /// The parameter map as the AFE reports it after verification.
-    pub map: ParamMap,
-}
-
-/// Largest filterbank: more channels than this is a parameter mistake, not a use case.
-pub const MAX_CHANNELS: usize = 1024;
-
-impl GammatoneParams {
-    /// Checks the parameters and derives the grid (priority `fb_cfHz` > `fb_nChannels` >
-    /// `fb_nERBs`), as the AFE's verify step does.
-    pub fn grid(&self) -> Result<GammatoneGrid> {
-        if self.bw_erbs <= 0.0 {
-            return Err(invalid("fb_bwERBs", self.bw_erbs, "must be > 0"));
-        }
-        let (cf, n_erbs, low, high): (Vec<f64>, Value, f64, f64) = if !self.cf_hz.is_empty() {
-            if let Some(bad) = self.cf_hz.iter().find(|f| **f <= 0.0) {
-                return Err(invalid("fb_cfHz", bad, "centre frequencies must be > 0 Hz"));
-            }
-            if self.cf_hz.len() > MAX_CHANNELS {
-                return Err(invalid(
-                    "fb_cfHz",
-                    format_args!("[{} values]", self.cf_hz.len()),
-                    format!("at most {MAX_CHANNELS} channels are supported"),
-                ));
-            }
-            let cf = self.cf_hz.clone();
-            let (lo, hi) = (cf[0], cf[cf.len() - 1]);
-            (cf, json!("n/a"), lo, hi)
-        } else {
-            if self.low_freq_hz <= 0.0 {
-                return Err(invalid("fb_lowFreqHz", self.low_freq_hz, "must be > 0 Hz"));
-            }
-            if self.high_freq_hz.is_nan() || self.high_freq_hz > MAX_HIGH_FREQ_HZ {
-                return Err(invalid(
-                    "fb_highFreqHz",
-                    self.high_freq_hz,
-                    "must be a frequency in Hz below the Nyquist frequency of the input",
-                ));
-            }
-            if self.high_freq_hz < self.low_freq_hz {
-                return Err(invalid(
-                    "fb_highFreqHz",
-                    self.high_freq_hz,
-                    format!("must be ≥ fb_lowFreqHz ({} Hz)", self.low_freq_hz),
-                ));
-            }
-            let (elo, ehi) = (freq2erb(self.low_freq_hz), freq2erb(self.high_freq_hz));
-            match self.n_channels {
-                Some(0) => return Err(invalid("fb_nChannels", 0, "must be at least 1")),
-                Some(n) if n as usize > MAX_CHANNELS => {
-                    return Err(invalid(
-                        "fb_nChannels",
-                        n,
-                        format!("at most {MAX_CHANNELS} channels are supported"),
-                    ))
-                }
-                Some(n) => {
-                    let e = linspace(elo, ehi, n as usize);
-                    let spacing = (e[e.len() - 1] - e[0]) / f64::from(n);
-                    let cf = e.into_iter().map(erb2freq).collect();
-                    (cf, json!(spacing), self.low_freq_hz, self.high_freq_hz)
-                }
-                None => {
-                    let count = (ehi - elo) / self.n_erbs;
-                    if self.n_erbs <= 0.0 || count >= MAX_CHANNELS as f64 {
-                        return Err(invalid(
-                            "fb_nERBs",
-                            self.n_erbs,
-                            format!(
-                                "must be > 0 and give at most {MAX_CHANNELS} channels between fb_lowFreqHz and fb_highFreqHz"
-                            ),
-                        ));
-                    }
-                    let cf: Vec<f64> = colon_range(elo, self.n_erbs, ehi)
-                        .into_iter()
-                        .map(erb2freq)
-                        .collect();
-                    (cf, json!(self.n_erbs), self.low_freq_hz, self.high_freq_hz)
-                }
-            }
-        };
-        let delay_s: Vec<f64> = cf
-            .iter()
-            .map(|f| 3.0 / (2.0 * PI * (self.bw_erbs * (24.7 + 0.108 * f))))
-            .collect();
-        let mut map = self.to_map();
-        map.insert("fb_cfHz".into(), json!(cf));
-        map.insert("fb_nChannels".into(), json!(cf.len()));
-        map.insert("fb_nERBs".into(), n_erbs);
-        map.insert("fb_lowFreqHz".into(), json!(low));
-        map.insert("fb_highFreqHz".into(), json!(high));
-        map.insert("fb_delaySec".into(), json!(delay_s));
-        Ok(GammatoneGrid {
-            cf_hz: cf,
-            delay_s,
-            map,
-        })
-    }
+    let grid = params.grid()?;
+    let delay_s = grid
+        .cf_hz
+        .iter()
+        .map(|f| 3.0 / (2.0 * PI * (params.bw_erbs * (24.7 + 0.108 * f))))
+        .collect();
+    Ok((grid, delay_s))
 }
 
 /// Designed coefficients of one channel: `H(z) = b0 / (1 − p z⁻¹)^n`.
@@ -418,45 +214,16 @@ pub struct Gammatone {
 }
 
 impl Gammatone {
-    /// Designs the filterbank for input rate `fs` Hz; returns it with its output signal.
-    /// (The verified parameter map is [`GammatoneParams::grid`]'s.)
-    pub fn new(params: &GammatoneParams, fs: f64) -> Result<(Self, SignalInfo)> {
+    /// Designs the filterbank for input rate `fs` Hz from the gammatone's parameters of
+    /// `params`; returns it with its output signal.
+    pub fn new(params: &FilterbankParams, fs: f64) -> Result<(Self, SignalInfo)> {
         Self::with_width(params, fs, has_avx512())
     }
 
     /// [`Gammatone::new`] with the group width chosen by the caller (`wide`: 16 lanes).
-    fn with_width(params: &GammatoneParams, fs: f64, wide: bool) -> Result<(Self, SignalInfo)> {
-        let grid = params.grid()?;
-        if let Some(bad) = grid.cf_hz.iter().find(|f| **f >= fs / 2.0) {
-            let nyquist = fs / 2.0;
-            return Err(if params.cf_hz.is_empty() {
-                let default = GammatoneParams::default().high_freq_hz;
-                let which = if params.high_freq_hz == default {
-                    " (the default)"
-                } else {
-                    ""
-                };
-                invalid(
-                    "fb_highFreqHz",
-                    params.high_freq_hz,
-                    format!(
-                        "{}{which} puts centre frequencies up to {bad:.0} Hz, above the Nyquist \
-                         frequency ({nyquist} Hz) of the {fs} Hz input: set fb_highFreqHz below \
-                         {nyquist} Hz",
-                        params.high_freq_hz
-                    ),
-                )
-            } else {
-                invalid(
-                    "fb_cfHz",
-                    bad,
-                    format!(
-                        "centre frequencies must lie below the Nyquist frequency ({nyquist} Hz) \
-                         of the {fs} Hz input"
-                    ),
-                )
-            });
-        }
+    fn with_width(params: &FilterbankParams, fs: f64, wide: bool) -> Result<(Self, SignalInfo)> {
+        let (grid, _) = grid_and_delays(params)?;
+        grid.check_below_nyquist(params, fs)?;
         let order = params.n_gamma as usize;
         if order > MAX_ORDER {
             return Err(invalid(
@@ -556,73 +323,22 @@ impl Processor for Gammatone {
     }
 }
 
-impl Descriptor for Gammatone {
-    type Params = GammatoneParams;
-    const NAME: &'static str = "filterbank";
-    const DEPENDENCY: &'static str = "time";
-    const EARS: Ears = Ears::PerEar;
-    const DESCRIPTION: &'static str = "gammatone filterbank output per frequency channel";
-    const OUTPUT_UNIT: &'static str = "";
-    /// The channel grid, which every representation above is laid out on.
-    const FIXED: &'static [&'static str] = &[
-        "fb_type",
-        "fb_lowFreqHz",
-        "fb_highFreqHz",
-        "fb_nERBs",
-        "fb_cfHz",
-    ];
-
-    fn build(params: &GammatoneParams, inputs: &[SignalInfo]) -> Result<Built> {
-        let (p, out) = Gammatone::new(params, inputs[0].fs_hz)?;
-        Ok(Built::new(p, vec![out]))
-    }
-
-    /// The resolved channel grid (equal grids from different parameter sets are shared).
-    fn canonical(params: &GammatoneParams) -> Result<ParamMap> {
-        Ok(params.grid()?.map)
-    }
-}
-
-/// The registry entry of `filterbank`.
-pub static REQUEST: RequestDef = request_def::<Gammatone>();
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
-    fn specs_match_struct() {
-        afe_core::params::check_param_specs::<GammatoneParams>();
-    }
-
-    #[test]
-    fn default_grid_has_31_channels_with_the_afe_bits() {
-        let grid = GammatoneParams::default().grid().expect("valid");
-        assert_eq!(grid.cf_hz.len(), 31);
-        assert_eq!(grid.cf_hz[0], 80.00000000000001);
-        assert_eq!(grid.cf_hz[1], 115.20010915768904);
-        assert_eq!(grid.cf_hz[30], 7641.313909478947);
-        assert_eq!(grid.delay_s[0], 0.014067859196599362);
-    }
-
-    #[test]
-    fn channel_count_mode_spans_both_ends() {
-        let p = GammatoneParams {
-            n_channels: Some(16),
-            low_freq_hz: 100.0,
-            ..Default::default()
-        };
-        let grid = p.grid().expect("valid");
-        assert_eq!(grid.cf_hz.len(), 16);
-        assert!((grid.cf_hz[0] - 100.0).abs() < 1e-9);
-        assert!((grid.cf_hz[15] - 8000.0).abs() < 1e-9);
+    fn default_delays_have_the_afe_bits() {
+        let map = verified(&FilterbankParams::default()).expect("valid");
+        assert_eq!(map["fb_delaySec"][0], json!(0.014067859196599362));
+        assert_eq!(map["fb_nChannels"], json!(31));
     }
 
     #[test]
     fn impulse_response_matches_the_closed_form() {
         // h[t] = 2·g·C(t+n−1, n−1)·r^t·cos(2π·cf·t/fs), r = e^{−β}
         let fs = 16000.0;
-        let p = GammatoneParams {
+        let p = FilterbankParams {
             cf_hz: vec![1000.0],
             ..Default::default()
         };
@@ -645,7 +361,7 @@ mod tests {
     #[test]
     fn unit_gain_at_centre_frequency() {
         let fs = 44100.0;
-        let p = GammatoneParams {
+        let p = FilterbankParams {
             cf_hz: vec![1000.0],
             ..Default::default()
         };
@@ -661,31 +377,8 @@ mod tests {
     }
 
     #[test]
-    fn absurd_channel_counts_are_errors_not_allocations() {
-        for p in [
-            GammatoneParams {
-                n_erbs: 1e-9,
-                ..Default::default()
-            },
-            GammatoneParams {
-                n_erbs: 1e-300,
-                ..Default::default()
-            },
-            GammatoneParams {
-                n_channels: Some(u32::MAX),
-                ..Default::default()
-            },
-        ] {
-            let e = p.grid().expect_err("too many channels");
-            assert!(e.to_string().contains("at most 1024 channels"), "{e}");
-        }
-        let p = GammatoneParams {
-            n_channels: Some(0),
-            ..Default::default()
-        };
-        let e = p.grid().expect_err("no channel");
-        assert!(e.to_string().contains("at least 1"), "{e}");
-        let p = GammatoneParams {
+    fn centre_frequencies_above_nyquist_are_errors() {
+        let p = FilterbankParams {
             cf_hz: vec![100.0, 900.0],
             ..Default::default()
         };
@@ -701,7 +394,7 @@ mod tests {
         // 5 channels: both widths take the partial path; 13: partial (16 lanes) against
         // overlapping groups (8); 31: overlapping groups in both.
         for (align, n_channels) in [(false, 5), (false, 13), (false, 31), (true, 31)] {
-            let p = GammatoneParams {
+            let p = FilterbankParams {
                 align,
                 n_channels: Some(n_channels),
                 ..Default::default()
@@ -762,7 +455,7 @@ mod tests {
         for (align, order, n_channels) in
             [(false, 4, 31), (true, 4, 13), (false, 1, 9), (false, 8, 5)]
         {
-            let p = GammatoneParams {
+            let p = FilterbankParams {
                 align,
                 n_gamma: order,
                 n_channels: Some(n_channels),
@@ -794,7 +487,7 @@ mod tests {
 
     #[test]
     fn rejects_channels_above_nyquist() {
-        let err = Gammatone::new(&GammatoneParams::default(), 8000.0)
+        let err = Gammatone::new(&FilterbankParams::default(), 8000.0)
             .expect_err("the default grid reaches 7.6 kHz, above the 4 kHz Nyquist frequency");
         // issue 13, item 9: the message names the value the user has (the default) and
         // what to set, not a centre frequency as if it were fb_highFreqHz
@@ -807,7 +500,7 @@ mod tests {
             msg.contains("(the default)") && msg.contains("below 4000 Hz"),
             "{msg}"
         );
-        let p = GammatoneParams {
+        let p = FilterbankParams {
             high_freq_hz: 1e308,
             n_erbs: 1.0,
             ..Default::default()

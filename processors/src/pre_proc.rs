@@ -5,9 +5,12 @@
 
 use afe_core::butter::{butter, ButterType};
 use afe_core::filter::Df2t;
-use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
+use afe_core::{
+    Block, Error, ParamKind, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo,
+};
 use serde::{Deserialize, Serialize};
 
+use crate::filterbank::{fb_type_of, FbType};
 use crate::middle_ear;
 
 use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
@@ -372,6 +375,20 @@ impl Descriptor for PreProc {
         "pre-processed ear signals (DC removal, pre-emphasis, AGC, level, middle ear)";
     const OUTPUT_UNIT: &'static str = "";
 
+    /// With `fb_type = 'drnl'` the middle-ear output is not unity-compensated
+    /// (`pp_bUnityComp = false`, spec 12-drnl): the DRNL's coefficients expect the
+    /// physical units. The AFE's DRNL sets this in the pre-processor it is prepared on;
+    /// here it follows from the request's parameters, which gives a DRNL chain its own
+    /// pre-processor, as the AFE's sharing rule does. (A request without a filterbank,
+    /// e.g. `stft`, given `fb_type = 'drnl'` is affected too, where the AFE would not be.)
+    fn params(map: &ParamMap) -> Result<PreProcParams> {
+        let mut params = PreProcParams::from_map(map)?;
+        if fb_type_of(map) == FbType::Drnl {
+            params.unity_comp = false;
+        }
+        Ok(params)
+    }
+
     fn build(params: &PreProcParams, inputs: &[SignalInfo]) -> Result<Built> {
         let (p, outputs) = PreProc::new(params, inputs[0].fs_hz, inputs.len())?;
         Ok(Built::new(p, outputs))
@@ -397,6 +414,23 @@ mod tests {
         let mut outs = vec![Block::new(1); ears.len()];
         pre.process(&refs, &mut outs);
         outs.into_iter().map(Block::into_vec).collect()
+    }
+
+    /// Under a DRNL the middle-ear output is not unity-compensated (spec 12-drnl), and
+    /// the node's parameters say so.
+    #[test]
+    fn drnl_requests_turn_unity_compensation_off() {
+        let map = |fb_type: &str| -> afe_core::ParamMap {
+            [("fb_type".to_string(), serde_json::json!(fb_type))]
+                .into_iter()
+                .collect()
+        };
+        let drnl = <PreProc as Descriptor>::params(&map("drnl")).expect("valid");
+        assert!(!drnl.unity_comp);
+        let gammatone = <PreProc as Descriptor>::params(&map("gammatone")).expect("valid");
+        assert!(gammatone.unity_comp);
+        let canonical = (REQUEST.canonical)(&map("drnl")).expect("valid");
+        assert_eq!(canonical["pp_bUnityComp"], serde_json::json!(false));
     }
 
     #[test]

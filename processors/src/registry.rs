@@ -6,9 +6,9 @@
 use afe_core::{Error, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo};
 
 use crate::{
-    adaptation, ams_features, autocorrelation, butterworth, crosscorrelation, duet, gabor,
-    gammatone, ic, ihc, ild, itd, moc, pitch, pre_proc, ratemap, spectral_features, stft,
-    transient, transient_map,
+    adaptation, ams_features, autocorrelation, butterworth, crosscorrelation, duet, filterbank,
+    gabor, ic, ihc, ild, itd, moc, pitch, pre_proc, ratemap, spectral_features, stft, transient,
+    transient_map,
 };
 
 /// How a processor relates to the ears (the AFE's binaural flag).
@@ -109,6 +109,14 @@ pub trait Descriptor {
     /// (see [`RequestDef::feeds_back_to`]).
     const FEEDS_BACK_TO: Option<&'static str> = None;
 
+    /// This processor's parameters in a request's map (defaults filled, values checked).
+    /// A processor whose parameters another processor of the chain changes (the DRNL
+    /// turns off the pre-processing's unity compensation) applies that here, so that its
+    /// node, its sharing and its listed parameters say what it computes.
+    fn params(map: &ParamMap) -> Result<Self::Params> {
+        Self::Params::from_map(map)
+    }
+
     /// Builds the processor for the parents' outputs `inputs` (the dependency's, then
     /// those of the extra inputs).
     fn build(params: &Self::Params, inputs: &[SignalInfo]) -> Result<Built>;
@@ -155,26 +163,26 @@ fn defaults<D: Descriptor>() -> ParamMap {
 }
 
 fn canonical<D: Descriptor>(map: &ParamMap) -> Result<ParamMap> {
-    D::canonical(&D::Params::from_map(map)?)
+    D::canonical(&D::params(map)?)
 }
 
 fn build<D: Descriptor>(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
-    D::build(&D::Params::from_map(map)?, inputs)
+    D::build(&D::params(map)?, inputs)
 }
 
 fn chunk_invariant<D: Descriptor>(map: &ParamMap) -> bool {
-    D::Params::from_map(map).is_ok_and(|p| D::chunk_invariant(&p))
+    D::params(map).is_ok_and(|p| D::chunk_invariant(&p))
 }
 
 fn extra_inputs<D: Descriptor>(map: &ParamMap) -> &'static [&'static str] {
-    D::Params::from_map(map).map_or(&[], |p| D::extra_inputs(&p))
+    D::params(map).map_or(&[], |p| D::extra_inputs(&p))
 }
 
 /// Every request, in dependency order: one line per processor module.
 static REQUESTS: &[&RequestDef] = &[
     &pre_proc::REQUEST,
     &butterworth::REQUEST,
-    &gammatone::REQUEST,
+    &filterbank::REQUEST,
     &ihc::REQUEST,
     &adaptation::REQUEST,
     &ratemap::REQUEST,

@@ -1,0 +1,505 @@
+//! `filterbank`: the basilar-membrane stage, a gammatone filterbank ([`crate::gammatone`])
+//! or a dual-resonance non-linear one ([`crate::drnl`]) chosen by `fb_type` (spec
+//! 00-overview §1, §3). This module owns what both share: the request's parameters, the
+//! centre-frequency grid (spec 11-gammatone) and the dispatch; each type's module owns
+//! its processor.
+
+use afe_core::erb::{colon_range, erb2freq, freq2erb, linspace};
+use afe_core::{Error, ParamKind, ParamMap, ParamSpec, Params, Result, SignalInfo};
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+
+use crate::drnl::{Drnl, DrnlModel};
+use crate::gammatone::Gammatone;
+use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
+
+/// The filterbank class of a `filterbank` request (AFE `fb_type`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum FbType {
+    /// Linear complex gammatone filters (spec 11-gammatone).
+    #[serde(rename = "gammatone")]
+    Gammatone,
+    /// Dual-resonance non-linear filters (spec 12-drnl).
+    #[serde(rename = "drnl")]
+    Drnl,
+}
+
+/// Parameters of a `filterbank` request, under their AFE names: the grid shared by both
+/// types and those of each type. Every one is accepted whatever `fb_type` says (as in the
+/// AFE); a type ignores the others' (see [`Filterbank::canonical`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FilterbankParams {
+    /// Filterbank class (AFE `fb_type`).
+    #[serde(rename = "fb_type")]
+    pub fb_type: FbType,
+    /// Lowest centre frequency in Hz (AFE `fb_lowFreqHz`).
+    #[serde(rename = "fb_lowFreqHz")]
+    pub low_freq_hz: f64,
+    /// Highest requested centre frequency in Hz (AFE `fb_highFreqHz`).
+    #[serde(rename = "fb_highFreqHz")]
+    pub high_freq_hz: f64,
+    /// Channel spacing in ERBs (AFE `fb_nERBs`).
+    #[serde(rename = "fb_nERBs")]
+    pub n_erbs: f64,
+    /// Number of channels; overrides the spacing when given (AFE `fb_nChannels`).
+    #[serde(rename = "fb_nChannels")]
+    pub n_channels: Option<u32>,
+    /// Explicit centre frequencies in Hz; highest priority when given (AFE `fb_cfHz`).
+    #[serde(rename = "fb_cfHz")]
+    pub cf_hz: Vec<f64>,
+    /// Gammatone order, gammatone only (AFE `fb_nGamma`).
+    #[serde(rename = "fb_nGamma")]
+    pub n_gamma: u32,
+    /// Gammatone bandwidth in ERBs, gammatone only (AFE `fb_bwERBs`).
+    #[serde(rename = "fb_bwERBs")]
+    pub bw_erbs: f64,
+    /// Phase-align the gammatone impulse responses, gammatone only (AFE `fb_bAlign`).
+    #[serde(rename = "fb_bAlign")]
+    pub align: bool,
+    /// Ipsilateral MOC gain on the DRNL's non-linear path, one value or one per channel,
+    /// DRNL only (AFE `fb_mocIpsi`).
+    #[serde(rename = "fb_mocIpsi")]
+    pub moc_ipsi: Vec<f64>,
+    /// Contralateral MOC gain on the DRNL's non-linear path, one value or one per
+    /// channel, DRNL only (AFE `fb_mocContra`).
+    #[serde(rename = "fb_mocContra")]
+    pub moc_contra: Vec<f64>,
+    /// DRNL parameter set, DRNL only (AFE `fb_model`).
+    #[serde(rename = "fb_model")]
+    pub model: DrnlModel,
+}
+
+impl Default for FilterbankParams {
+    fn default() -> Self {
+        FilterbankParams {
+            fb_type: FbType::Gammatone,
+            low_freq_hz: 80.0,
+            high_freq_hz: 8000.0,
+            n_erbs: 1.0,
+            n_channels: None,
+            cf_hz: Vec::new(),
+            n_gamma: 4,
+            bw_erbs: 1.018,
+            align: false,
+            moc_ipsi: vec![1.0],
+            moc_contra: vec![1.0],
+            model: DrnlModel::Casp,
+        }
+    }
+}
+
+impl Params for FilterbankParams {
+    const SPECS: &'static [ParamSpec] = &[
+        ParamSpec {
+            name: "fb_type",
+            kind: ParamKind::Choice(&["gammatone", "drnl"]),
+            unit: "",
+            description: "filterbank type: linear gammatone or dual-resonance non-linear",
+        },
+        ParamSpec {
+            name: "fb_lowFreqHz",
+            kind: ParamKind::Number,
+            unit: "Hz",
+            description: "lowest centre frequency",
+        },
+        ParamSpec {
+            name: "fb_highFreqHz",
+            kind: ParamKind::Number,
+            unit: "Hz",
+            description: "highest requested centre frequency",
+        },
+        ParamSpec {
+            name: "fb_nERBs",
+            kind: ParamKind::Number,
+            unit: "ERB",
+            description: "channel spacing on the ERB-number scale",
+        },
+        ParamSpec {
+            name: "fb_nChannels",
+            kind: ParamKind::Count,
+            unit: "",
+            description: "number of channels (overrides fb_nERBs; [] = derive from the spacing)",
+        },
+        ParamSpec {
+            name: "fb_cfHz",
+            kind: ParamKind::Numbers,
+            unit: "Hz",
+            description: "explicit centre frequencies (overrides everything; [] = derive)",
+        },
+        ParamSpec {
+            name: "fb_nGamma",
+            kind: ParamKind::Count,
+            unit: "",
+            description: "gammatone filter order (gammatone only)",
+        },
+        ParamSpec {
+            name: "fb_bwERBs",
+            kind: ParamKind::Number,
+            unit: "ERB",
+            description: "gammatone bandwidth in ERBs (gammatone only)",
+        },
+        ParamSpec {
+            name: "fb_bAlign",
+            kind: ParamKind::Flag,
+            unit: "",
+            description: "phase-align the channels' impulse responses (gammatone only)",
+        },
+        ParamSpec {
+            name: "fb_mocIpsi",
+            kind: ParamKind::Numbers,
+            unit: "",
+            description:
+                "ipsilateral MOC gain on the non-linear path, one or one per channel (drnl only)",
+        },
+        ParamSpec {
+            name: "fb_mocContra",
+            kind: ParamKind::Numbers,
+            unit: "",
+            description:
+                "contralateral MOC gain on the non-linear path, one or one per channel (drnl only)",
+        },
+        ParamSpec {
+            name: "fb_model",
+            kind: ParamKind::Choice(&["CASP", "MAP"]),
+            unit: "",
+            description: "DRNL parameter set: CASP (Jepsen et al. 2008) or MAP 1.14h (drnl only)",
+        },
+    ];
+}
+
+/// An invalid-parameter error; the value is printed in Debug form (a float in its
+/// shortest form, `1e308` rather than 309 digits).
+pub(crate) fn invalid(name: &str, value: impl std::fmt::Debug, reason: impl Into<String>) -> Error {
+    Error::InvalidParameter {
+        name: name.into(),
+        value: format!("{value:?}"),
+        reason: reason.into(),
+    }
+}
+
+/// Highest `fb_highFreqHz` accepted, Hz: far above any sampling rate's Nyquist frequency,
+/// low enough that the ERB grid up to it stays countable.
+const MAX_HIGH_FREQ_HZ: f64 = 1e7;
+
+/// Largest filterbank: more channels than this is a parameter mistake, not a use case.
+pub const MAX_CHANNELS: usize = 1024;
+
+/// The centre-frequency grid of a parameter set and the grid parameters as the AFE
+/// reports them after its verify step.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CfGrid {
+    /// Centre frequencies in Hz.
+    pub cf_hz: Vec<f64>,
+    /// Spacing in ERBs: the given one, `(E(high) − E(low))/N` for a channel count, or
+    /// `None` ("n/a") for explicit centre frequencies.
+    pub n_erbs: Option<f64>,
+    /// `fb_lowFreqHz` as reported (the first centre frequency when they are explicit).
+    pub low_freq_hz: f64,
+    /// `fb_highFreqHz` as reported (the last centre frequency when they are explicit).
+    pub high_freq_hz: f64,
+}
+
+impl CfGrid {
+    /// The grid's parameters under their AFE names, in `map`.
+    pub fn insert_into(&self, map: &mut ParamMap) {
+        map.insert("fb_cfHz".into(), json!(self.cf_hz));
+        map.insert("fb_nChannels".into(), json!(self.cf_hz.len()));
+        map.insert(
+            "fb_nERBs".into(),
+            self.n_erbs.map_or_else(|| json!("n/a"), |e| json!(e)),
+        );
+        map.insert("fb_lowFreqHz".into(), json!(self.low_freq_hz));
+        map.insert("fb_highFreqHz".into(), json!(self.high_freq_hz));
+    }
+
+    /// Refuses a grid reaching the Nyquist frequency of input rate `fs` Hz, naming the
+    /// parameter the user set (`params` is what the grid was derived from).
+    pub fn check_below_nyquist(&self, params: &FilterbankParams, fs: f64) -> Result<()> {
+        let nyquist = fs / 2.0;
+        let Some(bad) = self.cf_hz.iter().find(|f| **f >= nyquist) else {
+            return Ok(());
+        };
+        Err(if params.cf_hz.is_empty() {
+            let default = FilterbankParams::default().high_freq_hz;
+            let which = if params.high_freq_hz == default {
+                " (the default)"
+            } else {
+                ""
+            };
+            invalid(
+                "fb_highFreqHz",
+                params.high_freq_hz,
+                format!(
+                    "{}{which} puts centre frequencies up to {bad:.0} Hz, above the Nyquist \
+                     frequency ({nyquist} Hz) of the {fs} Hz input: set fb_highFreqHz below \
+                     {nyquist} Hz",
+                    params.high_freq_hz
+                ),
+            )
+        } else {
+            invalid(
+                "fb_cfHz",
+                bad,
+                format!(
+                    "centre frequencies must lie below the Nyquist frequency ({nyquist} Hz) \
+                     of the {fs} Hz input"
+                ),
+            )
+        })
+    }
+}
+
+impl FilterbankParams {
+    /// Checks the grid parameters and derives the centre frequencies (priority `fb_cfHz`
+    /// > `fb_nChannels` > `fb_nERBs`), as the AFE's verify step does for both types.
+    pub fn grid(&self) -> Result<CfGrid> {
+        if !self.cf_hz.is_empty() {
+            if let Some(bad) = self.cf_hz.iter().find(|f| **f <= 0.0) {
+                return Err(invalid("fb_cfHz", bad, "centre frequencies must be > 0 Hz"));
+            }
+            if self.cf_hz.len() > MAX_CHANNELS {
+                return Err(invalid(
+                    "fb_cfHz",
+                    format_args!("[{} values]", self.cf_hz.len()),
+                    format!("at most {MAX_CHANNELS} channels are supported"),
+                ));
+            }
+            return Ok(CfGrid {
+                cf_hz: self.cf_hz.clone(),
+                n_erbs: None,
+                low_freq_hz: self.cf_hz[0],
+                high_freq_hz: self.cf_hz[self.cf_hz.len() - 1],
+            });
+        }
+        if self.low_freq_hz <= 0.0 {
+            return Err(invalid("fb_lowFreqHz", self.low_freq_hz, "must be > 0 Hz"));
+        }
+        if self.high_freq_hz.is_nan() || self.high_freq_hz > MAX_HIGH_FREQ_HZ {
+            return Err(invalid(
+                "fb_highFreqHz",
+                self.high_freq_hz,
+                "must be a frequency in Hz below the Nyquist frequency of the input",
+            ));
+        }
+        if self.high_freq_hz < self.low_freq_hz {
+            return Err(invalid(
+                "fb_highFreqHz",
+                self.high_freq_hz,
+                format!("must be ≥ fb_lowFreqHz ({} Hz)", self.low_freq_hz),
+            ));
+        }
+        let (elo, ehi) = (freq2erb(self.low_freq_hz), freq2erb(self.high_freq_hz));
+        let (cf_hz, n_erbs): (Vec<f64>, f64) = match self.n_channels {
+            Some(0) => return Err(invalid("fb_nChannels", 0, "must be at least 1")),
+            Some(n) if n as usize > MAX_CHANNELS => {
+                return Err(invalid(
+                    "fb_nChannels",
+                    n,
+                    format!("at most {MAX_CHANNELS} channels are supported"),
+                ))
+            }
+            Some(n) => {
+                let e = linspace(elo, ehi, n as usize);
+                let spacing = (e[e.len() - 1] - e[0]) / f64::from(n);
+                (e.into_iter().map(erb2freq).collect(), spacing)
+            }
+            None => {
+                let count = (ehi - elo) / self.n_erbs;
+                if self.n_erbs <= 0.0 || count >= MAX_CHANNELS as f64 {
+                    return Err(invalid(
+                        "fb_nERBs",
+                        self.n_erbs,
+                        format!(
+                            "must be > 0 and give at most {MAX_CHANNELS} channels between \
+                             fb_lowFreqHz and fb_highFreqHz"
+                        ),
+                    ));
+                }
+                let cf = colon_range(elo, self.n_erbs, ehi)
+                    .into_iter()
+                    .map(erb2freq)
+                    .collect();
+                (cf, self.n_erbs)
+            }
+        };
+        Ok(CfGrid {
+            cf_hz,
+            n_erbs: Some(n_erbs),
+            low_freq_hz: self.low_freq_hz,
+            high_freq_hz: self.high_freq_hz,
+        })
+    }
+}
+
+/// The class a request's parameter map selects: its `fb_type`, or the default gammatone
+/// when the map has none (or one that the filterbank itself will refuse).
+pub fn fb_type_of(map: &ParamMap) -> FbType {
+    FilterbankParams::SPECS
+        .iter()
+        .find(|s| s.name == "fb_type")
+        .and_then(|spec| map.get(spec.name).map(|v| spec.normalize(v)))
+        .and_then(|v| v.ok().flatten())
+        .and_then(|v| serde_json::from_value(v).ok())
+        .unwrap_or(FbType::Gammatone)
+}
+
+/// The `filterbank` request: a [`Gammatone`] or a [`Drnl`], by `fb_type`.
+#[derive(Debug)]
+pub struct Filterbank;
+
+impl Descriptor for Filterbank {
+    type Params = FilterbankParams;
+    const NAME: &'static str = "filterbank";
+    const DEPENDENCY: &'static str = "time";
+    const EARS: Ears = Ears::PerEar;
+    const DESCRIPTION: &'static str =
+        "basilar-membrane filterbank output per frequency channel (gammatone or DRNL)";
+    const OUTPUT_UNIT: &'static str = "";
+    /// The class and the channel grid, which every representation above is laid out on.
+    const FIXED: &'static [&'static str] = &[
+        "fb_type",
+        "fb_lowFreqHz",
+        "fb_highFreqHz",
+        "fb_nERBs",
+        "fb_cfHz",
+    ];
+
+    fn build(params: &FilterbankParams, inputs: &[SignalInfo]) -> Result<Built> {
+        let fs = inputs[0].fs_hz;
+        Ok(match params.fb_type {
+            FbType::Gammatone => {
+                let (p, out) = Gammatone::new(params, fs)?;
+                Built::new(p, vec![out])
+            }
+            FbType::Drnl => {
+                let (p, out) = Drnl::new(params, fs)?;
+                Built::new(p, vec![out])
+            }
+        })
+    }
+
+    /// The type's own verified parameters with `fb_type`, as the AFE's processor reports
+    /// them: equal grids from different parameter sets are shared, a gammatone and a
+    /// DRNL never are, and the other type's parameters do not matter.
+    fn canonical(params: &FilterbankParams) -> Result<ParamMap> {
+        let mut map = match params.fb_type {
+            FbType::Gammatone => crate::gammatone::verified(params)?,
+            FbType::Drnl => crate::drnl::verified(params)?,
+        };
+        map.insert("fb_type".into(), json!(params.fb_type));
+        Ok(map)
+    }
+}
+
+/// The registry entry of `filterbank`.
+pub static REQUEST: RequestDef = request_def::<Filterbank>();
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::Value;
+
+    #[test]
+    fn specs_match_struct() {
+        afe_core::params::check_param_specs::<FilterbankParams>();
+    }
+
+    #[test]
+    fn default_grid_has_31_channels_with_the_afe_bits() {
+        let grid = FilterbankParams::default().grid().expect("valid");
+        assert_eq!(grid.cf_hz.len(), 31);
+        assert_eq!(grid.cf_hz[0], 80.00000000000001);
+        assert_eq!(grid.cf_hz[1], 115.20010915768904);
+        assert_eq!(grid.cf_hz[30], 7641.313909478947);
+    }
+
+    #[test]
+    fn channel_count_mode_spans_both_ends() {
+        let p = FilterbankParams {
+            n_channels: Some(16),
+            low_freq_hz: 100.0,
+            ..Default::default()
+        };
+        let grid = p.grid().expect("valid");
+        assert_eq!(grid.cf_hz.len(), 16);
+        assert!((grid.cf_hz[0] - 100.0).abs() < 1e-9);
+        assert!((grid.cf_hz[15] - 8000.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn absurd_channel_counts_are_errors_not_allocations() {
+        for p in [
+            FilterbankParams {
+                n_erbs: 1e-9,
+                ..Default::default()
+            },
+            FilterbankParams {
+                n_erbs: 1e-300,
+                ..Default::default()
+            },
+            FilterbankParams {
+                n_channels: Some(u32::MAX),
+                ..Default::default()
+            },
+        ] {
+            let e = p.grid().expect_err("too many channels");
+            assert!(e.to_string().contains("at most 1024 channels"), "{e}");
+        }
+        let p = FilterbankParams {
+            n_channels: Some(0),
+            ..Default::default()
+        };
+        let e = p.grid().expect_err("no channel");
+        assert!(e.to_string().contains("at least 1"), "{e}");
+    }
+
+    fn map(pairs: &[(&str, Value)]) -> ParamMap {
+        pairs
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.clone()))
+            .collect()
+    }
+
+    #[test]
+    fn unknown_fb_type_is_a_clear_error() {
+        let e = FilterbankParams::from_map(&map(&[("fb_type", json!("dnrl"))]))
+            .expect_err("unknown type")
+            .to_string();
+        assert!(
+            e.contains("'fb_type'") && e.contains("'gammatone', 'drnl'"),
+            "{e}"
+        );
+        assert_eq!(
+            fb_type_of(&map(&[("fb_type", json!("dnrl"))])),
+            FbType::Gammatone
+        );
+        assert_eq!(
+            fb_type_of(&map(&[("fb_type", json!("drnl"))])),
+            FbType::Drnl
+        );
+        assert_eq!(fb_type_of(&ParamMap::new()), FbType::Gammatone);
+    }
+
+    /// Each type's map holds its own parameters and `fb_type`; the other type's
+    /// parameters are accepted and do not change it.
+    #[test]
+    fn canonical_maps_separate_the_types_and_ignore_the_other_types_parameters() {
+        let canonical = |pairs: &[(&str, Value)]| {
+            let p = FilterbankParams::from_map(&map(pairs)).expect("accepted");
+            Filterbank::canonical(&p).expect("valid")
+        };
+        let gt = canonical(&[]);
+        let gt_moc = canonical(&[("fb_mocIpsi", json!(0.5)), ("fb_model", json!("MAP"))]);
+        assert_eq!(gt, gt_moc);
+        assert_eq!(gt["fb_type"], json!("gammatone"));
+        assert!(gt.contains_key("fb_nGamma") && !gt.contains_key("fb_model"));
+        let drnl = canonical(&[("fb_type", json!("drnl"))]);
+        let drnl_gamma = canonical(&[("fb_type", json!("drnl")), ("fb_nGamma", json!(2))]);
+        assert_eq!(drnl, drnl_gamma);
+        assert_ne!(gt, drnl);
+        assert_eq!(drnl["fb_type"], json!("drnl"));
+        assert!(!drnl.contains_key("fb_nGamma") && drnl.contains_key("fb_model"));
+        assert_eq!(gt["fb_cfHz"], drnl["fb_cfHz"]);
+    }
+}
