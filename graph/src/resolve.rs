@@ -172,7 +172,9 @@ impl Graph {
                 .iter()
                 .map(|p| self.nodes[p.node].channels[p.output])
                 .collect(),
-            Ears::PerEar => vec![self.nodes[parents[0].node].channels[parents[0].output]],
+            Ears::PerEar => {
+                vec![self.nodes[parents[0].node].channels[parents[0].output]; built.outputs.len()]
+            }
             Ears::Binaural => vec![Channel::Mono],
         };
         let outputs = built

@@ -522,6 +522,8 @@ pub struct Drnl {
     partial: Vec<f64>,
     moc_ipsi: Vec<f64>,
     moc_contra: Vec<f64>,
+    /// `fb_mocIpsi` and `fb_mocContra` as the parameters give them, for `reset`.
+    moc_given: [Vec<f64>; 2],
 }
 
 impl Drnl {
@@ -594,6 +596,7 @@ impl Drnl {
             } else {
                 Vec::new()
             },
+            moc_given: [moc_ipsi.clone(), moc_contra.clone()],
             moc_ipsi,
             moc_contra,
         };
@@ -685,13 +688,28 @@ impl Processor for Drnl {
     }
 
     /// Zeroes every section state, and MAP's middle-ear states too (the AFE keeps those
-    /// across a reset, spec zz N16; a fresh state is what a reset promises).
+    /// across a reset, spec zz N16; a fresh state is what a reset promises), and returns
+    /// to the MOC gains of the parameters.
     fn reset(&mut self) {
         for g in &mut self.groups {
             g.z = [[[0.0; LANES]; 2]; STATES];
         }
         if let Some(me) = &mut self.middle_ear {
             me.reset();
+        }
+        let [ipsi, contra] = &self.moc_given;
+        self.moc_ipsi.clone_from(ipsi);
+        self.moc_contra.clone_from(contra);
+        self.apply_moc();
+    }
+
+    /// The MOC's feedback (spec 28): row 0 the new `fb_mocIpsi`, row 1 the new
+    /// `fb_mocContra`, one value per channel.
+    fn receive_feedback(&mut self, feedback: &Block) {
+        if feedback.frames() == 2 && feedback.width() == self.channels {
+            self.moc_ipsi.copy_from_slice(feedback.row(0));
+            self.moc_contra.copy_from_slice(feedback.row(1));
+            self.apply_moc();
         }
     }
 }
@@ -972,6 +990,19 @@ mod tests {
             e.contains("'fb_mocIpsi'") && e.contains("expected 4 values"),
             "{e}"
         );
+        // the MOC's feedback (rows: ipsi, contra) sets the same gains; reset restores
+        // the parameters' ones
+        let (mut d, _) = Drnl::new(&base, 44100.0).expect("valid");
+        let mut fed = [0.0; 8];
+        fed[4..].fill(1.0);
+        d.receive_feedback(&Block::from_vec(fed.to_vec(), 4));
+        let mut z = vec![0.0; x.len() * nc];
+        d.filter(&x, &mut z);
+        assert_eq!(z, y);
+        d.reset();
+        assert_eq!((d.moc_ipsi(), d.moc_contra()), (&[1.0; 4][..], &[1.0; 4][..]));
+        d.filter(&x, &mut z);
+        assert_eq!(z, run(&base, &x));
     }
 
     fn from_map(pairs: &[(&str, Value)]) -> Result<FilterbankParams> {
