@@ -69,6 +69,9 @@ pub struct SignalInfo {
     /// Rate in Hz of the audio this signal was computed from (equal to `fs_hz` for
     /// full-rate signals; framed signals keep the rate their frames were cut at).
     pub audio_fs_hz: f64,
+    /// The signal's own name when a processor has several outputs of different kinds,
+    /// e.g. `precedence_itd`; `None` names it after the request.
+    pub name: Option<&'static str>,
 }
 
 impl SignalInfo {
@@ -120,6 +123,14 @@ impl SignalInfo {
             features,
             audio_fs_hz,
             ..SignalInfo::default()
+        }
+    }
+
+    /// The same signal under its own name `name` (see [`SignalInfo::name`]).
+    pub fn named(self, name: &'static str) -> Self {
+        SignalInfo {
+            name: Some(name),
+            ..self
         }
     }
 

@@ -32,7 +32,8 @@ impl RequestHandle {
 /// One output signal of the graph, as seen after the last processed chunk.
 #[derive(Debug, Clone, Copy)]
 pub struct Signal<'a> {
-    /// Request name of the signal, e.g. `ratemap`.
+    /// Name of the signal: the request's, e.g. `ratemap`, or the output's own where a
+    /// processor has several (`precedence_itd`, `precedence_ild`, `precedence_cc`).
     pub name: &'static str,
     /// 1-based instance among the signals of the same name (requests with different
     /// parameters make several instances).
@@ -730,7 +731,7 @@ impl Manager {
     fn signal(&self, r: OutputRef) -> Option<Signal<'_>> {
         let node = &self.graph.nodes[r.node];
         Some(Signal {
-            name: node.name,
+            name: node.infos[r.output].name.unwrap_or(node.name),
             instance: node.instance,
             channel: node.channels[r.output],
             info: &node.infos[r.output],

@@ -133,7 +133,7 @@ impl Graph {
                 .map(|p| self.nodes[p.node].channels[p.output])
                 .collect(),
             Ears::PerEar => vec![self.nodes[parents[0].node].channels[parents[0].output]],
-            Ears::Binaural => vec![Channel::Mono],
+            Ears::Binaural => vec![Channel::Mono; built.outputs.len()],
         };
         let outputs = built
             .outputs

@@ -22,6 +22,7 @@ pub mod itd;
 pub mod middle_ear;
 pub mod pitch;
 pub mod pre_proc;
+pub mod precedence;
 pub mod ratemap;
 mod registry;
 pub mod spectral_features;

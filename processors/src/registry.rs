@@ -7,7 +7,8 @@ use afe_core::{Error, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo
 
 use crate::{
     adaptation, ams_features, autocorrelation, butterworth, crosscorrelation, gabor, gammatone, ic,
-    ihc, ild, itd, pitch, pre_proc, ratemap, spectral_features, stft, transient, transient_map,
+    ihc, ild, itd, pitch, pre_proc, precedence, ratemap, spectral_features, stft, transient,
+    transient_map,
 };
 
 /// How a processor relates to the ears (the AFE's binaural flag).
@@ -174,6 +175,7 @@ static REQUESTS: &[&RequestDef] = &[
     &crosscorrelation::REQUEST,
     &itd::REQUEST,
     &ic::REQUEST,
+    &precedence::REQUEST,
     &autocorrelation::REQUEST,
     &pitch::REQUEST,
     &transient::ONSET_REQUEST,
