@@ -108,11 +108,8 @@ struct Model {
     first: bool,
     /// Cumulative summary cross-correlation of each mode, `2·ccLag + 1` lags.
     cc_modes: [Vec<f64>; 4],
-    /// FFT input buffer, `nfft` values.
-    time: Vec<f64>,
-    /// FFT output buffer, `nfft/2 + 1` bins.
-    spectrum: Vec<Complex64>,
-    scratch: Vec<Complex64>,
+    /// Transform buffers (`nfft` samples, `nfft/2 + 1` bins).
+    fft_buf: FftBuffers,
     /// The frames' cross-correlation over lags `−(W−1)..W−1`.
     xcorr: Vec<f64>,
     /// One channel's (or the summary's) correlation, `2·max(maxLag, ccLag) + 1` lags.
@@ -129,15 +126,19 @@ struct Ear {
     /// Cumulative weighted power spectra (the transforms of the cumulative
     /// autocorrelations), `[channel][bin]`.
     power: Vec<f64>,
-    /// Spectrum of the summary autocorrelation.
-    summary: Vec<Complex64>,
+    /// Spectrum of the summary autocorrelation (real).
+    summary: Vec<f64>,
+    /// Largest windowed value of each channel, then largest value of each
+    /// autocorrelation row.
+    peaks: Vec<f64>,
     /// Autocorrelation rows for the per-channel normalisation, `[channel][lag]`
     /// (`2·acLag + 1` lags).
     rows: Vec<f64>,
     /// Summary autocorrelation, `2·acLag + 1` lags.
     sacf: Vec<f64>,
-    /// Sum of the windowed frame over the channels.
+    /// Sum of the windowed frame over the channels, and its spectrum.
     sum: Vec<f64>,
+    sum_spectrum: Vec<Complex64>,
     /// Summary `S` and `L` signals (`W + 5·acLag` samples at most).
     sum_short: Vec<f64>,
     sum_long: Vec<f64>,
@@ -246,7 +247,8 @@ fn decay_table(fr: usize) -> Vec<f64> {
 }
 
 /// `Σ a[i]·b[i]` with eight partial sums (vectorised).
-fn dot(a: &[f64], b: &[f64]) -> f64 {
+#[inline(always)]
+fn dot_lanes(a: &[f64], b: &[f64]) -> f64 {
     let n = a.len().min(b.len());
     let (a, b) = (&a[..n], &b[..n]);
     let mut acc = [0.0; 8];
@@ -261,9 +263,29 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     acc.iter().sum::<f64>() + tail
 }
 
+/// `Σ a[i]·b[i]` over the shorter length.
+#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    dot_lanes(a, b)
+}
+
+/// The frame's autocorrelation at lags `k·τ`, `k = 0..5` (0 from lag `len(x)` on).
+#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+fn lag_products(x: &[f64], tau: usize) -> [f64; TAPS] {
+    let mut r = [0.0; TAPS];
+    for (k, rk) in r.iter_mut().enumerate() {
+        let d = k * tau;
+        if d < x.len() {
+            *rk = dot_lanes(&x[d..], &x[..x.len() - d]);
+        }
+    }
+    r
+}
+
 /// `out[m + maxLag] = Σ_j a[j + m]·b[j]` for `m = −maxLag..maxLag`, `out` being
 /// `2·maxLag + 1` long (calcXCorr with `'none'` scaling; zero where the signals do not
 /// overlap).
+#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
 fn xcorr(a: &[f64], b: &[f64], out: &mut [f64]) {
     let max_lag = (out.len() / 2) as isize;
     let (la, lb) = (a.len() as isize, b.len() as isize);
@@ -272,13 +294,74 @@ fn xcorr(a: &[f64], b: &[f64], out: &mut [f64]) {
         let lo = (-m).max(0);
         let hi = lb.min(la - m);
         *o = if hi > lo {
-            dot(
+            dot_lanes(
                 &a[(lo + m) as usize..(hi + m) as usize],
                 &b[lo as usize..hi as usize],
             )
         } else {
             0.0
         };
+    }
+}
+
+/// Rows of a frame windowed and transposed per pass of [`window_columns`]: one cache
+/// line of each channel's column.
+const TILE: usize = 8;
+
+/// Windows the frame (`[time][channel]`, `nc` wide) into `cols` (`[channel][time]`) and
+/// each channel's largest windowed value into `peaks` (NaN ignored, as MATLAB's `max`).
+#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+fn window_columns<'a>(win: &[f64], frame: Frame<'a>, cols: &mut [f64], peaks: &mut [f64]) {
+    let (nc, w) = (peaks.len(), win.len());
+    peaks.fill(f64::NAN);
+    let mut n0 = 0;
+    for part in [frame.head, frame.tail] {
+        let rows = part.len() / nc.max(1);
+        // Peaks row by row: independent lanes.
+        for (row, wt) in part.chunks_exact(nc).zip(&win[n0..]) {
+            for (p, v) in peaks.iter_mut().zip(row) {
+                *p = p.max(wt * v);
+            }
+        }
+        // Transposition by tiles of TILE rows, read from the L1 cache.
+        for t0 in (0..rows).step_by(TILE) {
+            let t1 = (t0 + TILE).min(rows);
+            let tile = &part[t0 * nc..t1 * nc];
+            let wins = &win[n0 + t0..n0 + t1];
+            for c in 0..nc {
+                let col = &mut cols[c * w + n0 + t0..c * w + n0 + t1];
+                for (i, (d, wt)) in col.iter_mut().zip(wins).enumerate() {
+                    *d = wt * tile[i * nc + c];
+                }
+            }
+        }
+        n0 += rows;
+    }
+}
+
+/// Adds a channel's power spectrum `|x|²` to its cumulative weighted one
+/// (`power += |x|²·weight`, or `=` on the first frame) and to the summary spectrum
+/// (the raw power on the first frame, the cumulative weighted one after).
+#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+fn accumulate_power(
+    x: &[Complex64],
+    power: &mut [f64],
+    summary: &mut [f64],
+    weight: f64,
+    first: bool,
+) {
+    if first {
+        for ((s, p), x) in summary.iter_mut().zip(power.iter_mut()).zip(x) {
+            let pw = x.re * x.re + x.im * x.im;
+            *p = pw * weight;
+            *s += pw;
+        }
+    } else {
+        for ((s, p), x) in summary.iter_mut().zip(power.iter_mut()).zip(x) {
+            let pw = x.re * x.re + x.im * x.im;
+            *p += pw * weight;
+            *s += *p;
+        }
     }
 }
 
@@ -299,7 +382,7 @@ impl std::fmt::Debug for Precedence {
         let m = &self.model;
         f.debug_struct("Precedence")
             .field("window", &m.win.len())
-            .field("fft_len", &m.time.len())
+            .field("fft_len", &m.fft_buf.time.len())
             .field("max_lag", &m.max_lag)
             .field("ac_lag", &m.ac_lag)
             .finish_non_exhaustive()
@@ -360,10 +443,12 @@ impl Precedence {
             cols: vec![0.0; nc * w],
             spectra: vec![Complex64::default(); nc * bins],
             power: vec![0.0; nc * bins],
-            summary: vec![Complex64::default(); bins],
+            summary: vec![0.0; bins],
+            peaks: vec![0.0; nc],
             rows: vec![0.0; nc * (2 * ac_lag + 1)],
             sacf: vec![0.0; 2 * ac_lag + 1],
             sum: vec![0.0; w],
+            sum_spectrum: vec![Complex64::default(); bins],
             sum_short: vec![0.0; longest],
             sum_long: vec![0.0; w],
             variant: vec![0.0; nc * longest],
@@ -394,9 +479,11 @@ impl Precedence {
             ears: [ear.clone(), ear],
             first: true,
             cc_modes: std::array::from_fn(|_| vec![0.0; 2 * cc_lag + 1]),
-            time: fft.make_input_vec(),
-            spectrum: fft.make_output_vec(),
-            scratch: vec![Complex64::default(); scratch_len],
+            fft_buf: FftBuffers {
+                time: fft.make_input_vec(),
+                spectrum: fft.make_output_vec(),
+                scratch: vec![Complex64::default(); scratch_len],
+            },
             xcorr: vec![0.0; 2 * w - 1],
             icc: vec![0.0; 2 * max_lag.max(cc_lag) + 1],
             fft,
@@ -424,39 +511,33 @@ impl Model {
     /// and estimates the lag's delay and amplitude ratio.
     fn analyse(&mut self, e: usize, x: Frame<'_>) {
         let (nc, w, first) = (self.nc, self.win.len(), self.first);
-        let bins = self.spectrum.len();
-        let nfft = self.time.len();
+        let bins = self.fft_buf.spectrum.len();
+        let nfft = self.fft_buf.time.len();
         let ear = &mut self.ears[e];
-        for (t, (row, wt)) in x.rows().zip(&self.win).enumerate() {
-            for (c, v) in row.iter().enumerate() {
-                ear.cols[c * w + t] = wt * v;
-            }
-        }
+        window_columns(&self.win, x, &mut ear.cols, &mut ear.peaks);
         // Active bandwidth: channels whose peak is within 12 dB of the frame's.
-        let peaks = ear.cols.chunks_exact(w).map(|col| first_max(col).0);
-        let top = peaks.clone().fold(f64::NAN, f64::max);
+        let top = ear.peaks.iter().fold(f64::NAN, |a, &b| a.max(b));
         let top_db = 20.0 * top.abs().log10();
-        let bandwidth = peaks
+        let bandwidth = ear
+            .peaks
+            .iter()
             .filter(|p| 20.0 * p.abs().log10() - top_db > -12.0)
             .count();
         let per_channel = bandwidth <= 5;
 
-        ear.summary.fill(Complex64::default());
+        ear.summary.fill(0.0);
         for c in 0..nc {
-            self.time[..w].copy_from_slice(&ear.cols[c * w..(c + 1) * w]);
-            self.time[w..].fill(0.0);
+            self.fft_buf.time[..w].copy_from_slice(&ear.cols[c * w..(c + 1) * w]);
+            self.fft_buf.time[w..].fill(0.0);
             let spec = &mut ear.spectra[c * bins..(c + 1) * bins];
             // Lengths match by construction: the transform cannot fail.
-            let _ = self
-                .fft
-                .process_with_scratch(&mut self.time, spec, &mut self.scratch);
+            let _ = self.fft.process_with_scratch(
+                &mut self.fft_buf.time,
+                spec,
+                &mut self.fft_buf.scratch,
+            );
             let power = &mut ear.power[c * bins..(c + 1) * bins];
-            let weight = self.ac_weight[c];
-            for ((s, p), x) in ear.summary.iter_mut().zip(power.iter_mut()).zip(&*spec) {
-                let pw = x.norm_sqr();
-                *p = if first { pw * weight } else { *p + pw * weight };
-                s.re += if first { pw } else { *p };
-            }
+            accumulate_power(spec, power, &mut ear.summary, self.ac_weight[c], first);
         }
         let nl = 2 * self.ac_lag + 1;
         let scale = 1.0 / nfft as f64;
@@ -466,28 +547,25 @@ impl Model {
             for c in 0..nc {
                 let src = &ear.spectra[c * bins..(c + 1) * bins];
                 let power = &ear.power[c * bins..(c + 1) * bins];
-                for ((s, x), p) in self.spectrum.iter_mut().zip(src).zip(power) {
+                for ((s, x), p) in self.fft_buf.spectrum.iter_mut().zip(src).zip(power) {
                     *s = Complex64::new(if first { x.norm_sqr() } else { *p }, 0.0);
                 }
                 let row = &mut ear.rows[c * nl..(c + 1) * nl];
-                inverse_lags(
-                    &*self.ifft,
-                    &mut self.spectrum,
-                    &mut self.time,
-                    &mut self.scratch,
-                    scale,
-                    row,
-                );
+                self.fft_buf.inverse_lags(&*self.ifft, scale, row);
+            }
+            for (row, peak) in ear.rows.chunks_exact(nl).zip(ear.peaks.iter_mut()) {
+                *peak = first_max(row).0;
             }
             for c in 0..nc {
-                let whole = first_max(&ear.rows).0;
+                let whole = ear.peaks.iter().fold(f64::NAN, |a, &b| a.max(b));
                 let row = &mut ear.rows[c * nl..(c + 1) * nl];
-                let m = first_max(row).0;
+                let m = ear.peaks[c];
                 if 20.0 * (m / whole).log10() > -60.0 {
                     row.iter_mut().for_each(|v| *v /= m);
                 } else {
                     row.fill(0.0);
                 }
+                ear.peaks[c] = first_max(row).0;
             }
             ear.sacf.fill(0.0);
             for row in ear.rows.chunks_exact(nl) {
@@ -496,15 +574,10 @@ impl Model {
                 }
             }
         } else {
-            self.spectrum.copy_from_slice(&ear.summary);
-            inverse_lags(
-                &*self.ifft,
-                &mut self.spectrum,
-                &mut self.time,
-                &mut self.scratch,
-                scale,
-                &mut ear.sacf,
-            );
+            for (d, v) in self.fft_buf.spectrum.iter_mut().zip(&ear.summary) {
+                *d = Complex64::new(*v, 0.0);
+            }
+            self.fft_buf.inverse_lags(&*self.ifft, scale, &mut ear.sacf);
         }
         let total = first_max(&ear.sacf).0;
         let (side, j) = first_max(&ear.sacf[self.ac_lag + self.main_peak_width..]);
@@ -524,6 +597,14 @@ impl Model {
                     *s += v;
                 }
             }
+            self.fft_buf.time[..w].copy_from_slice(&ear.sum);
+            self.fft_buf.time[w..].fill(0.0);
+            // Lengths match by construction: the transform cannot fail.
+            let _ = self.fft.process_with_scratch(
+                &mut self.fft_buf.time,
+                &mut ear.sum_spectrum,
+                &mut self.fft_buf.scratch,
+            );
             let lag = ear.lag;
             let short = &mut ear.sum_short[..lag.len(false, w)];
             lag.apply(false, &ear.sum, short);
@@ -544,7 +625,14 @@ impl Model {
                 &r.sum_short[..r.lag.len(false, w)]
             };
             let out = &mut self.icc[..ncc];
-            xcorr(left, right, out);
+            if m == 0 {
+                let (fl, fr) = (&l.sum_spectrum, &r.sum_spectrum);
+                self.fft_buf
+                    .frame_xcorr(&*self.ifft, fl, fr, &mut self.xcorr);
+                short_xcorr(&self.xcorr, &l.lag, &r.lag, out);
+            } else {
+                xcorr(left, right, out);
+            }
             let acc = &mut self.cc_modes[m];
             for (a, v) in acc.iter_mut().zip(&*out) {
                 *a = if self.first { *v } else { *a + v };
@@ -592,22 +680,14 @@ impl Model {
     /// autocorrelations: `xcorr(S_l, S_r)[m] = Σ_{q,p} c_q·d_p·R[m − qτ_l + pτ_r]`.
     fn short_pair(&mut self, cc: &mut [f64]) {
         let (nc, w) = (self.nc, self.win.len());
-        let bins = self.spectrum.len();
-        let nfft = self.time.len();
+        let bins = self.fft_buf.spectrum.len();
         let nl = 2 * self.max_lag + 1;
-        let scale = 1.0 / nfft as f64;
         let (ll, lr) = (self.ears[0].lag, self.ears[1].lag);
         for ear in &mut self.ears {
             let lag = ear.lag;
             for (c, col) in ear.cols.chunks_exact(w).enumerate() {
+                let r = lag_products(col, lag.tau);
                 let mut energy = 0.0;
-                let mut r = [0.0; TAPS];
-                for (k, rk) in r.iter_mut().enumerate() {
-                    let d = k * lag.tau;
-                    if d < w {
-                        *rk = dot(&col[d..], &col[..w - d]);
-                    }
-                }
                 for q in 0..TAPS {
                     for p in 0..TAPS {
                         energy += lag.short[q] * lag.short[p] * r[q.abs_diff(p)];
@@ -617,46 +697,12 @@ impl Model {
             }
         }
         let [left, right] = &self.ears;
-        for c in 0..nc {
-            let sl = &left.spectra[c * bins..(c + 1) * bins];
-            let sr = &right.spectra[c * bins..(c + 1) * bins];
-            for ((s, a), b) in self.spectrum.iter_mut().zip(sl).zip(sr) {
-                *s = a * b.conj();
-            }
-            self.spectrum[0].im = 0.0;
-            self.spectrum[bins - 1].im = 0.0;
-            let _ = self.ifft.process_with_scratch(
-                &mut self.spectrum,
-                &mut self.time,
-                &mut self.scratch,
-            );
-            // Lags −(W−1)..W−1 at 0..2W−2.
-            let (neg, pos) = self.xcorr.split_at_mut(w - 1);
-            for (d, s) in neg.iter_mut().zip(&self.time[nfft - (w - 1)..]) {
-                *d = s * scale;
-            }
-            for (d, s) in pos.iter_mut().zip(&self.time[..w]) {
-                *d = s * scale;
-            }
-            let out = &mut cc[c * nl..(c + 1) * nl];
-            out.fill(0.0);
-            let span = (2 * w - 1) as isize;
-            for q in 0..TAPS {
-                for p in 0..TAPS {
-                    let coef = ll.short[q] * lr.short[p];
-                    // out[i] += coef·R[i − maxLag − qτ_l + pτ_r], R at index lag + W − 1
-                    let shift = (w - 1) as isize - self.max_lag as isize - (q * ll.tau) as isize
-                        + (p * lr.tau) as isize;
-                    let lo = (-shift).max(0);
-                    let hi = (nl as isize).min(span - shift);
-                    if hi > lo {
-                        let src = &self.xcorr[(lo + shift) as usize..(hi + shift) as usize];
-                        for (o, v) in out[lo as usize..hi as usize].iter_mut().zip(src) {
-                            *o += coef * v;
-                        }
-                    }
-                }
-            }
+        for (c, out) in cc.chunks_exact_mut(nl).enumerate().take(nc) {
+            let bins = c * bins..(c + 1) * bins;
+            let (sl, sr) = (&left.spectra[bins.clone()], &right.spectra[bins]);
+            self.fft_buf
+                .frame_xcorr(&*self.ifft, sl, sr, &mut self.xcorr);
+            short_xcorr(&self.xcorr, &ll, &lr, out);
         }
     }
 
@@ -685,25 +731,80 @@ impl Model {
     }
 }
 
-/// The inverse transform of `spectrum` (a real spectrum, scaled by `scale`), as lags
-/// `−n..n` into `out` (`2n + 1` values): lag `ℓ ≥ 0` at `time[ℓ]`, `−ℓ` at
-/// `time[nfft − ℓ]`.
-fn inverse_lags(
-    ifft: &dyn ComplexToReal<f64>,
-    spectrum: &mut [Complex64],
-    time: &mut [f64],
-    scratch: &mut [Complex64],
-    scale: f64,
-    out: &mut [f64],
-) {
-    let n = out.len() / 2;
-    let nfft = time.len();
-    // A real spectrum: the transform cannot fail.
-    let _ = ifft.process_with_scratch(spectrum, time, scratch);
-    out[n] = time[0] * scale;
-    for l in 1..=n {
-        out[n + l] = time[l] * scale;
-        out[n - l] = time[nfft - l] * scale;
+/// FFT buffers: time signal, spectrum and scratch.
+struct FftBuffers {
+    time: Vec<f64>,
+    spectrum: Vec<Complex64>,
+    scratch: Vec<Complex64>,
+}
+
+impl FftBuffers {
+    /// The inverse transform of the (real) spectrum, scaled by `scale`, as lags `−n..n`
+    /// into `out` (`2n + 1` values): lag `ℓ ≥ 0` at `time[ℓ]`, `−ℓ` at `time[nfft − ℓ]`.
+    fn inverse_lags(&mut self, ifft: &dyn ComplexToReal<f64>, scale: f64, out: &mut [f64]) {
+        let n = out.len() / 2;
+        let nfft = self.time.len();
+        // A real spectrum of the planned length: the transform cannot fail.
+        let _ = ifft.process_with_scratch(&mut self.spectrum, &mut self.time, &mut self.scratch);
+        out[n] = self.time[0] * scale;
+        for l in 1..=n {
+            out[n + l] = self.time[l] * scale;
+            out[n - l] = self.time[nfft - l] * scale;
+        }
+    }
+
+    /// The full cross-correlation `R[k] = Σ_j a[j + k]·b[j]` of two frames of `W` samples
+    /// from their spectra `fa`, `fb`, into `out` (lags `−(W−1)..W−1`, `2W − 1` values).
+    fn frame_xcorr(
+        &mut self,
+        ifft: &dyn ComplexToReal<f64>,
+        fa: &[Complex64],
+        fb: &[Complex64],
+        out: &mut [f64],
+    ) {
+        let nfft = self.time.len();
+        let bins = self.spectrum.len();
+        for ((s, a), b) in self.spectrum.iter_mut().zip(fa).zip(fb) {
+            *s = a * b.conj();
+        }
+        self.spectrum[0].im = 0.0;
+        self.spectrum[bins - 1].im = 0.0;
+        // A real spectrum of the planned length: the transform cannot fail.
+        let _ = ifft.process_with_scratch(&mut self.spectrum, &mut self.time, &mut self.scratch);
+        let scale = 1.0 / nfft as f64;
+        let w = out.len().div_ceil(2);
+        let (neg, pos) = out.split_at_mut(w - 1);
+        for (d, s) in neg.iter_mut().zip(&self.time[nfft - (w - 1)..]) {
+            *d = s * scale;
+        }
+        for (d, s) in pos.iter_mut().zip(&self.time[..w]) {
+            *d = s * scale;
+        }
+    }
+}
+
+/// `xcorr(S_l, S_r)` over lags `±(out.len()/2)` into `out`, from the full
+/// cross-correlation `r` of the frames (lags `−(W−1)..W−1`): as `S` is a sum of shifted
+/// copies of its frame, `xcorr(S_l, S_r)[m] = Σ_{q,p} c_q·d_p·R[m − qτ_l + pτ_r]`.
+fn short_xcorr(r: &[f64], ll: &LagRemoval, lr: &LagRemoval, out: &mut [f64]) {
+    let span = r.len() as isize;
+    let (half, nl) = ((span - 1) / 2, out.len() as isize);
+    let max_lag = nl / 2;
+    out.fill(0.0);
+    for q in 0..TAPS {
+        for p in 0..TAPS {
+            let coef = ll.short[q] * lr.short[p];
+            // out[i] += coef·R[i − maxLag − qτ_l + pτ_r], lag k at index k + W − 1
+            let shift = half - max_lag - (q * ll.tau) as isize + (p * lr.tau) as isize;
+            let lo = (-shift).max(0);
+            let hi = nl.min(span - shift);
+            if hi > lo {
+                let src = &r[(lo + shift) as usize..(hi + shift) as usize];
+                for (o, v) in out[lo as usize..hi as usize].iter_mut().zip(src) {
+                    *o += coef * v;
+                }
+            }
+        }
     }
 }
 
