@@ -757,6 +757,29 @@ mod tests {
             .collect()
     }
 
+    /// A processor with several outputs names each (the AFE oracle's names).
+    #[test]
+    fn multi_output_processors_name_their_outputs() {
+        let mut m = Manager::new(16000.0, 2).expect("manager");
+        let h = m.add_request("precedence", &ParamMap::new()).expect("ok");
+        let left = vec![0.1; 1600];
+        m.process_signal(&[&left, &left]).expect("ok");
+        let keys: Vec<String> = m
+            .request_signals(h)
+            .expect("ok")
+            .iter()
+            .map(Signal::key)
+            .collect();
+        assert_eq!(
+            keys,
+            [
+                "precedence_itd_mono",
+                "precedence_ild_mono",
+                "precedence_cc_mono"
+            ]
+        );
+    }
+
     #[test]
     fn requests_share_their_common_chain() {
         // input ─ time ─┬─ filterbank L ─ ihc L ─┬─ ratemap L

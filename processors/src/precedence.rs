@@ -4,8 +4,8 @@
 //! autocorrelation; the lag is removed by two inverse filters per ear (`S`, short, and
 //! `L`, long), and the pair with the highest cumulative summary coherence gives the cues.
 //!
-//! Autocorrelations and the cross-correlation of the raw frames use real FFTs of
-//! `2^nextpow2(2W − 1)` points; the lag-removed `S` signals are sums of six shifted copies
+//! Autocorrelations and the cross-correlation of the raw frames use real FFTs of at
+//! least `2W − 1` points (see [`fft_len`]); the lag-removed `S` signals are sums of six shifted copies
 //! of the frame, so their correlation is read off that of the frames (36 terms per lag)
 //! instead of correlating signals up to `W + 5·acLag` samples long. The truncated `L`
 //! signals are correlated directly.
@@ -246,6 +246,17 @@ fn decay_table(fr: usize) -> Vec<f64> {
     a
 }
 
+/// The transform length for a linear correlation of `n` lags: the smallest `2^k`,
+/// `3·2^k`, `5·2^k` or `7·2^k` from `n` on (1792 for 20 ms at 44.1 kHz, about 12 %
+/// faster than the AFE's 2048 with these transforms; the correlation is the same).
+fn fft_len(n: usize) -> usize {
+    [1, 3, 5, 7]
+        .into_iter()
+        .map(|m| m * n.div_ceil(m).next_power_of_two())
+        .min()
+        .unwrap_or(n)
+}
+
 /// `Σ a[i]·b[i]` with eight partial sums (vectorised).
 #[inline(always)]
 fn dot_lanes(a: &[f64], b: &[f64]) -> f64 {
@@ -433,7 +444,7 @@ impl Precedence {
         }
         let max_lag = max_lag as usize;
         let nc = input.channels();
-        let nfft = (2 * w - 1).next_power_of_two();
+        let nfft = fft_len(2 * w - 1);
         let mut planner = RealFftPlanner::<f64>::new();
         let fft = planner.plan_fft_forward(nfft);
         let ifft = planner.plan_fft_inverse(nfft);
@@ -764,9 +775,7 @@ impl FftBuffers {
     ) {
         let nfft = self.time.len();
         let bins = self.spectrum.len();
-        for ((s, a), b) in self.spectrum.iter_mut().zip(fa).zip(fb) {
-            *s = a * b.conj();
-        }
+        conj_product(fa, fb, &mut self.spectrum);
         self.spectrum[0].im = 0.0;
         self.spectrum[bins - 1].im = 0.0;
         // A real spectrum of the planned length: the transform cannot fail.
@@ -783,9 +792,18 @@ impl FftBuffers {
     }
 }
 
+/// `out[k] = fa[k]·conj(fb[k])`: the spectrum of the cross-correlation.
+#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+fn conj_product(fa: &[Complex64], fb: &[Complex64], out: &mut [Complex64]) {
+    for ((s, a), b) in out.iter_mut().zip(fa).zip(fb) {
+        *s = Complex64::new(a.re * b.re + a.im * b.im, a.im * b.re - a.re * b.im);
+    }
+}
+
 /// `xcorr(S_l, S_r)` over lags `±(out.len()/2)` into `out`, from the full
 /// cross-correlation `r` of the frames (lags `−(W−1)..W−1`): as `S` is a sum of shifted
 /// copies of its frame, `xcorr(S_l, S_r)[m] = Σ_{q,p} c_q·d_p·R[m − qτ_l + pτ_r]`.
+#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
 fn short_xcorr(r: &[f64], ll: &LagRemoval, lr: &LagRemoval, out: &mut [f64]) {
     let span = r.len() as isize;
     let (half, nl) = ((span - 1) / 2, out.len() as isize);
@@ -855,3 +873,294 @@ impl Descriptor for Precedence {
 
 /// The registry entry of `precedence`.
 pub static REQUEST: RequestDef = request_def::<Precedence>();
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    #[test]
+    fn specs_match_struct() {
+        afe_core::params::check_param_specs::<PrecedenceParams>();
+    }
+
+    fn filterbank(fs: f64, nc: usize) -> SignalInfo {
+        SignalInfo::time_frequency(fs, (0..nc).map(|c| 300.0 * (c + 1) as f64).collect())
+    }
+
+    fn noise(len: usize, seed: u64) -> Vec<f64> {
+        let mut state = seed.wrapping_mul(6_364_136_223_846_793_005) | 1;
+        (0..len)
+            .map(|_| {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+            })
+            .collect()
+    }
+
+    /// Runs the model over `[time][channel]` ears `l`, `r` cut into chunks of `chunks`
+    /// rows (cycled); returns the three outputs joined.
+    fn run(
+        p: &PrecedenceParams,
+        info: &SignalInfo,
+        (l, r): (&[f64], &[f64]),
+        chunks: &[usize],
+    ) -> [Vec<f64>; 3] {
+        let (mut prec, infos) = Precedence::new(p, info).expect("valid");
+        let nc = info.channels();
+        let mut outs: Vec<Block> = infos.iter().map(|i| Block::new(i.width())).collect();
+        let mut all: [Vec<f64>; 3] = Default::default();
+        let rows = l.len() / nc;
+        let mut start = 0;
+        for &n in chunks.iter().cycle() {
+            if start >= rows {
+                break;
+            }
+            let end = (start + n).min(rows);
+            let bl = Block::from_vec(l[start * nc..end * nc].to_vec(), nc);
+            let br = Block::from_vec(r[start * nc..end * nc].to_vec(), nc);
+            prec.process(&[&bl, &br], &mut outs);
+            for (a, o) in all.iter_mut().zip(&outs) {
+                a.extend_from_slice(o.as_slice());
+            }
+            start = end;
+        }
+        all
+    }
+
+    #[test]
+    fn peak_ratio_is_the_first_grid_point_reaching_the_ratio() {
+        assert_eq!(peak_ratio(0.0), 0.0);
+        assert_eq!(peak_ratio(-1.0), 0.0);
+        assert_eq!(peak_ratio(f64::NAN), 0.0);
+        assert_eq!(peak_ratio(0.5), 1.0);
+        assert_eq!(peak_ratio(3.0), 1.0);
+        assert_eq!(peak_ratio(0.3), 0.34);
+        for i in 1..500 {
+            let q = i as f64 / 1000.0;
+            let b = peak_ratio(q);
+            let k = (b / 0.01).round();
+            assert_eq!(b, k * 0.01, "{q}: {b} is on the grid");
+            assert!(b / (1.0 + b * b) >= q, "{q}: {b} reaches the ratio");
+            let below = (k - 1.0) * 0.01;
+            assert!(
+                below / (1.0 + below * below) < q,
+                "{q}: {below} already does"
+            );
+        }
+    }
+
+    #[test]
+    fn deconvolutions_follow_the_direct_formulas() {
+        let (d, tau, b, a) = (50, 7, 0.6, 0.8);
+        let x = noise(d, 3);
+        let lag = LagRemoval::new(tau, b, a);
+        // S = x + Σ_{q=1..5} x·(−B·a)^q shifted by qτ
+        let mut want = vec![0.0; d + 5 * tau];
+        for q in 0..6 {
+            for (n, v) in x.iter().enumerate() {
+                want[q * tau + n] += v * (-b * a).powi(q as i32);
+            }
+        }
+        let mut got = vec![0.0; lag.len(false, d)];
+        lag.apply(false, &x, &mut got);
+        assert_eq!(got, want);
+        // Y = Σ_{q=0..5} (−1)^(q+1)·x·B^(6−q)·a^(5−q) shifted by qτ; L = Y[6τ..D+5τ)
+        let mut y = vec![0.0; d + 5 * tau];
+        for q in 0..6 {
+            let coef = (-1f64).powi(q as i32 + 1) * b.powi(6 - q as i32) * a.powi(5 - q as i32);
+            for (n, v) in x.iter().enumerate() {
+                y[q * tau + n] += v * coef;
+            }
+        }
+        let mut got = vec![0.0; lag.len(true, d)];
+        lag.apply(true, &x, &mut got);
+        assert_eq!(got.len(), d - tau);
+        for (g, w) in got.iter().zip(&y[6 * tau..]) {
+            assert!((g - w).abs() <= 1e-15, "{g} vs {w}");
+        }
+    }
+
+    #[test]
+    fn decay_weights_fall_from_6_to_20_ms() {
+        let a = decay_table(16);
+        assert_eq!(a.len(), 1600);
+        assert_eq!((a[0], a[6 * 16 - 1], a[6 * 16]), (1.0, 1.0, 1.0));
+        assert_eq!((a[20 * 16 - 1], a[20 * 16]), (0.0, 0.0));
+        assert!(a[6 * 16..20 * 16].windows(2).all(|p| p[1] < p[0]));
+    }
+
+    #[test]
+    fn short_correlation_from_the_frames_equals_the_direct_one() {
+        let w = 64;
+        let nfft = fft_len(2 * w - 1);
+        let mut planner = RealFftPlanner::<f64>::new();
+        let (fft, ifft) = (
+            planner.plan_fft_forward(nfft),
+            planner.plan_fft_inverse(nfft),
+        );
+        let mut buf = FftBuffers {
+            time: fft.make_input_vec(),
+            spectrum: fft.make_output_vec(),
+            scratch: vec![Complex64::default(); 4 * nfft],
+        };
+        for (tau_l, tau_r, seed) in [(3, 5, 1), (12, 4, 2), (30, 30, 3), (40, 9, 4)] {
+            let (xl, xr) = (noise(w, seed), noise(w, seed + 10));
+            let (ll, lr) = (
+                LagRemoval::new(tau_l, 0.7, 0.9),
+                LagRemoval::new(tau_r, 0.4, 1.0),
+            );
+            let spectrum = |x: &[f64], buf: &mut FftBuffers| {
+                buf.time[..w].copy_from_slice(x);
+                buf.time[w..].fill(0.0);
+                let mut out = fft.make_output_vec();
+                fft.process_with_scratch(&mut buf.time, &mut out, &mut buf.scratch)
+                    .expect("fft");
+                out
+            };
+            let (fl, fr) = (spectrum(&xl, &mut buf), spectrum(&xr, &mut buf));
+            let mut r = vec![0.0; 2 * w - 1];
+            buf.frame_xcorr(&*ifft, &fl, &fr, &mut r);
+            let mut got = vec![0.0; 2 * 20 + 1];
+            short_xcorr(&r, &ll, &lr, &mut got);
+            let mut sl = vec![0.0; ll.len(false, w)];
+            let mut sr = vec![0.0; lr.len(false, w)];
+            ll.apply(false, &xl, &mut sl);
+            lr.apply(false, &xr, &mut sr);
+            let mut want = vec![0.0; got.len()];
+            xcorr(&sl, &sr, &mut want);
+            let top = want.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            for (g, v) in got.iter().zip(&want) {
+                assert!(
+                    (g - v).abs() <= 1e-13 * top,
+                    "τ {tau_l}/{tau_r}: {g} vs {v}"
+                );
+            }
+            // and the energies from the frame's autocorrelation at multiples of τ
+            let ac = lag_products(&xl, tau_l);
+            let mut energy = 0.0;
+            for q in 0..TAPS {
+                for p in 0..TAPS {
+                    energy += ll.short[q] * ll.short[p] * ac[q.abs_diff(p)];
+                }
+            }
+            let direct = dot(&sl, &sl);
+            assert!((energy - direct).abs() <= 1e-13 * direct);
+        }
+    }
+
+    #[test]
+    fn a_delayed_softer_right_ear_gives_negative_itd_and_ild() {
+        let (fs, nc, delay) = (16000.0, 4, 5);
+        let len = 8000;
+        // Independent noise per channel; the right ear is the left delayed by 5 samples
+        // and 6 dB softer.
+        let chans: Vec<Vec<f64>> = (0..nc).map(|c| noise(len + delay, c as u64 + 1)).collect();
+        let mut l = vec![0.0; len * nc];
+        let mut r = vec![0.0; len * nc];
+        for t in 0..len {
+            for c in 0..nc {
+                l[t * nc + c] = chans[c][t + delay];
+                r[t * nc + c] = 0.5 * chans[c][t];
+            }
+        }
+        let info = filterbank(fs, nc);
+        let [itd, ild, cc] = run(&PrecedenceParams::default(), &info, (&l, &r), &[len]);
+        assert_eq!(itd.len(), 49 * nc);
+        assert_eq!(cc.len(), 49 * nc * 33);
+        for (i, v) in itd.iter().enumerate().skip(nc) {
+            assert_eq!(*v, -(delay as f64) / fs, "cell {i}");
+        }
+        // About −6 dB: each ear's lag removal (its own B and τ, from noise) moves its
+        // energy by a dB or two per frame.
+        assert!(ild.iter().all(|v| (-10.0..-3.0).contains(v)), "{ild:?}");
+        let mean = ild.iter().sum::<f64>() / ild.len() as f64;
+        assert!((mean + 20.0 * 2f64.log10()).abs() < 1.0, "{mean} dB");
+    }
+
+    #[test]
+    fn silent_channels_give_nan_ild_and_the_first_lag() {
+        let (fs, nc) = (16000.0, 3);
+        let info = filterbank(fs, nc);
+        let zero = vec![0.0; 2000 * nc];
+        let [itd, ild, cc] = run(&PrecedenceParams::default(), &info, (&zero, &zero), &[700]);
+        assert_eq!(itd.len(), 11 * nc);
+        assert!(ild.iter().all(|v| v.is_nan()));
+        assert!(itd.iter().all(|v| *v == -16.0 / fs));
+        assert!(cc.iter().all(|v| *v == 0.0));
+    }
+
+    #[test]
+    fn bad_parameters_are_named() {
+        let info = filterbank(44100.0, 4);
+        let bad = [
+            (
+                "prec_wSizeSec",
+                PrecedenceParams {
+                    w_size_sec: 0.008,
+                    ..Default::default()
+                },
+            ),
+            (
+                "prec_wSizeSec",
+                PrecedenceParams {
+                    w_size_sec: -1.0,
+                    ..Default::default()
+                },
+            ),
+            (
+                "prec_hSizeSec",
+                PrecedenceParams {
+                    h_size_sec: 0.0,
+                    ..Default::default()
+                },
+            ),
+            (
+                "prec_maxDelaySec",
+                PrecedenceParams {
+                    max_delay_sec: -0.001,
+                    ..Default::default()
+                },
+            ),
+            (
+                "prec_maxDelaySec",
+                PrecedenceParams {
+                    max_delay_sec: 1.0,
+                    ..Default::default()
+                },
+            ),
+        ];
+        for (name, p) in bad {
+            let e = Precedence::new(&p, &info).expect_err(name).to_string();
+            assert!(e.contains(name), "{e}");
+        }
+        let slow = filterbank(1000.0, 4);
+        let e = Precedence::new(&PrecedenceParams::default(), &slow).expect_err("1 kHz");
+        assert!(e.to_string().contains("1334 Hz"), "{e}");
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 32, failure_persistence: None, ..ProptestConfig::default() })]
+
+        /// Any chunking gives the output of one call, bit for bit.
+        #[test]
+        fn any_chunking_is_bit_identical(
+            seed in 0u64..1000,
+            chunks in prop::collection::vec(prop_oneof![Just(1usize), 1usize..300, 300usize..2000], 1..8),
+        ) {
+            let (nc, len) = (3, 3000);
+            let info = filterbank(16000.0, nc);
+            let l = noise(len * nc, seed);
+            let r: Vec<f64> = noise(len * nc, seed + 1).iter().zip(&l).map(|(a, b)| 0.3 * a + b).collect();
+            let p = PrecedenceParams::default();
+            let whole = run(&p, &info, (&l, &r), &[len]);
+            let chunked = run(&p, &info, (&l, &r), &chunks);
+            for (a, b) in whole.iter().zip(&chunked) {
+                prop_assert_eq!(a.len(), b.len());
+                prop_assert!(a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()));
+            }
+        }
+    }
+}
