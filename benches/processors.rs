@@ -16,8 +16,9 @@
 //!   in channel-samples per second.
 //! * Group `stages`: each processor after the filterbank alone (`innerhaircell` and
 //!   `ratemap` on one ear, `ild` and `crosscorrelation` on both), fed its real input
-//!   (the example's IHC envelopes), 16/32/64 channels, chunks of 441, 2205 and the whole
-//!   signal; throughput in audio samples per ear.
+//!   (the example's IHC envelopes; `precedence`, on both ears, the filterbank output),
+//!   16/32/64 channels, chunks of 441, 2205 and the whole signal; throughput in audio
+//!   samples per ear.
 //!
 //! Only processing is timed: the managers are built and the input read beforehand.
 //!
@@ -239,14 +240,15 @@ fn stages(c: &mut Criterion) {
     use afe_processors::gammatone::Gammatone;
     use afe_processors::ihc::{Ihc, IhcParams};
     use afe_processors::ild::{Ild, IldParams};
+    use afe_processors::precedence::{Precedence, PrecedenceParams};
     use afe_processors::ratemap::{Ratemap, RatemapParams};
 
-    /// Runs `p` (output `info`) over `inputs` (one signal per ear) cut into `chunk`-sample
+    /// Runs `p` (outputs `infos`) over `inputs` (one signal per ear) cut into `chunk`-sample
     /// blocks.
     fn bench(
         group: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
         id: BenchmarkId,
-        (p, info): (&mut dyn Processor, SignalInfo),
+        (p, infos): (&mut dyn Processor, &[SignalInfo]),
         inputs: &[&Block],
         chunk: usize,
     ) {
@@ -260,7 +262,7 @@ fn stages(c: &mut Criterion) {
                     .collect()
             })
             .collect();
-        let mut out = vec![Block::new(info.width())];
+        let mut out: Vec<Block> = infos.iter().map(|i| Block::new(i.width())).collect();
         group.bench_function(id, |b| {
             b.iter(|| {
                 p.reset();
@@ -302,29 +304,34 @@ fn stages(c: &mut Criterion) {
             let id = |name: &str| BenchmarkId::new(format!("{name}/{channels}ch"), chunk);
             let binaural = [&ihc_in[0], &ihc_in[1]];
             let (mut ihc, info) = Ihc::new(&IhcParams::default(), &fb_info).expect("ihc");
-            let p = (&mut ihc as &mut dyn Processor, info);
+            let p = (&mut ihc as &mut dyn Processor, &[info][..]);
             bench(&mut group, id("innerhaircell"), p, &[&fb_in[0]], chunk);
             let (mut rm, info) =
                 Ratemap::new(&RatemapParams::default(), &ihc_info).expect("ratemap");
             bench(
                 &mut group,
                 id("ratemap"),
-                (&mut rm, info),
+                (&mut rm, &[info]),
                 &[&ihc_in[0]],
                 chunk,
             );
             let (mut ild, info) = Ild::new(&IldParams::default(), &ihc_info).expect("ild");
-            bench(&mut group, id("ild"), (&mut ild, info), &binaural, chunk);
+            bench(&mut group, id("ild"), (&mut ild, &[info]), &binaural, chunk);
             let (mut cc, info) =
                 Crosscorrelation::new(&CrosscorrelationParams::default(), &ihc_info)
                     .expect("crosscorrelation");
             bench(
                 &mut group,
                 id("crosscorrelation"),
-                (&mut cc, info),
+                (&mut cc, &[info]),
                 &binaural,
                 chunk,
             );
+            let (mut prec, infos) =
+                Precedence::new(&PrecedenceParams::default(), &fb_info).expect("precedence");
+            let filterbank = [&fb_in[0], &fb_in[1]];
+            let p = (&mut prec as &mut dyn Processor, &infos[..]);
+            bench(&mut group, id("precedence"), p, &filterbank, chunk);
         }
     }
     group.finish();

@@ -129,17 +129,38 @@ fn oracle_cases(oracle: &Path) -> Vec<Case> {
                 continue;
             }
             let mut seen = std::collections::BTreeSet::new();
-            let signals: Vec<(String, String, Vec<usize>)> = meta["signals"]
+            let stored: Vec<&Value> = meta["signals"]
                 .as_array()
                 .expect("signals")
                 .iter()
                 .filter(|s| s["name"] != "input" && s["file"].is_string())
+                .collect();
+            let name_channel = |s: &Value| {
+                format!(
+                    "{}_{}",
+                    s["name"].as_str().expect("name"),
+                    s["channel"].as_str().expect("channel")
+                )
+            };
+            let signals: Vec<(String, String, Vec<usize>)> = stored
+                .iter()
                 .map(|s| {
-                    let key = format!(
-                        "{}_{}",
-                        s["name"].as_str().expect("name"),
-                        s["channel"].as_str().expect("channel")
-                    );
+                    // A processor with several outputs stores them as instances of one
+                    // name (precedence: itd, ild, cc); each is named by its file, as in
+                    // afe.
+                    let file = s["file"].as_str().expect("file");
+                    let shared = stored
+                        .iter()
+                        .filter(|t| name_channel(t) == name_channel(s))
+                        .count()
+                        > 1;
+                    let key = if shared {
+                        Path::new(file)
+                            .file_stem()
+                            .map_or(file.to_string(), |f| f.to_string_lossy().into_owned())
+                    } else {
+                        name_channel(s)
+                    };
                     (
                         key,
                         s["file"].as_str().expect("file").to_string(),

@@ -84,6 +84,9 @@ pub struct SignalInfo {
     /// gains for the DRNL) rather than being a signal of its own: it is not listed
     /// among a graph's signals.
     pub feedback: bool,
+    /// The signal's own name when a processor has several outputs of different kinds,
+    /// e.g. `precedence_itd`; `None` names it after the request.
+    pub name: Option<&'static str>,
 }
 
 impl SignalInfo {
@@ -135,6 +138,14 @@ impl SignalInfo {
             features,
             audio_fs_hz,
             ..SignalInfo::default()
+        }
+    }
+
+    /// The same signal under its own name `name` (see [`SignalInfo::name`]).
+    pub fn named(self, name: &'static str) -> Self {
+        SignalInfo {
+            name: Some(name),
+            ..self
         }
     }
 

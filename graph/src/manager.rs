@@ -32,7 +32,8 @@ impl RequestHandle {
 /// One output signal of the graph, as seen after the last processed chunk.
 #[derive(Debug, Clone, Copy)]
 pub struct Signal<'a> {
-    /// Request name of the signal, e.g. `ratemap`.
+    /// Name of the signal: the request's, e.g. `ratemap`, or the output's own where a
+    /// processor has several (`precedence_itd`, `precedence_ild`, `precedence_cc`).
     pub name: &'static str,
     /// 1-based instance among the signals of the same name (requests with different
     /// parameters make several instances).
@@ -737,7 +738,7 @@ impl Manager {
     fn signal(&self, r: OutputRef) -> Option<Signal<'_>> {
         let node = &self.graph.nodes[r.node];
         Some(Signal {
-            name: node.name,
+            name: node.infos[r.output].name.unwrap_or(node.name),
             instance: node.instance,
             channel: node.channels[r.output],
             info: &node.infos[r.output],
@@ -761,6 +762,29 @@ mod tests {
             .iter()
             .map(|(k, v)| (k.to_string(), v.clone()))
             .collect()
+    }
+
+    /// A processor with several outputs names each (the AFE oracle's names).
+    #[test]
+    fn multi_output_processors_name_their_outputs() {
+        let mut m = Manager::new(16000.0, 2).expect("manager");
+        let h = m.add_request("precedence", &ParamMap::new()).expect("ok");
+        let left = vec![0.1; 1600];
+        m.process_signal(&[&left, &left]).expect("ok");
+        let keys: Vec<String> = m
+            .request_signals(h)
+            .expect("ok")
+            .iter()
+            .map(Signal::key)
+            .collect();
+        assert_eq!(
+            keys,
+            [
+                "precedence_itd_mono",
+                "precedence_ild_mono",
+                "precedence_cc_mono"
+            ]
+        );
     }
 
     #[test]

@@ -175,7 +175,7 @@ impl Graph {
             Ears::PerEar => {
                 vec![self.nodes[parents[0].node].channels[parents[0].output]; built.outputs.len()]
             }
-            Ears::Binaural => vec![Channel::Mono],
+            Ears::Binaural => vec![Channel::Mono; built.outputs.len()],
         };
         let outputs = built
             .outputs

@@ -1000,7 +1000,10 @@ mod tests {
         d.filter(&x, &mut z);
         assert_eq!(z, y);
         d.reset();
-        assert_eq!((d.moc_ipsi(), d.moc_contra()), (&[1.0; 4][..], &[1.0; 4][..]));
+        assert_eq!(
+            (d.moc_ipsi(), d.moc_contra()),
+            (&[1.0; 4][..], &[1.0; 4][..])
+        );
         d.filter(&x, &mut z);
         assert_eq!(z, run(&base, &x));
     }

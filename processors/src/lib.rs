@@ -26,6 +26,7 @@ pub mod middle_ear;
 pub mod moc;
 pub mod pitch;
 pub mod pre_proc;
+pub mod precedence;
 pub mod ratemap;
 mod registry;
 pub mod spectral_features;

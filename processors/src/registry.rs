@@ -7,8 +7,8 @@ use afe_core::{Error, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo
 
 use crate::{
     adaptation, ams_features, autocorrelation, butterworth, crosscorrelation, duet, filterbank,
-    gabor, ic, ihc, ild, itd, moc, pitch, pre_proc, ratemap, spectral_features, stft, transient,
-    transient_map,
+    gabor, ic, ihc, ild, itd, moc, pitch, pre_proc, precedence, ratemap, spectral_features, stft,
+    transient, transient_map,
 };
 
 /// How a processor relates to the ears (the AFE's binaural flag).
@@ -191,6 +191,7 @@ static REQUESTS: &[&RequestDef] = &[
     &crosscorrelation::REQUEST,
     &itd::REQUEST,
     &ic::REQUEST,
+    &precedence::REQUEST,
     &autocorrelation::REQUEST,
     &pitch::REQUEST,
     &transient::ONSET_REQUEST,

@@ -23,7 +23,7 @@ def test_catalogue_matches_the_afe_names():
     afe_names = {"time", "filterbank", "innerhaircell", "adaptation", "amsFeatures", "ratemap",
                  "ild", "crosscorrelation", "itd", "ic", "autocorrelation", "pitch",
                  "onsetStrength", "offsetStrength", "onsetMap", "offsetMap",
-                 "spectralFeatures", "gabor", "stft"}
+                 "spectralFeatures", "gabor", "stft", "moc", "precedence", "duet"}
     assert afe_names <= set(afe.requests())
     assert afe.requests()[:3] == ["time", "butterworth", "filterbank"]  # dependencies first
     names = {p["name"]: p for p in afe.parameters("ratemap")}
@@ -120,6 +120,41 @@ def test_every_signal_class_reaches_numpy_with_its_description(cli, tmp_path):
     assert saved["stft_right"].dtype == np.complex128
     for k in saved.files:
         np.testing.assert_array_equal(saved[k], expected[k], err_msg=k)
+
+
+def test_drnl_moc_precedence_and_duet_from_python():
+    """The part-2 representations: precedence's three outputs under the oracle's names, the
+    DUET histogram with its bins, a DRNL filterbank, and the MOC fed back in 10-ms chunks
+    (equal on both executors; without the MOC the DRNL output stays as it was)."""
+    x = signal(8000)
+    out = afe.process(x, 16000, ["precedence", "duet"], {"fb_nChannels": 8})
+    itd, ild, cc = (out["precedence_" + k + "_mono"] for k in ("itd", "ild", "cc"))
+    assert itd.shape == ild.shape and itd.shape[1] == 8 and cc.shape[:2] == itd.shape
+    assert np.all(np.abs(itd) <= 0.001 + 1e-12)
+    duet = out["duet_mono"]
+    assert duet.ndim == 3 and np.nanmax(duet) == 1.0
+    m = afe.Manager(16000, 2)
+    m.add_request("duet")
+    m.process_signal(x)
+    assert duet.shape[1:] == (len(m.info()["duet_mono"]["alpha"]), len(m.info()["duet_mono"]["delta_samples"]))
+
+    def stream(requests, threads):
+        m = afe.Manager(16000, 2, threads=threads)
+        for r in requests:
+            m.add_request(r, {"fb_type": "drnl"})
+        chunks = [m.process_chunk(x[s : s + 160]) for s in range(0, len(x), 160)]
+        return {k: np.concatenate([c[k] for c in chunks]) for k in chunks[0]}, m.info()
+
+    moc, info = stream(["moc", "filterbank"], None)
+    assert info["moc_left"]["fs_hz"] == 100.0 and moc["moc_left"].shape[1] == 31
+    assert moc["moc_left"].min() >= 0 and moc["moc_left"].max() <= 40
+    plain, _ = stream(["filterbank"], None)
+    assert not np.array_equal(moc["filterbank_left"], plain["filterbank_left"])
+    np.testing.assert_array_equal(moc["filterbank_left"][:160], plain["filterbank_left"][:160])
+    for k, v in stream(["moc", "filterbank"], 2)[0].items():
+        np.testing.assert_array_equal(v, moc[k], err_msg=k)
+    with pytest.raises(ValueError, match="fb_mocIpsi"):
+        afe.process(x, 16000, "filterbank", {"fb_type": "drnl", "fb_mocIpsi": [1, 2]})
 
 
 def test_run_time_edits():
