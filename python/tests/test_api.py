@@ -126,28 +126,30 @@ def test_drnl_moc_precedence_and_duet_from_python():
     """The part-2 representations: precedence's three outputs under the oracle's names, the
     DUET histogram with its bins, a DRNL filterbank, and the MOC fed back in 10-ms chunks
     (equal on both executors; without the MOC the DRNL output stays as it was)."""
-    x = signal(8000)
+    x = signal(16000)  # one second: four DUET histograms of 0.5 s every 1/6 s
     out = afe.process(x, 16000, ["precedence", "duet"], {"fb_nChannels": 8})
     itd, ild, cc = (out["precedence_" + k + "_mono"] for k in ("itd", "ild", "cc"))
     assert itd.shape == ild.shape and itd.shape[1] == 8 and cc.shape[:2] == itd.shape
     assert np.all(np.abs(itd) <= 0.001 + 1e-12)
     duet = out["duet_mono"]
-    assert duet.ndim == 3 and np.nanmax(duet) == 1.0
+    assert duet.shape[0] == 4 and np.nanmax(duet, axis=(1, 2)).tolist() == [1.0] * 4
     m = afe.Manager(16000, 2)
     m.add_request("duet")
     m.process_signal(x)
     assert duet.shape[1:] == (len(m.info()["duet_mono"]["alpha"]), len(m.info()["duet_mono"]["delta_samples"]))
 
+    quiet = x * 1e-3  # the MOC's fit attenuates from about -170 to -50 dB ratemap level
+
     def stream(requests, threads):
         m = afe.Manager(16000, 2, threads=threads)
         for r in requests:
             m.add_request(r, {"fb_type": "drnl"})
-        chunks = [m.process_chunk(x[s : s + 160]) for s in range(0, len(x), 160)]
+        chunks = [m.process_chunk(quiet[s : s + 160]) for s in range(0, len(x), 160)]
         return {k: np.concatenate([c[k] for c in chunks]) for k in chunks[0]}, m.info()
 
     moc, info = stream(["moc", "filterbank"], None)
     assert info["moc_left"]["fs_hz"] == 100.0 and moc["moc_left"].shape[1] == 31
-    assert moc["moc_left"].min() >= 0 and moc["moc_left"].max() <= 40
+    assert moc["moc_left"].min() >= 0 and 0 < moc["moc_left"].max() <= 40
     plain, _ = stream(["filterbank"], None)
     assert not np.array_equal(moc["filterbank_left"], plain["filterbank_left"])
     np.testing.assert_array_equal(moc["filterbank_left"][:160], plain["filterbank_left"][:160])
