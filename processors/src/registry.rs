@@ -266,7 +266,7 @@ mod tests {
     fn unknown_request_lists_the_known_ones() {
         let e = find_request("ratemapp").unwrap_err().to_string();
         assert!(
-            e.contains("'ratemapp'") && e.contains("ratemap, ild"),
+            e.contains("'ratemapp'") && e.contains("ratemap, moc, ild"),
             "{e}"
         );
     }
