@@ -19,6 +19,7 @@
 //! # Ok::<(), afe::Error>(())
 //! ```
 
+pub mod block_times;
 pub mod catalog;
 pub mod extract;
 pub mod npy;

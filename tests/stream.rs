@@ -92,7 +92,19 @@ fn the_json_report_counts_frames_blocks_and_losses() {
         assert!(r[key].as_f64().is_some(), "{key} missing from {r}");
     }
     assert!(r["compute_ms_p50"].as_f64() <= r["compute_ms_p99"].as_f64());
+    assert!(r["compute_ms_p99"].as_f64() <= r["compute_ms_max"].as_f64());
     assert!(r["x_realtime"].as_f64().expect("number") > 0.0);
+    // the slowest block is named, the histogram holds every block, the missed ones are
+    // listed (as many as counted, up to 100)
+    assert!(r["slowest_block"].as_u64().expect("index") < 25);
+    let histogram = r["compute_ms_histogram"].as_array().expect("bins");
+    let counted: u64 = histogram
+        .iter()
+        .map(|b| b[1].as_u64().expect("count"))
+        .sum();
+    assert_eq!(counted, 25);
+    let missed = r["missed_blocks"].as_array().expect("list").len() as u64;
+    assert_eq!(Some(missed), r["deadline_misses"].as_u64());
 }
 
 #[test]

@@ -579,6 +579,10 @@ fn stream(
             "deadline_misses": r.deadline_misses,
             "compute_ms_p50": r.compute_ms_p50,
             "compute_ms_p99": r.compute_ms_p99,
+            "compute_ms_max": r.compute_ms_max,
+            "slowest_block": r.slowest_block,
+            "missed_blocks": r.missed_blocks,
+            "compute_ms_histogram": r.compute_ms_histogram,
             "budget_ms": r.budget_ms,
             "x_realtime": r.x_realtime,
             "device_overruns": r.device_overruns,
@@ -587,7 +591,8 @@ fn stream(
     } else {
         println!(
             "{} frames ({:.2} s at {} Hz) in {} blocks of {} frames: compute per block p50 {:.3} ms, \
-             p99 {:.3} ms, budget {:.2} ms ({:.1}x real time); {} deadline miss(es); {} frame(s) lost{}",
+             p99 {:.3} ms, max {:.3} ms (block {}), budget {:.2} ms ({:.1}x real time); \
+             {} deadline miss(es){}; {} frame(s) lost{}",
             r.frames,
             r.frames as f64 / r.fs,
             r.fs,
@@ -595,9 +600,19 @@ fn stream(
             r.block_frames,
             r.compute_ms_p50,
             r.compute_ms_p99,
+            r.compute_ms_max,
+            r.slowest_block,
             r.budget_ms,
             r.x_realtime,
             r.deadline_misses,
+            match r.missed_blocks.as_slice() {
+                [] => String::new(),
+                m => format!(
+                    " (blocks {}{})",
+                    m.iter().map(u64::to_string).collect::<Vec<_>>().join(", "),
+                    if r.deadline_misses > m.len() as u64 { ", ..." } else { "" }
+                ),
+            },
             r.lost_frames,
             if r.device_overruns > 0 {
                 format!("; {} device overrun(s)", r.device_overruns)
