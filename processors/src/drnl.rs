@@ -224,7 +224,9 @@ fn ln_rough(x: f64) -> f64 {
 #[inline(always)]
 fn casp_compress(u: f64, a: f64, b: f64, delta: f64) -> f64 {
     let au = u.abs();
-    (a * au).min(b * pow_quarter_plus(au, delta)).copysign(u)
+    let (linear, power) = (a * au, b * pow_quarter_plus(au, delta));
+    // a plain comparison (one instruction): NaN only comes with a NaN `u`
+    if power < linear { power } else { linear }.copysign(u)
 }
 
 /// MAP's non-linearity: `a·u` below the threshold `|u| < cts`, else
@@ -276,6 +278,18 @@ impl<const W: usize> LaneGt<W> {
     /// the reference's order, `y = z0 + b0·x`, `z0 = (z1 − a1·y) + b1·x`, `z1 = −a2·y`.
     #[inline(always)]
     fn run(&self, z: &mut [[f64; W]; 2], buf: &mut [[f64; W]]) {
+        self.run_then(z, buf, |_| ());
+    }
+
+    /// [`LaneGt::run`], then `then` on each output row in place (in the same pass, so that
+    /// its work overlaps the recursion's latency).
+    #[inline(always)]
+    fn run_then(
+        &self,
+        z: &mut [[f64; W]; 2],
+        buf: &mut [[f64; W]],
+        mut then: impl FnMut(&mut [f64; W]),
+    ) {
         let [mut z0, mut z1] = *z;
         for v in buf.iter_mut() {
             for l in 0..W {
@@ -285,6 +299,7 @@ impl<const W: usize> LaneGt<W> {
                 z1[l] = self.na2[l] * y;
                 v[l] = y;
             }
+            then(v);
         }
         *z = [z0, z1];
     }
@@ -402,15 +417,13 @@ fn run_casp<const W: usize>(
     for zs in &mut z[2..6] {
         g.lp_lin.run(zs, lin);
     }
-    for zs in &mut z[6..8] {
-        g.gt_nl.run(zs, nl);
-    }
+    g.gt_nl.run(&mut z[6], nl);
     let [ca, cb] = g.comp;
-    for v in nl.iter_mut() {
+    g.gt_nl.run_then(&mut z[7], nl, |v| {
         for l in 0..W {
             v[l] = casp_compress(v[l], ca[l], cb[l], delta);
         }
-    }
+    });
     for zs in &mut z[8..10] {
         g.gt_nl.run(zs, nl);
     }
