@@ -1,6 +1,8 @@
-//! `afe`: a real-time binaural Auditory Front-End. It computes the representations of the
-//! Two!Ears Auditory Front-End (AFE) — filterbank, inner-hair-cell envelope, ratemap, ILD,
-//! cross-correlation, ITD, IC — with the AFE's request and parameter names and numbers.
+//! `afe`: a real-time binaural Auditory Front-End. It computes the 23 representations of the
+//! Two!Ears Auditory Front-End (AFE) — gammatone and DRNL filterbanks, inner-hair-cell
+//! envelope, ratemap, ILD, cross-correlation, ITD, IC, precedence cues, MOC feedback, pitch,
+//! AMS, onsets, spectral and Gabor features, STFT, DUET and more — with the AFE's request
+//! and parameter names and numbers.
 //!
 //! ```
 //! use afe::{Manager, ParamMap};
