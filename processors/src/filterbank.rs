@@ -26,7 +26,8 @@ pub enum FbType {
 
 /// Parameters of a `filterbank` request, under their AFE names: the grid shared by both
 /// types and those of each type. Every one is accepted whatever `fb_type` says (as in the
-/// AFE); a type ignores the others' (see [`Filterbank::canonical`]).
+/// AFE); a type ignores the others', and its canonical map (which decides sharing) holds
+/// only its own.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct FilterbankParams {

@@ -5,7 +5,7 @@
 //! `L`, long), and the pair with the highest cumulative summary coherence gives the cues.
 //!
 //! Autocorrelations and the cross-correlation of the raw frames use real FFTs of at
-//! least `2W − 1` points (see [`fft_len`]); the lag-removed `S` signals are sums of six shifted copies
+//! least `2W − 1` points; the lag-removed `S` signals are sums of six shifted copies
 //! of the frame, so their correlation is read off that of the frames (36 terms per lag)
 //! instead of correlating signals up to `W + 5·acLag` samples long. The truncated `L`
 //! signals are correlated directly.
