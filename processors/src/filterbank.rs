@@ -214,11 +214,14 @@ impl CfGrid {
         map.insert("fb_highFreqHz".into(), json!(self.high_freq_hz));
     }
 
-    /// Refuses a grid reaching the Nyquist frequency of input rate `fs` Hz, naming the
-    /// parameter the user set (`params` is what the grid was derived from).
+    /// Refuses a grid beyond the Nyquist frequency of input rate `fs` Hz, naming the
+    /// parameter the user set (`params` is what the grid was derived from). A top channel
+    /// at Nyquist (`fb_highFreqHz = fs/2`, as AFE scripts write it) is accepted, as in the
+    /// AFE, up to the rounding of the ERB round trip (22050.000000000004 for 44.1 kHz).
     pub fn check_below_nyquist(&self, params: &FilterbankParams, fs: f64) -> Result<()> {
         let nyquist = fs / 2.0;
-        let Some(bad) = self.cf_hz.iter().find(|f| **f >= nyquist) else {
+        let limit = nyquist * (1.0 + 1e-12);
+        let Some(bad) = self.cf_hz.iter().find(|f| **f > limit) else {
             return Ok(());
         };
         Err(if params.cf_hz.is_empty() {
@@ -233,8 +236,8 @@ impl CfGrid {
                 params.high_freq_hz,
                 format!(
                     "{}{which} puts centre frequencies up to {bad:.0} Hz, above the Nyquist \
-                     frequency ({nyquist} Hz) of the {fs} Hz input: set fb_highFreqHz below \
-                     {nyquist} Hz",
+                     frequency ({nyquist} Hz) of the {fs} Hz input: set fb_highFreqHz to at \
+                     most {nyquist} Hz",
                     params.high_freq_hz
                 ),
             )
@@ -243,7 +246,7 @@ impl CfGrid {
                 "fb_cfHz",
                 bad,
                 format!(
-                    "centre frequencies must lie below the Nyquist frequency ({nyquist} Hz) \
+                    "centre frequencies must not exceed the Nyquist frequency ({nyquist} Hz) \
                      of the {fs} Hz input"
                 ),
             )
@@ -399,6 +402,43 @@ pub static REQUEST: RequestDef = request_def::<Filterbank>();
 #[cfg(test)]
 mod tests {
     use super::*;
+    use afe_core::{Block, Params};
+
+    /// Issue 18: `fb_highFreqHz = fs/2` with `fb_nChannels`, as AFE scripts write it,
+    /// puts the top channel at Nyquist up to rounding (22050.000000000004): accepted, with
+    /// finite output, for both filterbank types; 1 Hz beyond is refused.
+    #[test]
+    fn a_top_channel_at_nyquist_is_accepted() {
+        for ty in [FbType::Gammatone, FbType::Drnl] {
+            let p = FilterbankParams {
+                fb_type: ty,
+                high_freq_hz: 22050.0,
+                n_channels: Some(16),
+                ..Default::default()
+            };
+            let grid = p.grid().expect("grid");
+            assert!(grid.cf_hz[15] >= 22050.0, "{:?}", grid.cf_hz[15]);
+            let built = (REQUEST.build)(&p.to_map(), &[SignalInfo::time_domain(44100.0)])
+                .expect("accepted, as in the AFE");
+            let mut proc_ = built.processor;
+            let x = Block::from_vec(
+                (0..512)
+                    .map(|t| ((t * 7) % 13) as f64 / 13.0 - 0.5)
+                    .collect(),
+                1,
+            );
+            let mut out = vec![Block::new(16)];
+            proc_.process(&[&x], &mut out);
+            assert!(out[0].as_slice().iter().all(|v| v.is_finite()), "{ty:?}");
+            let beyond = FilterbankParams {
+                high_freq_hz: 22051.0,
+                ..p
+            };
+            let e = (REQUEST.build)(&beyond.to_map(), &[SignalInfo::time_domain(44100.0)]);
+            assert!(e.is_err(), "{ty:?}");
+        }
+    }
+
     use serde_json::Value;
 
     #[test]

@@ -497,7 +497,7 @@ mod tests {
             "{msg}"
         );
         assert!(
-            msg.contains("(the default)") && msg.contains("below 4000 Hz"),
+            msg.contains("(the default)") && msg.contains("at most 4000 Hz"),
             "{msg}"
         );
         let p = FilterbankParams {

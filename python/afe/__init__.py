@@ -26,6 +26,11 @@ import numpy as np
 from . import _afe
 
 __all__ = ["Manager", "parameters", "process", "read_wav", "requests", "__version__"]
+
+
+def __dir__() -> List[str]:
+    """The public API only (not the modules and typing names imported here)."""
+    return sorted(__all__)
 __version__ = _afe.__version__
 
 Signal = Union[np.ndarray, Sequence[float], Sequence[Sequence[float]], str, os.PathLike]

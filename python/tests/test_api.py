@@ -36,6 +36,20 @@ def test_catalogue_matches_the_afe_names():
         afe.parameters("nope")
 
 
+def test_dir_shows_the_public_api_only():
+    assert dir(afe) == sorted(["Manager", "parameters", "process", "read_wav", "requests", "__version__"])
+
+
+def test_a_top_channel_at_nyquist_is_accepted_as_in_the_afe():
+    """AFE scripts write fb_highFreqHz = fs/2; the ERB round trip puts the top channel at
+    22050.000000000004 Hz, which is accepted; beyond Nyquist is refused in the user's numbers."""
+    x = signal(4410, 44100)
+    out = afe.process(x, 44100, "filterbank", {"fb_highFreqHz": 22050, "fb_nChannels": 16})
+    assert np.isfinite(out["filterbank_left"]).all()
+    with pytest.raises(ValueError, match="fb_highFreqHz"):
+        afe.process(x, 44100, "filterbank", {"fb_highFreqHz": 22100, "fb_nChannels": 16})
+
+
 def test_read_wav_mono_and_stereo(tmp_path, example_wav):
     x, fs = afe.read_wav(example_wav)
     assert x.shape == (44100, 2) and fs == 44100.0 and x.dtype == np.float64
