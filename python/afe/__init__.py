@@ -105,6 +105,12 @@ def _as_channels(signal: Signal, channels: Optional[int] = None) -> np.ndarray:
 def _json(value: Any) -> str:
     def default(v: Any) -> Any:
         if isinstance(v, np.ndarray):
+            # MATLAB values arrive as 1×1, 1×N or N×1 matrices (scipy.io.loadmat): a
+            # scalar or a vector either way
+            if v.size == 1:
+                return v.item()
+            if v.ndim == 2 and 1 in v.shape:
+                return v.reshape(-1).tolist()
             return v.tolist()
         if isinstance(v, np.generic):
             return v.item()

@@ -50,6 +50,17 @@ def test_a_top_channel_at_nyquist_is_accepted_as_in_the_afe():
         afe.process(x, 44100, "filterbank", {"fb_highFreqHz": 22100, "fb_nChannels": 16})
 
 
+def test_matlab_shaped_parameters_are_scalars_and_vectors():
+    """scipy.io.loadmat gives 1×N, N×1 and 1×1 matrices: taken as the AFE takes them."""
+    x = signal(1600)
+    flat = afe.process(x, 16000, "ratemap", {"fb_cfHz": [200, 1000, 4000], "rm_wSizeSec": 0.02})
+    for cf in (np.array([[200, 1000, 4000]]), np.array([[200], [1000], [4000]])):
+        out = afe.process(x, 16000, "ratemap", {"fb_cfHz": cf, "rm_wSizeSec": np.array([[0.02]])})
+        np.testing.assert_array_equal(out["ratemap_left"], flat["ratemap_left"])
+    with pytest.raises(ValueError, match="fb_cfHz"):
+        afe.process(x, 16000, "ratemap", {"fb_cfHz": np.ones((2, 2)) * 500})
+
+
 def test_read_wav_mono_and_stereo(tmp_path, example_wav):
     x, fs = afe.read_wav(example_wav)
     assert x.shape == (44100, 2) and fs == 44100.0 and x.dtype == np.float64
