@@ -202,6 +202,21 @@ impl Params for NoParams {
     const SPECS: &'static [ParamSpec] = &[];
 }
 
+/// `values` as one value per channel for `channels` channels: a single value is repeated;
+/// any other length than 1 or `channels` is an error naming parameter `name` (the AFE's
+/// scalar-or-vector parameters, e.g. `fb_mocIpsi`, `moc_extIpsi`).
+pub fn per_channel(name: &str, values: &[f64], channels: usize) -> Result<Vec<f64>> {
+    match values.len() {
+        1 => Ok(vec![values[0]; channels]),
+        n if n == channels => Ok(values.to_vec()),
+        n => Err(Error::InvalidParameter {
+            name: name.into(),
+            value: format!("{values:?}"),
+            reason: format!("expected one value or {channels} (one per channel), got {n}"),
+        }),
+    }
+}
+
 /// Test helper for processor crates (panics on a mismatch): checks that `P::SPECS` and
 /// the serialised default name the same parameters and that every default passes its own
 /// declaration.

@@ -13,6 +13,7 @@ use std::f64::consts::{LN_2, PI, SQRT_2};
 
 use afe_core::filter::Df2t;
 use afe_core::lanes::vector_start;
+use afe_core::params::per_channel;
 use afe_core::{Block, ParamMap, Processor, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
 use serde_json::json;
@@ -49,19 +50,6 @@ pub(crate) fn verified(params: &FilterbankParams) -> Result<ParamMap> {
         json!(per_channel("fb_mocContra", &params.moc_contra, n)?),
     );
     Ok(map)
-}
-
-/// `values` as one value per channel: one value repeated, or exactly `n`.
-fn per_channel(name: &str, values: &[f64], n: usize) -> Result<Vec<f64>> {
-    match values.len() {
-        1 => Ok(vec![values[0]; n]),
-        len if len == n => Ok(values.to_vec()),
-        len => Err(invalid(
-            name,
-            values,
-            format!("expected one value or {n} (one per channel), got {len}"),
-        )),
-    }
 }
 
 /// A second-order section `(b0 + b1 z⁻¹ + b2 z⁻²) / (1 + a1 z⁻¹ + a2 z⁻²)`.

@@ -8,6 +8,7 @@
 //! attenuation of chunk k first shows in the filterbank output of chunk k+1, as in the AFE.
 //! A gammatone filterbank ignores it, as the AFE's does.
 
+use afe_core::params::per_channel;
 use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
 
@@ -79,20 +80,6 @@ fn invalid(name: &str, value: impl std::fmt::Debug, reason: &str) -> Error {
         name: name.into(),
         value: format!("{value:?}"),
         reason: reason.into(),
-    }
-}
-
-/// `values` as one factor per channel: a single value is repeated; any other length
-/// than 1 or `channels` is an error naming `name`.
-fn per_channel(name: &str, values: &[f64], channels: usize) -> Result<Vec<f64>> {
-    match values.len() {
-        1 => Ok(vec![values[0]; channels]),
-        n if n == channels => Ok(values.to_vec()),
-        _ => Err(invalid(
-            name,
-            values,
-            &format!("give one value or one per channel ({channels})"),
-        )),
     }
 }
 
@@ -244,7 +231,11 @@ mod tests {
             ..Default::default()
         };
         let e = Moc::new(&p, &ratemap(31)).expect_err("3 of 31").to_string();
-        assert!(e.contains("moc_extIpsi") && e.contains("(31)"), "{e}");
+        assert!(
+            e.contains("moc_extIpsi")
+                && e.contains("expected one value or 31 (one per channel), got 3"),
+            "{e}"
+        );
         let p = MocParams {
             max_attenuation_db: -1.0,
             ..Default::default()
