@@ -146,10 +146,40 @@ fn request_set(c: &mut Criterion, name: &str, requests: &[&str]) {
     group.finish();
 }
 
+/// Times filterbank `fb` (`channels` outputs) over one ear's signal `left` in chunks of
+/// 441 (10 ms), 2205 (BASS default) and the whole signal, under `name/<chunk>`.
+fn filterbank_chunks(
+    group: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    name: &str,
+    fb: &mut dyn afe_core::Processor,
+    channels: u32,
+    left: &[f64],
+) {
+    use afe_core::Block;
+    group.throughput(Throughput::Elements(
+        left.len() as u64 * u64::from(channels),
+    ));
+    for chunk in [441, 2205, left.len()] {
+        let blocks: Vec<Block> = left
+            .chunks(chunk)
+            .map(|c| Block::from_vec(c.to_vec(), 1))
+            .collect();
+        let mut out = vec![Block::new(channels as usize)];
+        group.bench_function(BenchmarkId::new(name, chunk), |b| {
+            b.iter(|| {
+                fb.reset();
+                for x in &blocks {
+                    fb.process(&[black_box(x)], &mut out);
+                }
+                black_box(out[0].frames())
+            })
+        });
+    }
+}
+
 /// The gammatone filterbank alone, one ear, in channel-samples per second (one core):
 /// 16/32/64 channels, chunks of 441 (10 ms), 2205 (BASS default) and the whole signal.
 fn gammatone(c: &mut Criterion) {
-    use afe_core::{Block, Processor};
     use afe_processors::filterbank::FilterbankParams;
     use afe_processors::gammatone::Gammatone;
     let (fs, left, _) = example();
@@ -163,26 +193,13 @@ fn gammatone(c: &mut Criterion) {
             ..FilterbankParams::default()
         };
         let (mut fb, _) = Gammatone::new(&params, fs).expect("filterbank");
-        group.throughput(Throughput::Elements(
-            left.len() as u64 * u64::from(channels),
-        ));
-        for chunk in [441, 2205, left.len()] {
-            let blocks: Vec<Block> = left
-                .chunks(chunk)
-                .map(|c| Block::from_vec(c.to_vec(), 1))
-                .collect();
-            let mut out = vec![Block::new(channels as usize)];
-            let id = BenchmarkId::new(format!("{channels}ch"), chunk);
-            group.bench_function(id, |b| {
-                b.iter(|| {
-                    fb.reset();
-                    for x in &blocks {
-                        fb.process(&[black_box(x)], &mut out);
-                    }
-                    black_box(out[0].frames())
-                })
-            });
-        }
+        filterbank_chunks(
+            &mut group,
+            &format!("{channels}ch"),
+            &mut fb,
+            channels,
+            &left,
+        );
     }
     group.finish();
 }
@@ -190,7 +207,6 @@ fn gammatone(c: &mut Criterion) {
 /// The DRNL filterbank alone (CASP and MAP), one ear, in channel-samples per second (one
 /// core): 16/32 channels, chunks of 441 (10 ms), 2205 (BASS default) and the whole signal.
 fn drnl(c: &mut Criterion) {
-    use afe_core::{Block, Processor};
     use afe_processors::drnl::{Drnl, DrnlModel};
     use afe_processors::filterbank::{FbType, FilterbankParams};
     let (fs, left, _) = example();
@@ -207,26 +223,8 @@ fn drnl(c: &mut Criterion) {
                 ..FilterbankParams::default()
             };
             let (mut fb, _) = Drnl::new(&params, fs).expect("filterbank");
-            group.throughput(Throughput::Elements(
-                left.len() as u64 * u64::from(channels),
-            ));
-            for chunk in [441, 2205, left.len()] {
-                let blocks: Vec<Block> = left
-                    .chunks(chunk)
-                    .map(|c| Block::from_vec(c.to_vec(), 1))
-                    .collect();
-                let mut out = vec![Block::new(channels as usize)];
-                let id = BenchmarkId::new(format!("{name}/{channels}ch"), chunk);
-                group.bench_function(id, |b| {
-                    b.iter(|| {
-                        fb.reset();
-                        for x in &blocks {
-                            fb.process(&[black_box(x)], &mut out);
-                        }
-                        black_box(out[0].frames())
-                    })
-                });
-            }
+            let id = format!("{name}/{channels}ch");
+            filterbank_chunks(&mut group, &id, &mut fb, channels, &left);
         }
     }
     group.finish();
