@@ -63,6 +63,32 @@ pub fn run_with(mgr: &mut Manager, job: &Job, channels: &[&[f64]]) -> Result<Rec
     })
 }
 
+/// Where a run's output goes as it is computed: kept in memory ([`Recorder`]) or written
+/// out as it comes (the corpus store of [`crate::batch`]).
+pub trait Sink {
+    /// What can go wrong in the sink; the graph's own errors convert into it.
+    type Error: From<Error>;
+    /// Takes the new output of the chunk `manager` just computed.
+    fn chunk(&mut self, manager: &Manager) -> std::result::Result<(), Self::Error>;
+    /// Takes the output of a whole-signal call ([`Manager::process_signal`]), which it may
+    /// move out of `manager`.
+    fn whole(&mut self, manager: &mut Manager) -> std::result::Result<(), Self::Error>;
+}
+
+impl Sink for Recorder {
+    type Error = Error;
+
+    fn chunk(&mut self, manager: &Manager) -> Result<()> {
+        self.record(manager);
+        Ok(())
+    }
+
+    fn whole(&mut self, manager: &mut Manager) -> Result<()> {
+        self.record_whole(manager);
+        Ok(())
+    }
+}
+
 /// Computes `job` on input drawn block by block from `next`, which fills one vector per
 /// ear (replacing their content) with up to the asked number of frames and returns how
 /// many it gave, 0 at the end. Where the graph is chunk-invariant, only one block of input
@@ -72,20 +98,33 @@ pub fn run_source(
     mgr: &mut Manager,
     job: &Job,
     ears: usize,
-    mut next: impl FnMut(usize, &mut [Vec<f64>]) -> Result<usize>,
+    next: impl FnMut(usize, &mut [Vec<f64>]) -> Result<usize>,
 ) -> Result<Recorder> {
+    let mut rec = Recorder::new(job.all);
+    run_into(mgr, job, ears, next, &mut rec)?;
+    Ok(rec)
+}
+
+/// As [`run_source`], handing each chunk's output to `sink` instead of recording it, so
+/// that a long input streams through in bounded memory where the graph allows.
+pub fn run_into<S: Sink>(
+    mgr: &mut Manager,
+    job: &Job,
+    ears: usize,
+    mut next: impl FnMut(usize, &mut [Vec<f64>]) -> Result<usize>,
+    sink: &mut S,
+) -> std::result::Result<(), S::Error> {
     for r in &job.requests {
         mgr.add_request(r, &job.params)?;
     }
     if job.requests.is_empty() && mgr.handles().next().is_none() {
-        return Err(Error::InvalidInput("no request given".into()));
+        return Err(Error::InvalidInput("no request given".into()).into());
     }
     if job.chunk == Some(0) {
-        return Err(Error::InvalidInput(
-            "chunk = 0: give a positive number of samples".into(),
-        ));
+        return Err(
+            Error::InvalidInput("chunk = 0: give a positive number of samples".into()).into(),
+        );
     }
-    let mut rec = Recorder::new(job.all);
     mgr.set_keep_all(job.all);
     let mut buf = vec![Vec::new(); ears];
     let empty = || Error::InvalidInput("the signal is empty".into());
@@ -95,12 +134,11 @@ pub fn run_source(
         None if !mgr.is_chunk_invariant() => {
             next(usize::MAX, &mut buf)?;
             if buf.first().is_none_or(Vec::is_empty) {
-                return Err(empty());
+                return Err(empty().into());
             }
             let refs: Vec<&[f64]> = buf.iter().map(Vec::as_slice).collect();
             mgr.process_signal(&refs)?;
-            rec.record_whole(mgr);
-            return Ok(rec);
+            return sink.whole(mgr);
         }
         None => {
             mgr.reset()?;
@@ -118,15 +156,15 @@ pub fn run_source(
         mgr.submit_chunk(&refs)?;
         if mgr.in_flight() >= mgr.pipeline_depth() {
             mgr.collect_chunk()?;
-            rec.record(mgr);
+            sink.chunk(mgr)?;
         }
     }
     while mgr.in_flight() > 0 {
         mgr.collect_chunk()?;
-        rec.record(mgr);
+        sink.chunk(mgr)?;
     }
     if total == 0 {
-        return Err(empty());
+        return Err(empty().into());
     }
-    Ok(rec)
+    Ok(())
 }

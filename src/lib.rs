@@ -21,9 +21,11 @@
 //! # Ok::<(), afe::Error>(())
 //! ```
 
+pub mod batch;
 pub mod block_times;
 pub mod catalog;
 pub mod extract;
+pub mod metadata;
 pub mod npy;
 pub mod output;
 mod recorder;

@@ -258,34 +258,7 @@ impl PyManager {
                 .manager
                 .signals(false)
                 .iter()
-                .map(|s| {
-                    let kind = match s.info.kind {
-                        afe::SignalKind::TimeDomain => "time-domain",
-                        afe::SignalKind::TimeFrequency => "time-frequency",
-                        afe::SignalKind::Correlation => "correlation",
-                        afe::SignalKind::Modulation => "modulation",
-                        afe::SignalKind::Feature => "feature",
-                        afe::SignalKind::Spectrum => "spectrum",
-                        afe::SignalKind::BinaryMask => "binary-mask",
-                        afe::SignalKind::DuetHistogram => "duet-histogram",
-                    };
-                    let value = serde_json::json!({
-                        "kind": kind,
-                        "afe_class": s.info.kind.afe_class(),
-                        "axes": s.info.kind.axes(),
-                        "dtype": if s.info.is_complex() { "complex128" } else { "float64" },
-                        "fs_hz": s.info.fs_hz,
-                        "audio_fs_hz": s.info.audio_fs_hz,
-                        "cf_hz": s.info.cf_hz,
-                        "lags_s": s.info.lags_s,
-                        "mod_cf_hz": s.info.mod_cf_hz,
-                        "features": s.info.features,
-                        "alpha": s.info.alpha,
-                        "delta_samples": s.info.delta_samples,
-                        "frame_shape": s.info.frame_shape(),
-                    });
-                    (s.key(), value)
-                })
+                .map(|s| (s.key(), afe::metadata::info_json(s.info)))
                 .collect();
             Ok(serde_json::Value::Object(map).to_string())
         })

@@ -71,6 +71,42 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Compute representations of many WAV files into one store (Zarr v3, or one .npz per
+    /// file): longest files first on every core, progress, failed files recorded and
+    /// skipped, and a second run resumes where a killed one stopped.
+    #[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+    Batch {
+        #[command(subcommand)]
+        status: Option<BatchCommand>,
+        /// Folders (searched for .wav files), glob patterns, WAV files, or manifests
+        /// (one `id<TAB>path` per line). A file's id is its path relative to its input.
+        #[arg(required = true, value_name = "INPUT")]
+        inputs: Vec<PathBuf>,
+        #[command(flatten)]
+        requests: Option<Requests>,
+        /// The store: a folder, created if missing.
+        #[arg(short = 'o', long = "output", value_name = "STORE", required = true)]
+        store: Option<PathBuf>,
+        /// Files computed at once (default: the number of cores).
+        #[arg(short = 'j', long = "jobs", value_name = "N", value_parser = clap::value_parser!(u64).range(1..=1024))]
+        jobs: Option<u64>,
+        /// Compute only shard I of N (0-based), chosen by a hash of the file ids, so N
+        /// independent jobs fill one store together.
+        #[arg(long, value_name = "I/N")]
+        shard: Option<String>,
+        /// What a file that fails does: recorded and skipped, or stops the run.
+        #[arg(long, value_name = "skip|stop", default_value = "skip")]
+        on_error: String,
+        /// Progress display: a bar on stderr, JSON lines on stdout, or none.
+        #[arg(long, value_name = "bar|jsonl|none", default_value = "bar")]
+        progress: String,
+        /// Store layout: Zarr v3, or one .npz per file (as `afe extract` writes it).
+        #[arg(long, value_name = "zarr|npz", default_value = "zarr")]
+        format: String,
+        /// Replace the contents of a store made with other requests or parameters.
+        #[arg(long)]
+        overwrite: bool,
+    },
     /// List the ALSA capture devices (needs a build with `--features alsa`).
     Devices,
     /// Run requests on a live stream (BASS port and block reader): WAV replay, a
@@ -118,7 +154,20 @@ enum Command {
     },
 }
 
-/// The requests and their AFE parameters, shared by `extract`, `bench` and `stream`.
+/// `afe batch status STORE`.
+#[derive(Subcommand)]
+enum BatchCommand {
+    /// Show what a store holds: its requests and parameters, files done and failed.
+    Status {
+        /// The store.
+        store: PathBuf,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+/// The requests and their AFE parameters, shared by `extract`, `bench`, `stream` and `batch`.
 #[derive(clap::Args)]
 struct Requests {
     /// Requests, comma-separated (e.g. ratemap,ild,itd,ic).
@@ -222,6 +271,40 @@ fn main() -> ExitCode {
             bench(&input, &job, repeat as usize, json)
         }),
         Command::Devices => devices(),
+        Command::Batch {
+            status: Some(BatchCommand::Status { store, json }),
+            ..
+        } => batch_status(&store, json),
+        Command::Batch {
+            status: None,
+            inputs,
+            requests,
+            store,
+            jobs,
+            shard,
+            on_error,
+            progress,
+            format,
+            overwrite,
+        } => match (requests, store) {
+            (Some(requests), Some(store)) => requests.load().and_then(|(requests, params)| {
+                batch(
+                    &inputs,
+                    &store,
+                    requests,
+                    params,
+                    BatchArgs {
+                        jobs,
+                        shard,
+                        on_error,
+                        progress,
+                        format,
+                        overwrite,
+                    },
+                )
+            }),
+            _ => Err("afe batch needs -r REQ,... and -o STORE".into()),
+        },
         Command::Stream {
             source,
             requests,
@@ -361,21 +444,9 @@ fn clean(requests: Vec<String>) -> Vec<String> {
         .collect()
 }
 
-/// Reads a WAV file that afe can process: mono or two channels, not empty.
 /// Opens a WAV file that afe can process: mono or two channels, not empty.
 fn open_input(input: &Path) -> Result<WavBlocks, String> {
-    let wav = WavBlocks::open(input).map_err(|e| e.to_string())?;
-    if wav.channels() > 2 {
-        return Err(format!(
-            "'{}' has {} channels: afe takes mono or two-channel (left, right) input",
-            input.display(),
-            wav.channels()
-        ));
-    }
-    if wav.frames() == 0 {
-        return Err(format!("'{}' holds no samples", input.display()));
-    }
-    Ok(wav)
+    afe::wav::open_input(input).map_err(|e| e.to_string())
 }
 
 /// Reads a whole WAV file that afe can process.
@@ -449,6 +520,112 @@ fn save(rec: &afe::Recorder, output: &OutputFile) -> Result<(), String> {
             .collect::<Vec<_>>()
             .join(", ")
     );
+    Ok(())
+}
+
+/// The options of `afe batch` as given.
+struct BatchArgs {
+    jobs: Option<u64>,
+    shard: Option<String>,
+    on_error: String,
+    progress: String,
+    format: String,
+    overwrite: bool,
+}
+
+fn batch(
+    inputs: &[PathBuf],
+    store: &Path,
+    requests: Vec<String>,
+    params: ParamMap,
+    args: BatchArgs,
+) -> Result<(), String> {
+    use afe::batch::{run, BatchOptions, StoreSpec};
+    let shard = match args.shard.as_deref() {
+        None => None,
+        Some(text) => Some(
+            text.split_once('/')
+                .and_then(|(i, n)| Some((i.trim().parse().ok()?, n.trim().parse().ok()?)))
+                .ok_or_else(|| format!("--shard '{text}': give I/N, e.g. 0/4"))?,
+        ),
+    };
+    let spec = StoreSpec {
+        requests,
+        params,
+        format: args
+            .format
+            .parse()
+            .map_err(|e: afe::batch::BatchError| e.to_string())?,
+    };
+    let options = BatchOptions {
+        workers: args.jobs.map_or(0, |j| j as usize),
+        shard,
+        on_error: args
+            .on_error
+            .parse()
+            .map_err(|e: afe::batch::BatchError| e.to_string())?,
+        progress: args
+            .progress
+            .parse()
+            .map_err(|e: afe::batch::BatchError| e.to_string())?,
+        overwrite: args.overwrite,
+    };
+    let summary = run(inputs, store, &spec, &options).map_err(|e| e.to_string())?;
+    if options.progress == afe::batch::ProgressMode::None {
+        eprintln!("{}", summary.text());
+    }
+    // with --on-error skip, failed files are an outcome (listed, recorded), not an error
+    Ok(())
+}
+
+fn batch_status(store: &Path, as_json: bool) -> Result<(), String> {
+    use afe::batch::Status;
+    let (spec, records) = afe::batch::status(store).map_err(|e| e.to_string())?;
+    let done: Vec<_> = records
+        .iter()
+        .filter(|r| r.status == Status::Done)
+        .collect();
+    let failed: Vec<_> = records
+        .iter()
+        .filter(|r| r.status == Status::Failed)
+        .collect();
+    let audio_s: f64 = done.iter().map(|r| r.audio_s).sum();
+    if as_json {
+        let v = json!({
+            "store": store.to_string_lossy(),
+            "format": spec.format.as_str(),
+            "requests": spec.requests,
+            "params": spec.params,
+            "param_hash": spec.param_hash(),
+            "done": done.len(),
+            "audio_s": audio_s,
+            "failed": failed.iter().map(|r| r.to_json()).collect::<Vec<_>>(),
+        });
+        println!("{v}");
+        return Ok(());
+    }
+    println!(
+        "{}: {} store of {} with {} (hash {})",
+        store.display(),
+        spec.format.as_str(),
+        spec.requests.join(","),
+        serde_json::to_string(&spec.params).unwrap_or_default(),
+        spec.param_hash()
+    );
+    println!(
+        "{} file(s) done ({:.2} h of audio), {} failed",
+        done.len(),
+        audio_s / 3600.0,
+        failed.len()
+    );
+    for r in failed {
+        println!(
+            "  failed: {} ({}): {}",
+            r.id,
+            r.path.display(),
+            r.error.as_deref().unwrap_or("")
+        );
+    }
     Ok(())
 }
 

@@ -1,0 +1,585 @@
+//! The corpus store: a Zarr v3 hierarchy (one group per file id, one float64 or
+//! complex128 array per output, written chunk by chunk as the output comes), or a folder
+//! of per-file `.npz` files in the `afe extract` layout. Its root records the requests
+//! and parameters and their hash, so a second run with others is refused.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use afe_core::ParamMap;
+use afe_graph::{Manager, OutputRef, Signal};
+use serde_json::{json, Value};
+use zarrs::array::codec::GzipCodec;
+use zarrs::array::{Array, ArrayBuilder, DataType, FillValue};
+use zarrs::array_subset::ArraySubset;
+use zarrs::filesystem::FilesystemStore;
+use zarrs::group::{Group, GroupBuilder};
+
+use super::inputs::{fnv1a, InputFile};
+use super::BatchError;
+use crate::extract::Sink;
+use crate::output::OutputFile;
+use crate::recorder::Recorder;
+
+/// Uncompressed bytes per chunk of an output array (about 1 MiB: a few seconds of a
+/// full-rate filterbank, minutes of a ratemap).
+const CHUNK_BYTES: usize = 1 << 20;
+
+/// The metadata file of an npz store (a zarr store keeps it in its root's attributes).
+const NPZ_META: &str = "afe-batch.json";
+
+/// How a store keeps its arrays.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// A Zarr v3 hierarchy (gzip-compressed chunks).
+    Zarr,
+    /// One `.npz` per file, as `afe extract` writes it.
+    Npz,
+}
+
+impl Format {
+    /// The name used on the command line and in the store's metadata.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Format::Zarr => "zarr",
+            Format::Npz => "npz",
+        }
+    }
+}
+
+impl std::str::FromStr for Format {
+    type Err = BatchError;
+
+    fn from_str(s: &str) -> Result<Self, BatchError> {
+        match s {
+            "zarr" => Ok(Format::Zarr),
+            "npz" => Ok(Format::Npz),
+            _ => Err(BatchError::Usage(format!(
+                "unknown store format '{s}': use zarr or npz"
+            ))),
+        }
+    }
+}
+
+/// What a store holds: the requests, their parameters and the layout.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StoreSpec {
+    /// AFE request names.
+    pub requests: Vec<String>,
+    /// AFE parameters shared by the requests.
+    pub params: ParamMap,
+    /// The layout.
+    pub format: Format,
+}
+
+impl StoreSpec {
+    /// A hash of the requests (as a set) and the parameters, in hex: equal for runs that
+    /// compute the same arrays.
+    pub fn param_hash(&self) -> String {
+        let mut requests = self.requests.clone();
+        requests.sort();
+        requests.dedup();
+        let canonical = json!({ "requests": requests, "params": self.params }).to_string();
+        format!("{:016x}", fnv1a(canonical.as_bytes()))
+    }
+
+    fn to_json(&self) -> Value {
+        json!({
+            "format": self.format.as_str(),
+            "afe_version": env!("CARGO_PKG_VERSION"),
+            "requests": self.requests,
+            "params": self.params,
+            "param_hash": self.param_hash(),
+        })
+    }
+
+    fn from_json(v: &Value) -> Option<StoreSpec> {
+        Some(StoreSpec {
+            requests: v
+                .get("requests")?
+                .as_array()?
+                .iter()
+                .map(|r| r.as_str().map(str::to_string))
+                .collect::<Option<_>>()?,
+            params: v
+                .get("params")?
+                .as_object()?
+                .iter()
+                .map(|(k, v)| (k.clone(), v.clone()))
+                .collect(),
+            format: v.get("format")?.as_str()?.parse().ok()?,
+        })
+    }
+}
+
+/// An open store.
+#[derive(Debug)]
+pub struct Store {
+    root: PathBuf,
+    spec: StoreSpec,
+    zarr: Option<Arc<FilesystemStore>>,
+}
+
+impl Store {
+    /// Opens the store at `root` for `spec`, creating it if `root` is missing or an empty
+    /// folder. A store made for other requests, parameters or format is refused, or with
+    /// `overwrite` emptied first; a folder that is not a store is never touched.
+    pub fn create(root: &Path, spec: &StoreSpec, overwrite: bool) -> Result<Store, BatchError> {
+        if root.exists() && !root.is_dir() {
+            return Err(BatchError::NotAStore {
+                path: root.to_path_buf(),
+                reason: "it is a file".into(),
+            });
+        }
+        match read_spec(root)? {
+            Some(found)
+                if found.param_hash() == spec.param_hash() && found.format == spec.format =>
+            {
+                return Store::with(root, found);
+            }
+            Some(found) if !overwrite => {
+                return Err(BatchError::OtherParams {
+                    path: root.to_path_buf(),
+                    found: describe(&found),
+                    wanted: describe(spec),
+                })
+            }
+            Some(_) => {
+                std::fs::remove_dir_all(root).map_err(|e| BatchError::store(root, &e))?;
+            }
+            None => {
+                let empty = std::fs::read_dir(root).map_or(true, |mut d| d.next().is_none());
+                if !empty {
+                    return Err(BatchError::NotAStore {
+                        path: root.to_path_buf(),
+                        reason: "it is a folder holding other files: give a new or empty folder"
+                            .into(),
+                    });
+                }
+            }
+        }
+        std::fs::create_dir_all(root).map_err(|e| BatchError::store(root, &e))?;
+        let store = Store::with(root, spec.clone())?;
+        let meta = json!({ "afe": spec.to_json() });
+        match &store.zarr {
+            Some(z) => {
+                let attrs = meta.as_object().cloned().unwrap_or_default();
+                GroupBuilder::new()
+                    .attributes(attrs)
+                    .build(z.clone(), "/")
+                    .map_err(|e| BatchError::store(root, &e))?
+                    .store_metadata()
+                    .map_err(|e| BatchError::store(root, &e))?;
+            }
+            None => {
+                let file = OutputFile::check(&root.join(NPZ_META))
+                    .map_err(|e| BatchError::store(root, &e))?;
+                file.write(|f| f.write_all(meta["afe"].to_string().as_bytes()))
+                    .map_err(|e| BatchError::store(root, &e))?;
+            }
+        }
+        Ok(store)
+    }
+
+    /// Opens an existing store.
+    pub fn open(root: &Path) -> Result<Store, BatchError> {
+        match read_spec(root)? {
+            Some(spec) => Store::with(root, spec),
+            None => Err(BatchError::NotAStore {
+                path: root.to_path_buf(),
+                reason: "it holds no afe batch metadata".into(),
+            }),
+        }
+    }
+
+    fn with(root: &Path, spec: StoreSpec) -> Result<Store, BatchError> {
+        let zarr = match spec.format {
+            Format::Zarr => Some(Arc::new(
+                FilesystemStore::new(root).map_err(|e| BatchError::store(root, &e))?,
+            )),
+            Format::Npz => None,
+        };
+        Ok(Store {
+            root: root.to_path_buf(),
+            spec,
+            zarr,
+        })
+    }
+
+    /// The store's folder.
+    pub fn root(&self) -> &Path {
+        &self.root
+    }
+
+    /// What the store holds.
+    pub fn spec(&self) -> &StoreSpec {
+        &self.spec
+    }
+
+    /// Where file `id`'s output lives: its group's folder, or its `.npz`.
+    pub fn file_path(&self, id: &str) -> PathBuf {
+        match self.spec.format {
+            Format::Zarr => self.root.join(id),
+            Format::Npz => self.root.join(format!("{id}.npz")),
+        }
+    }
+
+    /// Removes what a run that died left of file `id`.
+    pub fn clear(&self, id: &str) -> Result<(), BatchError> {
+        let path = self.file_path(id);
+        let removed = if path.is_dir() {
+            std::fs::remove_dir_all(&path)
+        } else {
+            std::fs::remove_file(&path)
+        };
+        match removed {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(BatchError::store(&path, &e)),
+            _ => Ok(()),
+        }
+    }
+
+    /// A writer of `file`'s outputs (its group is created now, with the file's facts).
+    pub fn writer(
+        &self,
+        file: &InputFile,
+        fs: f64,
+        channels: usize,
+    ) -> Result<FileWriter<'_>, BatchError> {
+        match &self.zarr {
+            Some(z) => {
+                let mut path = String::new();
+                for part in file.id.split('/') {
+                    path.push('/');
+                    path.push_str(part);
+                    let is_file = path.len() == file.id.len() + 1;
+                    let attrs = if is_file {
+                        json!({ "afe": {
+                            "path": file.path.to_string_lossy(),
+                            "fs_hz": fs,
+                            "channels": channels,
+                            "duration_s": file.audio_s,
+                        }})
+                    } else if self.root.join(&path[1..]).join("zarr.json").is_file() {
+                        continue;
+                    } else {
+                        json!({})
+                    };
+                    GroupBuilder::new()
+                        .attributes(attrs.as_object().cloned().unwrap_or_default())
+                        .build(z.clone(), &path)
+                        .map_err(|e| BatchError::store(&self.root, &e))?
+                        .store_metadata()
+                        .map_err(|e| BatchError::store(&self.root, &e))?;
+                }
+                Ok(FileWriter::Zarr(ZarrFile {
+                    store: z.clone(),
+                    group: path,
+                    root: &self.root,
+                    arrays: Vec::new(),
+                }))
+            }
+            None => Ok(FileWriter::Npz {
+                rec: Recorder::new(false),
+                path: self.file_path(&file.id),
+            }),
+        }
+    }
+}
+
+/// The store's spec, if `root` is a store.
+fn read_spec(root: &Path) -> Result<Option<StoreSpec>, BatchError> {
+    let zarr = root.join("zarr.json");
+    let npz = root.join(NPZ_META);
+    let (path, meta) = if zarr.is_file() {
+        let text = std::fs::read_to_string(&zarr).map_err(|e| BatchError::store(&zarr, &e))?;
+        let v: Value = serde_json::from_str(&text).map_err(|e| BatchError::store(&zarr, &e))?;
+        (zarr, v["attributes"]["afe"].clone())
+    } else if npz.is_file() {
+        let text = std::fs::read_to_string(&npz).map_err(|e| BatchError::store(&npz, &e))?;
+        (
+            npz.clone(),
+            serde_json::from_str(&text).map_err(|e| BatchError::store(&npz, &e))?,
+        )
+    } else {
+        return Ok(None);
+    };
+    match StoreSpec::from_json(&meta) {
+        Some(spec) => Ok(Some(spec)),
+        None => Err(BatchError::NotAStore {
+            path,
+            reason: "a zarr hierarchy without afe's batch metadata".into(),
+        }),
+    }
+}
+
+fn describe(spec: &StoreSpec) -> String {
+    format!(
+        "{} as {} with {} (hash {})",
+        spec.requests.join(","),
+        spec.format.as_str(),
+        serde_json::to_string(&spec.params).unwrap_or_default(),
+        spec.param_hash()
+    )
+}
+
+/// Writes one file's outputs as they are computed.
+#[derive(Debug)]
+pub enum FileWriter<'a> {
+    /// Into the file's zarr group, chunk by chunk.
+    Zarr(ZarrFile<'a>),
+    /// Into memory, then one `.npz`.
+    Npz {
+        /// The outputs so far.
+        rec: Recorder,
+        /// The file written at the end.
+        path: PathBuf,
+    },
+}
+
+impl FileWriter<'_> {
+    /// Writes what is left and the arrays' final shapes.
+    pub fn finish(self) -> Result<(), BatchError> {
+        match self {
+            FileWriter::Zarr(z) => z.finish(),
+            FileWriter::Npz { rec, path } => {
+                if let Some(dir) = path.parent() {
+                    std::fs::create_dir_all(dir).map_err(|e| BatchError::store(dir, &e))?;
+                }
+                let out = OutputFile::check(&path).map_err(|e| BatchError::store(&path, &e))?;
+                let arrays: Vec<(String, Vec<usize>, &[f64])> = rec
+                    .signals()
+                    .iter()
+                    .map(|s| (s.key.clone(), s.shape(), s.data.as_slice()))
+                    .collect();
+                out.write(|f| crate::npy::write_npz(f, &arrays))
+                    .map_err(|e| BatchError::store(&path, &e))
+            }
+        }
+    }
+}
+
+impl Sink for FileWriter<'_> {
+    type Error = BatchError;
+
+    fn chunk(&mut self, manager: &Manager) -> Result<(), BatchError> {
+        match self {
+            FileWriter::Zarr(z) => {
+                for s in manager.signals(false) {
+                    z.push(&s, s.new.as_slice())?;
+                }
+                Ok(())
+            }
+            FileWriter::Npz { rec, .. } => Ok(rec.chunk(manager)?),
+        }
+    }
+
+    fn whole(&mut self, manager: &mut Manager) -> Result<(), BatchError> {
+        match self {
+            FileWriter::Zarr(z) => {
+                let found: Vec<OutputRef> =
+                    manager.signals(false).iter().map(|s| s.source).collect();
+                for source in found {
+                    let data = manager.take_whole(source);
+                    let signals = manager.signals(false);
+                    let (Some(data), Some(s)) = (data, signals.iter().find(|s| s.source == source))
+                    else {
+                        continue;
+                    };
+                    z.push(s, data.as_slice())?;
+                }
+                Ok(())
+            }
+            FileWriter::Npz { rec, .. } => Ok(rec.whole(manager)?),
+        }
+    }
+}
+
+/// A file's zarr group being written.
+#[derive(Debug)]
+pub struct ZarrFile<'a> {
+    store: Arc<FilesystemStore>,
+    group: String,
+    root: &'a Path,
+    arrays: Vec<ArrayOut>,
+}
+
+/// One output array: full chunks are written as they fill, the last at the end.
+#[derive(Debug)]
+struct ArrayOut {
+    source: OutputRef,
+    array: Array<FilesystemStore>,
+    frame_shape: Vec<u64>,
+    /// `f64` values per row (two per complex value).
+    width: usize,
+    rows_per_chunk: usize,
+    buf: Vec<f64>,
+    chunks: u64,
+    rows: u64,
+}
+
+impl ZarrFile<'_> {
+    fn push(&mut self, s: &Signal<'_>, data: &[f64]) -> Result<(), BatchError> {
+        let k = match self.arrays.iter().position(|a| a.source == s.source) {
+            Some(k) => k,
+            None => {
+                self.arrays.push(self.create(s)?);
+                self.arrays.len() - 1
+            }
+        };
+        let a = &mut self.arrays[k];
+        a.buf.extend_from_slice(data);
+        let full = a.rows_per_chunk * a.width;
+        while full > 0 && a.buf.len() >= full {
+            let rest = a.buf.split_off(full);
+            let chunk = std::mem::replace(&mut a.buf, rest);
+            a.write_chunk(&chunk, a.rows_per_chunk)
+                .map_err(|e| BatchError::store(self.root, &e))?;
+        }
+        Ok(())
+    }
+
+    fn create(&self, s: &Signal<'_>) -> Result<ArrayOut, BatchError> {
+        let complex = s.info.is_complex();
+        let width = s.info.width();
+        let frame_shape: Vec<u64> = s.info.frame_shape().iter().map(|&n| n as u64).collect();
+        let rows_per_chunk = (CHUNK_BYTES / 8 / width.max(1)).max(1);
+        let mut shape = vec![0];
+        shape.extend(&frame_shape);
+        let mut chunk_shape = vec![rows_per_chunk as u64];
+        chunk_shape.extend(frame_shape.iter().map(|&n| n.max(1)));
+        let (dtype, size) = if complex {
+            (DataType::Complex128, 16)
+        } else {
+            (DataType::Float64, 8)
+        };
+        let mut attrs = serde_json::Map::new();
+        attrs.insert("afe".into(), crate::metadata::info_json(s.info));
+        let array = ArrayBuilder::new(shape, chunk_shape, dtype, FillValue::new(vec![0; size]))
+            .bytes_to_bytes_codecs(vec![Arc::new(
+                GzipCodec::new(1).map_err(|e| BatchError::store(self.root, &e))?,
+            )])
+            .dimension_names(Some(s.info.kind.axes().to_vec()))
+            .attributes(attrs)
+            .build(self.store.clone(), &format!("{}/{}", self.group, s.key()))
+            .map_err(|e| BatchError::store(self.root, &e))?;
+        array
+            .store_metadata()
+            .map_err(|e| BatchError::store(self.root, &e))?;
+        Ok(ArrayOut {
+            source: s.source,
+            array,
+            frame_shape,
+            width,
+            rows_per_chunk,
+            buf: Vec::new(),
+            chunks: 0,
+            rows: 0,
+        })
+    }
+
+    fn finish(mut self) -> Result<(), BatchError> {
+        for a in &mut self.arrays {
+            let rows = a.buf.len().checked_div(a.width).unwrap_or(0);
+            if rows > 0 {
+                let mut chunk = std::mem::take(&mut a.buf);
+                chunk.resize(a.rows_per_chunk * a.width, 0.0);
+                a.write_chunk(&chunk, rows)
+                    .map_err(|e| BatchError::store(self.root, &e))?;
+            }
+            let mut shape = vec![a.rows];
+            shape.extend(&a.frame_shape);
+            a.array
+                .set_shape(shape)
+                .map_err(|e| BatchError::store(self.root, &e))?;
+            a.array
+                .store_metadata()
+                .map_err(|e| BatchError::store(self.root, &e))?;
+        }
+        Ok(())
+    }
+}
+
+impl ArrayOut {
+    /// Writes `chunk` (a whole chunk's values) as the next chunk, of which `rows` are data.
+    fn write_chunk(
+        &mut self,
+        chunk: &[f64],
+        rows: usize,
+    ) -> Result<(), Box<dyn std::error::Error>> {
+        let mut shape = vec![(self.chunks + 1) * self.rows_per_chunk as u64];
+        shape.extend(&self.frame_shape);
+        self.array.set_shape(shape)?;
+        let mut indices = vec![self.chunks];
+        indices.extend(self.frame_shape.iter().map(|_| 0));
+        let bytes: Vec<u8> = chunk.iter().flat_map(|v| v.to_ne_bytes()).collect();
+        self.array.store_chunk(&indices, bytes)?;
+        self.chunks += 1;
+        self.rows += rows as u64;
+        Ok(())
+    }
+}
+
+/// One array read back from a store: its shape, values (complex as re, im pairs) and
+/// metadata.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StoredArray {
+    /// Output name, e.g. `ratemap_left`.
+    pub key: String,
+    /// `[frames, ...]`.
+    pub shape: Vec<usize>,
+    /// Values in C order.
+    pub data: Vec<f64>,
+    /// Its `afe` attributes ([`crate::metadata::info_json`]).
+    pub info: Value,
+}
+
+impl Store {
+    /// The arrays of file `id`, read back (zarr stores only; an npz store's files are
+    /// read with numpy or [`crate::npy`]).
+    pub fn read(&self, id: &str) -> Result<Vec<StoredArray>, BatchError> {
+        let Some(z) = &self.zarr else {
+            return Err(BatchError::Usage(format!(
+                "'{}' is an npz store: read {} with numpy",
+                self.root.display(),
+                self.file_path(id).display()
+            )));
+        };
+        let path = format!("/{id}");
+        let group =
+            Group::open(z.clone(), &path).map_err(|_| BatchError::NoSuchFile(id.to_string()))?;
+        let mut out = Vec::new();
+        for array in group
+            .child_arrays()
+            .map_err(|e| BatchError::store(&self.root, &e))?
+        {
+            let shape: Vec<usize> = array.shape().iter().map(|&n| n as usize).collect();
+            let bytes = array
+                .retrieve_array_subset(&ArraySubset::new_with_shape(array.shape().to_vec()))
+                .map_err(|e| BatchError::store(&self.root, &e))?
+                .into_fixed()
+                .map_err(|e| BatchError::store(&self.root, &e))?;
+            let data = bytes
+                .chunks_exact(8)
+                .map(|b| f64::from_ne_bytes(b.try_into().unwrap_or([0; 8])))
+                .collect();
+            out.push(StoredArray {
+                key: array
+                    .path()
+                    .as_str()
+                    .rsplit('/')
+                    .next()
+                    .unwrap_or_default()
+                    .to_string(),
+                shape,
+                data,
+                info: array
+                    .attributes()
+                    .get("afe")
+                    .cloned()
+                    .unwrap_or(Value::Null),
+            });
+        }
+        out.sort_by(|a, b| a.key.cmp(&b.key));
+        Ok(out)
+    }
+}
