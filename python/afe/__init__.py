@@ -25,7 +25,17 @@ import numpy as np
 
 from . import _afe
 
-__all__ = ["Manager", "parameters", "process", "read_wav", "requests", "__version__"]
+__all__ = [
+    "Manager",
+    "Store",
+    "batch",
+    "open_store",
+    "parameters",
+    "process",
+    "read_wav",
+    "requests",
+    "__version__",
+]
 
 
 def __dir__() -> List[str]:
@@ -289,3 +299,6 @@ def process(
         None if chunk is None else int(chunk),
         int(threads or 0),
     )
+
+
+from .corpus import Store, batch, open_store  # noqa: E402  (uses _params_json above)

@@ -3,6 +3,8 @@
 //! and documents the API; this module does the work, with the GIL released while
 //! processing.
 
+mod batch;
+
 use std::path::PathBuf;
 use std::sync::Mutex;
 
@@ -346,6 +348,11 @@ fn _afe(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(catalog_json, m)?)?;
     m.add_function(wrap_pyfunction!(process, m)?)?;
     m.add_function(wrap_pyfunction!(read_wav, m)?)?;
+    m.add_function(wrap_pyfunction!(batch::batch_run, m)?)?;
+    m.add_function(wrap_pyfunction!(batch::batch_plan, m)?)?;
+    m.add_function(wrap_pyfunction!(batch::batch_compute, m)?)?;
+    m.add_function(wrap_pyfunction!(batch::store_status, m)?)?;
+    m.add_function(wrap_pyfunction!(batch::store_read, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -1,0 +1,250 @@
+"""Corpus extraction: the same requests over many WAV files into one store.
+
+``afe.batch`` runs the Rust engine over every core, or distributes files over any
+``concurrent.futures.Executor`` (a Dask cluster's ``client.get_executor()`` spreads a
+corpus over machines into one store). ``afe.open_store`` reads a store back as numpy.
+A store resumes: files already recorded as done are never computed again.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+from concurrent.futures import FIRST_COMPLETED, Executor, Future, wait
+from typing import Any, Dict, Iterator, List, Mapping, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from . import _afe
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+
+def _paths(inputs: Union[PathLike, Sequence[PathLike]]) -> List[str]:
+    if isinstance(inputs, (str, os.PathLike)):
+        inputs = [inputs]
+    paths = [os.fspath(p) for p in inputs]
+    if not paths:
+        raise ValueError("no input given: pass folders, glob patterns, WAV files or manifests")
+    return paths
+
+
+def _requests(requests: Union[str, Sequence[str]]) -> List[str]:
+    names = requests.split(",") if isinstance(requests, str) else list(requests)
+    names = [str(n).strip() for n in names if str(n).strip()]
+    if not names:
+        raise ValueError("no request given, e.g. requests=['ratemap', 'ild']")
+    return names
+
+
+def _compute_one(store: str, file_id: str, path: str, audio_s: float) -> Dict[str, Any]:
+    """One file on an executor's worker (imports afe there); returns its record."""
+    return json.loads(_afe.batch_compute(store, file_id, path, audio_s))
+
+
+def batch(
+    inputs: Union[PathLike, Sequence[PathLike]],
+    requests: Union[str, Sequence[str]],
+    params: Optional[Mapping[str, Any]] = None,
+    out: Optional[PathLike] = None,
+    executor: Optional[Executor] = None,
+    *,
+    jobs: Optional[int] = None,
+    shard: Optional[Tuple[int, int]] = None,
+    on_error: str = "skip",
+    progress: Optional[str] = None,
+    format: str = "zarr",
+    overwrite: bool = False,
+) -> Dict[str, Any]:
+    """Computes ``requests`` for every WAV file of ``inputs`` into the store ``out``.
+
+    ``inputs``: folders (searched for ``.wav`` files), glob patterns, WAV files or
+    manifests (one ``id<TAB>path`` per line); a file's id is its path relative to its
+    input. ``params``: AFE parameters shared by the requests. ``out``: the store folder
+    (Zarr v3, one group per file id and one array per output; ``format="npz"`` writes one
+    ``.npz`` per file as ``afe extract`` does).
+
+    ``executor=None`` runs the Rust engine with ``jobs`` files at once (default: one per
+    core). Any ``concurrent.futures.Executor`` computes the files as its tasks instead,
+    e.g. ``dask.distributed.Client(...).get_executor()`` (workers need ``afe`` installed
+    and the inputs and store on a shared file system).
+
+    Files the store records as done are skipped, so a run that was killed resumes where
+    it stopped. ``shard=(i, n)`` computes only shard ``i`` of ``n`` (by a stable hash of
+    the ids), for independent jobs filling one store. A file that fails is recorded and
+    skipped, or with ``on_error="stop"`` stops the run (``RuntimeError``) after the files
+    in flight. ``progress``: ``"bar"`` (stderr), ``"jsonl"`` (one JSON line per file on
+    stdout) or ``"none"``; default: a bar on a terminal, else none. A store made with
+    other requests or parameters is refused (``ValueError``) unless ``overwrite``.
+
+    Returns the summary: ``files``, ``already_done``, ``done``, ``failed`` (a list of
+    ``{"id", "error"}``), ``not_started``, ``audio_s``, ``wall_s``, ``x_real_time``.
+    """
+    from . import _params_json
+
+    if out is None:
+        raise ValueError("give the store folder: out='features.zarr'")
+    if progress is None:
+        progress = "bar" if sys.stderr.isatty() else "none"
+    if on_error not in ("skip", "stop"):
+        raise ValueError(f"on_error must be 'skip' or 'stop', got {on_error!r}")
+    if progress not in ("bar", "jsonl", "none"):
+        raise ValueError(f"progress must be 'bar', 'jsonl' or 'none', got {progress!r}")
+    if shard is not None:
+        i, n = (int(v) for v in shard)
+        shard = (i, n)
+    if jobs is not None and int(jobs) < 1:
+        raise ValueError(f"jobs must be 1 or more, got {jobs}")
+    spec = json.dumps(
+        {
+            "requests": _requests(requests),
+            "params": json.loads(_params_json(params)),
+            "format": format,
+        }
+    )
+    options = json.dumps(
+        {
+            "jobs": int(jobs or 0),
+            "shard": shard,
+            "on_error": on_error,
+            "progress": progress,
+            "overwrite": bool(overwrite),
+        }
+    )
+    paths, store = _paths(inputs), os.path.abspath(os.fspath(out))
+    if executor is None:
+        return json.loads(_afe.batch_run(paths, store, spec, options))
+    return _distribute(executor, paths, store, spec, options, on_error, progress)
+
+
+def _distribute(
+    executor: Executor,
+    paths: List[str],
+    store: str,
+    spec: str,
+    options: str,
+    on_error: str,
+    progress: str,
+) -> Dict[str, Any]:
+    start = time.monotonic()
+    files, already = _afe.batch_plan(paths, store, spec, options)
+    summary: Dict[str, Any] = {
+        "files": len(files) + already,
+        "already_done": already,
+        "done": 0,
+        "failed": [],
+        "not_started": 0,
+        "audio_s": 0.0,
+    }
+    total_s = sum(f[2] for f in files)
+    # longest first: tasks are submitted in the plan's order
+    pending = {
+        executor.submit(_compute_one, store, fid, os.path.abspath(path), audio_s): fid
+        for fid, path, audio_s in files
+    }
+    stopped = False
+    while pending:
+        finished, _ = wait(list(pending), return_when=FIRST_COMPLETED)
+        for fut in finished:
+            pending.pop(fut)
+            record = fut.result()
+            if record["status"] == "done":
+                summary["done"] += 1
+                summary["audio_s"] += record["audio_s"]
+            else:
+                summary["failed"].append({"id": record["id"], "error": record["error"]})
+                if on_error == "stop" and not stopped:
+                    stopped = True
+                    for f in list(pending):
+                        if f.cancel():
+                            pending.pop(f)
+            _show(progress, record, summary, len(files), total_s, time.monotonic() - start)
+    summary["wall_s"] = time.monotonic() - start
+    summary["not_started"] = len(files) - summary["done"] - len(summary["failed"])
+    summary["x_real_time"] = summary["audio_s"] / summary["wall_s"] if summary["wall_s"] > 0 else 0.0
+    summary["failed"].sort(key=lambda f: f["id"])
+    if progress == "bar":
+        sys.stderr.write("\n")
+    if progress == "jsonl":
+        print(json.dumps(dict(summary, event="summary")), flush=True)
+    if stopped:
+        first = summary["failed"][0]
+        raise RuntimeError(f"stopped at '{first['id']}': {first['error']}")
+    return summary
+
+
+def _show(progress: str, record: Dict[str, Any], summary: Dict[str, Any], files: int, total_s: float, elapsed: float) -> None:
+    count = summary["done"] + len(summary["failed"])
+    speed = summary["audio_s"] / elapsed if elapsed > 0 else 0.0
+    if progress == "jsonl":
+        event = dict(record, event="file", done=summary["done"], failed=len(summary["failed"]), files=files, x_real_time=speed)
+        print(json.dumps(event), flush=True)
+    elif progress == "bar":
+        sys.stderr.write(
+            f"\r{count}/{files} files ({len(summary['failed'])} failed) · "
+            f"{summary['audio_s'] / 3600:.2f} of {total_s / 3600:.2f} h audio · {speed:.0f}x real time"
+        )
+        sys.stderr.flush()
+
+
+class Store:
+    """A batch store read back: its requests and parameters, the files it holds, and
+    each file's arrays as numpy (``store[file_id]`` → ``{name: array}``)."""
+
+    def __init__(self, path: PathLike):
+        self.path = os.fspath(path)
+        status = json.loads(_afe.store_status(self.path))
+        self.format: str = status["format"]
+        self.requests: List[str] = status["requests"]
+        self.params: Dict[str, Any] = status["params"]
+        self.param_hash: str = status["param_hash"]
+        latest = status["files"]
+        #: file id → record of the files done (path, audio_s, compute_s, time)
+        self.done: Dict[str, Dict[str, Any]] = {r["id"]: r for r in latest if r["status"] == "done"}
+        #: file id → error of the files that failed
+        self.failed: Dict[str, str] = {r["id"]: r["error"] for r in latest if r["status"] == "failed"}
+
+    def ids(self) -> List[str]:
+        """The ids of the files done, sorted."""
+        return sorted(self.done)
+
+    def __len__(self) -> int:
+        return len(self.done)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.ids())
+
+    def __contains__(self, file_id: object) -> bool:
+        return file_id in self.done
+
+    def __getitem__(self, file_id: str) -> Dict[str, np.ndarray]:
+        if file_id not in self.done:
+            why = f" (it failed: {self.failed[file_id]})" if file_id in self.failed else ""
+            raise KeyError(f"the store holds no file '{file_id}'{why}")
+        if self.format == "npz":
+            with np.load(os.path.join(self.path, file_id + ".npz")) as z:
+                return {k: z[k] for k in z.files}
+        return _afe.store_read(self.path, file_id)[0]
+
+    def info(self, file_id: str) -> Dict[str, Dict[str, Any]]:
+        """Each array's metadata (kind, axes, rates in Hz, centre frequencies, lags...);
+        zarr stores only (an npz store keeps arrays alone)."""
+        if self.format == "npz":
+            raise ValueError("an npz store keeps no array metadata: use format='zarr'")
+        if file_id not in self.done:
+            raise KeyError(f"the store holds no file '{file_id}'")
+        return {k: json.loads(v) for k, v in _afe.store_read(self.path, file_id)[1].items()}
+
+    def __repr__(self) -> str:
+        return (
+            f"afe.Store({self.path!r}: {self.format}, {','.join(self.requests)}, "
+            f"{len(self.done)} done, {len(self.failed)} failed)"
+        )
+
+
+def open_store(path: PathLike) -> Store:
+    """Opens a store written by ``afe.batch`` or ``afe batch`` (``ValueError`` if the
+    folder is not one)."""
+    return Store(path)

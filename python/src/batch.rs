@@ -1,0 +1,180 @@
+//! Corpus extraction from Python: a whole run in Rust (`batch_run`), or its plan and one
+//! file at a time (`batch_plan`, `batch_compute`) for a Python executor such as Dask to
+//! distribute; and reading a store back.
+
+use std::path::PathBuf;
+
+use afe::batch::{self, BatchError, BatchOptions, InputFile, Store, StoreSpec};
+use pyo3::exceptions::{PyKeyError, PyOSError, PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::{array, parse_params, to_py};
+
+fn to_py_batch(e: BatchError) -> PyErr {
+    match e {
+        BatchError::Afe(e) => to_py(e),
+        BatchError::Store { .. } => PyOSError::new_err(e.to_string()),
+        BatchError::NoSuchFile(_) => PyKeyError::new_err(e.to_string()),
+        BatchError::Stopped { .. } => PyRuntimeError::new_err(e.to_string()),
+        _ => PyValueError::new_err(e.to_string()),
+    }
+}
+
+/// The store's spec from `{"requests": [...], "params": {...}, "format": "zarr"|"npz"}`.
+fn spec(json: &str) -> PyResult<StoreSpec> {
+    let v: serde_json::Value =
+        serde_json::from_str(json).map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let requests = v["requests"]
+        .as_array()
+        .and_then(|r| r.iter().map(|r| r.as_str().map(str::to_string)).collect())
+        .ok_or_else(|| PyValueError::new_err("requests must be a list of request names"))?;
+    Ok(StoreSpec {
+        requests,
+        params: parse_params(&v["params"].to_string())?,
+        format: v["format"]
+            .as_str()
+            .unwrap_or("zarr")
+            .parse()
+            .map_err(to_py_batch)?,
+    })
+}
+
+/// The run's options from `{"jobs": N, "shard": [I, N] | null, "on_error": ...,
+/// "progress": ..., "overwrite": bool}`.
+fn options(json: &str) -> PyResult<BatchOptions> {
+    let v: serde_json::Value =
+        serde_json::from_str(json).map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let shard = match &v["shard"] {
+        serde_json::Value::Array(a) if a.len() == 2 => Some((
+            a[0].as_u64().unwrap_or(u64::MAX),
+            a[1].as_u64().unwrap_or(0),
+        )),
+        serde_json::Value::Null => None,
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "shard must be (index, count), got {other}"
+            )))
+        }
+    };
+    Ok(BatchOptions {
+        workers: v["jobs"].as_u64().unwrap_or(0) as usize,
+        shard,
+        on_error: v["on_error"]
+            .as_str()
+            .unwrap_or("skip")
+            .parse()
+            .map_err(to_py_batch)?,
+        progress: v["progress"]
+            .as_str()
+            .unwrap_or("none")
+            .parse()
+            .map_err(to_py_batch)?,
+        overwrite: v["overwrite"].as_bool().unwrap_or(false),
+    })
+}
+
+/// Runs a whole batch in Rust; returns the summary as JSON text.
+#[pyfunction]
+pub fn batch_run(
+    py: Python<'_>,
+    inputs: Vec<PathBuf>,
+    store: PathBuf,
+    spec_json: &str,
+    options_json: &str,
+) -> PyResult<String> {
+    let spec = spec(spec_json)?;
+    let options = options(options_json)?;
+    let summary = py
+        .allow_threads(|| batch::run(&inputs, &store, &spec, &options))
+        .map_err(to_py_batch)?;
+    Ok(summary.to_json().to_string())
+}
+
+/// One file to compute: id, path, seconds of audio.
+type Planned = (String, PathBuf, f64);
+
+/// Creates or checks the store; returns the files still to compute, longest first, and
+/// how many the store holds already.
+#[pyfunction]
+pub fn batch_plan(
+    py: Python<'_>,
+    inputs: Vec<PathBuf>,
+    store: PathBuf,
+    spec_json: &str,
+    options_json: &str,
+) -> PyResult<(Vec<Planned>, usize)> {
+    let spec = spec(spec_json)?;
+    let options = options(options_json)?;
+    let (_, files, already) = py
+        .allow_threads(|| batch::plan(&inputs, &store, &spec, &options))
+        .map_err(to_py_batch)?;
+    Ok((
+        files
+            .into_iter()
+            .map(|f| (f.id, f.path, f.audio_s))
+            .collect(),
+        already,
+    ))
+}
+
+/// Computes one file into an existing store and records it in this process's log;
+/// returns its record as JSON text (a failed file is a record, not an exception).
+#[pyfunction]
+pub fn batch_compute(
+    py: Python<'_>,
+    store: PathBuf,
+    id: String,
+    path: PathBuf,
+    audio_s: f64,
+) -> PyResult<String> {
+    py.allow_threads(|| {
+        let opened = Store::open(&store)?;
+        let record = batch::compute(&opened, &InputFile { id, path, audio_s });
+        let ledger = batch::Ledger::open(&store).map_err(|e| BatchError::Store {
+            path: store.clone(),
+            reason: e.to_string(),
+        })?;
+        ledger.append(&record).map_err(|e| BatchError::Store {
+            path: ledger.path().to_path_buf(),
+            reason: e.to_string(),
+        })?;
+        Ok(record.to_json().to_string())
+    })
+    .map_err(to_py_batch)
+}
+
+/// A store's spec and the latest record of each file, as JSON text.
+#[pyfunction]
+pub fn store_status(py: Python<'_>, store: PathBuf) -> PyResult<String> {
+    let (spec, records) = py
+        .allow_threads(|| batch::status(&store))
+        .map_err(to_py_batch)?;
+    Ok(serde_json::json!({
+        "format": spec.format.as_str(),
+        "requests": spec.requests,
+        "params": spec.params,
+        "param_hash": spec.param_hash(),
+        "files": records.iter().map(batch::Record::to_json).collect::<Vec<_>>(),
+    })
+    .to_string())
+}
+
+/// File `id`'s arrays from a zarr store: `({name: array}, {name: metadata JSON text})`.
+#[pyfunction]
+pub fn store_read<'py>(
+    py: Python<'py>,
+    store: PathBuf,
+    id: String,
+) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
+    let arrays = py
+        .allow_threads(|| Store::open(&store)?.read(&id))
+        .map_err(to_py_batch)?;
+    let values = PyDict::new(py);
+    let infos = PyDict::new(py);
+    for a in arrays {
+        values.set_item(&a.key, array(py, &a.shape, &a.data)?)?;
+        infos.set_item(&a.key, a.info.to_string())?;
+    }
+    Ok((values, infos))
+}
