@@ -133,6 +133,9 @@ pub fn run_into<S: Sink>(
         // a whole signal: one call where the AFE depends on chunk boundaries
         None if !mgr.is_chunk_invariant() => {
             next(usize::MAX, &mut buf)?;
+            if crate::interrupt::requested() {
+                return Err(Error::Interrupted.into());
+            }
             if buf.first().is_none_or(Vec::is_empty) {
                 return Err(empty().into());
             }
@@ -147,6 +150,9 @@ pub fn run_into<S: Sink>(
     };
     let mut total = 0;
     loop {
+        if crate::interrupt::requested() {
+            return Err(Error::Interrupted.into());
+        }
         let got = next(block, &mut buf)?;
         if got == 0 {
             break;

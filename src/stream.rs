@@ -171,6 +171,9 @@ pub struct StreamReport {
     pub fs: f64,
     /// Frames per full block.
     pub block_frames: usize,
+    /// Whether the stream was stopped by [`crate::interrupt`] before its end (what was
+    /// computed until then is complete and can be saved).
+    pub interrupted: bool,
 }
 
 /// Compute times and counts of a running stream, in constant memory.
@@ -222,6 +225,7 @@ impl Timing {
             device_overruns: 0,
             fs: self.fs,
             block_frames: self.block_frames,
+            interrupted: false,
         }
     }
 }
@@ -345,6 +349,9 @@ pub fn run<Src: Source>(
     };
     match job.pacing {
         Pacing::Fast => loop {
+            if crate::interrupt::requested() {
+                break;
+            }
             if consumer.poll()? == 0 {
                 if consumer.reader.at_end() {
                     break;
@@ -368,6 +375,7 @@ pub fn run<Src: Source>(
     consumer.flush()?;
     let mut report = consumer.timing.report();
     report.device_overruns = feeder.source().overruns();
+    report.interrupted = crate::interrupt::requested();
     Ok(Streamed {
         report,
         recorded: consumer.recorder,
@@ -413,9 +421,13 @@ impl<S: Sample, F: FnMut(&Timing)> Consumer<S, F> {
         Ok(got.frames)
     }
 
-    /// Reads until the port is closed and read, sleeping while it has nothing new.
+    /// Reads until the port is closed and read (or a stop is requested), sleeping while
+    /// it has nothing new.
     fn drain_paced(&mut self) -> Result<(), StreamError> {
         loop {
+            if crate::interrupt::requested() {
+                return Ok(());
+            }
             if self.poll()? == 0 {
                 if self.reader.at_end() {
                     return Ok(());

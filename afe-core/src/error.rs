@@ -47,6 +47,9 @@ pub enum Error {
     /// A request handle that does not belong to this manager (or was removed).
     #[error("unknown request handle {0}")]
     UnknownHandle(usize),
+    /// Stopped on request (SIGINT or SIGTERM, Ctrl-C in Python) before the input's end.
+    #[error("interrupted before the end of the input")]
+    Interrupted,
 }
 
 /// Shorthand for results carrying [`enum@Error`].

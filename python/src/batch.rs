@@ -130,7 +130,8 @@ pub fn batch_compute(
 ) -> PyResult<String> {
     py.allow_threads(|| {
         let opened = Store::open(&store)?;
-        let record = batch::compute(&opened, &InputFile { id, path, audio_s });
+        let record = batch::compute(&opened, &InputFile { id, path, audio_s })
+            .ok_or(BatchError::Afe(afe::Error::Interrupted))?;
         let ledger = batch::Ledger::open(&store).map_err(|e| BatchError::Store {
             path: store.clone(),
             reason: e.to_string(),

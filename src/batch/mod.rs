@@ -110,6 +110,12 @@ pub enum BatchError {
     /// The graph refused the requests or parameters, or failed on a file.
     #[error(transparent)]
     Afe(#[from] afe_core::Error),
+    /// Stopped by [`crate::interrupt`]: the files done so far are kept.
+    #[error("interrupted after {done} file(s) of this run: run it again to resume (finished files are kept)")]
+    Interrupted {
+        /// Files this run finished.
+        done: usize,
+    },
     /// With `--on-error stop`: the first file that failed.
     #[error("stopped at '{id}': {error}")]
     Stopped {
@@ -343,11 +349,14 @@ pub fn run(
     std::thread::scope(|scope| {
         for _ in 0..workers {
             scope.spawn(|| {
-                while !stop.load(Ordering::Relaxed) {
+                while !stop.load(Ordering::Relaxed) && !crate::interrupt::requested() {
                     let Some(file) = files.get(next.fetch_add(1, Ordering::Relaxed)) else {
                         break;
                     };
-                    let record = compute(&store, file);
+                    // an interrupted file is not recorded: the next run redoes it
+                    let Some(record) = compute(&store, file) else {
+                        break;
+                    };
                     if let Err(e) = ledger.append(&record) {
                         stop.store(true, Ordering::Relaxed);
                         *lock(&ledger_error) = Some(BatchError::store(ledger.path(), &e));
@@ -384,6 +393,9 @@ pub fn run(
         .saturating_sub(summary.done + summary.failed.len());
     summary.failed.sort();
     lock(&progress).finish(&summary);
+    if crate::interrupt::requested() {
+        return Err(BatchError::Interrupted { done: summary.done });
+    }
     if options.on_error == OnError::Stop {
         if let Some((id, error)) = summary.failed.first() {
             return Err(BatchError::Stopped {
@@ -400,21 +412,25 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 }
 
 /// Computes one file into `store` (first removing what a killed run left of it) and
-/// returns its record; the caller appends it to a ledger. Failures are in the record.
-pub fn compute(store: &Store, file: &InputFile) -> Record {
+/// returns its record, for the caller to append to a ledger; failures are in the record.
+/// `None`: interrupted (see [`crate::interrupt`]), nothing to record.
+pub fn compute(store: &Store, file: &InputFile) -> Option<Record> {
     let start = Instant::now();
-    let result = compute_file(store, file).map_err(|e| e.to_string());
+    let result = compute_file(store, file);
     if result.is_err() {
         // a failed file leaves nothing half-written behind
         let _ = store.clear(&file.id);
     }
-    Record::now(
+    if let Err(BatchError::Afe(afe_core::Error::Interrupted)) = result {
+        return None;
+    }
+    Some(Record::now(
         &file.id,
         &file.path,
-        result,
+        result.map_err(|e| e.to_string()),
         file.audio_s,
         start.elapsed().as_secs_f64(),
-    )
+    ))
 }
 
 fn compute_file(store: &Store, file: &InputFile) -> Result<(), BatchError> {

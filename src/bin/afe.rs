@@ -230,6 +230,7 @@ fn main() -> ExitCode {
             };
         }
     };
+    install_interrupt_handler();
     let result = match cli.command {
         Command::List { json } => {
             list(json);
@@ -347,12 +348,31 @@ fn main() -> ExitCode {
             )
         }),
     };
+    // 130: the shells' code for a command stopped by SIGINT
+    let interrupted = afe::interrupt::requested();
     match result {
+        Ok(()) if interrupted => ExitCode::from(130),
         Ok(()) => ExitCode::SUCCESS,
         Err(msg) => {
             eprintln!("error: {msg}");
-            ExitCode::FAILURE
+            ExitCode::from(if interrupted { 130 } else { 1 })
         }
+    }
+}
+
+/// SIGINT, SIGTERM or SIGHUP: the first asks the running work to stop cleanly (see
+/// `afe::interrupt`: no half-written output, a stream saves what it computed, a batch
+/// keeps its finished files), a second one quits at once.
+fn install_interrupt_handler() {
+    let installed = ctrlc::set_handler(|| {
+        if afe::interrupt::requested() {
+            std::process::exit(130);
+        }
+        afe::interrupt::request();
+        eprintln!("\ninterrupted: stopping cleanly (again to quit at once)");
+    });
+    if let Err(e) = installed {
+        eprintln!("warning: no clean stop on Ctrl-C ({e})");
     }
 }
 
@@ -480,7 +500,10 @@ fn extract(input: &Path, job: Job, trace: Option<&Path>, output: &Path) -> Resul
         wav.read(frames, out)
             .map_err(|e| afe::Error::InvalidInput(e.to_string()))
     })
-    .map_err(|e| e.to_string())?;
+    .map_err(|e| match e {
+        afe::Error::Interrupted => format!("{e}: nothing was written"),
+        e => e.to_string(),
+    })?;
     let events = match &trace {
         Some(_) => Some(mgr.trace().map_err(|e| e.to_string())?.unwrap_or_default()),
         None => None,
@@ -763,13 +786,14 @@ fn stream(
             "budget_ms": r.budget_ms,
             "x_realtime": r.x_realtime,
             "device_overruns": r.device_overruns,
+            "interrupted": r.interrupted,
         });
         println!("{result}");
     } else {
         println!(
             "{} frames ({:.2} s at {} Hz) in {} blocks of {} frames: compute per block p50 {:.3} ms, \
              p99 {:.3} ms, max {:.3} ms (block {}), budget {:.2} ms ({:.1}x real time); \
-             {} deadline miss(es){}; {} frame(s) lost{}",
+             {} deadline miss(es){}; {} frame(s) lost{}{}",
             r.frames,
             r.frames as f64 / r.fs,
             r.fs,
@@ -795,6 +819,11 @@ fn stream(
                 format!("; {} device overrun(s)", r.device_overruns)
             } else {
                 String::new()
+            },
+            if r.interrupted {
+                "; interrupted: what was computed until then is reported (and saved with -o)"
+            } else {
+                ""
             }
         );
     }

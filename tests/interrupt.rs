@@ -1,0 +1,185 @@
+//! SIGINT and SIGTERM stop the CLI cleanly (issue 13, items 8 and the "nothing lost"
+//! rule): extraction leaves no output and no temporary, a stream saves what it computed
+//! as a valid file, a batch keeps its finished files and resumes; the exit code is 130.
+
+mod common;
+
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use common::{npz_arrays, tmp, tone, write_wav};
+
+fn spawn(args: &[&str]) -> Child {
+    Command::new(env!("CARGO_BIN_EXE_afe"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run afe")
+}
+
+fn signal(child: &Child, sig: &str) {
+    let ok = Command::new("kill")
+        .args([sig, &child.id().to_string()])
+        .status()
+        .expect("kill")
+        .success();
+    assert!(ok, "kill {sig} failed");
+}
+
+/// Waits until `ready` holds (polling), at most 60 s.
+fn wait_for(ready: impl Fn() -> bool) {
+    let start = Instant::now();
+    while !ready() {
+        assert!(start.elapsed() < Duration::from_secs(60), "timed out");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+fn no_temporaries(dir: &Path) {
+    let left: Vec<_> = std::fs::read_dir(dir)
+        .expect("dir")
+        .filter_map(Result::ok)
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains("partial") || n.contains(".tmp"))
+        .collect();
+    assert!(left.is_empty(), "temporaries left: {left:?}");
+}
+
+#[test]
+fn sigint_on_a_stream_saves_what_it_computed() {
+    let out = tmp("interrupted-stream.npz");
+    let child = spawn(&[
+        "stream",
+        "--source",
+        "synth:fs=16000,tone=440,noise=0.1",
+        "--realtime",
+        "--for",
+        "60",
+        "-r",
+        "ratemap,ild",
+        "--threads",
+        "0",
+        "-o",
+        out.to_str().expect("utf-8"),
+    ]);
+    std::thread::sleep(Duration::from_millis(1500));
+    signal(&child, "-INT");
+    let res = child.wait_with_output().expect("wait");
+    let stderr = String::from_utf8_lossy(&res.stderr);
+    assert_eq!(res.status.code(), Some(130), "stderr: {stderr}");
+    let stdout = String::from_utf8_lossy(&res.stdout);
+    assert!(stdout.contains("interrupted"), "{stdout}");
+    let arrays = npz_arrays(&out);
+    let names: Vec<&str> = arrays.iter().map(|(k, _, _)| k.as_str()).collect();
+    assert_eq!(names, ["ratemap_left", "ratemap_right", "ild_mono"]);
+    // about 1.5 s of 10-ms frames were computed: more than none, far fewer than 60 s
+    let frames = arrays[0].1[0];
+    assert!((20..3000).contains(&frames), "{frames} frames");
+    assert!(arrays
+        .iter()
+        .all(|(_, s, _)| s[0] + 1 >= frames && s[0] <= frames + 1));
+    no_temporaries(out.parent().expect("dir"));
+}
+
+#[test]
+fn sigterm_during_extract_writes_nothing() {
+    let dir = tmp("interrupted-extract");
+    std::fs::create_dir_all(&dir).expect("dir");
+    let input = dir.join("long.wav");
+    // 120 s: seconds of work even when optimised
+    write_wav(&input, 2, 44100, 44100 * 120, tone);
+    let out = dir.join("out.npz");
+    let child = spawn(&[
+        "extract",
+        input.to_str().expect("utf-8"),
+        "-r",
+        "ratemap,ild,itd,ic",
+        "--threads",
+        "0",
+        "-o",
+        out.to_str().expect("utf-8"),
+    ]);
+    std::thread::sleep(Duration::from_millis(500));
+    signal(&child, "-TERM");
+    let res = child.wait_with_output().expect("wait");
+    let stderr = String::from_utf8_lossy(&res.stderr);
+    assert_eq!(res.status.code(), Some(130), "stderr: {stderr}");
+    assert!(
+        stderr.contains("interrupted") && stderr.contains("nothing was written"),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+    no_temporaries(&dir);
+    std::fs::remove_dir_all(&dir).expect("clean");
+}
+
+#[test]
+fn sigint_during_a_batch_keeps_finished_files_and_resumes() {
+    let dir = tmp("interrupted-batch");
+    let corpus = dir.join("corpus");
+    std::fs::create_dir_all(&corpus).expect("dir");
+    for k in 0..6 {
+        write_wav(
+            &corpus.join(format!("f{k}.wav")),
+            2,
+            44100,
+            44100 * 20,
+            tone,
+        );
+    }
+    let store = dir.join("s.zarr");
+    let args = [
+        "batch",
+        corpus.to_str().expect("utf-8"),
+        "-r",
+        "ratemap,ild",
+        "-j",
+        "1",
+        "--progress",
+        "jsonl",
+        "-o",
+        store.to_str().expect("utf-8"),
+    ];
+    let child = spawn(&args);
+    let logs = store.join(".afe-batch");
+    // interrupt once the first file is recorded
+    wait_for(|| {
+        std::fs::read_dir(&logs).is_ok_and(|d| {
+            d.filter_map(Result::ok)
+                .any(|e| std::fs::read_to_string(e.path()).is_ok_and(|t| t.contains("\"done\"")))
+        })
+    });
+    signal(&child, "-INT");
+    let res = child.wait_with_output().expect("wait");
+    let stderr = String::from_utf8_lossy(&res.stderr);
+    assert_eq!(res.status.code(), Some(130), "stderr: {stderr}");
+    assert!(stderr.contains("run it again to resume"), "{stderr}");
+    let first: usize = String::from_utf8_lossy(&res.stdout)
+        .lines()
+        .filter(|l| l.contains("\"event\":\"file\""))
+        .count();
+    assert!(
+        (1..6).contains(&first),
+        "{first} files before the interrupt"
+    );
+    // the run again does only the rest
+    let again = Command::new(env!("CARGO_BIN_EXE_afe"))
+        .args(args)
+        .output()
+        .expect("run");
+    assert!(
+        again.status.success(),
+        "{}",
+        String::from_utf8_lossy(&again.stderr)
+    );
+    let summary = String::from_utf8_lossy(&again.stdout)
+        .lines()
+        .find(|l| l.contains("\"event\":\"summary\""))
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).expect("json"))
+        .expect("summary");
+    assert_eq!(summary["already_done"], first);
+    assert_eq!(summary["done"], 6 - first);
+    std::fs::remove_dir_all(&dir).expect("clean");
+}
