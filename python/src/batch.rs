@@ -85,9 +85,9 @@ pub fn batch_run(
 ) -> PyResult<String> {
     let spec = spec(spec_json)?;
     let options = options(options_json)?;
-    let summary = py
-        .allow_threads(|| batch::run(&inputs, &store, &spec, &options))
-        .map_err(to_py_batch)?;
+    let summary =
+        crate::interrupt::interruptible(py, || batch::run(&inputs, &store, &spec, &options))?
+            .map_err(to_py_batch)?;
     Ok(summary.to_json().to_string())
 }
 

@@ -4,6 +4,7 @@
 //! processing.
 
 mod batch;
+mod interrupt;
 
 use std::path::PathBuf;
 use std::sync::Mutex;
@@ -298,12 +299,11 @@ fn process<'py>(
         threads,
     };
     let ears = columns(&x);
-    let rec = py
-        .allow_threads(|| {
-            let refs: Vec<&[f64]> = ears.iter().map(Vec::as_slice).collect();
-            afe::extract::run(&job, fs, &refs)
-        })
-        .map_err(to_py)?;
+    let rec = interrupt::interruptible(py, || {
+        let refs: Vec<&[f64]> = ears.iter().map(Vec::as_slice).collect();
+        afe::extract::run(&job, fs, &refs)
+    })?
+    .map_err(to_py)?;
     signals_dict(
         py,
         rec.signals()
@@ -344,6 +344,9 @@ fn read_wav<'py>(py: Python<'py>, path: PathBuf) -> PyResult<(Bound<'py, PyAny>,
 /// The compiled core of the `afe` package.
 #[pymodule]
 fn _afe(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    // load numpy's C API now: loaded lazily, its import fails inside a first call that a
+    // pending Ctrl-C interrupts (a PanicException instead of KeyboardInterrupt)
+    numpy::PyArray1::<f64>::zeros(m.py(), 0, false);
     m.add_class::<PyManager>()?;
     m.add_function(wrap_pyfunction!(catalog_json, m)?)?;
     m.add_function(wrap_pyfunction!(process, m)?)?;

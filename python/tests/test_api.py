@@ -286,3 +286,39 @@ def test_example_script_writes_its_figure(root, tmp_path):
     script = os.path.join(root, "examples", "plot_cues.py")
     subprocess.run([sys.executable, script, os.path.join(root, "data", "example_binaural.wav"), str(png)], check=True)
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10000
+
+
+_CTRL_C_SCRIPT = r"""
+import sys, time
+import numpy as np
+import afe
+x = 0.1 * np.random.default_rng(0).standard_normal((44100 * 120, 2))
+print("ready", flush=True)
+t = time.monotonic()
+try:
+    afe.process(x, 44100, ["ratemap", "ild", "itd", "ic"])
+    print("finished", time.monotonic() - t, flush=True)
+except KeyboardInterrupt:
+    print("interrupted", time.monotonic() - t, flush=True)
+print("again", afe.process(x[:4410], 44100, ["ild"])["ild_mono"].shape, flush=True)
+"""
+
+
+def test_ctrl_c_interrupts_a_long_process_call_at_once():
+    import signal
+    import sys
+    import time
+
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _CTRL_C_SCRIPT], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    assert proc.stdout.readline().strip() == "ready"
+    time.sleep(0.5)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=120)
+    lines = out.split("\n")
+    assert lines[0].startswith("interrupted"), (out, err)
+    # within a fraction of a second of the signal, not when the 120-s signal is done
+    assert float(lines[0].split()[1]) < 2.5, out
+    # the next call runs normally
+    assert lines[1] == "again (9, 31)", (out, err)

@@ -1,0 +1,52 @@
+//! Ctrl-C during long calls: Python runs signal handlers only on its main thread between
+//! bytecodes, so a call that releases the GIL for minutes would take its
+//! KeyboardInterrupt only at the end. Here the work runs on a helper thread while the
+//! calling thread waits with the GIL released and checks for signals every 50 ms; on one,
+//! the work is asked to stop (`afe::interrupt`) and the exception is raised once it has.
+
+use std::sync::{mpsc, Mutex};
+use std::time::Duration;
+
+use pyo3::prelude::*;
+
+/// How often the waiting thread checks for signals.
+const CHECK: Duration = Duration::from_millis(50);
+
+/// Runs `work` interruptibly (see the module): its result, or the signal's exception
+/// (KeyboardInterrupt) if one came while it ran.
+pub fn interruptible<R: Send>(py: Python<'_>, work: impl FnOnce() -> R + Send) -> PyResult<R> {
+    let (result, signal) = std::thread::scope(|s| {
+        let (tx, rx) = mpsc::channel();
+        // a receiver is not Sync: the lock lets the GIL-free closure borrow it
+        let rx = Mutex::new(rx);
+        s.spawn(move || {
+            // the receiver outlives the thread inside the scope: a send cannot fail
+            let _ = tx.send(work());
+        });
+        let mut signal = None;
+        loop {
+            let got = py.allow_threads(|| match rx.lock() {
+                Ok(rx) => rx.recv_timeout(CHECK),
+                Err(_) => Err(mpsc::RecvTimeoutError::Disconnected),
+            });
+            match got {
+                Ok(r) => break (Some(r), signal),
+                Err(mpsc::RecvTimeoutError::Timeout) => {
+                    if signal.is_none() {
+                        if let Err(e) = py.check_signals() {
+                            afe::interrupt::request();
+                            signal = Some(e);
+                        }
+                    }
+                }
+                // the work panicked: the scope re-raises the panic when it joins
+                Err(mpsc::RecvTimeoutError::Disconnected) => break (None, signal),
+            }
+        }
+    });
+    if let Some(e) = signal {
+        afe::interrupt::clear();
+        return Err(e);
+    }
+    result.ok_or_else(|| pyo3::exceptions::PyRuntimeError::new_err("the computation failed"))
+}
