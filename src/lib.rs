@@ -29,7 +29,9 @@ pub mod interrupt;
 pub mod metadata;
 pub mod npy;
 pub mod output;
+pub mod realtime;
 mod recorder;
+pub mod rss;
 pub mod stream;
 pub mod wav;
 

@@ -13,6 +13,7 @@ use thiserror::Error;
 
 use crate::block_times::BlockTimes;
 use crate::recorder::Recorder;
+use crate::rss::RssProbe;
 
 /// How long the reader sleeps when the port has no new frame (real-time pacing).
 const POLL: Duration = Duration::from_micros(500);
@@ -100,6 +101,9 @@ pub struct StreamJob {
     pub looping: bool,
     /// ALSA capture rate in Hz.
     pub alsa_rate: u32,
+    /// Ask for real-time scheduling and locked memory ([`crate::realtime`]); this changes
+    /// the calling thread's scheduling for good. Real-time pacing only.
+    pub rt: bool,
 }
 
 impl Default for StreamJob {
@@ -115,6 +119,7 @@ impl Default for StreamJob {
             all: false,
             looping: false,
             alsa_rate: 44_100,
+            rt: false,
         }
     }
 }
@@ -174,6 +179,15 @@ pub struct StreamReport {
     /// Whether the stream was stopped by [`crate::interrupt`] before its end (what was
     /// computed until then is complete and can be saved).
     pub interrupted: bool,
+    /// What [`StreamJob::rt`] obtained (`None` without it).
+    pub realtime: Option<crate::realtime::Realtime>,
+    /// Resident memory in MiB after the first 60 s of audio (sampled each second of
+    /// audio; `None` for shorter streams or without `/proc`).
+    pub rss_mib_at_60s: Option<f64>,
+    /// Largest resident memory in MiB sampled after the first 60 s.
+    pub rss_mib_max_after_60s: Option<f64>,
+    /// Resident memory in MiB at the last sample.
+    pub rss_mib_end: Option<f64>,
 }
 
 /// Compute times and counts of a running stream, in constant memory.
@@ -184,6 +198,17 @@ pub struct Timing {
     times: BlockTimes,
     frames: u64,
     lost: u64,
+    rss: RssTrack,
+}
+
+/// Resident memory sampled once per second of audio.
+#[derive(Debug, Clone, Default)]
+struct RssTrack {
+    probe: RssProbe,
+    next_sample: u64,
+    at_60s_kib: Option<u64>,
+    max_after_kib: Option<u64>,
+    last_kib: Option<u64>,
 }
 
 impl Timing {
@@ -194,12 +219,30 @@ impl Timing {
             times: BlockTimes::default(),
             frames: 0,
             lost: 0,
+            rss: RssTrack::default(),
         }
     }
 
     fn block(&mut self, frames: usize, compute_s: f64) {
         self.frames += frames as u64;
         self.times.record(compute_s, frames as f64 / self.fs);
+        let audio = self.frames + self.lost;
+        if audio >= self.rss.next_sample {
+            self.rss.next_sample = audio + self.fs as u64;
+            let Some(kib) = self.rss.probe.read_kib() else {
+                return;
+            };
+            self.rss.last_kib = Some(kib);
+            if audio as f64 >= 60.0 * self.fs {
+                match self.rss.at_60s_kib {
+                    None => self.rss.at_60s_kib = Some(kib),
+                    Some(_) => {
+                        self.rss.max_after_kib =
+                            Some(self.rss.max_after_kib.map_or(kib, |m| m.max(kib)));
+                    }
+                }
+            }
+        }
     }
 
     /// The report so far.
@@ -226,6 +269,10 @@ impl Timing {
             fs: self.fs,
             block_frames: self.block_frames,
             interrupted: false,
+            realtime: None,
+            rss_mib_at_60s: self.rss.at_60s_kib.map(|k| k as f64 / 1024.0),
+            rss_mib_max_after_60s: self.rss.max_after_kib.map(|k| k as f64 / 1024.0),
+            rss_mib_end: self.rss.last_kib.map(|k| k as f64 / 1024.0),
         }
     }
 }
@@ -331,6 +378,13 @@ pub fn run<Src: Source>(
         }
         None => None,
     };
+    if job.rt && job.pacing != Pacing::Realtime {
+        return Err(StreamError::Spec(
+            "real-time scheduling (--rt) is for streams paced at real time: a fast stream would hold the cores".into(),
+        ));
+    }
+    // before the workers and the feeder start, so that they inherit the policy
+    let realtime = job.rt.then(crate::realtime::enable);
     let mut mgr = Manager::with_threads(fs, format.channels, job.threads)?;
     for r in &job.requests {
         mgr.add_request(r, &job.params)?;
@@ -376,6 +430,7 @@ pub fn run<Src: Source>(
     let mut report = consumer.timing.report();
     report.device_overruns = feeder.source().overruns();
     report.interrupted = crate::interrupt::requested();
+    report.realtime = realtime;
     Ok(Streamed {
         report,
         recorded: consumer.recorder,

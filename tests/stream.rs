@@ -216,6 +216,57 @@ fn every_bad_stream_is_one_clear_line() {
 
 #[cfg(not(feature = "alsa"))]
 #[test]
+fn rt_asks_for_fifo_and_locked_memory_and_says_what_it_got() {
+    let out = afe(&[
+        "stream",
+        "--rt",
+        "--source",
+        "synth:fs=16000,tone=440",
+        "--realtime",
+        "--for",
+        "0.3",
+        "-r",
+        "ratemap",
+        "--json",
+    ]);
+    let r = report(&out);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let described = r["rt"].as_str().expect("rt described");
+    assert!(described.contains("SCHED_FIFO"), "{described}");
+    match r["rt_complete"].as_bool() {
+        Some(true) => assert!(
+            stderr.contains("real time: SCHED_FIFO priority 50; memory locked"),
+            "{stderr}"
+        ),
+        // without privilege: a warning that says what to do, and the stream still runs
+        _ => assert!(
+            stderr.contains("warning: --rt:") && stderr.contains("CAP_"),
+            "{stderr}"
+        ),
+    }
+    assert_eq!(r["frames"], 4800);
+    // memory is sampled once per second of audio: the first sample is at the start
+    assert!(r["rss_mib_end"].as_f64().is_some_and(|m| m > 1.0), "{r}");
+    assert!(r["rss_mib_at_60s"].is_null());
+    let fast = afe(&[
+        "stream",
+        "--rt",
+        "--source",
+        "synth:fs=16000",
+        "--fast",
+        "--for",
+        "1",
+        "-r",
+        "ratemap",
+    ]);
+    assert_clear_error(
+        &fast,
+        "--rt) is for streams paced at real time",
+        &tmp("none.npz"),
+    );
+}
+
+#[test]
 fn without_alsa_devices_and_capture_say_how_to_get_it() {
     let o = tmp("never-alsa.npz");
     assert_clear_error(&afe(&["devices"]), "--features alsa", &o);
