@@ -260,7 +260,7 @@ impl Store {
                             "channels": channels,
                             "duration_s": file.audio_s,
                         }})
-                    } else if self.root.join(&path[1..]).join("zarr.json").is_file() {
+                    } else if is_group(&self.root.join(&path[1..])) {
                         continue;
                     } else {
                         json!({})
@@ -286,6 +286,12 @@ impl Store {
             }),
         }
     }
+}
+
+/// Whether `dir` holds a folder group's whole metadata: a run killed while writing it
+/// leaves it empty or torn, and the next file in that folder then writes it again.
+fn is_group(dir: &Path) -> bool {
+    std::fs::read(dir.join("zarr.json")).is_ok_and(|b| serde_json::from_slice::<Value>(&b).is_ok())
 }
 
 /// The store's spec, if `root` is a store.
@@ -377,17 +383,11 @@ impl Sink for FileWriter<'_> {
 
     fn whole(&mut self, manager: &mut Manager) -> Result<(), BatchError> {
         match self {
+            // copied from the manager as shown: a signal taken out of it (take_whole) is no
+            // longer listed by `signals`, so its array would never be made
             FileWriter::Zarr(z) => {
-                let found: Vec<OutputRef> =
-                    manager.signals(false).iter().map(|s| s.source).collect();
-                for source in found {
-                    let data = manager.take_whole(source);
-                    let signals = manager.signals(false);
-                    let (Some(data), Some(s)) = (data, signals.iter().find(|s| s.source == source))
-                    else {
-                        continue;
-                    };
-                    z.push(s, data.as_slice())?;
+                for s in manager.signals(false) {
+                    z.push(&s, s.new.as_slice())?;
                 }
                 Ok(())
             }
@@ -433,11 +433,16 @@ impl ZarrFile<'_> {
         let a = &mut self.arrays[k];
         a.buf.extend_from_slice(data);
         let full = a.rows_per_chunk * a.width;
-        while full > 0 && a.buf.len() >= full {
-            let rest = a.buf.split_off(full);
-            let chunk = std::mem::replace(&mut a.buf, rest);
-            a.write_chunk(&chunk, a.rows_per_chunk)
-                .map_err(|e| BatchError::store(self.root, &e))?;
+        if full > 0 && a.buf.len() >= full {
+            // whole chunks in one pass, the rest kept (a whole signal is many chunks:
+            // splitting them off one by one would copy the rest each time)
+            let buf = std::mem::take(&mut a.buf);
+            let mut chunks = buf.chunks_exact(full);
+            for chunk in chunks.by_ref() {
+                a.write_chunk(chunk, a.rows_per_chunk)
+                    .map_err(|e| BatchError::store(self.root, &e))?;
+            }
+            a.buf = chunks.remainder().to_vec();
         }
         Ok(())
     }
