@@ -47,6 +47,18 @@ pub enum Error {
     /// A request handle that does not belong to this manager (or was removed).
     #[error("unknown request handle {0}")]
     UnknownHandle(usize),
+    /// A processor panicked on a worker thread of the concurrent scheduler (a bug: the
+    /// manager is unusable afterwards; the sequential executor gives the same numbers).
+    #[error("a processor panicked on a worker thread: this manager can no longer be used; please report it (threads=0 runs the sequential executor)")]
+    WorkerPanicked,
+    /// The concurrent scheduler waited longer than its watchdog allows (a bug), with the
+    /// state of every node.
+    #[error("the scheduler stalled: {0}")]
+    Stalled(String),
+    /// The concurrent scheduler cannot run or was used out of order (thread count, thread
+    /// start, chunks submitted or collected out of turn).
+    #[error("scheduler: {0}")]
+    Scheduler(String),
     /// Stopped on request (SIGINT or SIGTERM, Ctrl-C in Python) before the input's end.
     #[error("interrupted before the end of the input")]
     Interrupted,

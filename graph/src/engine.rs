@@ -267,7 +267,7 @@ impl Engine {
     /// worker are preallocated for tracing (0 = no tracing).
     pub fn new(threads: usize, trace_capacity: usize) -> Result<Self> {
         if !(1..=MAX_THREADS).contains(&threads) {
-            return Err(Error::InvalidInput(format!(
+            return Err(Error::Scheduler(format!(
                 "{threads} worker threads: choose between 1 and {MAX_THREADS} (0 selects the sequential executor)"
             )));
         }
@@ -297,7 +297,7 @@ impl Engine {
             let h = thread::Builder::new()
                 .name(format!("afe-worker-{id}"))
                 .spawn(move || s.worker_loop(id))
-                .map_err(|e| Error::InvalidInput(format!("cannot start worker thread: {e}")))?;
+                .map_err(|e| Error::Scheduler(format!("cannot start a worker thread: {e}")))?;
             engine.handles.push(h);
         }
         let threads_list: Box<[Thread]> =
@@ -336,17 +336,14 @@ impl Engine {
         let began = Instant::now();
         loop {
             if self.shared.poisoned.load(Ordering::SeqCst) {
-                return Err(Error::InvalidInput(
-                    "a processor panicked on a worker thread; this manager can no longer be used"
-                        .into(),
-                ));
+                return Err(Error::WorkerPanicked);
             }
             if done(self.table()) {
                 return Ok(());
             }
             if began.elapsed() > self.stall_timeout {
-                return Err(Error::InvalidInput(format!(
-                    "scheduler stalled while waiting for {what}:\n{}",
+                return Err(Error::Stalled(format!(
+                    "waited for {what} beyond the watchdog:\n{}",
                     self.dump()
                 )));
             }
@@ -408,7 +405,7 @@ impl Engine {
     /// collect the oldest before submitting a third.
     pub fn submit(&mut self, chunk: &[&[f64]]) -> Result<()> {
         if self.in_flight() >= 2 {
-            return Err(Error::InvalidInput(
+            return Err(Error::Scheduler(
                 "two chunks are in flight already: collect one before submitting the next".into(),
             ));
         }
@@ -445,7 +442,7 @@ impl Engine {
     /// caller's reader tokens at once, so that no node waits for the caller.
     pub fn collect(&mut self) -> Result<u64> {
         if self.collected == self.submitted {
-            return Err(Error::InvalidInput("no chunk in flight to collect".into()));
+            return Err(Error::Scheduler("no chunk in flight to collect".into()));
         }
         self.adopt_caller()?;
         let k = self.collected;

@@ -452,7 +452,7 @@ impl Manager {
                 self.pending = 0;
                 Ok(())
             }
-            None => Err(Error::InvalidInput("no chunk in flight to collect".into())),
+            None => Err(Error::Scheduler("no chunk in flight to collect".into())),
         }
     }
 

@@ -187,6 +187,43 @@ fn stress(graphs: u64, chunks: usize) {
     }
 }
 
+/// Panics on its third chunk, as a processor with a bug would.
+struct PanicsLater(usize);
+
+impl Processor for PanicsLater {
+    fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
+        self.0 += 1;
+        assert!(self.0 < 3, "a processor bug");
+        outputs[0].reset_to(inputs[0].frames()).fill(0.0);
+    }
+
+    fn reset(&mut self) {}
+}
+
+#[test]
+fn a_panic_on_a_worker_is_reported_as_such() {
+    let mut g = random_graph(7, 12);
+    g.nodes[5].processor = Some(Box::new(PanicsLater(0)));
+    let mut engine = Engine::new(2, 0).expect("pool");
+    engine.install(&mut g);
+    let x = chunk_input(0, 16);
+    let mut first_error = None;
+    for _ in 0..4 {
+        let result = engine.submit(&[&x]).and_then(|()| engine.collect());
+        if let Err(e) = result {
+            first_error = Some(e);
+            break;
+        }
+    }
+    let e = first_error.expect("the panic surfaces");
+    assert!(matches!(e, afe_core::Error::WorkerPanicked), "{e}");
+    // and the engine stays refused afterwards instead of hanging
+    assert!(matches!(
+        engine.submit(&[&x]).and_then(|()| engine.collect()),
+        Err(afe_core::Error::WorkerPanicked)
+    ));
+}
+
 #[test]
 fn random_dags_match_sequential() {
     stress(12, 120);

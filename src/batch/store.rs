@@ -161,24 +161,18 @@ impl Store {
         }
         std::fs::create_dir_all(root).map_err(|e| BatchError::store(root, &e))?;
         let store = Store::with(root, spec.clone())?;
-        let meta = json!({ "afe": spec.to_json() });
-        match &store.zarr {
-            Some(z) => {
-                let attrs = meta.as_object().cloned().unwrap_or_default();
-                GroupBuilder::new()
-                    .attributes(attrs)
-                    .build(z.clone(), "/")
-                    .map_err(|e| BatchError::store(root, &e))?
-                    .store_metadata()
-                    .map_err(|e| BatchError::store(root, &e))?;
-            }
-            None => {
-                let file = OutputFile::check(&root.join(NPZ_META))
-                    .map_err(|e| BatchError::store(root, &e))?;
-                file.write(|f| f.write_all(meta["afe"].to_string().as_bytes()))
-                    .map_err(|e| BatchError::store(root, &e))?;
-            }
-        }
+        // written whole under a temporary name and renamed: a run killed here leaves no
+        // torn metadata that every later run would refuse
+        let (name, meta) = match spec.format {
+            Format::Zarr => (
+                "zarr.json",
+                json!({ "zarr_format": 3, "node_type": "group", "attributes": { "afe": spec.to_json() } }),
+            ),
+            Format::Npz => (NPZ_META, spec.to_json()),
+        };
+        let file = OutputFile::check(&root.join(name)).map_err(|e| BatchError::store(root, &e))?;
+        file.write(|f| f.write_all(meta.to_string().as_bytes()))
+            .map_err(|e| BatchError::store(root, &e))?;
         Ok(store)
     }
 

@@ -159,6 +159,36 @@ enum Command {
     },
 }
 
+/// Everything the CLI reports: each error as the crate that found it says it, or a
+/// usage error of the command line itself.
+#[derive(Debug, thiserror::Error)]
+enum CliError {
+    #[error(transparent)]
+    Afe(#[from] afe::Error),
+    #[error(transparent)]
+    Batch(#[from] afe::batch::BatchError),
+    #[error(transparent)]
+    Stream(#[from] afe::stream::StreamError),
+    #[error(transparent)]
+    Output(#[from] afe::output::OutputError),
+    #[error(transparent)]
+    Wav(#[from] afe::wav::WavError),
+    #[error("{0}")]
+    Message(String),
+}
+
+impl From<String> for CliError {
+    fn from(msg: String) -> Self {
+        CliError::Message(msg)
+    }
+}
+
+impl From<&str> for CliError {
+    fn from(msg: &str) -> Self {
+        CliError::Message(msg.to_string())
+    }
+}
+
 /// `afe batch status STORE`.
 #[derive(Subcommand)]
 enum BatchCommand {
@@ -194,7 +224,7 @@ struct Requests {
 
 impl Requests {
     /// The request names (trimmed, empty ones dropped) and the merged parameters.
-    fn load(self) -> Result<(Vec<String>, ParamMap), String> {
+    fn load(self) -> Result<(Vec<String>, ParamMap), CliError> {
         let params = load_params(self.params_file.as_deref(), &self.params)?;
         let names = clean(self.names);
         if names.is_empty() {
@@ -426,7 +456,7 @@ fn list(as_json: bool) {
 }
 
 /// Parses `NAME=VALUE`: VALUE as JSON when it is JSON, else as a plain string.
-fn parse_param(arg: &str) -> Result<(String, Value), String> {
+fn parse_param(arg: &str) -> Result<(String, Value), CliError> {
     let (name, value) = arg
         .split_once('=')
         .ok_or_else(|| format!("parameter '{arg}' is not of the form NAME=VALUE"))?;
@@ -434,13 +464,14 @@ fn parse_param(arg: &str) -> Result<(String, Value), String> {
         return Err(format!(
             "parameter '{arg}' has no value: give NAME=VALUE (leave the parameter out for \
              its default)"
-        ));
+        )
+        .into());
     }
     let value = serde_json::from_str(value).unwrap_or_else(|_| Value::String(value.to_string()));
     Ok((name.trim().to_string(), value))
 }
 
-fn load_params(file: Option<&Path>, args: &[String]) -> Result<ParamMap, String> {
+fn load_params(file: Option<&Path>, args: &[String]) -> Result<ParamMap, CliError> {
     let mut map = ParamMap::new();
     if let Some(path) = file {
         let text = std::fs::read_to_string(path)
@@ -451,13 +482,13 @@ fn load_params(file: Option<&Path>, args: &[String]) -> Result<ParamMap, String>
                 return Err(format!(
                     "parameter file '{}' must hold a JSON object of AFE parameter names to values",
                     path.display()
-                ))
+                )
+                .into())
             }
             Err(e) => {
-                return Err(format!(
-                    "parameter file '{}' is not valid JSON: {e}",
-                    path.display()
-                ))
+                return Err(
+                    format!("parameter file '{}' is not valid JSON: {e}", path.display()).into(),
+                )
             }
         }
     }
@@ -477,16 +508,16 @@ fn clean(requests: Vec<String>) -> Vec<String> {
 }
 
 /// Opens a WAV file that afe can process: mono or two channels, not empty.
-fn open_input(input: &Path) -> Result<WavBlocks, String> {
-    afe::wav::open_input(input).map_err(|e| e.to_string())
+fn open_input(input: &Path) -> Result<WavBlocks, CliError> {
+    Ok(afe::wav::open_input(input)?)
 }
 
 /// Reads a whole WAV file that afe can process.
-fn read_input(input: &Path) -> Result<Audio, String> {
-    open_input(input)?.read_all().map_err(|e| e.to_string())
+fn read_input(input: &Path) -> Result<Audio, CliError> {
+    Ok(open_input(input)?.read_all()?)
 }
 
-fn extract(input: &Path, job: Job, trace: Option<&Path>, output: &Path) -> Result<(), String> {
+fn extract(input: &Path, job: Job, trace: Option<&Path>, output: &Path) -> Result<(), CliError> {
     if trace.is_some() && job.threads == 0 {
         return Err("--trace records the concurrent scheduler: use --threads 1 or more".into());
     }
@@ -496,7 +527,7 @@ fn extract(input: &Path, job: Job, trace: Option<&Path>, output: &Path) -> Resul
     let trace = match trace {
         Some(t) => {
             let t = checked_output(t, input)?;
-            t.check_distinct(&output).map_err(|e| e.to_string())?;
+            t.check_distinct(&output)?;
             Some(t)
         }
         None => None,
@@ -504,8 +535,7 @@ fn extract(input: &Path, job: Job, trace: Option<&Path>, output: &Path) -> Resul
     let mut wav = open_input(input)?;
     // trace events preallocated per worker (48 bytes each): 12 MiB, ~5000 chunks of 11 nodes
     let capacity = if trace.is_some() { 1 << 18 } else { 0 };
-    let mut mgr = Manager::with_engine(wav.fs(), wav.channels(), job.threads, capacity)
-        .map_err(|e| e.to_string())?;
+    let mut mgr = Manager::with_engine(wav.fs(), wav.channels(), job.threads, capacity)?;
     // the file is decoded block by block where the graph allows (see `run_source`)
     let ears = wav.channels();
     let rec = run_source(&mut mgr, &job, ears, |frames, out| {
@@ -513,38 +543,35 @@ fn extract(input: &Path, job: Job, trace: Option<&Path>, output: &Path) -> Resul
             .map_err(|e| afe::Error::InvalidInput(e.to_string()))
     })
     .map_err(|e| match e {
-        afe::Error::Interrupted => format!("{e}: nothing was written"),
-        e => e.to_string(),
+        afe::Error::Interrupted => CliError::Message(format!("{e}: nothing was written")),
+        e => e.into(),
     })?;
     let events = match &trace {
-        Some(_) => Some(mgr.trace().map_err(|e| e.to_string())?.unwrap_or_default()),
+        Some(_) => Some(mgr.trace()?.unwrap_or_default()),
         None => None,
     };
     save(&rec, &output)?;
     if let (Some(t), Some(events)) = (trace, events) {
-        t.write(|file| file.write_all(events.to_string().as_bytes()))
-            .map_err(|e| e.to_string())?;
+        t.write(|file| file.write_all(events.to_string().as_bytes()))?;
     }
     Ok(())
 }
 
 /// Checks `path` as an output of a run reading `input` (see [`OutputFile::check`]).
-fn checked_output(path: &Path, input: &Path) -> Result<OutputFile, String> {
-    let out = OutputFile::check(path).map_err(|e| e.to_string())?;
-    out.check_not_input(input).map_err(|e| e.to_string())?;
+fn checked_output(path: &Path, input: &Path) -> Result<OutputFile, CliError> {
+    let out = OutputFile::check(path)?;
+    out.check_not_input(input)?;
     Ok(out)
 }
 
 /// Saves every recorded signal as a float64 array `<request>_<ear>` in an .npz.
-fn save(rec: &afe::Recorder, output: &OutputFile) -> Result<(), String> {
+fn save(rec: &afe::Recorder, output: &OutputFile) -> Result<(), CliError> {
     let arrays: Vec<(String, Vec<usize>, &[f64])> = rec
         .signals()
         .iter()
         .map(|s| (s.key.clone(), s.shape(), s.data.as_slice()))
         .collect();
-    output
-        .write(|file| afe::npy::write_npz(file, &arrays))
-        .map_err(|e| e.to_string())?;
+    output.write(|file| afe::npy::write_npz(file, &arrays))?;
     eprintln!(
         "wrote {} array(s) to {}: {}",
         arrays.len(),
@@ -574,7 +601,7 @@ fn batch(
     requests: Vec<String>,
     params: ParamMap,
     args: BatchArgs,
-) -> Result<(), String> {
+) -> Result<(), CliError> {
     use afe::batch::{run, BatchOptions, StoreSpec};
     let shard = match args.shard.as_deref() {
         None => None,
@@ -587,25 +614,16 @@ fn batch(
     let spec = StoreSpec {
         requests,
         params,
-        format: args
-            .format
-            .parse()
-            .map_err(|e: afe::batch::BatchError| e.to_string())?,
+        format: args.format.parse()?,
     };
     let options = BatchOptions {
         workers: args.jobs.map_or(0, |j| j as usize),
         shard,
-        on_error: args
-            .on_error
-            .parse()
-            .map_err(|e: afe::batch::BatchError| e.to_string())?,
-        progress: args
-            .progress
-            .parse()
-            .map_err(|e: afe::batch::BatchError| e.to_string())?,
+        on_error: args.on_error.parse()?,
+        progress: args.progress.parse()?,
         overwrite: args.overwrite,
     };
-    let summary = run(inputs, store, &spec, &options).map_err(|e| e.to_string())?;
+    let summary = run(inputs, store, &spec, &options)?;
     if options.progress == afe::batch::ProgressMode::None {
         eprintln!("{}", summary.text());
     }
@@ -613,9 +631,9 @@ fn batch(
     Ok(())
 }
 
-fn batch_status(store: &Path, as_json: bool) -> Result<(), String> {
+fn batch_status(store: &Path, as_json: bool) -> Result<(), CliError> {
     use afe::batch::Status;
-    let (spec, records) = afe::batch::status(store).map_err(|e| e.to_string())?;
+    let (spec, records) = afe::batch::status(store)?;
     let done: Vec<_> = records
         .iter()
         .filter(|r| r.status == Status::Done)
@@ -664,16 +682,15 @@ fn batch_status(store: &Path, as_json: bool) -> Result<(), String> {
     Ok(())
 }
 
-fn bench(input: &Path, job: &Job, repeat: usize, as_json: bool) -> Result<(), String> {
+fn bench(input: &Path, job: &Job, repeat: usize, as_json: bool) -> Result<(), CliError> {
     let audio = read_input(input)?;
     let refs: Vec<&[f64]> = audio.channels.iter().map(Vec::as_slice).collect();
     let seconds = refs[0].len() as f64 / audio.fs;
     let mut times = Vec::with_capacity(repeat);
     for _ in 0..repeat {
-        let mut mgr =
-            Manager::with_threads(audio.fs, refs.len(), job.threads).map_err(|e| e.to_string())?;
+        let mut mgr = Manager::with_threads(audio.fs, refs.len(), job.threads)?;
         for r in &job.requests {
-            mgr.add_request(r, &job.params).map_err(|e| e.to_string())?;
+            mgr.add_request(r, &job.params)?;
         }
         let start = Instant::now();
         let rec = run_with(
@@ -683,8 +700,7 @@ fn bench(input: &Path, job: &Job, repeat: usize, as_json: bool) -> Result<(), St
                 ..job.clone()
             },
             &refs,
-        )
-        .map_err(|e| e.to_string())?;
+        )?;
         times.push(start.elapsed().as_secs_f64());
         std::hint::black_box(rec);
     }
@@ -717,8 +733,8 @@ fn bench(input: &Path, job: &Job, repeat: usize, as_json: bool) -> Result<(), St
 }
 
 #[cfg(feature = "alsa")]
-fn devices() -> Result<(), String> {
-    let list = afe::bass_source::list_devices().map_err(|e| e.to_string())?;
+fn devices() -> Result<(), CliError> {
+    let list = afe::bass_source::list_devices()?;
     if list.is_empty() {
         println!("no ALSA capture device found");
     }
@@ -729,7 +745,7 @@ fn devices() -> Result<(), String> {
 }
 
 #[cfg(not(feature = "alsa"))]
-fn devices() -> Result<(), String> {
+fn devices() -> Result<(), CliError> {
     Err(afe::stream::ALSA_OFF.into())
 }
 
@@ -740,16 +756,14 @@ fn stream(
     rate_given: bool,
     as_json: bool,
     output: Option<&Path>,
-) -> Result<(), String> {
-    let spec: SourceSpec = source
-        .parse()
-        .map_err(|e: afe::stream::StreamError| e.to_string())?;
+) -> Result<(), CliError> {
+    let spec: SourceSpec = source.parse()?;
     match &spec {
         SourceSpec::Wav(_) if job.looping && job.duration_s.is_none() => {
             return Err("--loop replays the file forever: give --for SECONDS".into())
         }
         SourceSpec::Synth(_) | SourceSpec::Alsa(_) if job.duration_s.is_none() => {
-            return Err(format!("'{source}' never ends: give --for SECONDS"))
+            return Err(format!("'{source}' never ends: give --for SECONDS").into())
         }
         SourceSpec::Synth(_) | SourceSpec::Alsa(_) if job.looping => {
             return Err("--loop replays wav files only".into())
@@ -764,13 +778,12 @@ fn stream(
     }
     let output = match (output, &spec) {
         (Some(o), SourceSpec::Wav(input)) => Some(checked_output(o, input)?),
-        (Some(o), _) => Some(OutputFile::check(o).map_err(|e| e.to_string())?),
+        (Some(o), _) => Some(OutputFile::check(o)?),
         (None, _) => None,
     };
     job.pacing = pacing.unwrap_or_else(|| spec.default_pacing());
     let mut status = Status::new(!as_json && std::io::stderr().is_terminal());
-    let out =
-        afe::stream::run_spec(&spec, &job, |t| status.update(t)).map_err(|e| e.to_string())?;
+    let out = afe::stream::run_spec(&spec, &job, |t| status.update(t))?;
     status.finish();
     if let Some(path) = &output {
         save(&out.recorded, path)?;
