@@ -129,20 +129,166 @@ pub fn write_npz<W: Write + Seek>(
     out: W,
     arrays: &[(String, Vec<usize>, &[f64])],
 ) -> std::io::Result<()> {
-    let mut zip = zip::ZipWriter::new(out);
-    for (name, shape, data) in arrays {
-        let options = zip::write::SimpleFileOptions::default()
-            .compression_method(zip::CompressionMethod::Stored)
-            .large_file(data.len() * 8 > u32::MAX as usize / 2);
-        zip.start_file(format!("{name}.npy"), options)?;
-        zip.write_all(&encode(shape, data))?;
+    let mut first_error = None;
+    let result = (|| {
+        let mut zip = zip::ZipWriter::new(FirstError {
+            inner: out,
+            error: &mut first_error,
+            pos: 0,
+            end: 0,
+        });
+        for (name, shape, data) in arrays {
+            let options = zip::write::SimpleFileOptions::default()
+                .compression_method(zip::CompressionMethod::Stored)
+                .large_file(data.len() * 8 > u32::MAX as usize / 2);
+            zip.start_file(format!("{name}.npy"), options)?;
+            zip.write_all(&encode(shape, data))?;
+        }
+        zip.finish()?;
+        Ok::<(), zip::result::ZipError>(())
+    })();
+    match (first_error, result) {
+        // the I/O error as the system gave it ("No space left on device")
+        (Some(e), _) => Err(e),
+        (None, r) => r.map_err(std::io::Error::other),
     }
-    zip.finish()?;
-    Ok(())
+}
+
+/// Keeps the first I/O error and swallows the writes after it (moving a virtual
+/// position as they would): the zip writer then drops quietly (it would print "ZipWriter
+/// drop failed" to stderr trying to finish on a failed file), and the caller reports the
+/// original error. The writer starts at position 0 (a new file or buffer).
+struct FirstError<'a, W> {
+    inner: W,
+    error: &'a mut Option<std::io::Error>,
+    pos: u64,
+    end: u64,
+}
+
+impl<W: Write> Write for FirstError<'_, W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = if self.error.is_some() {
+            buf.len()
+        } else {
+            self.inner.write(buf).map_err(|e| self.keep(e))?
+        };
+        self.pos += n as u64;
+        self.end = self.end.max(self.pos);
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        if self.error.is_some() {
+            return Ok(());
+        }
+        self.inner.flush().map_err(|e| self.keep(e))
+    }
+}
+
+impl<W: Seek> Seek for FirstError<'_, W> {
+    fn seek(&mut self, to: std::io::SeekFrom) -> std::io::Result<u64> {
+        use std::io::SeekFrom;
+        self.pos = if self.error.is_some() {
+            let target = match to {
+                SeekFrom::Start(n) => Some(n),
+                SeekFrom::Current(d) => self.pos.checked_add_signed(d),
+                SeekFrom::End(d) => self.end.checked_add_signed(d),
+            };
+            target.ok_or_else(|| std::io::Error::from(std::io::ErrorKind::InvalidInput))?
+        } else {
+            self.inner.seek(to).map_err(|e| self.keep(e))?
+        };
+        self.end = self.end.max(self.pos);
+        Ok(self.pos)
+    }
+}
+
+impl<W> FirstError<'_, W> {
+    /// Records `e` and returns an error of the same kind for the zip writer.
+    fn keep(&mut self, e: std::io::Error) -> std::io::Error {
+        let kind = e.kind();
+        *self.error = Some(e);
+        std::io::Error::from(kind)
+    }
 }
 
 #[cfg(test)]
 mod tests {
+    /// A file that fills up after `room` bytes.
+    struct Full {
+        room: usize,
+        at: u64,
+    }
+
+    impl std::io::Write for Full {
+        fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+            if buf.len() > self.room {
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::StorageFull,
+                    "disk full",
+                ));
+            }
+            self.room -= buf.len();
+            self.at += buf.len() as u64;
+            Ok(buf.len())
+        }
+
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+
+    impl std::io::Seek for Full {
+        fn seek(&mut self, _: std::io::SeekFrom) -> std::io::Result<u64> {
+            Ok(self.at)
+        }
+    }
+
+    #[test]
+    fn a_full_disk_is_reported_as_the_system_said() {
+        let data = vec![0.5; 1000];
+        for room in [0, 10, 100, 5000, 7990] {
+            let e = super::write_npz(Full { room, at: 0 }, &[("x".into(), vec![1000], &data)])
+                .expect_err("no room");
+            assert_eq!(e.kind(), std::io::ErrorKind::StorageFull, "room {room}");
+            assert_eq!(e.to_string(), "disk full");
+        }
+        assert!(super::write_npz(
+            Full {
+                room: 1 << 20,
+                at: 0
+            },
+            &[("x".into(), vec![1000], &data)]
+        )
+        .is_ok());
+    }
+    /// The zip writer's drop writes to the process's stderr directly: run the case in a
+    /// child test process and read what it printed.
+    #[test]
+    fn a_full_disk_prints_nothing_of_its_own() {
+        if std::env::var_os("AFE_NPZ_FULL_CHILD").is_some() {
+            let data = vec![0.5; 1000];
+            for room in [0, 100, 5000] {
+                let arrays = [("x".to_string(), vec![1000], data.as_slice())];
+                assert!(super::write_npz(Full { room, at: 0 }, &arrays).is_err());
+            }
+            return;
+        }
+        let exe = std::env::current_exe().expect("test binary");
+        let out = std::process::Command::new(exe)
+            .args([
+                "--exact",
+                "npy::tests::a_full_disk_prints_nothing_of_its_own",
+                "--nocapture",
+            ])
+            .env("AFE_NPZ_FULL_CHILD", "1")
+            .output()
+            .expect("child");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{stderr}");
+        assert!(!stderr.contains("drop failed"), "{stderr}");
+    }
+
     use super::*;
 
     #[test]
