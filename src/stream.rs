@@ -139,8 +139,9 @@ pub enum StreamError {
     Spec(String),
 }
 
-/// The numbers of a stream, so far or at its end.
-#[derive(Debug, Clone, PartialEq)]
+/// The numbers of a stream, so far or at its end (serialised as `afe stream --json`
+/// shows it).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct StreamReport {
     /// Frames processed by the graph.
     pub frames: u64,
@@ -179,7 +180,9 @@ pub struct StreamReport {
     /// Whether the stream was stopped by [`crate::interrupt`] before its end (what was
     /// computed until then is complete and can be saved).
     pub interrupted: bool,
-    /// What [`StreamJob::rt`] obtained (`None` without it).
+    /// What [`StreamJob::rt`] obtained (`None` without it); serialised as `rt` (its
+    /// description) and `rt_complete`.
+    #[serde(skip)]
     pub realtime: Option<crate::realtime::Realtime>,
     /// Resident memory in MiB after the first 60 s of audio (sampled each second of
     /// audio; `None` for shorter streams or without `/proc`).

@@ -55,8 +55,8 @@ pub enum Error {
     /// state of every node.
     #[error("the scheduler stalled: {0}")]
     Stalled(String),
-    /// The concurrent scheduler cannot run or was used out of order (thread count, thread
-    /// start, chunks submitted or collected out of turn).
+    /// The concurrent scheduler cannot run or was used out of order (a worker thread
+    /// cannot start, chunks submitted or collected out of turn).
     #[error("scheduler: {0}")]
     Scheduler(String),
     /// Stopped on request (SIGINT or SIGTERM, Ctrl-C in Python) before the input's end.

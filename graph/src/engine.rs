@@ -267,7 +267,7 @@ impl Engine {
     /// worker are preallocated for tracing (0 = no tracing).
     pub fn new(threads: usize, trace_capacity: usize) -> Result<Self> {
         if !(1..=MAX_THREADS).contains(&threads) {
-            return Err(Error::Scheduler(format!(
+            return Err(Error::InvalidInput(format!(
                 "{threads} worker threads: choose between 1 and {MAX_THREADS} (0 selects the sequential executor)"
             )));
         }

@@ -58,23 +58,29 @@ def requests() -> List[str]:
 def parameters(request: Optional[str] = None) -> List[Dict[str, Any]]:
     """The AFE parameters with their defaults, units and meanings (as ``afe list``).
 
-    Without ``request``: every parameter. With a request name: the parameters of every
+    Without an argument: every parameter. With a request name: the parameters of every
     processor that request is computed through (e.g. ``ratemap`` → ratemap, IHC,
-    filterbank and pre-processing parameters). Each entry is a dict with ``name``,
+    filterbank and pre-processing parameters). With a parameter name (``fb_nChannels``):
+    that parameter alone, as a one-entry list. Each entry is a dict with ``name``,
     ``processor``, ``type``, ``accepts``, ``default``, ``unit`` and ``description``.
 
-    Raises ``ValueError`` for an unknown request name.
+    Raises ``ValueError`` for a name that is neither, naming close matches.
     """
     catalog = {r["name"]: r for r in _catalog()}
+    every = [dict(p, processor=n) for n in catalog for p in catalog[n]["parameters"]]
     if request is None:
-        names = list(catalog)
-    elif request in catalog:
-        names = catalog[request]["chain"]
-    else:
-        raise ValueError(
-            f"unknown request '{request}' (known requests: {', '.join(catalog)})"
-        )
-    return [dict(p, processor=n) for n in names for p in catalog[n]["parameters"]]
+        return every
+    if request in catalog:
+        return [dict(p, processor=n) for n in catalog[request]["chain"] for p in catalog[n]["parameters"]]
+    found = [p for p in every if p["name"] == request]
+    if found:
+        # a parameter shared by processors (the filterbank's) is listed once
+        return found[:1]
+    import difflib
+
+    close = difflib.get_close_matches(request, list(catalog) + [p["name"] for p in every], n=3)
+    hint = f" (did you mean {', '.join(repr(c) for c in close)}?)" if close else ""
+    raise ValueError(f"'{request}' is neither a request nor a parameter{hint}")
 
 
 def read_wav(path: Union[str, os.PathLike]) -> Tuple[np.ndarray, float]:
@@ -264,6 +270,7 @@ def process(
     params: Optional[Mapping[str, Any]] = None,
     chunk: Optional[int] = None,
     threads: Optional[int] = None,
+    keep: str = "requested",
 ) -> Dict[str, np.ndarray]:
     """Computes ``requests`` on a whole signal and returns ``{name: array}``.
 
@@ -272,9 +279,14 @@ def process(
     AFE parameter names to values, shared by every request. ``chunk``: feed the signal in
     chunks of this many samples, as a stream would (same result wherever the AFE is
     chunk-invariant). ``threads``: worker threads (``None``/0: sequential).
+    ``keep="all"`` also returns every intermediate signal the requests were computed
+    through (``time_left``, ``filterbank_left``, ``innerhaircell_left``, ...), as the
+    AFE's data object holds them and as ``afe extract --all`` saves them.
 
     The arrays are those of ``afe extract``: ``ratemap_left``, ``ild_mono``, ... float64.
     """
+    if keep not in ("requested", "all"):
+        raise ValueError(f"keep must be 'requested' or 'all', got {keep!r}")
     if isinstance(signal, (str, os.PathLike)):
         x, file_fs = read_wav(signal)
         if fs is not None and float(fs) != file_fs:
@@ -298,6 +310,7 @@ def process(
         _params_json(params),
         None if chunk is None else int(chunk),
         int(threads or 0),
+        keep == "all",
     )
 
 

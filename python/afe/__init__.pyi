@@ -17,6 +17,7 @@ def process(
     params: Optional[Mapping[str, Any]] = ...,
     chunk: Optional[int] = ...,
     threads: Optional[int] = ...,
+    keep: str = ...,
 ) -> Dict[str, np.ndarray]: ...
 
 class Manager:

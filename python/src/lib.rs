@@ -285,7 +285,8 @@ impl PyManager {
 
 /// Computes `requests` on a whole signal (`afe extract`'s code path): `{name: array}`.
 #[pyfunction]
-#[pyo3(signature = (x, fs, requests, params_json, chunk, threads))]
+#[pyo3(signature = (x, fs, requests, params_json, chunk, threads, all))]
+#[allow(clippy::too_many_arguments)]
 fn process<'py>(
     py: Python<'py>,
     x: PyReadonlyArray2<'py, f64>,
@@ -294,12 +295,13 @@ fn process<'py>(
     params_json: &str,
     chunk: Option<usize>,
     threads: usize,
+    all: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let job = afe::extract::Job {
         requests,
         params: parse_params(params_json)?,
         chunk,
-        all: false,
+        all,
         threads,
     };
     let ears = columns(&x);

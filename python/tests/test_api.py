@@ -32,12 +32,19 @@ def test_catalogue_matches_the_afe_names():
     assert names["fb_nChannels"]["processor"] == "filterbank"
     assert "ild_wSizeSec" not in names
     assert len(afe.parameters()) > len(afe.parameters("ratemap"))
-    with pytest.raises(ValueError, match="unknown request 'nope'"):
+    with pytest.raises(ValueError, match="'nope' is neither a request nor a parameter"):
         afe.parameters("nope")
+    # one parameter by its name, with a hint for a typo
+    (one,) = afe.parameters("fb_nChannels")
+    assert one["processor"] == "filterbank" and one["type"] == "integer" and "channels" in one["description"]
+    with pytest.raises(ValueError, match="did you mean 'fb_nChannels'"):
+        afe.parameters("fb_nchannels")
 
 
 def test_dir_shows_the_public_api_only():
-    assert dir(afe) == sorted(["Manager", "parameters", "process", "read_wav", "requests", "__version__"])
+    assert dir(afe) == sorted(
+        ["Manager", "Store", "batch", "open_store", "parameters", "process", "read_wav", "requests", "__version__"]
+    )
 
 
 def test_a_top_channel_at_nyquist_is_accepted_as_in_the_afe():
@@ -322,3 +329,19 @@ def test_ctrl_c_interrupts_a_long_process_call_at_once():
     assert float(lines[0].split()[1]) < 2.5, out
     # the next call runs normally
     assert lines[1] == "again (9, 31)", (out, err)
+
+
+def test_keep_all_returns_the_intermediate_signals_as_extract_all(example_wav, cli, tmp_path):
+    out = afe.process(example_wav, None, ["ild"], keep="all")
+    for name in ("time_left", "time_right", "filterbank_left", "innerhaircell_right", "ild_mono"):
+        assert name in out, sorted(out)
+    assert out["filterbank_left"].shape[1] == out["ild_mono"].shape[1]
+    assert set(afe.process(example_wav, None, ["ild"])) == {"ild_mono"}
+    npz = tmp_path / "all.npz"
+    subprocess.run([cli, "extract", example_wav, "-r", "ild", "--all", "-o", str(npz)], check=True, capture_output=True)
+    with np.load(npz) as z:
+        assert sorted(z.files) == sorted(out)
+        for k in z.files:
+            assert np.array_equal(z[k], out[k]), k
+    with pytest.raises(ValueError, match="keep"):
+        afe.process(example_wav, None, ["ild"], keep="everything")

@@ -87,25 +87,8 @@ enum Command {
         /// The store: a folder, created if missing.
         #[arg(short = 'o', long = "output", value_name = "STORE", required = true)]
         store: Option<PathBuf>,
-        /// Files computed at once (default: the number of cores).
-        #[arg(short = 'j', long = "jobs", value_name = "N", value_parser = clap::value_parser!(u64).range(1..=1024))]
-        jobs: Option<u64>,
-        /// Compute only shard I of N (0-based), chosen by a hash of the file ids, so N
-        /// independent jobs fill one store together.
-        #[arg(long, value_name = "I/N")]
-        shard: Option<String>,
-        /// What a file that fails does: recorded and skipped, or stops the run.
-        #[arg(long, value_name = "skip|stop", default_value = "skip")]
-        on_error: String,
-        /// Progress display: a bar on stderr, JSON lines on stdout, or none.
-        #[arg(long, value_name = "bar|jsonl|none", default_value = "bar")]
-        progress: String,
-        /// Store layout: Zarr v3, or one .npz per file (as `afe extract` writes it).
-        #[arg(long, value_name = "zarr|npz", default_value = "zarr")]
-        format: String,
-        /// Replace the contents of a store made with other requests or parameters.
-        #[arg(long)]
-        overwrite: bool,
+        #[command(flatten)]
+        args: BatchArgs,
     },
     /// List the ALSA capture devices (needs a build with `--features alsa`).
     Devices,
@@ -316,29 +299,11 @@ fn main() -> ExitCode {
             inputs,
             requests,
             store,
-            jobs,
-            shard,
-            on_error,
-            progress,
-            format,
-            overwrite,
+            args,
         } => match (requests, store) {
-            (Some(requests), Some(store)) => requests.load().and_then(|(requests, params)| {
-                batch(
-                    &inputs,
-                    &store,
-                    requests,
-                    params,
-                    BatchArgs {
-                        jobs,
-                        shard,
-                        on_error,
-                        progress,
-                        format,
-                        overwrite,
-                    },
-                )
-            }),
+            (Some(requests), Some(store)) => requests
+                .load()
+                .and_then(|(requests, params)| batch(&inputs, &store, requests, params, args)),
             _ => Err("afe batch needs -r REQ,... and -o STORE".into()),
         },
         Command::Stream {
@@ -586,12 +551,26 @@ fn save(rec: &afe::Recorder, output: &OutputFile) -> Result<(), CliError> {
 }
 
 /// The options of `afe batch` as given.
+#[derive(clap::Args)]
 struct BatchArgs {
+    /// Files computed at once (default: the number of cores).
+    #[arg(short = 'j', long = "jobs", value_name = "N", value_parser = clap::value_parser!(u64).range(1..=1024))]
     jobs: Option<u64>,
+    /// Compute only shard I of N (0-based), chosen by a hash of the file ids, so N
+    /// independent jobs fill one store together.
+    #[arg(long, value_name = "I/N")]
     shard: Option<String>,
+    /// What a file that fails does: recorded and skipped, or stops the run.
+    #[arg(long, value_name = "skip|stop", default_value = "skip")]
     on_error: String,
+    /// Progress display: a bar on stderr, JSON lines on stdout, or none.
+    #[arg(long, value_name = "bar|jsonl|none", default_value = "bar")]
     progress: String,
+    /// Store layout: Zarr v3, or one .npz per file (as `afe extract` writes it).
+    #[arg(long, value_name = "zarr|npz", default_value = "zarr")]
     format: String,
+    /// Replace the contents of a store made with other requests or parameters.
+    #[arg(long)]
     overwrite: bool,
 }
 
@@ -797,34 +776,19 @@ fn stream(
         }
     }
     if as_json {
-        let result = json!({
+        let mut result = serde_json::to_value(r).map_err(|e| e.to_string())?;
+        let extra = json!({
             "source": source,
             "requests": job.requests,
             "pacing": if job.pacing == Pacing::Realtime { "realtime" } else { "fast" },
             "threads": job.threads,
-            "fs": r.fs,
-            "block_frames": r.block_frames,
-            "frames": r.frames,
             "seconds": r.frames as f64 / r.fs,
-            "lost_frames": r.lost_frames,
-            "blocks": r.blocks,
-            "deadline_misses": r.deadline_misses,
-            "compute_ms_p50": r.compute_ms_p50,
-            "compute_ms_p99": r.compute_ms_p99,
-            "compute_ms_max": r.compute_ms_max,
-            "slowest_block": r.slowest_block,
-            "missed_blocks": r.missed_blocks,
-            "compute_ms_histogram": r.compute_ms_histogram,
-            "budget_ms": r.budget_ms,
-            "x_realtime": r.x_realtime,
-            "device_overruns": r.device_overruns,
-            "interrupted": r.interrupted,
             "rt": r.realtime.as_ref().map(afe::realtime::Realtime::describe),
             "rt_complete": r.realtime.as_ref().map(afe::realtime::Realtime::complete),
-            "rss_mib_at_60s": r.rss_mib_at_60s,
-            "rss_mib_max_after_60s": r.rss_mib_max_after_60s,
-            "rss_mib_end": r.rss_mib_end,
         });
+        if let (Some(all), Value::Object(extra)) = (result.as_object_mut(), extra) {
+            all.extend(extra);
+        }
         println!("{result}");
     } else {
         println!(
