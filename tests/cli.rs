@@ -349,6 +349,54 @@ fn list_json_names_every_request_with_defaults() {
 }
 
 #[test]
+fn list_one_request_or_one_parameter() {
+    // a request: its chain, request first, as the AFE's parameterHelper
+    let out = afe(&["list", "ild", "--json"]);
+    assert!(out.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    let names: Vec<&str> = v
+        .as_array()
+        .expect("array")
+        .iter()
+        .filter_map(|e| e["name"].as_str())
+        .collect();
+    assert_eq!(names, ["ild", "innerhaircell", "filterbank", "time"]);
+    let text = String::from_utf8_lossy(&afe(&["list", "ild"]).stdout).into_owned();
+    assert!(
+        text.starts_with("ild  (binaural")
+            && text.contains("ihc_method")
+            && !text.contains("rm_wSizeSec")
+    );
+    // a parameter: where it belongs and what it takes
+    let one: serde_json::Value =
+        serde_json::from_slice(&afe(&["list", "rm_wSizeSec", "--json"]).stdout).expect("json");
+    assert_eq!(
+        (
+            one["processor"].as_str(),
+            one["default"].as_f64(),
+            one["unit"].as_str()
+        ),
+        (Some("ratemap"), Some(0.02), Some("s"))
+    );
+    assert_clear_error(
+        &afe(&["list", "rm_wsize"]),
+        "'rm_wsize' is neither a request nor a parameter",
+        &tmp("none"),
+    );
+    // a reader that goes away (`afe list | head -1`) ends the listing quietly
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_afe"))
+        .arg("list")
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run");
+    drop(child.stdout.take());
+    let res = child.wait_with_output().expect("wait");
+    let stderr = String::from_utf8_lossy(&res.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}
+
+#[test]
 fn threads_trace_and_bench() {
     let wav = tmp("threads.wav");
     write_wav(&wav, 2, 16000, 8000, tone);

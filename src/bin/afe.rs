@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use std::io::IsTerminal;
+use std::io::{IsTerminal, Write as _};
 use std::time::{Duration, Instant};
 
 use afe::bass_source::Pacing;
@@ -28,6 +28,9 @@ struct Cli {
 enum Command {
     /// List every request with its parameters, defaults, units and meaning.
     List {
+        /// A request (its whole processing chain, as the AFE's parameterHelper shows
+        /// it) or one parameter (its processor, type, accepted values, default, unit).
+        name: Option<String>,
         /// Print JSON instead of text.
         #[arg(long)]
         json: bool,
@@ -250,10 +253,7 @@ fn main() -> ExitCode {
     };
     install_interrupt_handler();
     let result = match cli.command {
-        Command::List { json } => {
-            list(json);
-            Ok(())
-        }
+        Command::List { name, json } => list(name.as_deref(), json),
         Command::Extract {
             input,
             requests,
@@ -383,16 +383,66 @@ fn install_interrupt_handler() {
     }
 }
 
-fn list(as_json: bool) {
+fn list(name: Option<&str>, as_json: bool) -> Result<(), CliError> {
     let listing = afe::catalog::listing();
-    if as_json {
-        println!("{listing}");
-        return;
+    let mut text = String::new();
+    let mut entries = listing.as_array().cloned().unwrap_or_default();
+    if let Some(name) = name {
+        let by_name = |n: &str| entries.iter().find(|e| e["name"] == n).cloned();
+        if let Some(request) = by_name(name) {
+            // the request's chain, from the request down to the time-domain input
+            entries = request["chain"]
+                .as_array()
+                .into_iter()
+                .flatten()
+                .filter_map(|n| n.as_str().and_then(by_name))
+                .collect();
+        } else {
+            let found = entries.iter().find_map(|e| {
+                e["parameters"]
+                    .as_array()?
+                    .iter()
+                    .find(|p| p["name"] == name)
+                    .map(|p| (e["name"].clone(), p.clone()))
+            });
+            let Some((processor, mut p)) = found else {
+                return Err(format!(
+                    "'{name}' is neither a request nor a parameter: `afe list` shows them all"
+                )
+                .into());
+            };
+            p["processor"] = processor;
+            if as_json {
+                out(&format!("{p}\n"));
+            } else {
+                for key in [
+                    "name",
+                    "processor",
+                    "type",
+                    "accepts",
+                    "default",
+                    "unit",
+                    "description",
+                ] {
+                    let v = match &p[key] {
+                        Value::String(s) => s.clone(),
+                        Value::Null => "[]".into(),
+                        v => v.to_string(),
+                    };
+                    text.push_str(&format!("{key:<12} {v}\n"));
+                }
+            }
+            out(&text);
+            return Ok(());
+        }
     }
-    let entries = listing.as_array().cloned().unwrap_or_default();
+    if as_json {
+        out(&format!("{}\n", Value::Array(entries)));
+        return Ok(());
+    }
     for e in &entries {
-        println!(
-            "{}  ({}; from {})\n    {}",
+        text.push_str(&format!(
+            "{}  ({}; from {})\n    {}\n",
             e["name"].as_str().unwrap_or_default(),
             if e["binaural"] == json!(true) {
                 "binaural"
@@ -401,23 +451,33 @@ fn list(as_json: bool) {
             },
             e["depends_on"].as_str().unwrap_or_default(),
             e["description"].as_str().unwrap_or_default()
-        );
+        ));
         for p in e["parameters"].as_array().into_iter().flatten() {
             let default = match &p["default"] {
                 Value::Null => "[]".to_string(),
                 v => v.to_string(),
             };
             let unit = p["unit"].as_str().unwrap_or_default();
-            println!(
-                "    {:<24} {:<10} {:<7} {}",
+            text.push_str(&format!(
+                "    {:<24} {:<10} {:<7} {}\n",
                 p["name"].as_str().unwrap_or_default(),
                 default,
                 if unit.is_empty() { "-" } else { unit },
                 p["description"].as_str().unwrap_or_default()
-            );
+            ));
         }
-        println!();
+        text.push('\n');
     }
+    out(&text);
+    Ok(())
+}
+
+/// Prints `text` to stdout; a reader that went away (`afe list | head`) ends it quietly.
+fn out(text: &str) {
+    let mut stdout = std::io::stdout().lock();
+    let _ = stdout
+        .write_all(text.as_bytes())
+        .and_then(|()| stdout.flush());
 }
 
 /// Parses `NAME=VALUE`: VALUE as JSON when it is JSON, else as a plain string.
