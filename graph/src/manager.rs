@@ -703,6 +703,41 @@ impl Manager {
         Ok(req.outputs.iter().filter_map(|r| self.signal(*r)).collect())
     }
 
+    /// The parameters every processor of request `handle`'s chain runs with, defaults
+    /// included (the AFE's `getParameterSummary`): e.g. for `ild`, the `ild_*`, `ihc_*`,
+    /// `fb_*` and `pp_*` values.
+    ///
+    /// ```
+    /// use afe_graph::Manager;
+    /// let mut mgr = Manager::new(16000.0, 2)?;
+    /// let params = [("fb_nChannels".to_string(), serde_json::json!(8))].into_iter().collect();
+    /// let h = mgr.add_request("ild", &params)?;
+    /// let used = mgr.request_parameters(h)?;
+    /// assert_eq!(used["fb_nChannels"], 8);
+    /// assert_eq!(used["ild_wSizeSec"], 0.02);
+    /// assert_eq!(used["ihc_method"], "dau");
+    /// # Ok::<(), afe_core::Error>(())
+    /// ```
+    pub fn request_parameters(&self, handle: RequestHandle) -> Result<ParamMap> {
+        let req = self
+            .requests
+            .get(handle.0)
+            .and_then(Option::as_ref)
+            .ok_or(Error::UnknownHandle(handle.0))?;
+        let mut todo: Vec<usize> = req.outputs.iter().map(|r| r.node).collect();
+        let mut seen = std::collections::HashSet::new();
+        let mut used = ParamMap::new();
+        while let Some(n) = todo.pop() {
+            if !seen.insert(n) {
+                continue;
+            }
+            let node = &self.graph.nodes[n];
+            used.extend(node.params.iter().map(|(k, v)| (k.clone(), v.clone())));
+            todo.extend(node.parents.iter().map(|p| p.node));
+        }
+        Ok(used)
+    }
+
     /// Signals of the graph: the requested ones, or (`all`) every processor output,
     /// including intermediate ones (time, filterbank, innerhaircell, ...). After
     /// [`Manager::process_signal`], intermediate signals are there only if

@@ -201,6 +201,18 @@ class Manager:
         """
         return self._m.add_request(str(name), _params_json(params))
 
+    def request_outputs(self, handle: int) -> List[str]:
+        """The names of request ``handle``'s outputs (keys of :meth:`process_chunk`'s and
+        :meth:`outputs`' dicts), e.g. ``["ratemap_2_left", "ratemap_2_right"]`` for a
+        second ratemap with other parameters. Raises ``KeyError`` for an unknown handle."""
+        return list(self._m.request_outputs(int(handle)))
+
+    def request_parameters(self, handle: int) -> Dict[str, Any]:
+        """The parameters every processor of request ``handle``'s chain runs with, defaults
+        included (the AFE's ``getParameterSummary``). Raises ``KeyError`` for an unknown
+        handle."""
+        return json.loads(self._m.request_parameters_json(int(handle)))
+
     def remove_request(self, handle: int) -> None:
         """Removes a request; its processors go when no other request uses them.
         Raises ``KeyError`` for an unknown handle."""

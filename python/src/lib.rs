@@ -213,6 +213,26 @@ impl PyManager {
         })
     }
 
+    fn request_outputs(&self, py: Python<'_>, handle: usize) -> PyResult<Vec<String>> {
+        self.with(py, |st| {
+            Ok(st
+                .manager
+                .request_signals(RequestHandle::from_index(handle))?
+                .iter()
+                .map(afe::Signal::key)
+                .collect())
+        })
+    }
+
+    fn request_parameters_json(&self, py: Python<'_>, handle: usize) -> PyResult<String> {
+        self.with(py, |st| {
+            let used = st
+                .manager
+                .request_parameters(RequestHandle::from_index(handle))?;
+            Ok(serde_json::to_string(&used).unwrap_or_default())
+        })
+    }
+
     fn handles(&self, py: Python<'_>) -> PyResult<Vec<usize>> {
         self.with(py, |st| {
             Ok(st.manager.handles().map(|h| h.index()).collect())

@@ -345,3 +345,22 @@ def test_keep_all_returns_the_intermediate_signals_as_extract_all(example_wav, c
             assert np.array_equal(z[k], out[k]), k
     with pytest.raises(ValueError, match="keep"):
         afe.process(example_wav, None, ["ild"], keep="everything")
+
+
+def test_two_instances_of_a_request_have_their_own_outputs_and_parameters():
+    x = signal(16000)
+    m = afe.Manager(16000, channels=2)
+    wide = m.add_request("ratemap", {"fb_nChannels": 32})
+    narrow = m.add_request("ratemap", {"fb_nChannels": 16, "rm_wSizeSec": 0.05})
+    out = m.process_chunk(x)
+    names = {h: m.request_outputs(h) for h in (wide, narrow)}
+    assert names[wide] == ["ratemap_left", "ratemap_right"]
+    assert names[narrow] == ["ratemap_2_left", "ratemap_2_right"]
+    assert out[names[wide][0]].shape[1] == 32 and out[names[narrow][0]].shape[1] == 16
+    used = {h: m.request_parameters(h) for h in (wide, narrow)}
+    assert (used[wide]["fb_nChannels"], used[wide]["rm_wSizeSec"]) == (32, 0.02)
+    assert (used[narrow]["fb_nChannels"], used[narrow]["rm_wSizeSec"]) == (16, 0.05)
+    # defaults of the whole chain are there too
+    assert used[narrow]["ihc_method"] == "dau" and "pp_bRemoveDC" in used[narrow]
+    with pytest.raises(KeyError):
+        m.request_outputs(99)
