@@ -32,6 +32,14 @@ impl RequestHandle {
 /// One output signal of the graph, as seen after the last processed chunk.
 #[derive(Debug, Clone, Copy)]
 pub struct Signal<'a> {
+    /// Index of the first new frame among all the frames this output has given (it
+    /// keeps counting across `reset` and `modify_parameter`).
+    pub first_frame: u64,
+    /// Time of the first new frame in seconds from the start of the stream: an output
+    /// whose framing (re)started at input sample `s` (when it was placed, reset or
+    /// rebuilt by `modify_parameter`) has its frame `k` at `s / fs + k / fs_hz`, the
+    /// AFE's time axis (first frame at the start).
+    pub first_time_s: f64,
     /// Name of the signal: the request's, e.g. `ratemap`, or the output's own where a
     /// processor has several (`precedence_itd`, `precedence_ild`, `precedence_cc`).
     pub name: &'static str,
@@ -100,6 +108,43 @@ pub struct Manager {
     whole_shown: bool,
     /// Whether `process_signal` keeps every intermediate signal, not only the requested.
     keep_all: bool,
+    /// Samples per ear submitted since construction (never reset): the stream clock.
+    stream_pos: u64,
+    /// Where each node's outputs stand in the stream, per node and output.
+    clocks: Vec<Vec<FrameClock>>,
+}
+
+/// The frame count of one output, for the index and time of each chunk's first frame.
+#[derive(Debug, Clone, Copy, Default)]
+struct FrameClock {
+    /// Input sample (stream clock) at which the output's framing (re)started.
+    start: u64,
+    /// Frames since then.
+    since: u64,
+    /// Frames given in all.
+    given: u64,
+    /// `since` and `given` before the last chunk: its first frame.
+    first_since: u64,
+    first_given: u64,
+}
+
+impl FrameClock {
+    /// A clock (re)started at input sample `start`, after `given` frames in all.
+    fn started_at(start: u64, given: u64) -> Self {
+        FrameClock {
+            start,
+            given,
+            first_given: given,
+            ..FrameClock::default()
+        }
+    }
+
+    fn advance(&mut self, frames: u64) {
+        self.first_since = self.since;
+        self.first_given = self.given;
+        self.since += frames;
+        self.given += frames;
+    }
 }
 
 /// Largest input amplitude accepted (full scale is 1.0): far above any real recording
@@ -183,6 +228,8 @@ impl Manager {
             whole: Vec::new(),
             whole_shown: false,
             keep_all: false,
+            stream_pos: 0,
+            clocks: Vec::new(),
         })
     }
 
@@ -248,7 +295,40 @@ impl Manager {
         if let Some(e) = self.engine.as_mut() {
             e.install(&mut self.graph);
         }
+        self.sync_clocks();
         r
+    }
+
+    /// Gives every output of the graph a frame clock: outputs new since the last edit
+    /// start at the current input sample.
+    fn sync_clocks(&mut self) {
+        let now = self.stream_pos;
+        self.clocks.resize_with(self.graph.nodes.len(), Vec::new);
+        for (clocks, node) in self.clocks.iter_mut().zip(&self.graph.nodes) {
+            clocks.resize(node.outputs.len(), FrameClock::started_at(now, 0));
+        }
+    }
+
+    /// Restarts the framing of `node`'s outputs at the current input sample.
+    fn restart_clocks(&mut self, node: usize) {
+        let now = self.stream_pos;
+        for c in self.clocks.get_mut(node).into_iter().flatten() {
+            *c = FrameClock::started_at(now, c.given);
+        }
+    }
+
+    /// Counts the frames of the chunk just collected (node 0, the input, is no signal).
+    fn tick(&mut self) {
+        for (n, clocks) in self.clocks.iter_mut().enumerate().skip(1) {
+            for (o, c) in clocks.iter_mut().enumerate() {
+                let r = OutputRef { node: n, output: o };
+                let frames = match &self.engine {
+                    Some(e) => e.block(r).frames(),
+                    None => self.graph.nodes[n].outputs[o].frames(),
+                };
+                c.advance(frames as u64);
+            }
+        }
     }
 
     /// Input sampling rate in Hz.
@@ -426,6 +506,7 @@ impl Manager {
             Some(e) => {
                 e.submit(chunk)?;
                 self.position += len;
+                self.stream_pos += len;
                 Ok(())
             }
             None => {
@@ -438,6 +519,7 @@ impl Manager {
                 self.graph.run_sequential();
                 self.pending = 1;
                 self.position += len;
+                self.stream_pos += len;
                 Ok(())
             }
         }
@@ -447,13 +529,12 @@ impl Manager {
     /// [`Manager::signals`] shows.
     pub fn collect_chunk(&mut self) -> Result<()> {
         match self.engine.as_mut() {
-            Some(e) => e.collect().map(|_| ()),
-            None if self.pending > 0 => {
-                self.pending = 0;
-                Ok(())
-            }
-            None => Err(Error::Scheduler("no chunk in flight to collect".into())),
+            Some(e) => e.collect().map(|_| ())?,
+            None if self.pending > 0 => self.pending = 0,
+            None => return Err(Error::Scheduler("no chunk in flight to collect".into())),
         }
+        self.tick();
+        Ok(())
     }
 
     /// Chunks submitted and not yet collected.
@@ -499,6 +580,12 @@ impl Manager {
                 m.whole = whole;
                 Ok(())
             })?;
+            for (clocks, kept) in self.clocks.iter_mut().zip(&self.whole) {
+                for (c, w) in clocks.iter_mut().zip(kept) {
+                    c.advance(w.as_ref().map_or(0, |b| b.frames() as u64));
+                }
+            }
+            self.stream_pos += len as u64;
             self.whole_shown = true;
             return Ok(());
         }
@@ -518,6 +605,11 @@ impl Manager {
         }
         self.whole = whole;
         self.whole_shown = true;
+        // the whole output is shown: its first frame is the first since the reset
+        for c in self.clocks.iter_mut().flatten() {
+            c.first_since = 0;
+            c.first_given = c.given - c.since;
+        }
         Ok(())
     }
 
@@ -599,6 +691,9 @@ impl Manager {
         self.edit(|m| {
             m.graph.reset();
             m.position = 0;
+            for n in 0..m.clocks.len() {
+                m.restart_clocks(n);
+            }
             Ok(())
         })
     }
@@ -626,6 +721,13 @@ impl Manager {
             .flat_map(|r| r.outputs.iter().copied())
             .collect();
         let new_index = self.graph.prune(needed.into_iter());
+        let mut clocks = vec![Vec::new(); self.graph.nodes.len()];
+        for (old, c) in std::mem::take(&mut self.clocks).into_iter().enumerate() {
+            if let Some(slot) = new_index.get(old).and_then(|&i| clocks.get_mut(i)) {
+                *slot = c;
+            }
+        }
+        self.clocks = clocks;
         for r in self.requests.iter_mut().flatten() {
             for o in &mut r.outputs {
                 o.node = new_index[o.node];
@@ -671,7 +773,9 @@ impl Manager {
             });
         }
         self.edit(|m| {
-            m.graph.modify(&chain, name, &params)?;
+            for n in m.graph.modify(&chain, name, &params)? {
+                m.restart_clocks(n);
+            }
             if let Some(Some(req)) = m.requests.get_mut(handle.0) {
                 req.params.insert(name.to_string(), params[name].clone());
             }
@@ -772,7 +876,16 @@ impl Manager {
     /// Output `r`'s signal; `None` for one that the last `process_signal` did not keep.
     fn signal(&self, r: OutputRef) -> Option<Signal<'_>> {
         let node = &self.graph.nodes[r.node];
+        let clock = self
+            .clocks
+            .get(r.node)
+            .and_then(|c| c.get(r.output))
+            .copied()
+            .unwrap_or_default();
+        let info = &node.infos[r.output];
         Some(Signal {
+            first_frame: clock.first_given,
+            first_time_s: clock.start as f64 / self.fs + clock.first_since as f64 / info.fs_hz,
             name: node.infos[r.output].name.unwrap_or(node.name),
             instance: node.instance,
             channel: node.channels[r.output],
@@ -791,6 +904,69 @@ impl Manager {
 mod tests {
     use super::*;
     use serde_json::json;
+
+    /// Chunks of 10 ms with a window change after 0.5 s and a reset after 1 s: the frame
+    /// times stay monotonic, the index keeps counting, and each restart's first frame
+    /// stands at the input sample where it restarted.
+    #[test]
+    fn frame_times_follow_the_input_across_edits_and_resets() {
+        for threads in [0, 2] {
+            let fs = 16000.0;
+            let mut m = Manager::with_threads(fs, 2, threads).expect("manager");
+            let h = m
+                .add_request("ratemap", &params(&[("fb_nChannels", json!(4))]))
+                .expect("ratemap");
+            let x: Vec<f64> = (0..160).map(|t| (t as f64 * 0.3).sin() * 0.1).collect();
+            let mut times: Vec<f64> = Vec::new();
+            let mut index = 0;
+            let mut restarted: Option<f64> = None;
+            for k in 0..150 {
+                if k == 50 {
+                    m.modify_parameter(h, "rm_hSizeSec", json!(0.02))
+                        .expect("modify");
+                }
+                if k == 100 {
+                    m.reset().expect("reset");
+                }
+                m.submit_chunk(&[&x, &x]).expect("submit");
+                m.collect_chunk().expect("collect");
+                let s = &m.request_signals(h).expect("signals")[0];
+                assert_eq!(s.first_frame, index, "threads {threads}, chunk {k}");
+                if s.new.frames() == 0 {
+                    continue;
+                }
+                index += s.new.frames() as u64;
+                let hop = 1.0 / s.info.fs_hz;
+                for f in 0..s.new.frames() {
+                    times.push(s.first_time_s + f as f64 * hop);
+                }
+                if let Some(t) = restarted.take() {
+                    // the first frame after a restart stands where the restart was
+                    assert!(
+                        (s.first_time_s - t).abs() < 1e-12,
+                        "{} vs {t}",
+                        s.first_time_s
+                    );
+                }
+            }
+            assert!(
+                times.windows(2).all(|w| w[1] > w[0]),
+                "threads {threads}: not monotonic"
+            );
+            assert_eq!(times[0], 0.0);
+            // 10-ms hops before the change, 20-ms hops after it
+            let hops = |t0: f64, t1: f64| -> Vec<f64> {
+                times
+                    .windows(2)
+                    .filter(|w| w[0] >= t0 && w[1] < t1)
+                    .map(|w| w[1] - w[0])
+                    .collect()
+            };
+            assert!(hops(0.0, 0.5).iter().all(|h| (h - 0.01).abs() < 1e-12));
+            assert!(hops(0.5, 1.0).iter().all(|h| (h - 0.02).abs() < 1e-12));
+            assert!(hops(1.0, 1.5).iter().all(|h| (h - 0.02).abs() < 1e-12));
+        }
+    }
 
     fn params(pairs: &[(&str, serde_json::Value)]) -> ParamMap {
         pairs

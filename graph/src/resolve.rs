@@ -255,7 +255,13 @@ impl Graph {
     /// Sets parameter `name` to `params[name]` in the nodes of `chain` that declare it and
     /// rebuilds them and every node computed from them (fresh state). Every replacement is
     /// built before any is installed, so a rejected value changes nothing.
-    pub(crate) fn modify(&mut self, chain: &[usize], name: &str, params: &ParamMap) -> Result<()> {
+    /// Returns the nodes rebuilt.
+    pub(crate) fn modify(
+        &mut self,
+        chain: &[usize],
+        name: &str,
+        params: &ParamMap,
+    ) -> Result<Vec<usize>> {
         let n = self.nodes.len();
         let mut dirty = vec![false; n];
         let mut rebuilt: Vec<(usize, ParamMap, ParamMap)> = Vec::new();
@@ -296,6 +302,7 @@ impl Graph {
             infos[i] = b.outputs.clone();
             built.push((i, b, build, own));
         }
+        let rebuilt_nodes = built.iter().map(|b| b.0).collect();
         for (i, b, build, own) in built {
             let node = &mut self.nodes[i];
             node.outputs = b
@@ -310,6 +317,6 @@ impl Graph {
                 node.params = own;
             }
         }
-        Ok(())
+        Ok(rebuilt_nodes)
     }
 }

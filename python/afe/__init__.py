@@ -201,6 +201,16 @@ class Manager:
         """
         return self._m.add_request(str(name), _params_json(params))
 
+    def frames(self) -> Dict[str, Dict[str, Any]]:
+        """Where the last chunk's new frames stand in the stream, per output:
+        ``first_frame`` (index among all the frames the output has given, counting on
+        across ``reset`` and ``modify_parameter``), ``first_time_s`` (seconds from the
+        stream's start), ``frames`` and ``fs_hz``. Frame ``k`` of the chunk is at
+        ``first_time_s + k / fs_hz``. An output whose framing restarts (placed, reset,
+        rebuilt by ``modify_parameter``) at input sample ``s`` has its next frame at
+        ``s / fs``, the AFE's time axis (first frame at the start)."""
+        return json.loads(self._m.frames_json())
+
     def request_outputs(self, handle: int) -> List[str]:
         """The names of request ``handle``'s outputs (keys of :meth:`process_chunk`'s and
         :meth:`outputs`' dicts), e.g. ``["ratemap_2_left", "ratemap_2_right"]`` for a

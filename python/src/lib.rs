@@ -213,6 +213,26 @@ impl PyManager {
         })
     }
 
+    fn frames_json(&self, py: Python<'_>) -> PyResult<String> {
+        self.with(py, |st| {
+            let map: serde_json::Map<String, serde_json::Value> = st
+                .manager
+                .signals(false)
+                .iter()
+                .map(|s| {
+                    let v = serde_json::json!({
+                        "first_frame": s.first_frame,
+                        "first_time_s": s.first_time_s,
+                        "frames": s.new.frames(),
+                        "fs_hz": s.info.fs_hz,
+                    });
+                    (s.key(), v)
+                })
+                .collect();
+            Ok(serde_json::Value::Object(map).to_string())
+        })
+    }
+
     fn request_outputs(&self, py: Python<'_>, handle: usize) -> PyResult<Vec<String>> {
         self.with(py, |st| {
             Ok(st

@@ -364,3 +364,26 @@ def test_two_instances_of_a_request_have_their_own_outputs_and_parameters():
     assert used[narrow]["ihc_method"] == "dau" and "pp_bRemoveDC" in used[narrow]
     with pytest.raises(KeyError):
         m.request_outputs(99)
+
+
+def test_streamed_frames_carry_their_index_and_time_across_modify_parameter():
+    """The AFE's Feedback demo changes a parameter mid-stream: the time axis must follow
+    the input, not compress."""
+    fs = 16000
+    x = signal(fs * 2)
+    m = afe.Manager(fs, channels=2)
+    h = m.add_request("ratemap", {"fb_nChannels": 8})
+    times, index = [], 0
+    for k, start in enumerate(range(0, len(x), 160)):
+        if k == 100:
+            m.modify_parameter("rm_hSizeSec", 0.02, handle=h)
+        new = m.process_chunk(x[start:start + 160])["ratemap_left"]
+        info = m.frames()["ratemap_left"]
+        assert info["first_frame"] == index and info["frames"] == len(new)
+        index += len(new)
+        times.extend(info["first_time_s"] + np.arange(len(new)) / info["fs_hz"])
+    times = np.array(times)
+    assert np.all(np.diff(times) > 0)
+    assert times[0] == 0.0 and abs(times[-1] - 1.98) < 1e-9  # 2 s: last 20-ms frame
+    hops = np.diff(times)
+    assert np.allclose(hops[times[1:] < 1.0], 0.01) and np.allclose(hops[times[:-1] >= 1.0], 0.02)
