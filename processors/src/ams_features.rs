@@ -146,6 +146,10 @@ impl Params for AmsParams {
     ];
 }
 
+/// Most modulation filters (the AFE uses 9 to 15): beyond, the features of every
+/// channel and band would not fit in memory (fuzzing asked for 2^32 filters).
+const MAX_FILTERS: usize = 1000;
+
 fn invalid(name: &str, value: impl ToString, reason: impl Into<String>) -> Error {
     Error::InvalidParameter {
         name: name.into(),
@@ -316,8 +320,12 @@ impl AmsFeatures {
         if p.ds_ratio == 0 {
             return Err(invalid("ams_dsRatio", 0, "must be a positive integer"));
         }
-        if p.n_filters == 0 {
-            return Err(invalid("ams_nFilters", 0, "must be a positive integer"));
+        if p.n_filters == 0 || p.n_filters > MAX_FILTERS {
+            return Err(invalid(
+                "ams_nFilters",
+                p.n_filters,
+                format!("must be a positive integer, at most {MAX_FILTERS}"),
+            ));
         }
         if p.low_freq_hz <= 0.0 {
             return Err(invalid("ams_lowFreqHz", p.low_freq_hz, "must be > 0 Hz"));
@@ -640,6 +648,14 @@ mod tests {
         let info = ihc(16000.0, 2);
         let d = AmsParams::default();
         let cases = [
+            (
+                // found by fuzzing: 2^32 filters asked for 34 GB
+                "ams_nFilters",
+                AmsParams {
+                    n_filters: 1 << 32,
+                    ..d.clone()
+                },
+            ),
             (
                 "ams_lowFreqHz",
                 AmsParams {

@@ -149,6 +149,7 @@ impl Autocorrelation {
             ("ac_wSizeSec", params.w_size_sec),
             ("ac_hSizeSec", params.h_size_sec),
             fs,
+            input.channels(),
         )?;
         if !(0.0..=1.0).contains(&params.clip_alpha) {
             return Err(Error::InvalidParameter {

@@ -172,6 +172,7 @@ impl Crosscorrelation {
             ("cc_wSizeSec", params.w_size_sec),
             ("cc_hSizeSec", params.h_size_sec),
             fs,
+            input.channels(),
         )?;
         let max_lag = (params.max_delay_sec * fs).ceil();
         if params.max_delay_sec < 0.0 || max_lag > w as f64 {

@@ -7,10 +7,21 @@ use afe_core::{Error, Result};
 /// Longest window, in samples (about 6 minutes at 44.1 kHz): beyond is a unit mistake.
 pub const MAX_WINDOW: usize = 1 << 24;
 
+/// Most values a frame buffer may hold (a window of rows over all channels): 2^24
+/// values, 128 MiB, e.g. 12 s of 32 channels at 44.1 kHz. A longer window is refused
+/// rather than allocated (found by fuzzing: a ratemap window of minutes over 32
+/// channels asked for 600 MB).
+pub const MAX_FRAME_VALUES: usize = 1 << 24;
+
 /// Window and hop lengths in samples at `fs`, checked: `0 < H ≤ W ≤ MAX_WINDOW`.
 ///
 /// `w` and `h` are `(AFE parameter name, value in s)`.
-pub fn check_framing(w: (&str, f64), h: (&str, f64), fs: f64) -> Result<(usize, usize)> {
+pub fn check_framing(
+    w: (&str, f64),
+    h: (&str, f64),
+    fs: f64,
+    width: usize,
+) -> Result<(usize, usize)> {
     let ws = window_samples(w.1, fs);
     let hs = hop_samples(h.1, fs);
     if w.1 <= 0.0 || !(2..=MAX_WINDOW).contains(&ws) {
@@ -18,6 +29,17 @@ pub fn check_framing(w: (&str, f64), h: (&str, f64), fs: f64) -> Result<(usize, 
             name: w.0.into(),
             value: w.1.to_string(),
             reason: format!("the window must span between 2 and {MAX_WINDOW} samples at {fs} Hz"),
+        });
+    }
+    if ws.saturating_mul(width.max(1)) > MAX_FRAME_VALUES {
+        return Err(Error::InvalidParameter {
+            name: w.0.into(),
+            value: w.1.to_string(),
+            reason: format!(
+                "a window of {ws} samples over {width} channels would buffer {} MiB (at most {} MiB): shorten the window or use fewer channels",
+                ws.saturating_mul(width) / (1 << 17),
+                MAX_FRAME_VALUES / (1 << 17)
+            ),
         });
     }
     if h.1 <= 0.0 || hs == 0 || hs > ws {
@@ -74,5 +96,25 @@ impl EarFrames {
     pub fn reset(&mut self) {
         self.left.reset();
         self.right.reset();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_window_too_long_for_memory_is_refused_by_name() {
+        let w = ("rm_wSizeSec", 0.02);
+        let h = ("rm_hSizeSec", 0.01);
+        assert_eq!(check_framing(w, h, 44100.0, 32).expect("fine"), (882, 441));
+        // 100 s at 96 kHz over 32 channels: 2.3 GiB, refused before any allocation
+        let long = ("rm_wSizeSec", 100.0);
+        let e = check_framing(long, h, 96000.0, 32)
+            .expect_err("too long")
+            .to_string();
+        assert!(e.contains("rm_wSizeSec") && e.contains("MiB"), "{e}");
+        // the same window over one channel fits
+        assert!(check_framing(("rm_wSizeSec", 10.0), h, 44100.0, 1).is_ok());
     }
 }

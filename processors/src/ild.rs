@@ -140,6 +140,7 @@ impl Ild {
             ("ild_wSizeSec", params.w_size_sec),
             ("ild_hSizeSec", params.h_size_sec),
             input.fs_hz,
+            input.channels(),
         )?;
         let nc = input.channels();
         let ild = Ild {

@@ -409,6 +409,7 @@ impl Precedence {
             ("prec_wSizeSec", params.w_size_sec),
             ("prec_hSizeSec", params.h_size_sec),
             fs,
+            input.channels(),
         )?;
         let fms = fs / 1000.0;
         let main_peak_width = (0.75 * fms).floor() as usize;

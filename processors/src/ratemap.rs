@@ -98,6 +98,7 @@ impl Ratemap {
             ("rm_wSizeSec", params.w_size_sec),
             ("rm_hSizeSec", params.h_size_sec),
             fs,
+            input.channels(),
         )?;
         if params.decay_sec <= 0.0 {
             return Err(afe_core::Error::InvalidParameter {

@@ -12,8 +12,6 @@ use realfft::num_complex::Complex64;
 use realfft::{RealFftPlanner, RealToComplex};
 use serde::{Deserialize, Serialize};
 
-use crate::framed::MAX_WINDOW;
-
 use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// Parameters of the STFT, under their AFE names.
@@ -77,6 +75,11 @@ impl std::fmt::Debug for Stft {
     }
 }
 
+/// Longest STFT window in samples (2^20: 24 s at 44.1 kHz): its FFT of 2^21 points
+/// already takes about 100 MB of buffers. Found by fuzzing: the general limit let a
+/// window of minutes ask for gigabytes.
+const MAX_STFT_WINDOW: usize = 1 << 20;
+
 impl Stft {
     /// Builds the STFT for the time-domain signal `input`.
     ///
@@ -86,12 +89,12 @@ impl Stft {
     pub fn new(params: &StftParams, input: &SignalInfo) -> Result<(Self, SignalInfo)> {
         let fs = input.fs_hz;
         let w = window_samples(params.w_size_sec, fs);
-        if params.w_size_sec <= 0.0 || !(2..=MAX_WINDOW).contains(&w) {
+        if params.w_size_sec <= 0.0 || !(2..=MAX_STFT_WINDOW).contains(&w) {
             return Err(Error::InvalidParameter {
                 name: "stft_wSizeSec".into(),
                 value: params.w_size_sec.to_string(),
                 reason: format!(
-                    "the window must span between 2 and {MAX_WINDOW} samples at {fs} Hz"
+                    "the window must span between 2 and {MAX_STFT_WINDOW} samples at {fs} Hz (its FFT is twice as long)"
                 ),
             });
         }
