@@ -159,6 +159,8 @@ enum CliError {
     Output(#[from] afe::output::OutputError),
     #[error(transparent)]
     Wav(#[from] afe::wav::WavError),
+    #[error(transparent)]
+    Source(#[from] afe::bass_source::Error),
     #[error("{0}")]
     Message(String),
 }
