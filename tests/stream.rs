@@ -214,7 +214,6 @@ fn every_bad_stream_is_one_clear_line() {
     );
 }
 
-#[cfg(not(feature = "alsa"))]
 #[test]
 fn rt_asks_for_fifo_and_locked_memory_and_says_what_it_got() {
     let out = afe(&[
@@ -266,6 +265,7 @@ fn rt_asks_for_fifo_and_locked_memory_and_says_what_it_got() {
     );
 }
 
+#[cfg(not(feature = "alsa"))]
 #[test]
 fn without_alsa_devices_and_capture_say_how_to_get_it() {
     let o = tmp("never-alsa.npz");
