@@ -320,6 +320,13 @@ impl AmsFeatures {
         if p.ds_ratio == 0 {
             return Err(invalid("ams_dsRatio", 0, "must be a positive integer"));
         }
+        if p.cf_hz.len() > MAX_FILTERS {
+            return Err(invalid(
+                "ams_cfHz",
+                format!("{} frequencies", p.cf_hz.len()),
+                format!("at most {MAX_FILTERS} modulation centre frequencies"),
+            ));
+        }
         if p.n_filters == 0 || p.n_filters > MAX_FILTERS {
             return Err(invalid(
                 "ams_nFilters",
@@ -648,6 +655,14 @@ mod tests {
         let info = ihc(16000.0, 2);
         let d = AmsParams::default();
         let cases = [
+            (
+                // found by fuzzing: 2000 explicit frequencies asked for 1.3 GB
+                "ams_cfHz",
+                AmsParams {
+                    cf_hz: vec![100.0; 2000],
+                    ..d.clone()
+                },
+            ),
             (
                 // found by fuzzing: 2^32 filters asked for 34 GB
                 "ams_nFilters",
