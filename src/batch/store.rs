@@ -365,12 +365,7 @@ impl Sink for FileWriter<'_> {
 
     fn chunk(&mut self, manager: &Manager) -> Result<(), BatchError> {
         match self {
-            FileWriter::Zarr(z) => {
-                for s in manager.signals(false) {
-                    z.push(&s, s.new.as_slice())?;
-                }
-                Ok(())
-            }
+            FileWriter::Zarr(z) => z.push_all(manager),
             FileWriter::Npz { rec, .. } => Ok(rec.chunk(manager)?),
         }
     }
@@ -379,12 +374,7 @@ impl Sink for FileWriter<'_> {
         match self {
             // copied from the manager as shown: a signal taken out of it (take_whole) is no
             // longer listed by `signals`, so its array would never be made
-            FileWriter::Zarr(z) => {
-                for s in manager.signals(false) {
-                    z.push(&s, s.new.as_slice())?;
-                }
-                Ok(())
-            }
+            FileWriter::Zarr(z) => z.push_all(manager),
             FileWriter::Npz { rec, .. } => Ok(rec.whole(manager)?),
         }
     }
@@ -416,6 +406,15 @@ struct ArrayOut {
 }
 
 impl ZarrFile<'_> {
+    /// Appends what `manager` shows of every requested signal (a chunk's new values, or
+    /// a whole signal's).
+    fn push_all(&mut self, manager: &Manager) -> Result<(), BatchError> {
+        for s in manager.signals(false) {
+            self.push(&s, s.new.as_slice())?;
+        }
+        Ok(())
+    }
+
     fn push(&mut self, s: &Signal<'_>, data: &[f64]) -> Result<(), BatchError> {
         let k = match self.arrays.iter().position(|a| a.source == s.source) {
             Some(k) => k,
