@@ -106,6 +106,18 @@ fn configurations() -> Vec<(Vec<&'static str>, ParamMap)> {
             ]),
         ),
         (
+            // hops longer than the windows, as the AFE accepts them: gaps between frames
+            vec!["ratemap", "ild", "crosscorrelation", "autocorrelation"],
+            params(&[
+                ("rm_hSizeSec", json!(0.035)),
+                ("ild_wSizeSec", json!(0.01)),
+                ("ild_hSizeSec", json!(0.027)),
+                ("cc_hSizeSec", json!(0.031)),
+                ("ac_hSizeSec", json!(0.05)),
+                ("fb_nChannels", json!(8)),
+            ]),
+        ),
+        (
             vec!["innerhaircell", "ild"],
             params(&[
                 ("ihc_method", json!("breebart")),

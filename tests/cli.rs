@@ -193,7 +193,7 @@ fn every_bad_input_is_one_clear_line() {
             "-r",
             "ratemap",
             "-p",
-            "rm_hSizeSec=1",
+            "rm_hSizeSec=0",
             "-o",
             os,
         ]),

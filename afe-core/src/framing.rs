@@ -1,5 +1,10 @@
 //! The AFE framing rule (spec 00-overview §9): frames of `W` samples every `H` samples,
 //! carried across chunks, with no padding and no flushing.
+//!
+//! A hop longer than the window (accepted, as by the AFE) leaves gaps between frames: a
+//! gap that runs past the end of a chunk is skipped in the next one, so frame `j` still
+//! covers `[j·H, j·H + W)`. (The MATLAB AFE forgets such a gap at a chunk boundary, so
+//! its chunked output there depends on the chunking; its one-call output is this one.)
 
 /// The rows of a time-major signal still needed by coming frames.
 ///
@@ -14,6 +19,9 @@ pub struct FrameBuffer {
     hop: usize,
     /// Rows from the start of the next frame on.
     kept: Vec<f64>,
+    /// Rows of coming input to drop before the next frame starts (a gap between frames
+    /// when the hop is longer than the window; `kept` is empty while it is non-zero).
+    skip: usize,
 }
 
 /// One frame: rows kept from earlier chunks (`head`), then rows of the new chunk
@@ -40,19 +48,26 @@ impl FrameBuffer {
     /// A buffer for rows of `width` values, frames of `window` rows every `hop` rows.
     ///
     /// # Panics
-    /// If `hop` is zero or larger than `window`.
+    /// If `hop` is zero.
     pub fn new(width: usize, window: usize, hop: usize) -> Self {
-        assert!(hop > 0 && hop <= window, "invalid framing {window}/{hop}");
+        assert!(hop > 0, "invalid framing {window}/{hop}");
         FrameBuffer {
             width,
             window,
             hop,
             kept: Vec::with_capacity(window * width),
+            skip: 0,
         }
+    }
+
+    /// `input` after the rows still to be skipped.
+    fn fresh<'a>(&self, input: &'a [f64]) -> &'a [f64] {
+        &input[(self.skip * self.width).min(input.len())..]
     }
 
     /// Number of complete frames over the kept rows followed by `input`.
     pub fn available(&self, input: &[f64]) -> usize {
+        let input = self.fresh(input);
         let n = (self.kept.len() + input.len()) / self.width.max(1);
         if n < self.window {
             0
@@ -64,6 +79,7 @@ impl FrameBuffer {
     /// Frame `k` (counted from the next frame) over the kept rows followed by `input`;
     /// `k` must be below [`FrameBuffer::available`].
     pub fn frame<'a>(&'a self, input: &'a [f64], k: usize) -> Frame<'a> {
+        let input = self.fresh(input);
         let kept = self.kept.len();
         let start = k * self.hop * self.width;
         let end = start + self.window * self.width;
@@ -77,21 +93,27 @@ impl FrameBuffer {
     /// Drops `frames` frames and keeps the rows after them, from `input` too; `input`
     /// is the chunk just framed.
     pub fn advance(&mut self, input: &[f64], frames: usize) {
+        let fresh = self.fresh(input);
+        self.skip -= (input.len() - fresh.len()) / self.width.max(1);
         let next = frames * self.hop * self.width;
         let kept = self.kept.len();
         if next <= kept {
             self.kept.drain(..next);
-            self.kept.extend_from_slice(input);
+            self.kept.extend_from_slice(fresh);
         } else {
             self.kept.clear();
-            self.kept
-                .extend_from_slice(&input[(next - kept).min(input.len())..]);
+            let drop = next - kept;
+            match fresh.get(drop..) {
+                Some(rest) => self.kept.extend_from_slice(rest),
+                None => self.skip = (drop - fresh.len()) / self.width.max(1),
+            }
         }
     }
 
     /// Forgets the kept rows (a new stream starts).
     pub fn reset(&mut self) {
         self.kept.clear();
+        self.skip = 0;
     }
 
     /// Window length in rows.
@@ -136,6 +158,26 @@ mod tests {
             assert_eq!(whole, chunked, "chunks of {chunk} rows");
         }
         assert_eq!(whole[1], (8..20).map(f64::from).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn a_hop_longer_than_the_window_skips_the_gaps_across_chunks() {
+        let x: Vec<f64> = (0..61).map(f64::from).collect();
+        let one = FrameBuffer::new(1, 3, 7);
+        let n = one.available(&x);
+        assert_eq!(n, (61 - 3) / 7 + 1);
+        let whole: Vec<Vec<f64>> = (0..n).map(|k| collect(one.frame(&x, k))).collect();
+        assert_eq!(whole[2], vec![14.0, 15.0, 16.0]);
+        for chunk in [1, 2, 3, 4, 6, 9, 61] {
+            let mut chunked = Vec::new();
+            let mut fb = FrameBuffer::new(1, 3, 7);
+            for part in x.chunks(chunk) {
+                let m = fb.available(part);
+                chunked.extend((0..m).map(|k| collect(fb.frame(part, k))));
+                fb.advance(part, m);
+            }
+            assert_eq!(whole, chunked, "chunks of {chunk} rows");
+        }
     }
 
     #[test]

@@ -500,7 +500,7 @@ mod tests {
             ),
             (
                 AutocorrelationParams {
-                    h_size_sec: 0.05,
+                    h_size_sec: 0.0,
                     ..Default::default()
                 },
                 "ac_hSizeSec",

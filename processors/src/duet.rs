@@ -204,15 +204,13 @@ impl Duet {
                 ),
             ));
         }
-        if !(1.0..=wd).contains(&hd) {
+        if !(1.0..=max_frames).contains(&hd) {
             return Err(invalid(
                 "duet_hDUETSec",
                 p.h_duet_sec,
                 format!(
-                    "the block hop must be at least one STFT frame ({} s) and at most the block \
-                     (duet_wDUETSec = {} s)",
-                    p.w_stft_sec / 2.0,
-                    p.w_duet_sec
+                    "the block hop must span between 1 and {max_frames} STFT frames of {} s",
+                    p.w_stft_sec / 2.0
                 ),
             ));
         }
@@ -626,7 +624,7 @@ mod tests {
             (
                 "duet_hDUETSec",
                 DuetParams {
-                    h_duet_sec: 1.0,
+                    h_duet_sec: 1e9,
                     ..DuetParams::default()
                 },
             ),

@@ -13,7 +13,8 @@ pub const MAX_WINDOW: usize = 1 << 24;
 /// channels asked for 600 MB).
 pub const MAX_FRAME_VALUES: usize = 1 << 24;
 
-/// Window and hop lengths in samples at `fs`, checked: `0 < H ≤ W ≤ MAX_WINDOW`.
+/// Window and hop lengths in samples at `fs`, checked: `0 < W, H ≤ MAX_WINDOW`. A hop
+/// longer than the window is accepted, as by the AFE: frames then leave gaps.
 ///
 /// `w` and `h` are `(AFE parameter name, value in s)`.
 pub fn check_framing(
@@ -42,14 +43,11 @@ pub fn check_framing(
             ),
         });
     }
-    if h.1 <= 0.0 || hs == 0 || hs > ws {
+    if h.1 <= 0.0 || !(1..=MAX_WINDOW).contains(&hs) {
         return Err(Error::InvalidParameter {
             name: h.0.into(),
             value: h.1.to_string(),
-            reason: format!(
-                "the hop must be at least one sample at {fs} Hz and at most the window ({} = {} s)",
-                w.0, w.1
-            ),
+            reason: format!("the hop must span between 1 and {MAX_WINDOW} samples at {fs} Hz"),
         });
     }
     Ok((ws, hs))
@@ -116,5 +114,14 @@ mod tests {
         assert!(e.contains("rm_wSizeSec") && e.contains("MiB"), "{e}");
         // the same window over one channel fits
         assert!(check_framing(("rm_wSizeSec", 10.0), h, 44100.0, 1).is_ok());
+        // a hop longer than the window, as the AFE accepts it; a zero hop is refused
+        assert_eq!(
+            check_framing(w, ("rm_hSizeSec", 0.05), 44100.0, 32).expect("gaps"),
+            (882, 2205)
+        );
+        let e = check_framing(w, ("rm_hSizeSec", 1e-6), 44100.0, 32)
+            .expect_err("zero")
+            .to_string();
+        assert!(e.contains("rm_hSizeSec") && e.contains("0.000001"), "{e}");
     }
 }
