@@ -1,8 +1,24 @@
 //! What an output array's axes mean, as JSON: its kind, rates, centre frequencies, lags,
-//! feature names. Python's signal info and the corpus store's array attributes use it.
+//! feature names, and (for a whole description) its framing and the parameters it was
+//! computed with. Python's signal objects, the `.npz` metadata entry and the corpus
+//! store's array attributes use it.
 
 use afe_core::{SignalInfo, SignalKind};
-use serde_json::{json, Value};
+use afe_graph::{Manager, Signal};
+use serde_json::{json, Map, Value};
+
+/// The window-length parameter of each processor that cuts frames (its hop is the
+/// output's frame period): the nearest one in a signal's chain gives its window.
+const WINDOW_PARAMETERS: &[&str] = &[
+    "rm_wSizeSec",
+    "ild_wSizeSec",
+    "cc_wSizeSec",
+    "ac_wSizeSec",
+    "ams_wSizeSec",
+    "prec_wSizeSec",
+    "stft_wSizeSec",
+    "duet_wDUETSec",
+];
 
 /// The kind's name in this JSON (`time-frequency`, `correlation`, ...).
 pub fn kind_name(kind: SignalKind) -> &'static str {
@@ -43,4 +59,80 @@ pub fn info_json(info: &SignalInfo) -> Value {
         "delta_samples": info.delta_samples,
         "frame_shape": info.frame_shape(),
     })
+}
+
+/// Unit of signal `name`'s values (empty where the AFE gives none).
+fn unit(name: &str) -> &'static str {
+    match name {
+        "precedence_itd" => "s",
+        "precedence_ild" => "dB",
+        "precedence_cc" => "",
+        n => afe_processors::find_request(n).map_or("", |d| d.output_unit),
+    }
+}
+
+/// Everything known about signal `s` of `manager`, as JSON: [`info_json`]'s fields plus
+/// `key`, `name`, `ear`, `instance`, `unit` (of the values; empty where the AFE has none), `first_frame` and `first_time_s` (where its rows
+/// start in the stream: row `k` is at `first_time_s + k / fs_hz`), `window_s` and `hop_s`
+/// of framed signals (`null` for sample-rate ones), `n_channels`, `processors` (the
+/// chain's request names, nearest first, each once) and `parameters` (the whole chain's effective parameters,
+/// derived ones such as `fb_delaySec` included).
+///
+/// ```
+/// let mut mgr = afe::Manager::new(16000.0, 2)?;
+/// mgr.add_request("ild", &afe::ParamMap::new())?;
+/// mgr.process_chunk(&[&[0.0; 1600], &[0.0; 1600]])?;
+/// let s = &mgr.signals(false)[0];
+/// let d = afe::metadata::describe(&mgr, s);
+/// assert_eq!(d["key"], "ild_mono");
+/// assert_eq!(d["unit"], "dB");
+/// assert_eq!(d["window_s"], 0.02);
+/// assert_eq!(d["hop_s"], 0.01);
+/// assert_eq!(d["parameters"]["fb_nChannels"], 31);
+/// assert_eq!(d["processors"], serde_json::json!(["ild", "innerhaircell", "filterbank", "time"]));
+/// # Ok::<(), afe::Error>(())
+/// ```
+pub fn describe(manager: &Manager, s: &Signal<'_>) -> Value {
+    let chain = manager.signal_chain(s.source);
+    let mut parameters = Map::new();
+    for (_, params) in chain.iter().rev() {
+        parameters.extend(params.iter().map(|(k, v)| (k.clone(), v.clone())));
+    }
+    let mut processors: Vec<&str> = Vec::new();
+    for (name, _) in &chain {
+        if !processors.contains(name) {
+            processors.push(name);
+        }
+    }
+    let framed = s.info.fs_hz != s.info.audio_fs_hz;
+    let window_s = chain
+        .iter()
+        .find_map(|(_, p)| WINDOW_PARAMETERS.iter().find_map(|w| p.get(*w)))
+        .filter(|_| framed)
+        .cloned();
+    let mut d = info_json(s.info);
+    if let Value::Object(m) = &mut d {
+        m.extend([
+            ("key".to_string(), json!(s.key())),
+            ("name".to_string(), json!(s.name)),
+            ("ear".to_string(), json!(s.channel.as_str())),
+            ("instance".to_string(), json!(s.instance)),
+            ("unit".to_string(), json!(unit(s.name))),
+            ("first_frame".to_string(), json!(s.first_frame)),
+            ("first_time_s".to_string(), json!(s.first_time_s)),
+            ("window_s".to_string(), window_s.unwrap_or(Value::Null)),
+            (
+                "hop_s".to_string(),
+                if framed {
+                    json!(1.0 / s.info.fs_hz)
+                } else {
+                    Value::Null
+                },
+            ),
+            ("n_channels".to_string(), json!(s.info.cf_hz.len())),
+            ("processors".to_string(), json!(processors)),
+            ("parameters".to_string(), Value::Object(parameters)),
+        ]);
+    }
+    d
 }

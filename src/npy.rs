@@ -124,10 +124,56 @@ pub fn decode(bytes: &[u8]) -> Result<Array, NpyError> {
     Ok(Array { shape, data })
 }
 
-/// Writes named arrays as an `.npz` archive (entries `<name>.npy`, stored uncompressed).
+/// Name of the `.npz` entry holding the arrays' descriptions as JSON text (a 0-d numpy
+/// unicode array: `json.loads(str(np.load(f)["afe_metadata"]))`). No output is named so:
+/// output names start with a request name.
+pub const METADATA_ENTRY: &str = "afe_metadata";
+
+/// Encodes `text` as a version-1.0 `.npy` file of a 0-d numpy unicode string
+/// (`<U{n}`, UTF-32), which `numpy.load` reads without pickling.
+pub fn encode_text(text: &str) -> Vec<u8> {
+    let chars = text.chars().count().max(1);
+    let mut header = format!("{{'descr': '<U{chars}', 'fortran_order': False, 'shape': (), }}");
+    let unpadded = 10 + header.len() + 1;
+    header.push_str(&" ".repeat((64 - unpadded % 64) % 64));
+    header.push('\n');
+    let mut out = Vec::with_capacity(10 + header.len() + 4 * chars);
+    out.extend_from_slice(b"\x93NUMPY\x01\x00");
+    out.extend_from_slice(&(header.len() as u16).to_le_bytes());
+    out.extend_from_slice(header.as_bytes());
+    for c in text.chars() {
+        out.extend_from_slice(&u32::from(c).to_le_bytes());
+    }
+    out.resize(10 + header.len() + 4 * chars, 0);
+    out
+}
+
+/// Decodes a 0-d numpy unicode string written by [`encode_text`] (`<U{n}`, UTF-32;
+/// numpy drops trailing NULs).
+pub fn decode_text(bytes: &[u8]) -> Result<String, NpyError> {
+    let bad = |m: &str| NpyError::Format(m.to_string());
+    if bytes.len() < 10 || &bytes[..6] != b"\x93NUMPY" || bytes[6] != 1 {
+        return Err(bad("not a version-1.0 .npy file"));
+    }
+    let start = 10 + u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    let header = bytes.get(10..start).ok_or_else(|| bad("short header"))?;
+    if !String::from_utf8_lossy(header).contains("'<U") {
+        return Err(bad("dtype is not <U"));
+    }
+    bytes[start..]
+        .chunks_exact(4)
+        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .take_while(|&u| u != 0)
+        .map(|u| char::from_u32(u).ok_or_else(|| bad("not UTF-32")))
+        .collect()
+}
+
+/// Writes named arrays as an `.npz` archive (entries `<name>.npy`, stored uncompressed),
+/// and `metadata`, if given, as the text entry [`METADATA_ENTRY`].
 pub fn write_npz<W: Write + Seek>(
     out: W,
     arrays: &[(String, Vec<usize>, &[f64])],
+    metadata: Option<&str>,
 ) -> std::io::Result<()> {
     let mut first_error = None;
     let result = (|| {
@@ -143,6 +189,12 @@ pub fn write_npz<W: Write + Seek>(
                 .large_file(data.len() * 8 > u32::MAX as usize / 2);
             zip.start_file(format!("{name}.npy"), options)?;
             zip.write_all(&encode(shape, data))?;
+        }
+        if let Some(text) = metadata {
+            let options = zip::write::SimpleFileOptions::default()
+                .compression_method(zip::CompressionMethod::Stored);
+            zip.start_file(format!("{METADATA_ENTRY}.npy"), options)?;
+            zip.write_all(&encode_text(text))?;
         }
         zip.finish()?;
         Ok::<(), zip::result::ZipError>(())
@@ -245,11 +297,28 @@ mod tests {
     }
 
     #[test]
+    fn text_round_trips_through_a_numpy_string() {
+        for text in ["{\"cf_hz\": [80.0]}", "ü → ∞", ""] {
+            let bytes = super::encode_text(text);
+            assert_eq!(
+                (10 + u16::from_le_bytes([bytes[8], bytes[9]]) as usize) % 64,
+                0
+            );
+            assert_eq!(super::decode_text(&bytes).expect("text"), text);
+        }
+        assert!(super::decode_text(&super::encode(&[1], &[0.5])).is_err());
+    }
+
+    #[test]
     fn a_full_disk_is_reported_as_the_system_said() {
         let data = vec![0.5; 1000];
         for room in [0, 10, 100, 5000, 7990] {
-            let e = super::write_npz(Full { room, at: 0 }, &[("x".into(), vec![1000], &data)])
-                .expect_err("no room");
+            let e = super::write_npz(
+                Full { room, at: 0 },
+                &[("x".into(), vec![1000], &data)],
+                Some("{}"),
+            )
+            .expect_err("no room");
             assert_eq!(e.kind(), std::io::ErrorKind::StorageFull, "room {room}");
             assert_eq!(e.to_string(), "disk full");
         }
@@ -258,7 +327,8 @@ mod tests {
                 room: 1 << 20,
                 at: 0
             },
-            &[("x".into(), vec![1000], &data)]
+            &[("x".into(), vec![1000], &data)],
+            None
         )
         .is_ok());
     }
@@ -270,7 +340,7 @@ mod tests {
             let data = vec![0.5; 1000];
             for room in [0, 100, 5000] {
                 let arrays = [("x".to_string(), vec![1000], data.as_slice())];
-                assert!(super::write_npz(Full { room, at: 0 }, &arrays).is_err());
+                assert!(super::write_npz(Full { room, at: 0 }, &arrays, None).is_err());
             }
             return;
         }

@@ -1,7 +1,12 @@
 //! Collecting the output of a run: every signal's values over all chunks.
 
+use std::io::{Seek, Write};
+
 use afe_core::{Block, SignalInfo};
 use afe_graph::{Manager, OutputRef};
+use serde_json::Value;
+
+use crate::metadata::describe;
 
 /// One signal's output over every chunk processed so far.
 #[derive(Debug, Clone)]
@@ -12,6 +17,9 @@ pub struct Recorded {
     pub info: SignalInfo,
     /// All values, time-major.
     pub data: Block,
+    /// What the values are, as [`describe`] gives it when the recording starts (its
+    /// `first_time_s` is the time of the first recorded row).
+    pub description: Value,
     source: OutputRef,
 }
 
@@ -49,6 +57,7 @@ impl Recorder {
                     key: s.key(),
                     info: s.info.clone(),
                     data: s.new.clone(),
+                    description: describe(manager, &s),
                     source: s.source,
                 }),
             }
@@ -58,12 +67,12 @@ impl Recorder {
     /// Records the output of [`Manager::process_signal`], moving it out of `manager`
     /// (see [`Manager::take_whole`]) rather than copying it.
     pub fn record_whole(&mut self, manager: &mut Manager) {
-        let found: Vec<(String, SignalInfo, OutputRef)> = manager
+        let found: Vec<(String, SignalInfo, Value, OutputRef)> = manager
             .signals(self.all)
             .iter()
-            .map(|s| (s.key(), s.info.clone(), s.source))
+            .map(|s| (s.key(), s.info.clone(), describe(manager, s), s.source))
             .collect();
-        for (key, info, source) in found {
+        for (key, info, description, source) in found {
             let Some(data) = manager.take_whole(source) else {
                 continue;
             };
@@ -73,6 +82,7 @@ impl Recorder {
                     key,
                     info,
                     data,
+                    description,
                     source,
                 }),
             }
@@ -82,6 +92,28 @@ impl Recorder {
     /// The recorded signals, in graph order.
     pub fn signals(&self) -> &[Recorded] {
         &self.signals
+    }
+
+    /// Every recorded signal's description, as a JSON object keyed by output name.
+    pub fn metadata(&self) -> Value {
+        Value::Object(
+            self.signals
+                .iter()
+                .map(|s| (s.key.clone(), s.description.clone()))
+                .collect(),
+        )
+    }
+
+    /// Writes the recorded signals as an `.npz`: one float64 (or complex128) array per
+    /// output, named by its key, and their descriptions as JSON text in the entry
+    /// [`crate::npy::METADATA_ENTRY`].
+    pub fn write_npz<W: Write + Seek>(&self, out: W) -> std::io::Result<()> {
+        let arrays: Vec<(String, Vec<usize>, &[f64])> = self
+            .signals
+            .iter()
+            .map(|s| (s.key.clone(), s.shape(), s.data.as_slice()))
+            .collect();
+        crate::npy::write_npz(out, &arrays, Some(&self.metadata().to_string()))
     }
 
     /// The signal named `key`, if recorded.

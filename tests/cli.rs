@@ -3,7 +3,9 @@
 
 mod common;
 
-use common::{afe, assert_clear_error, library_arrays, npz_arrays, sorted, tmp, tone, write_wav};
+use common::{
+    afe, assert_clear_error, library_arrays, npz_arrays, npz_metadata, sorted, tmp, tone, write_wav,
+};
 use serde_json::json;
 
 #[test]
@@ -40,6 +42,17 @@ fn extract_writes_the_oracle_layout_and_chunking_does_not_change_it() {
     // 4000 samples, W = 320, H = 160: 24 frames; 8 channels; ceil(1.1e-3·16000) = 18 → 37 lags
     assert_eq!(arrays[0].1, vec![24, 8]);
     assert_eq!(arrays[3].1, vec![24, 8, 37]);
+    // each array's description is in the metadata entry
+    let meta = npz_metadata(&whole);
+    assert_eq!(meta.as_object().map(|m| m.len()), Some(names.len()));
+    let cc = &meta["crosscorrelation_mono"];
+    assert_eq!(cc["lags_s"].as_array().map(Vec::len), Some(37));
+    assert_eq!(
+        (&cc["window_s"], &cc["hop_s"]),
+        (&json!(0.02), &json!(0.01))
+    );
+    assert_eq!(cc["parameters"]["fb_nChannels"], 8);
+    assert_eq!(meta["ratemap_left"]["ear"], "left");
     // the values are the library's, bit for bit
     let library = library_arrays(
         &wav,

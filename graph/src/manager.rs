@@ -828,18 +828,34 @@ impl Manager {
             .get(handle.0)
             .and_then(Option::as_ref)
             .ok_or(Error::UnknownHandle(handle.0))?;
-        let mut todo: Vec<usize> = req.outputs.iter().map(|r| r.node).collect();
-        let mut seen = std::collections::HashSet::new();
         let mut used = ParamMap::new();
-        while let Some(n) = todo.pop() {
-            if !seen.insert(n) {
+        for (_, params) in self.chain_from(req.outputs.iter().map(|r| r.node)) {
+            used.extend(params.iter().map(|(k, v)| (k.clone(), v.clone())));
+        }
+        Ok(used)
+    }
+
+    /// The processors signal `r` is computed through, itself first and then its
+    /// ancestors nearest first: each one's request name and effective parameters.
+    pub fn signal_chain(&self, r: OutputRef) -> Vec<(&'static str, &ParamMap)> {
+        self.chain_from([r.node])
+    }
+
+    /// `start` and every node above them, breadth first, each once (the input node,
+    /// which has no parameters, left out).
+    fn chain_from(&self, start: impl IntoIterator<Item = usize>) -> Vec<(&'static str, &ParamMap)> {
+        let mut todo: std::collections::VecDeque<usize> = start.into_iter().collect();
+        let mut seen = std::collections::HashSet::new();
+        let mut chain = Vec::new();
+        while let Some(n) = todo.pop_front() {
+            if n == 0 || !seen.insert(n) {
                 continue;
             }
             let node = &self.graph.nodes[n];
-            used.extend(node.params.iter().map(|(k, v)| (k.clone(), v.clone())));
+            chain.push((node.name, &node.params));
             todo.extend(node.parents.iter().map(|p| p.node));
         }
-        Ok(used)
+        chain
     }
 
     /// Signals of the graph: the requested ones, or (`all`) every processor output,

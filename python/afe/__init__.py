@@ -4,7 +4,9 @@ Place requests by their AFE names (``ratemap``, ``ild``, ``itd``, ``ic``,
 ``crosscorrelation``, ``innerhaircell``, ``filterbank``, ``time``, ``butterworth``),
 set parameters by their AFE names (``fb_nChannels``, ``ihc_method``, ``rm_wSizeSec``, ...),
 and get numpy arrays named ``<request>_<left|right|mono>`` in the layouts of the MATLAB
-AFE: ``[time]``, ``[frame, channel]`` or ``[frame, channel, lag]``, float64.
+AFE: ``[time]``, ``[frame, channel]`` or ``[frame, channel, lag]``, float64. Each is an
+:class:`afe.Signal`, an ``ndarray`` that carries its description (rates, time of each
+row, centre frequencies, lags, window and hop, the parameters it was computed with).
 
 >>> import afe, numpy as np
 >>> fs = 16000
@@ -13,6 +15,8 @@ AFE: ``[time]``, ``[frame, channel]`` or ``[frame, channel, lag]``, float64.
 >>> out = afe.process(np.column_stack([left, 0.5 * left]), fs, ["ild"])
 >>> out["ild_mono"].shape
 (99, 31)
+>>> out["ild_mono"].hop_s, out["ild_mono"].parameters["ild_wSizeSec"]
+(0.01, 0.02)
 """
 
 from __future__ import annotations
@@ -24,9 +28,11 @@ from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from . import _afe
+from .signal import Signal, signals as _signals
 
 __all__ = [
     "Manager",
+    "Signal",
     "Store",
     "batch",
     "open_store",
@@ -43,7 +49,7 @@ def __dir__() -> List[str]:
     return sorted(__all__)
 __version__ = _afe.__version__
 
-Signal = Union[np.ndarray, Sequence[float], Sequence[Sequence[float]], str, os.PathLike]
+Audio = Union[np.ndarray, Sequence[float], Sequence[Sequence[float]], str, os.PathLike]
 
 
 def _catalog() -> List[Dict[str, Any]]:
@@ -94,7 +100,7 @@ def read_wav(path: Union[str, os.PathLike]) -> Tuple[np.ndarray, float]:
     return (x[:, 0].copy() if x.shape[1] == 1 else x), fs
 
 
-def _as_channels(signal: Signal, channels: Optional[int] = None) -> np.ndarray:
+def _as_channels(signal: Audio, channels: Optional[int] = None) -> np.ndarray:
     """A C-contiguous float64 ``[samples, channels]`` array, with clear errors."""
     raw = np.asarray(signal)
     if np.issubdtype(raw.dtype, np.integer):
@@ -176,6 +182,19 @@ class Manager:
         keep_history: bool = True,
     ) -> None:
         self._m = _afe.Manager(float(fs), int(channels), int(threads or 0), bool(keep_history))
+        # the outputs' descriptions, rebuilt after any change of the graph
+        self._described: Optional[Dict[str, Dict[str, Any]]] = None
+
+    def _with_descriptions(self, arrays: Dict[str, np.ndarray]) -> Dict[str, Signal]:
+        """The last chunk's arrays as signals, stamped with where they start."""
+        if self._described is None:
+            self._described = json.loads(self._m.describe_json())
+        clocks = json.loads(self._m.frames_json())
+        return {
+            k: Signal(v, dict(self._described[k], first_frame=clocks[k]["first_frame"],
+                              first_time_s=clocks[k]["first_time_s"]))
+            for k, v in arrays.items()
+        }
 
     @property
     def fs(self) -> float:
@@ -199,7 +218,9 @@ class Manager:
         requests. Raises ``ValueError`` for an unknown request or parameter, an ill-typed
         value (the message lists what is accepted), or a binaural request on mono input.
         """
-        return self._m.add_request(str(name), _params_json(params))
+        handle = self._m.add_request(str(name), _params_json(params))
+        self._described = None
+        return handle
 
     def frames(self) -> Dict[str, Dict[str, Any]]:
         """Where the last chunk's new frames stand in the stream, per output:
@@ -226,6 +247,7 @@ class Manager:
     def remove_request(self, handle: int) -> None:
         """Removes a request; its processors go when no other request uses them.
         Raises ``KeyError`` for an unknown handle."""
+        self._described = None
         self._m.remove_request(int(handle))
 
     def modify_parameter(self, name: str, value: Any, handle: Optional[int] = None) -> None:
@@ -234,6 +256,7 @@ class Manager:
         from them. ``handle`` limits the change to one request's processors; by default
         every request using the parameter is changed. Raises ``ValueError`` if no request
         uses it or the value is invalid."""
+        self._described = None
         if handle is not None:
             self._m.modify_parameter(int(handle), str(name), _json(value))
             return
@@ -248,25 +271,30 @@ class Manager:
         if not changed:
             raise ValueError(f"no request in place uses parameter '{name}'")
 
-    def process_chunk(self, x: Signal) -> Dict[str, np.ndarray]:
+    def process_chunk(self, x: Audio) -> Dict[str, Signal]:
         """Processes the next chunk (``[samples]`` or ``[samples, 2]``), keeping every
-        processor's state; returns the new output of every request since the last call."""
-        return self._m.process_chunk(_as_channels(x, self.channels))
+        processor's state; returns the new output of every request since the last call,
+        each a :class:`Signal` whose ``t_s`` gives its rows' times in the stream."""
+        return self._with_descriptions(self._m.process_chunk(_as_channels(x, self.channels)))
 
-    def process_signal(self, x: Signal) -> Dict[str, np.ndarray]:
+    def process_signal(self, x: Audio) -> Dict[str, Signal]:
         """Processes a whole signal from a fresh state (as the AFE's ``processSignal``)
         and returns the output of every request."""
-        return self._m.process_signal(_as_channels(x, self.channels))
+        return self._with_descriptions(self._m.process_signal(_as_channels(x, self.channels)))
 
     def reset(self) -> None:
         """Returns every processor to its initial state and clears the history."""
         self._m.reset()
 
-    def outputs(self) -> Dict[str, np.ndarray]:
+    def outputs(self, handle: Optional[int] = None) -> Dict[str, Signal]:
         """Everything computed since creation, the last ``reset``, ``process_signal``,
         ``remove_request`` or ``modify_parameter`` (edits that can renumber or reshape
-        the outputs restart the history)."""
-        return self._m.outputs()
+        the outputs restart the history). ``handle``: only that request's outputs
+        (``KeyError`` for an unknown handle)."""
+        wanted = None if handle is None else set(self.request_outputs(handle))
+        arrays, meta = self._m.outputs()
+        return {k: v for k, v in _signals(arrays, json.loads(meta)).items()
+                if wanted is None or k in wanted}
 
     def info(self) -> Dict[str, Dict[str, Any]]:
         """For each output name: ``kind`` (``time-domain``, ``time-frequency``,
@@ -286,15 +314,15 @@ class Manager:
 
 
 def process(
-    signal: Signal,
+    signal: Audio,
     fs: Optional[float],
     requests: Union[str, Sequence[str]],
     params: Optional[Mapping[str, Any]] = None,
     chunk: Optional[int] = None,
     threads: Optional[int] = None,
     keep: str = "requested",
-) -> Dict[str, np.ndarray]:
-    """Computes ``requests`` on a whole signal and returns ``{name: array}``.
+) -> Dict[str, Signal]:
+    """Computes ``requests`` on a whole signal and returns ``{name: Signal}``.
 
     ``signal``: ``[samples]`` (mono), ``[samples, 2]`` (left, right), or the path of a WAV
     file (then ``fs`` may be ``None``; if given it must match the file's). ``params``:
@@ -305,7 +333,8 @@ def process(
     through (``time_left``, ``filterbank_left``, ``innerhaircell_left``, ...), as the
     AFE's data object holds them and as ``afe extract --all`` saves them.
 
-    The arrays are those of ``afe extract``: ``ratemap_left``, ``ild_mono``, ... float64.
+    The arrays are those of ``afe extract``: ``ratemap_left``, ``ild_mono``, ... float64,
+    each an :class:`afe.Signal` with its description (the ``.npz``'s ``afe_metadata``).
     """
     if keep not in ("requested", "all"):
         raise ValueError(f"keep must be 'requested' or 'all', got {keep!r}")
@@ -325,7 +354,7 @@ def process(
         requests = [r for r in requests.split(",") if r.strip()]
     if chunk is not None and int(chunk) < 1:
         raise ValueError(f"chunk = {chunk}: expected a positive number of samples")
-    return _afe.process(
+    arrays, meta = _afe.process(
         x,
         float(fs),
         [str(r).strip() for r in requests],
@@ -334,6 +363,7 @@ def process(
         int(threads or 0),
         keep == "all",
     )
+    return _signals(arrays, json.loads(meta))
 
 
 from .corpus import Store, batch, open_store  # noqa: E402  (uses _params_json above)

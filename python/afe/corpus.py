@@ -18,6 +18,7 @@ from typing import Any, Dict, Iterator, List, Mapping, Optional, Sequence, Tuple
 import numpy as np
 
 from . import _afe
+from .signal import Signal, signals
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -219,23 +220,26 @@ class Store:
     def __contains__(self, file_id: object) -> bool:
         return file_id in self.done
 
-    def __getitem__(self, file_id: str) -> Dict[str, np.ndarray]:
+    def __getitem__(self, file_id: str) -> Dict[str, Signal]:
+        """File ``file_id``'s outputs, each an :class:`afe.Signal` with its description."""
+        arrays, meta = self._read(file_id)
+        return signals(arrays, meta)
+
+    def info(self, file_id: str) -> Dict[str, Dict[str, Any]]:
+        """Each array's description (kind, axes, rates in Hz, centre frequencies, lags,
+        window and hop, parameters: :attr:`afe.Signal.meta`)."""
+        return self._read(file_id)[1]
+
+    def _read(self, file_id: str) -> Tuple[Dict[str, np.ndarray], Dict[str, Dict[str, Any]]]:
         if file_id not in self.done:
             why = f" (it failed: {self.failed[file_id]})" if file_id in self.failed else ""
             raise KeyError(f"the store holds no file '{file_id}'{why}")
         if self.format == "npz":
             with np.load(os.path.join(self.path, file_id + ".npz")) as z:
-                return {k: z[k] for k in z.files}
-        return _afe.store_read(self.path, file_id)[0]
-
-    def info(self, file_id: str) -> Dict[str, Dict[str, Any]]:
-        """Each array's metadata (kind, axes, rates in Hz, centre frequencies, lags...);
-        zarr stores only (an npz store keeps arrays alone)."""
-        if self.format == "npz":
-            raise ValueError("an npz store keeps no array metadata: use format='zarr'")
-        if file_id not in self.done:
-            raise KeyError(f"the store holds no file '{file_id}'")
-        return {k: json.loads(v) for k, v in _afe.store_read(self.path, file_id)[1].items()}
+                meta = json.loads(str(z["afe_metadata"]))
+                return {k: z[k] for k in z.files if k != "afe_metadata"}, meta
+        arrays, infos = _afe.store_read(self.path, file_id)
+        return arrays, {k: json.loads(v) for k, v in infos.items()}
 
     def __repr__(self) -> str:
         return (

@@ -283,20 +283,37 @@ impl PyManager {
         })
     }
 
-    fn outputs<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let all = self.with(py, |st| {
-            Ok(st
-                .history
-                .signals()
-                .iter()
-                .map(|s| (s.key.clone(), s.shape(), s.data.as_slice().to_vec()))
-                .collect::<Vec<_>>())
+    /// The history as `{name: array}`, with the arrays' descriptions as JSON text.
+    fn outputs<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyDict>, String)> {
+        let (all, meta) = self.with(py, |st| {
+            Ok((
+                st.history
+                    .signals()
+                    .iter()
+                    .map(|s| (s.key.clone(), s.shape(), s.data.as_slice().to_vec()))
+                    .collect::<Vec<_>>(),
+                st.history.metadata().to_string(),
+            ))
         })?;
-        signals_dict(
+        let arrays = signals_dict(
             py,
             all.iter()
                 .map(|(k, s, d)| (k.clone(), s.clone(), d.as_slice())),
-        )
+        )?;
+        Ok((arrays, meta))
+    }
+
+    /// Each current output's description as JSON text (`afe::metadata::describe`).
+    fn describe_json(&self, py: Python<'_>) -> PyResult<String> {
+        self.with(py, |st| {
+            let map: serde_json::Map<String, serde_json::Value> = st
+                .manager
+                .signals(false)
+                .iter()
+                .map(|s| (s.key(), afe::metadata::describe(&st.manager, s)))
+                .collect();
+            Ok(serde_json::Value::Object(map).to_string())
+        })
     }
 
     fn info_json(&self, py: Python<'_>) -> PyResult<String> {
@@ -323,7 +340,8 @@ impl PyManager {
     }
 }
 
-/// Computes `requests` on a whole signal (`afe extract`'s code path): `{name: array}`.
+/// Computes `requests` on a whole signal (`afe extract`'s code path): `{name: array}`
+/// and the arrays' descriptions as JSON text (see `afe::metadata::describe`).
 #[pyfunction]
 #[pyo3(signature = (x, fs, requests, params_json, chunk, threads, all))]
 #[allow(clippy::too_many_arguments)]
@@ -336,7 +354,7 @@ fn process<'py>(
     chunk: Option<usize>,
     threads: usize,
     all: bool,
-) -> PyResult<Bound<'py, PyDict>> {
+) -> PyResult<(Bound<'py, PyDict>, String)> {
     let job = afe::extract::Job {
         requests,
         params: parse_params(params_json)?,
@@ -350,12 +368,13 @@ fn process<'py>(
         afe::extract::run(&job, fs, &refs)
     })?
     .map_err(to_py)?;
-    signals_dict(
+    let arrays = signals_dict(
         py,
         rec.signals()
             .iter()
             .map(|s| (s.key.clone(), s.shape(), s.data.as_slice())),
-    )
+    )?;
+    Ok((arrays, rec.metadata().to_string()))
 }
 
 /// The catalogue of requests and parameters, as JSON text (`afe list --json`).

@@ -1,5 +1,7 @@
 """The Python API: catalogue, WAV reading, streaming, run-time edits, errors."""
+import json
 import os
+import pickle
 import subprocess
 import threading
 import time
@@ -43,7 +45,7 @@ def test_catalogue_matches_the_afe_names():
 
 def test_dir_shows_the_public_api_only():
     assert dir(afe) == sorted(
-        ["Manager", "Store", "batch", "open_store", "parameters", "process", "read_wav", "requests", "__version__"]
+        ["Manager", "Signal", "Store", "batch", "open_store", "parameters", "process", "read_wav", "requests", "__version__"]
     )
 
 
@@ -148,10 +150,13 @@ def test_every_signal_class_reaches_numpy_with_its_description(cli, tmp_path):
     subprocess.run([cli, "extract", str(wav), "-r", ",".join(reqs), "-o", str(npz)], check=True)
     saved = np.load(npz)
     expected = afe.process(str(wav), None, reqs)
-    assert sorted(saved.files) == sorted(expected)
+    assert sorted(saved.files) == sorted([*expected, "afe_metadata"])
     assert saved["stft_right"].dtype == np.complex128
-    for k in saved.files:
-        np.testing.assert_array_equal(saved[k], expected[k], err_msg=k)
+    described = json.loads(str(saved["afe_metadata"]))
+    for k, sig in expected.items():
+        np.testing.assert_array_equal(saved[k], sig, err_msg=k)
+        # the .npz carries the description the Python signal carries
+        assert described[k] == sig.meta, k
 
 
 def test_drnl_moc_precedence_and_duet_from_python():
@@ -340,8 +345,9 @@ def test_keep_all_returns_the_intermediate_signals_as_extract_all(example_wav, c
     npz = tmp_path / "all.npz"
     subprocess.run([cli, "extract", example_wav, "-r", "ild", "--all", "-o", str(npz)], check=True, capture_output=True)
     with np.load(npz) as z:
-        assert sorted(z.files) == sorted(out)
-        for k in z.files:
+        assert sorted(z.files) == sorted([*out, "afe_metadata"])
+        assert json.loads(str(z["afe_metadata"]))["innerhaircell_left"] == out["innerhaircell_left"].meta
+        for k in out:
             assert np.array_equal(z[k], out[k]), k
     with pytest.raises(ValueError, match="keep"):
         afe.process(example_wav, None, ["ild"], keep="everything")
@@ -380,6 +386,9 @@ def test_streamed_frames_carry_their_index_and_time_across_modify_parameter():
         new = m.process_chunk(x[start:start + 160])["ratemap_left"]
         info = m.frames()["ratemap_left"]
         assert info["first_frame"] == index and info["frames"] == len(new)
+        # the chunk's signal carries the same clock, and the hop of its framing
+        assert new.first_frame == index and new.first_time_s == info["first_time_s"]
+        assert new.hop_s == pytest.approx(0.01 if k < 100 else 0.02)
         index += len(new)
         times.extend(info["first_time_s"] + np.arange(len(new)) / info["fs_hz"])
     times = np.array(times)
@@ -387,3 +396,60 @@ def test_streamed_frames_carry_their_index_and_time_across_modify_parameter():
     assert times[0] == 0.0 and abs(times[-1] - 1.98) < 1e-9  # 2 s: last 20-ms frame
     hops = np.diff(times)
     assert np.allclose(hops[times[1:] < 1.0], 0.01) and np.allclose(hops[times[:-1] >= 1.0], 0.02)
+
+
+def test_outputs_are_signals_that_carry_their_description():
+    fs = 16000
+    x = signal(fs)
+    out = afe.process(x, fs, ["ild", "itd", "filterbank"], {"fb_nChannels": 8, "ild_wSizeSec": 0.04})
+    ild, fb, itd = out["ild_mono"], out["filterbank_left"], out["itd_mono"]
+    assert isinstance(ild, afe.Signal) and isinstance(ild, np.ndarray)
+    assert (ild.key, ild.name, ild.ear, ild.kind) == ("ild_mono", "ild", "mono", "time-frequency")
+    assert (ild.unit, itd.unit) == ("dB", "s")
+    assert (ild.window_s, ild.hop_s, ild.fs_hz, ild.audio_fs_hz) == (0.04, 0.01, 100.0, fs)
+    # frames of 40 ms every 10 ms over 1 s: row k starts at k·10 ms
+    assert len(ild) == (fs - 640) // 160 + 1
+    np.testing.assert_allclose(ild.t_s, np.arange(len(ild)) * 0.01, rtol=0, atol=1e-12)
+    assert ild.n_channels == 8 and len(ild.cf_hz) == 8 and ild.cf_hz[0] == pytest.approx(80)
+    assert ild.parameters["ild_wSizeSec"] == 0.04 and ild.parameters["ihc_method"] == "dau"
+    assert ild.processors[0] == "ild" and "filterbank" in ild.processors
+    assert itd.window_s == 0.02 and len(itd.lags_s) == 0  # the cross-correlation's framing
+    # the gammatone's per-channel envelope delay, the AFE's delaySec: 3/(2π·1.019·ERB)
+    erb = 24.7 + fb.cf_hz / 9.265
+    np.testing.assert_allclose(fb.delay_s, 3 / (2 * np.pi * 1.019 * erb), rtol=1e-3)
+    assert (fb.window_s, fb.hop_s, len(fb)) == (None, None, fs)
+    assert ild.delay_s is not None and out["ild_mono"].meta["first_frame"] == 0
+    # numpy keeps working; derived arrays are plain ones (the description would not fit)
+    assert type(ild[:, 0]) is np.ndarray and type(ild * 2) is np.ndarray
+    assert type(np.asarray(ild)) is np.ndarray and float(ild.mean()) == float(np.asarray(ild).mean())
+    again = pickle.loads(pickle.dumps(ild))
+    assert isinstance(again, afe.Signal) and again.meta == ild.meta and np.array_equal(again, ild)
+    assert "ild_mono" in repr(ild) and "100 Hz" in repr(ild)
+
+
+def test_a_handle_fetches_its_own_outputs():
+    fs = 16000
+    m = afe.Manager(fs, channels=2)
+    wide = m.add_request("ratemap", {"fb_nChannels": 16})
+    narrow = m.add_request("ratemap", {"fb_nChannels": 8, "rm_wSizeSec": 0.05})
+    m.process_chunk(signal(fs))
+    mine = m.outputs(narrow)
+    assert sorted(mine) == ["ratemap_2_left", "ratemap_2_right"]
+    assert mine["ratemap_2_left"].shape[1] == 8 and mine["ratemap_2_left"].window_s == 0.05
+    assert m.outputs(wide)["ratemap_left"].parameters["fb_nChannels"] == 16
+    with pytest.raises(KeyError):
+        m.outputs(7)
+
+
+def test_a_hop_longer_than_the_window_leaves_gaps_as_in_the_afe():
+    """The AFE accepts hSizeSec > wSizeSec: frames of 20 ms every 50 ms are every fifth
+    frame of the 10-ms framing, exactly, in one call and in chunks."""
+    fs = 16000
+    x = signal(fs)
+    dense = afe.process(x, fs, "ratemap", {"fb_nChannels": 8})["ratemap_left"]
+    for chunk in (None, 100, 1234):
+        sparse = afe.process(x, fs, "ratemap", {"fb_nChannels": 8, "rm_hSizeSec": 0.05}, chunk=chunk)["ratemap_left"]
+        assert len(sparse) == (fs - 320) // 800 + 1 and sparse.hop_s == 0.05
+        np.testing.assert_array_equal(sparse, dense[::5][: len(sparse)])
+    with pytest.raises(ValueError, match="rm_hSizeSec"):
+        afe.process(x, fs, "ratemap", {"rm_hSizeSec": 0})

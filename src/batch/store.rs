@@ -348,12 +348,7 @@ impl FileWriter<'_> {
                     std::fs::create_dir_all(dir).map_err(|e| BatchError::store(dir, &e))?;
                 }
                 let out = OutputFile::check(&path).map_err(|e| BatchError::store(&path, &e))?;
-                let arrays: Vec<(String, Vec<usize>, &[f64])> = rec
-                    .signals()
-                    .iter()
-                    .map(|s| (s.key.clone(), s.shape(), s.data.as_slice()))
-                    .collect();
-                out.write(|f| crate::npy::write_npz(f, &arrays))
+                out.write(|f| rec.write_npz(f))
                     .map_err(|e| BatchError::store(&path, &e))
             }
         }
@@ -410,16 +405,16 @@ impl ZarrFile<'_> {
     /// a whole signal's).
     fn push_all(&mut self, manager: &Manager) -> Result<(), BatchError> {
         for s in manager.signals(false) {
-            self.push(&s, s.new.as_slice())?;
+            self.push(manager, &s, s.new.as_slice())?;
         }
         Ok(())
     }
 
-    fn push(&mut self, s: &Signal<'_>, data: &[f64]) -> Result<(), BatchError> {
+    fn push(&mut self, manager: &Manager, s: &Signal<'_>, data: &[f64]) -> Result<(), BatchError> {
         let k = match self.arrays.iter().position(|a| a.source == s.source) {
             Some(k) => k,
             None => {
-                self.arrays.push(self.create(s)?);
+                self.arrays.push(self.create(manager, s)?);
                 self.arrays.len() - 1
             }
         };
@@ -440,7 +435,7 @@ impl ZarrFile<'_> {
         Ok(())
     }
 
-    fn create(&self, s: &Signal<'_>) -> Result<ArrayOut, BatchError> {
+    fn create(&self, manager: &Manager, s: &Signal<'_>) -> Result<ArrayOut, BatchError> {
         let complex = s.info.is_complex();
         let width = s.info.width();
         let frame_shape: Vec<u64> = s.info.frame_shape().iter().map(|&n| n as u64).collect();
@@ -462,7 +457,7 @@ impl ZarrFile<'_> {
             (DataType::Float64, 8)
         };
         let mut attrs = serde_json::Map::new();
-        attrs.insert("afe".into(), crate::metadata::info_json(s.info));
+        attrs.insert("afe".into(), crate::metadata::describe(manager, s));
         let array = ArrayBuilder::new(shape, chunk_shape, dtype, FillValue::new(vec![0; size]))
             .dimension_names(Some(s.info.kind.axes().to_vec()))
             .attributes(attrs)
@@ -535,7 +530,7 @@ pub struct StoredArray {
     pub shape: Vec<usize>,
     /// Values in C order.
     pub data: Vec<f64>,
-    /// Its `afe` attributes ([`crate::metadata::info_json`]).
+    /// Its `afe` attributes ([`crate::metadata::describe`]).
     pub info: Value,
 }
 

@@ -591,21 +591,17 @@ fn checked_output(path: &Path, input: &Path) -> Result<OutputFile, CliError> {
     Ok(out)
 }
 
-/// Saves every recorded signal as a float64 array `<request>_<ear>` in an .npz.
+/// Saves every recorded signal as a float64 array `<request>_<ear>` in an .npz, with
+/// their descriptions in its `afe_metadata` entry.
 fn save(rec: &afe::Recorder, output: &OutputFile) -> Result<(), CliError> {
-    let arrays: Vec<(String, Vec<usize>, &[f64])> = rec
-        .signals()
-        .iter()
-        .map(|s| (s.key.clone(), s.shape(), s.data.as_slice()))
-        .collect();
-    output.write(|file| afe::npy::write_npz(file, &arrays))?;
+    output.write(|file| rec.write_npz(file))?;
     eprintln!(
         "wrote {} array(s) to {}: {}",
-        arrays.len(),
+        rec.signals().len(),
         output.path().display(),
-        arrays
+        rec.signals()
             .iter()
-            .map(|(k, s, _)| format!("{k} {s:?}"))
+            .map(|s| format!("{} {:?}", s.key, s.shape()))
             .collect::<Vec<_>>()
             .join(", ")
     );

@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use afe::npy::decode;
+use afe::npy::{decode, decode_text, METADATA_ENTRY};
 use afe::{Manager, ParamMap, Recorder};
 
 /// Runs `afe` with `args`.
@@ -51,8 +51,8 @@ pub fn tone(i: usize) -> f32 {
     (0.05 * i as f32).sin() * 0.3
 }
 
-/// The arrays of an `.npz` written by afe: (name, shape, values), in archive order.
-pub fn npz_arrays(path: &Path) -> Vec<(String, Vec<usize>, Vec<f64>)> {
+/// The entries of an `.npz`: (name without `.npy`, bytes), in archive order.
+fn npz_entries(path: &Path) -> Vec<(String, Vec<u8>)> {
     let file = std::fs::File::open(path).expect("npz");
     let mut zip = zip::ZipArchive::new(file).expect("zip");
     (0..zip.len())
@@ -61,10 +61,31 @@ pub fn npz_arrays(path: &Path) -> Vec<(String, Vec<usize>, Vec<f64>)> {
             let name = entry.name().trim_end_matches(".npy").to_string();
             let mut bytes = Vec::new();
             std::io::Read::read_to_end(&mut entry, &mut bytes).expect("read");
+            (name, bytes)
+        })
+        .collect()
+}
+
+/// The arrays of an `.npz` written by afe: (name, shape, values), in archive order
+/// (its metadata entry left out: see [`npz_metadata`]).
+pub fn npz_arrays(path: &Path) -> Vec<(String, Vec<usize>, Vec<f64>)> {
+    npz_entries(path)
+        .into_iter()
+        .filter(|(name, _)| name != METADATA_ENTRY)
+        .map(|(name, bytes)| {
             let a = decode(&bytes).expect("npy");
             (name, a.shape, a.data)
         })
         .collect()
+}
+
+/// The descriptions in an afe `.npz`'s metadata entry, keyed by array name.
+pub fn npz_metadata(path: &Path) -> serde_json::Value {
+    let (_, bytes) = npz_entries(path)
+        .into_iter()
+        .find(|(name, _)| name == METADATA_ENTRY)
+        .expect("afe_metadata entry");
+    serde_json::from_str(&decode_text(&bytes).expect("text")).expect("json")
 }
 
 /// What the library computes on the WAV at `path` for `requests` with `params` (AFE name
