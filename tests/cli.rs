@@ -397,16 +397,22 @@ fn list_one_request_or_one_parameter() {
         &tmp("none"),
     );
     // a reader that goes away (`afe list | head -1`) ends the listing quietly
+    let stderr = with_stdout_closed(&["list"]);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}
+
+/// Runs `afe args` with its standard output closed (a reader that went away); returns
+/// what it wrote to standard error.
+fn with_stdout_closed(args: &[&str]) -> String {
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_afe"))
-        .arg("list")
+        .args(args)
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()
         .expect("run");
     drop(child.stdout.take());
     let res = child.wait_with_output().expect("wait");
-    let stderr = String::from_utf8_lossy(&res.stderr);
-    assert!(!stderr.contains("panicked"), "{stderr}");
+    String::from_utf8_lossy(&res.stderr).into_owned()
 }
 
 #[test]
@@ -506,6 +512,9 @@ fn threads_trace_and_bench() {
     assert_eq!(b["chunk"], 441);
     assert!(b["x_realtime"].as_f64().expect("number") > 0.0);
     assert!(b["wall_seconds_median"].as_f64().expect("number") > 0.0);
+    // `afe bench ... | head` ends quietly too
+    let stderr = with_stdout_closed(&["bench", w, "-r", "ild", "--repeat", "1", "--json"]);
+    assert!(!stderr.contains("panicked"), "{stderr}");
 }
 
 /// Runs `afe extract WAV -r ild` with `extra` arguments.

@@ -20,7 +20,7 @@ use realfft::num_complex::Complex64;
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use serde::{Deserialize, Serialize};
 
-use crate::framed::{check_framing, EarFrames};
+use crate::framed::{check_framing, check_work, EarFrames};
 use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// Parameters of the precedence model, under their AFE names.
@@ -451,6 +451,12 @@ impl Precedence {
         let ifft = planner.plan_fft_inverse(nfft);
         let bins = nfft / 2 + 1;
         let longest = w + 5 * ac_lag;
+        // per ear: columns, complex spectra, power and the lag-removal variant
+        check_work(
+            ("prec_wSizeSec", params.w_size_sec),
+            2 * nc * (w + 3 * bins + longest),
+            nc,
+        )?;
         let ear = Ear {
             cols: vec![0.0; nc * w],
             spectra: vec![Complex64::default(); nc * bins],
@@ -1140,6 +1146,20 @@ mod tests {
         let slow = filterbank(1000.0, 4);
         let e = Precedence::new(&PrecedenceParams::default(), &slow).expect_err("1 kHz");
         assert!(e.to_string().contains("1334 Hz"), "{e}");
+        // a 23-s window over 32 channels fits the frame buffer but its working buffers
+        // would take 1.6 GB: refused before allocating; 2 s fits
+        let long = |w_size_sec| PrecedenceParams {
+            w_size_sec,
+            ..Default::default()
+        };
+        let e = Precedence::new(&long(23.0), &filterbank(16000.0, 32))
+            .expect_err("23 s")
+            .to_string();
+        assert!(
+            e.contains("prec_wSizeSec") && e.contains("working memory"),
+            "{e}"
+        );
+        assert!(Precedence::new(&long(2.0), &filterbank(16000.0, 32)).is_ok());
     }
 
     proptest! {

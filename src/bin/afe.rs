@@ -16,6 +16,14 @@ use afe::{Manager, ParamMap};
 use clap::{Parser, Subcommand};
 use serde_json::{json, Value};
 
+/// `println!` that ends quietly when stdout's reader went away (`afe ... | head`), where
+/// `println!` would panic.
+macro_rules! outln {
+    ($($arg:tt)*) => {
+        out(&format!("{}\n", format_args!($($arg)*)))
+    };
+}
+
 /// Real-time binaural Auditory Front-End (the Two!Ears AFE representations).
 #[derive(Parser)]
 #[command(name = "afe", version, about)]
@@ -691,10 +699,10 @@ fn batch_status(store: &Path, as_json: bool) -> Result<(), CliError> {
             "audio_s": audio_s,
             "failed": failed.iter().map(|r| r.to_json()).collect::<Vec<_>>(),
         });
-        println!("{v}");
+        outln!("{v}");
         return Ok(());
     }
-    println!(
+    outln!(
         "{}: {} store of {} with {} (hash {})",
         store.display(),
         spec.format.as_str(),
@@ -702,14 +710,14 @@ fn batch_status(store: &Path, as_json: bool) -> Result<(), CliError> {
         serde_json::to_string(&spec.params).unwrap_or_default(),
         spec.param_hash()
     );
-    println!(
+    outln!(
         "{} file(s) done ({:.2} h of audio), {} failed",
         done.len(),
         audio_s / 3600.0,
         failed.len()
     );
     for r in failed {
-        println!(
+        outln!(
             "  failed: {} ({}): {}",
             r.id,
             r.path.display(),
@@ -755,9 +763,9 @@ fn bench(input: &Path, job: &Job, repeat: usize, as_json: bool) -> Result<(), Cl
         "repeat": repeat,
     });
     if as_json {
-        println!("{result}");
+        outln!("{result}");
     } else {
-        println!(
+        outln!(
             "{:.3} s of audio in {:.4} s (median of {repeat}): {:.1}x real time, threads {}, chunk {}",
             seconds,
             median,
@@ -773,10 +781,10 @@ fn bench(input: &Path, job: &Job, repeat: usize, as_json: bool) -> Result<(), Cl
 fn devices() -> Result<(), CliError> {
     let list = afe::bass_source::list_devices()?;
     if list.is_empty() {
-        println!("no ALSA capture device found");
+        outln!("no ALSA capture device found");
     }
     for d in list {
-        println!("{:<24} {}", d.name, d.description);
+        outln!("{:<24} {}", d.name, d.description);
     }
     Ok(())
 }
@@ -847,9 +855,9 @@ fn stream(
         if let (Some(all), Value::Object(extra)) = (result.as_object_mut(), extra) {
             all.extend(extra);
         }
-        println!("{result}");
+        outln!("{result}");
     } else {
-        println!(
+        outln!(
             "{} frames ({:.2} s at {} Hz) in {} blocks of {} frames: compute per block p50 {:.3} ms, \
              p99 {:.3} ms, max {:.3} ms (block {}), budget {:.2} ms ({:.1}x real time); \
              {} deadline miss(es){}; {} frame(s) lost{}{}",
