@@ -33,6 +33,8 @@ pub mod realtime;
 mod recorder;
 pub mod rss;
 pub mod stream;
+#[cfg(feature = "view")]
+pub mod view;
 pub mod wav;
 
 pub use afe_bass_source as bass_source;

@@ -201,6 +201,7 @@ pub struct Timing {
     times: BlockTimes,
     frames: u64,
     lost: u64,
+    last_compute_s: f64,
     rss: RssTrack,
 }
 
@@ -222,12 +223,14 @@ impl Timing {
             times: BlockTimes::default(),
             frames: 0,
             lost: 0,
+            last_compute_s: 0.0,
             rss: RssTrack::default(),
         }
     }
 
     fn block(&mut self, frames: usize, compute_s: f64) {
         self.frames += frames as u64;
+        self.last_compute_s = compute_s;
         self.times.record(compute_s, frames as f64 / self.fs);
         let audio = self.frames + self.lost;
         if audio >= self.rss.next_sample {
@@ -246,6 +249,24 @@ impl Timing {
                 }
             }
         }
+    }
+
+    /// Frames processed so far.
+    pub fn frames(&self) -> u64 {
+        self.frames
+    }
+
+    /// Frames lost so far (the reader fell behind the port).
+    pub fn lost_frames(&self) -> u64 {
+        self.lost
+    }
+
+    /// Compute time of the last block in ms, and its budget (the block's duration) in ms.
+    pub fn last_block_ms(&self) -> (f64, f64) {
+        (
+            self.last_compute_s * 1e3,
+            self.block_frames as f64 / self.fs * 1e3,
+        )
     }
 
     /// The report so far.
@@ -280,6 +301,21 @@ impl Timing {
     }
 }
 
+/// What sees each block once the graph has computed it: the timing, the graph (its
+/// signals' new output) and the block's input, one vector per ear. It may edit the graph
+/// before the next block (add or remove requests, change parameters), as the live view
+/// does. A closure of the timing alone is one.
+pub trait Observer {
+    /// Called after every block.
+    fn block(&mut self, timing: &Timing, mgr: &mut Manager, input: &[Vec<f64>]);
+}
+
+impl<F: FnMut(&Timing)> Observer for F {
+    fn block(&mut self, timing: &Timing, _mgr: &mut Manager, _input: &[Vec<f64>]) {
+        self(timing);
+    }
+}
+
 /// The result of a stream: its report and, if asked, its outputs.
 #[derive(Debug, Clone)]
 pub struct Streamed {
@@ -293,7 +329,7 @@ pub struct Streamed {
 pub fn run_spec(
     spec: &SourceSpec,
     job: &StreamJob,
-    on_block: impl FnMut(&Timing),
+    on_block: impl Observer,
 ) -> Result<Streamed, StreamError> {
     match spec {
         SourceSpec::Wav(path) => match afe_bass_source::open_wav(path, job.looping)? {
@@ -306,11 +342,7 @@ pub fn run_spec(
 }
 
 #[cfg(feature = "alsa")]
-fn alsa(
-    device: &str,
-    job: &StreamJob,
-    on_block: impl FnMut(&Timing),
-) -> Result<Streamed, StreamError> {
+fn alsa(device: &str, job: &StreamJob, on_block: impl Observer) -> Result<Streamed, StreamError> {
     let config = afe_bass_source::AlsaConfig {
         device: device.to_string(),
         format: afe_bass_source::PortFormat::bass_timing(job.alsa_rate, 2),
@@ -326,7 +358,7 @@ fn alsa(
 fn alsa(
     _device: &str,
     _job: &StreamJob,
-    _on_block: impl FnMut(&Timing),
+    _on_block: impl Observer,
 ) -> Result<Streamed, StreamError> {
     Err(StreamError::Spec(ALSA_OFF.into()))
 }
@@ -337,13 +369,13 @@ pub const ALSA_OFF: &str = "this afe was built without ALSA support: rebuild it 
 
 /// Streams `source` through the graph of `job`: the source feeds a BASS port (from its
 /// own thread at real time, or on demand when fast), a block reader takes blocks of
-/// `job.block_ms` from it, and the graph computes each block; `on_block` sees the timing
-/// after every block. When the reader falls behind by more than the port, the frames it
+/// `job.block_ms` from it, and the graph computes each block; `on_block` (an
+/// [`Observer`], e.g. a closure of the [`Timing`]) sees every block. When the reader falls behind by more than the port, the frames it
 /// lost (and the partial block before the gap) are counted and the graph restarts from
 /// a reset state; a finite source's last partial block is processed too.
 ///
 /// ```
-/// use afe::stream::{run, StreamJob};
+/// use afe::stream::{run, StreamJob, Timing};
 /// use afe_bass_source::{Pacing, Synth};
 /// let job = StreamJob {
 ///     requests: vec!["ild".into()],
@@ -352,7 +384,7 @@ pub const ALSA_OFF: &str = "this afe was built without ALSA support: rebuild it 
 ///     record: true,
 ///     ..StreamJob::default()
 /// };
-/// let out = run(Synth::parse("fs=16000,tone=1000,ild_db=-6")?, &job, |_| {})?;
+/// let out = run(Synth::parse("fs=16000,tone=1000,ild_db=-6")?, &job, |_: &Timing| {})?;
 /// assert_eq!((out.report.frames, out.report.blocks, out.report.lost_frames), (8000, 50, 0));
 /// let ild = out.recorded.get("ild_mono").expect("recorded");
 /// assert_eq!(ild.shape(), vec![49, 31]);
@@ -361,7 +393,7 @@ pub const ALSA_OFF: &str = "this afe was built without ALSA support: rebuild it 
 pub fn run<Src: Source>(
     source: Src,
     job: &StreamJob,
-    on_block: impl FnMut(&Timing),
+    on_block: impl Observer,
 ) -> Result<Streamed, StreamError> {
     let format = source.format();
     let fs = f64::from(format.sample_rate);
@@ -455,7 +487,7 @@ struct Consumer<S: Sample, F> {
     on_block: F,
 }
 
-impl<S: Sample, F: FnMut(&Timing)> Consumer<S, F> {
+impl<S: Sample, F: Observer> Consumer<S, F> {
     /// Reads what the port has towards the current block, processes the block when it is
     /// complete, and returns the frames read.
     fn poll(&mut self) -> Result<usize, StreamError> {
@@ -519,7 +551,8 @@ impl<S: Sample, F: FnMut(&Timing)> Consumer<S, F> {
         }
         self.filled = 0;
         self.timing.block(n, compute);
-        (self.on_block)(&self.timing);
+        self.on_block
+            .block(&self.timing, &mut self.mgr, &self.input);
         Ok(())
     }
 }
@@ -552,7 +585,7 @@ mod tests {
         let x = signal(4321);
         let mut replay = Replay::new(16000, x.clone(), false).expect("replay");
         replay.set_chunking(300, 4).expect("chunking");
-        let out = run(replay, &job(Pacing::Fast), |_| {}).expect("stream");
+        let out = run(replay, &job(Pacing::Fast), |_: &Timing| {}).expect("stream");
         let extract = crate::extract::Job {
             requests: job(Pacing::Fast).requests,
             params: job(Pacing::Fast).params,
@@ -577,7 +610,7 @@ mod tests {
         replay.set_chunking(320, 10).expect("chunking");
         let start = Instant::now();
         let mut calls = 0;
-        let out = run(replay, &job(Pacing::Realtime), |_| calls += 1).expect("stream");
+        let out = run(replay, &job(Pacing::Realtime), |_: &Timing| calls += 1).expect("stream");
         assert!(start.elapsed() >= Duration::from_millis(200));
         let r = &out.report;
         assert_eq!(
@@ -596,7 +629,7 @@ mod tests {
         replay.set_chunking(100, 2).expect("chunking");
         let mut j = job(Pacing::Realtime);
         j.requests = vec!["ild".into()];
-        let out = run(replay, &j, |_| {
+        let out = run(replay, &j, |_: &Timing| {
             std::thread::sleep(Duration::from_millis(30))
         })
         .expect("stream");
@@ -610,14 +643,14 @@ mod tests {
         let replay = || Replay::new(16000, signal(100), false).expect("replay");
         let mut j = job(Pacing::Fast);
         j.block_ms = 0.0;
-        let e = run(replay(), &j, |_| {}).expect_err("block");
+        let e = run(replay(), &j, |_: &Timing| {}).expect_err("block");
         assert!(e.to_string().contains("block length 0 ms"), "{e}");
         let mut j = job(Pacing::Fast);
         j.duration_s = Some(-1.0);
-        assert!(run(replay(), &j, |_| {}).is_err());
+        assert!(run(replay(), &j, |_: &Timing| {}).is_err());
         let mut j = job(Pacing::Fast);
         j.requests = vec!["ratemapp".into()];
-        let e = run(replay(), &j, |_| {}).expect_err("request");
+        let e = run(replay(), &j, |_: &Timing| {}).expect_err("request");
         assert!(e.to_string().contains("unknown request 'ratemapp'"), "{e}");
         let e = "synth:tone=x".parse::<SourceSpec>().expect_err("spec");
         assert!(e.to_string().contains("tone=x"), "{e}");
@@ -634,7 +667,7 @@ mod tests {
         };
         let synth =
             afe_bass_source::Synth::parse("fs=44100,noise=0.1,itd_ms=0.4,ild_db=-6").expect("spec");
-        let out = run(synth, &job, |_| {}).expect("stream");
+        let out = run(synth, &job, |_: &Timing| {}).expect("stream");
         let last_frame_mean = |key: &str| {
             let s = out.recorded.get(key).expect("recorded");
             let d = s.data.as_slice();

@@ -150,6 +150,39 @@ enum Command {
         /// Save what was computed, as `afe extract` does.
         #[arg(short = 'o', long = "output", value_name = "OUT.npz")]
         output: Option<PathBuf>,
+        /// Serve the live web view of the stream on this address (e.g. 127.0.0.1:8080).
+        #[cfg(feature = "view")]
+        #[arg(long, value_name = "ADDR")]
+        view: Option<std::net::SocketAddr>,
+    },
+    /// Serve a live source at real time until stopped (Ctrl-C) or --for: the live web
+    /// view on --http shows the representations as they are computed; pages can add and
+    /// remove requests, change parameters and listen.
+    #[cfg(feature = "view")]
+    Serve {
+        /// wav:FILE (replayed in a loop), synth:SPEC or alsa:DEVICE, as for `afe stream`.
+        #[arg(long, value_name = "wav:FILE|synth:SPEC|alsa:DEVICE")]
+        source: String,
+        #[command(flatten)]
+        requests: Requests,
+        /// Address of the live web view (loopback by default: the page can edit the
+        /// graph, and it has no authentication).
+        #[arg(long, value_name = "ADDR", default_value = "127.0.0.1:8080")]
+        http: std::net::SocketAddr,
+        /// Block fed to the graph per step, in ms.
+        #[arg(long, value_name = "M", default_value_t = 10.0)]
+        block_ms: f64,
+        /// Stop after SECONDS of audio (default: run until stopped).
+        #[arg(long = "for", value_name = "SECONDS")]
+        duration: Option<f64>,
+        /// ALSA capture rate in Hz (default 44100).
+        #[arg(long, value_name = "HZ")]
+        rate: Option<u32>,
+        #[command(flatten)]
+        threads: Threads,
+        /// Print the final report as one JSON object (and no status line).
+        #[arg(long)]
+        json: bool,
     },
 }
 
@@ -169,6 +202,9 @@ enum CliError {
     Wav(#[from] afe::wav::WavError),
     #[error(transparent)]
     Source(#[from] afe::bass_source::Error),
+    #[cfg(feature = "view")]
+    #[error(transparent)]
+    View(#[from] afe::view::ViewError),
     #[error("{0}")]
     Message(String),
 }
@@ -330,6 +366,8 @@ fn main() -> ExitCode {
             all,
             json,
             output,
+            #[cfg(feature = "view")]
+            view,
         } => requests.load().and_then(|(requests, params)| {
             let job = StreamJob {
                 requests,
@@ -355,14 +393,50 @@ fn main() -> ExitCode {
                 (_, true) => Some(Pacing::Fast),
                 _ => None,
             };
-            stream(
-                &source,
-                job,
+            let run = StreamRun {
+                source: &source,
                 pacing,
-                rate.is_some(),
-                json,
-                output.as_deref(),
-            )
+                rate_given: rate.is_some(),
+                as_json: json,
+                output: output.as_deref(),
+                #[cfg(feature = "view")]
+                view,
+                endless: false,
+            };
+            stream(job, &run)
+        }),
+        #[cfg(feature = "view")]
+        Command::Serve {
+            source,
+            requests,
+            http,
+            block_ms,
+            duration,
+            rate,
+            threads,
+            json,
+        } => requests.load().and_then(|(requests, params)| {
+            let job = StreamJob {
+                requests,
+                params,
+                block_ms,
+                duration_s: duration,
+                pacing: Pacing::Realtime,
+                threads: threads.count(),
+                looping: source.starts_with("wav:"),
+                alsa_rate: rate.unwrap_or(44_100),
+                ..StreamJob::default()
+            };
+            let run = StreamRun {
+                source: &source,
+                pacing: Some(Pacing::Realtime),
+                rate_given: rate.is_some(),
+                as_json: json,
+                output: None,
+                view: Some(http),
+                endless: true,
+            };
+            stream(job, &run)
         }),
     };
     // 130: the shells' code for a command stopped by SIGINT
@@ -794,20 +868,50 @@ fn devices() -> Result<(), CliError> {
     Err(afe::stream::ALSA_OFF.into())
 }
 
-fn stream(
-    source: &str,
-    mut job: StreamJob,
+/// How `afe stream` and `afe serve` run a stream, beyond its job.
+struct StreamRun<'a> {
+    source: &'a str,
+    /// `--realtime` or `--fast` if given.
     pacing: Option<Pacing>,
     rate_given: bool,
     as_json: bool,
-    output: Option<&Path>,
-) -> Result<(), CliError> {
+    output: Option<&'a Path>,
+    /// Serve the live view on this address.
+    #[cfg(feature = "view")]
+    view: Option<std::net::SocketAddr>,
+    /// Runs until stopped (`afe serve`): no `--for` needed.
+    endless: bool,
+}
+
+/// What sees each block of a CLI stream: the status line, and the live view's tap.
+struct CliObserver<'a> {
+    status: &'a mut Status,
+    #[cfg(feature = "view")]
+    tap: Option<afe::view::Tap>,
+}
+
+impl afe::stream::Observer for CliObserver<'_> {
+    fn block(&mut self, timing: &afe::stream::Timing, mgr: &mut Manager, input: &[Vec<f64>]) {
+        self.status.update(timing);
+        #[cfg(feature = "view")]
+        if let Some(tap) = &mut self.tap {
+            tap.block(timing, mgr, input);
+        }
+        #[cfg(not(feature = "view"))]
+        let _ = (mgr, input);
+    }
+}
+
+fn stream(mut job: StreamJob, run: &StreamRun<'_>) -> Result<(), CliError> {
+    let source = run.source;
+    let (pacing, rate_given, as_json, output) =
+        (run.pacing, run.rate_given, run.as_json, run.output);
     let spec: SourceSpec = source.parse()?;
     match &spec {
-        SourceSpec::Wav(_) if job.looping && job.duration_s.is_none() => {
+        SourceSpec::Wav(_) if job.looping && job.duration_s.is_none() && !run.endless => {
             return Err("--loop replays the file forever: give --for SECONDS".into())
         }
-        SourceSpec::Synth(_) | SourceSpec::Alsa(_) if job.duration_s.is_none() => {
+        SourceSpec::Synth(_) | SourceSpec::Alsa(_) if job.duration_s.is_none() && !run.endless => {
             return Err(format!("'{source}' never ends: give --for SECONDS").into())
         }
         SourceSpec::Synth(_) | SourceSpec::Alsa(_) if job.looping => {
@@ -827,9 +931,32 @@ fn stream(
         (None, _) => None,
     };
     job.pacing = pacing.unwrap_or_else(|| spec.default_pacing());
+    #[cfg(feature = "view")]
+    let (view, tap) = match run.view {
+        Some(addr) => {
+            let (view, tap) = afe::view::View::start(addr, job.block_ms)?;
+            if !addr.ip().is_loopback() {
+                eprintln!(
+                    "warning: the live view on {addr} is open to the network, without \
+                     authentication: anyone reaching it can edit the graph"
+                );
+            }
+            eprintln!("live view: http://{}/", view.addr());
+            (Some(view), Some(tap))
+        }
+        None => (None, None),
+    };
     let mut status = Status::new(!as_json && std::io::stderr().is_terminal());
-    let out = afe::stream::run_spec(&spec, &job, |t| status.update(t))?;
+    let observer = CliObserver {
+        status: &mut status,
+        #[cfg(feature = "view")]
+        tap,
+    };
+    // the tap goes with the observer at the end of the stream: pages are told
+    let out = afe::stream::run_spec(&spec, &job, observer)?;
     status.finish();
+    #[cfg(feature = "view")]
+    drop(view);
     if let Some(path) = &output {
         save(&out.recorded, path)?;
     }

@@ -1,0 +1,125 @@
+//! The live web view: a page that shows a running stream's representations as they
+//! are computed, lets its user add and remove requests and change parameters, and plays
+//! the input. [`View::start`] serves it; its [`Tap`] is the stream's observer.
+//!
+//! The page talks to the server over one WebSocket (`/ws`):
+//! - server → page, text: `{"type":"layout", "version", "fs_hz", "ears", "block_ms",
+//!   "catalogue": [request names], "order": [keys], "signals": {key: description},
+//!   "requests": [{"handle", "outputs"}]}` on connection and whenever the graph changes
+//!   (the description is [`crate::metadata::describe`]'s); `{"type":"reply", "op", "ok",
+//!   "message"}` after an edit; `{"type":"lagged", "batches"}` when this page fell
+//!   behind and lost batches;
+//! - server → page, binary: a batch of blocks (see `server::encode`): the new frames of
+//!   every signal (complex values as magnitudes), each ear's min/max per block, the
+//!   input samples while the page listens, and the stream's counters (frames, frames
+//!   lost by the stream, frames dropped for slow pages, compute time against budget);
+//! - page → server, text: `{"op":"add","request":"itd","params":{...}}`,
+//!   `{"op":"remove","handle":2}`, `{"op":"set","name":"rm_wSizeSec","value":0.05}`,
+//!   `{"op":"audio","on":true}`.
+//!
+//! The audio path never waits for the web side: batches come from a small pool and are
+//! dropped (counted) when none is free; edits wait in a channel until the next block.
+
+mod server;
+mod tap;
+
+use std::net::{SocketAddr, TcpListener};
+use std::sync::atomic::AtomicUsize;
+use std::sync::{mpsc, Arc, Mutex};
+use std::thread::JoinHandle;
+
+use thiserror::Error;
+
+pub use tap::Tap;
+
+/// Batches in flight between the audio path and the pages.
+const POOL: usize = 4;
+
+/// Problems starting the view.
+#[derive(Debug, Error)]
+pub enum ViewError {
+    /// The address cannot be listened on.
+    #[error("cannot serve the live view on {addr}: {source}")]
+    Listen {
+        /// The address asked for.
+        addr: SocketAddr,
+        /// What the system said.
+        source: std::io::Error,
+    },
+}
+
+/// A running view server; it stops when dropped.
+pub struct View {
+    addr: SocketAddr,
+    stop: Option<tokio::sync::oneshot::Sender<()>>,
+    server: Option<JoinHandle<std::io::Result<()>>>,
+    shared: Arc<server::Shared>,
+}
+
+impl View {
+    /// Serves the view on `addr` for a stream in blocks of `block_ms`; returns the server
+    /// and the stream's observer. Batches hold about 50 ms of blocks.
+    pub fn start(addr: SocketAddr, block_ms: f64) -> Result<(View, Tap), ViewError> {
+        let listen_error = |source| ViewError::Listen { addr, source };
+        let listener = TcpListener::bind(addr).map_err(listen_error)?;
+        listener.set_nonblocking(true).map_err(listen_error)?;
+        let addr = listener.local_addr().map_err(listen_error)?;
+        let (to_server, from_tap) = mpsc::sync_channel(POOL);
+        let (pool_tx, pool_rx) = mpsc::channel();
+        for _ in 0..POOL {
+            let _ = pool_tx.send(tap::Batch::new());
+        }
+        let (edits_tx, edits_rx) = mpsc::channel();
+        let listeners = Arc::new(AtomicUsize::new(0));
+        let shared = Arc::new(server::Shared {
+            out: tokio::sync::broadcast::channel(server::PAGE_BACKLOG).0,
+            layout: Mutex::new(String::new()),
+            edits: Mutex::new(edits_tx),
+            listeners: listeners.clone(),
+            pages: AtomicUsize::new(0),
+        });
+        let bridge_shared = shared.clone();
+        std::thread::Builder::new()
+            .name("afe-view-bridge".into())
+            .spawn(move || server::bridge(from_tap, pool_tx, bridge_shared))
+            .map_err(listen_error)?;
+        let (stop, stopped) = tokio::sync::oneshot::channel();
+        let serve_shared = shared.clone();
+        let server = std::thread::Builder::new()
+            .name("afe-view-http".into())
+            .spawn(move || server::serve(listener, serve_shared, stopped))
+            .map_err(listen_error)?;
+        let batch_blocks = (50.0 / block_ms).ceil().clamp(1.0, 100.0) as u32;
+        let tap = Tap::new(to_server, pool_rx, edits_rx, listeners, batch_blocks);
+        Ok((
+            View {
+                addr,
+                stop: Some(stop),
+                server: Some(server),
+                shared,
+            },
+            tap,
+        ))
+    }
+
+    /// The address served (with the port the system chose for port 0).
+    pub fn addr(&self) -> SocketAddr {
+        self.addr
+    }
+
+    /// Pages connected now.
+    pub fn pages(&self) -> usize {
+        self.shared.pages.load(std::sync::atomic::Ordering::Relaxed)
+    }
+}
+
+impl Drop for View {
+    fn drop(&mut self) {
+        if let Some(stop) = self.stop.take() {
+            let _ = stop.send(());
+        }
+        if let Some(server) = self.server.take() {
+            let _ = server.join();
+        }
+    }
+}
