@@ -48,8 +48,9 @@ def pattern_width_hz(level_db: np.ndarray, cf: np.ndarray) -> float:
 
 
 def predicted_width_hz(bw_erb: float) -> float:
-    """−DROP_DB width (Hz) of a 4th-order gammatone excitation pattern of a pure tone: the
-    centre frequencies where |f − cf| = u · bw_erb · (24.7 + 0.108 · cf)."""
+    """Width (Hz) of the centre-frequency range where a 4th-order gammatone passes a pure
+    tone at most DROP_DB down: |H|² = (1 + u²)^−4 ≥ 10^(−DROP_DB/10) for
+    |f − cf| ≤ u · bw_erb · (24.7 + 0.108 · cf), u = sqrt(10^(DROP_DB/40) − 1)."""
     u = np.sqrt(10 ** (DROP_DB / 40) - 1)
     k = u * bw_erb
     return float((TONE_HZ + 24.7 * k) / (1 - 0.108 * k) - (TONE_HZ - 24.7 * k) / (1 + 0.108 * k))

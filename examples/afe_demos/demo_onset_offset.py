@@ -5,7 +5,7 @@ Ports the AFE's ``DEMO_OnsetStrength``, ``DEMO_OffsetStrength`` and
 of the ratemap level in dB; the maps keep the salient transients (peaks over time,
 fused within 30 ms, at least 5 connected cells, ratemap level above −80 dB). The input
 has known events: a 1-kHz tone from 0.2 to 0.6 s and a 4-kHz tone from 0.4 to 0.8 s
-(5-ms raised-cosine ramps) over faint noise.
+(5-ms raised-cosine ramps) over noise about 80 dB lower.
 
 Key numbers: the time of each tone's onset and offset in the maps (the middle of the
 first frame marked near the tone's channel; truth: the events above; onsets are marked
@@ -40,7 +40,7 @@ NEAR_CHANNELS = 2  # a map cell belongs to a tone if its channel is this close t
 
 
 def tone_bursts(fs: float, duration_s: float = 1.0) -> np.ndarray:
-    """The two gated tones of TONES plus noise 80 dB below them."""
+    """The two gated tones of TONES plus noise about 80 dB below them."""
     t = np.arange(int(duration_s * fs)) / fs
     x = 1e-5 * np.random.default_rng(5).standard_normal(t.size)
     for f, on, off in TONES:

@@ -11,7 +11,10 @@ F0:
 
 Key numbers: the median pitch of the complex (truth 200 Hz), and for the voice the
 median relative error of the pitch against the glide and the fraction of voiced frames
-with a pitch (the others fall below the confidence threshold and are NaN).
+with a pitch (the others fall below the confidence threshold and are NaN). The faint
+noise before the voice starts gets a pitch too, as in the AFE: the threshold is relative
+to the largest confidence, and the normalised summary ACF of noise has peaks almost as
+high as the voice's.
 
 usage: python demo_pitch.py [outdir]
 """

@@ -68,7 +68,8 @@ def main(outdir: str) -> Dict[str, float]:
     for n, style in (("centroid", "r-"), ("rolloff", "c--")):
         ax.plot(t + 0.5 / info["ratemap_mono"]["fs_hz"], features[n], style, label=n)
     ax.legend(loc="upper left")
-    ax.set_title("Ratemap of a 500-Hz tone, a 2-kHz tone and white noise, with spectral centroid and roll-off")
+    ax.set_title("Ratemap of a 500-Hz tone, a 2-kHz tone and white noise, "
+                 "with spectral centroid and roll-off")
     others = [n for n in names if n not in ("centroid", "rolloff")]
     for k, n in enumerate(others):
         sub = fig.add_subplot(grid[1 + k // 3, k % 3])
@@ -80,6 +81,7 @@ def main(outdir: str) -> Dict[str, float]:
     save_figure(fig, outdir, "demo_spectral_features")
 
     def median_in(name: str, segment: int) -> float:
+        """Median of feature ``name`` over the frames inside segment ``segment``."""
         return float(np.median(features[name][segments[segment]]))
 
     return {
