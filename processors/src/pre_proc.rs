@@ -43,7 +43,8 @@ pub struct PreProcParams {
     /// Enable level scaling (AFE `pp_bLevelScaling`).
     #[serde(rename = "pp_bLevelScaling")]
     pub level_scaling: bool,
-    /// dB SPL of a signal of RMS 1, one value or [left, right] (AFE `pp_refSPLdB`).
+    /// Level reference in dB, one value or [left, right] (AFE `pp_refSPLdB`): the input is
+    /// multiplied by `10^((100 − ref)/20)`, the sign of the AFE's code (spec 10).
     #[serde(rename = "pp_refSPLdB")]
     pub ref_spl_db: Vec<f64>,
     /// Enable the middle-ear filter (AFE `pp_bMiddleEarFiltering`).
@@ -117,13 +118,13 @@ impl Params for PreProcParams {
         },
         flag(
             "pp_bLevelScaling",
-            "scale the level so that RMS 1 is pp_refSPLdB",
+            "scale the input by 10^((100 − pp_refSPLdB)/20) (see pp_refSPLdB)",
         ),
         ParamSpec {
             name: "pp_refSPLdB",
             kind: ParamKind::Numbers,
             unit: "dB",
-            description: "dB SPL of a signal of RMS 1 (one value, or [left, right])",
+            description: "level reference: the input is multiplied by 10^((100 − pp_refSPLdB)/20) as the AFE's code does, so 80 amplifies by 20 dB (the AFE calls it the dB SPL of RMS 1, which its code inverts; the models take RMS 1 as 100 dB SPL); one value, or [left, right]",
         },
         flag("pp_bMiddleEarFiltering", "apply the middle-ear FIR"),
         ParamSpec {
