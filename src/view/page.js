@@ -4,6 +4,9 @@
 const $ = (id) => document.getElementById(id);
 const COLUMNS = 600;                 // frames (or blocks) across a scrolling canvas
 const DIVERGING = new Set(["ild", "itd", "precedence_itd", "precedence_ild"]);
+// drawn in dB (20·log10 of the magnitude) over a fixed range below the running peak
+const DECIBELS = new Map([["ratemap", 60], ["innerhaircell", 60], ["adaptation", 60],
+  ["filterbank", 60], ["time", 60], ["stft", 80]]);
 const state = { hello: null, layout: null, panels: new Map(), stats: { frames: 0, lost: 0, batches: 0, lagged: 0 } };
 window.afeStats = state.stats;
 
@@ -48,10 +51,11 @@ class Panel {
     this.mode = shape.length >= 2 ? "frame" : d.name === "pitch" ? "line"
       : d.kind === "time-domain" ? "envelope" : "scroll";
     this.diverging = DIVERGING.has(d.name);
+    this.range = DECIBELS.get(d.name) || (d.kind === "spectrum" ? 80 : 0);
     this.rows = shape.length === 0 ? 1 : shape[0];
     this.cols = shape.length >= 2 ? shape.slice(1).reduce((a, b) => a * b, 1) : COLUMNS;
     this.max = 1e-12;
-    this.min = d.kind === "spectrum" ? 0 : Infinity;
+    this.min = Infinity;
     this.pending = [];            // envelope: samples not yet making a column
     this.el = document.createElement("div");
     this.el.className = "panel";
@@ -105,7 +109,7 @@ class Panel {
       ctx.fillRect(0, y, 1, 1);
     }
     const labels = this.el.querySelectorAll(".bar span");
-    const unit = this.d.kind === "spectrum" ? "dB" : this.d.unit || "";
+    const unit = this.range ? "dB" : this.d.unit || "";
     const lo = this.diverging ? -this.max : this.min === Infinity ? 0 : this.min;
     labels[0].textContent = `${fmt(this.max)} ${unit}`;
     labels[1].textContent = `${fmt(lo)} ${unit}`;
@@ -118,10 +122,11 @@ class Panel {
   }
 
   value(v) {
-    return this.d.kind === "spectrum" ? 20 * Math.log10(Math.max(v, 1e-10)) : v;
+    return this.range ? 20 * Math.log10(Math.max(Math.abs(v), 1e-10)) : v;
   }
 
-  // Scales follow the data: they widen at once and narrow slowly.
+  // Scales follow the data: they widen and never narrow, so that earlier columns keep
+  // their meaning (a dB range follows its peak).
   rescale(values) {
     let hi = -Infinity, lo = Infinity;
     for (const x of values) {
@@ -131,11 +136,17 @@ class Panel {
       lo = Math.min(lo, v);
     }
     if (hi === -Infinity) return;
-    this.max = Math.max(hi, this.max * 0.995, 1e-12);
-    if (this.d.kind === "spectrum") this.min = this.max - 80;
-    else if (this.d.kind === "binary-mask") { this.min = 0; this.max = 1; }
-    else this.min = Math.min(lo, this.min === Infinity ? lo : this.min * 0.995 + lo * 0.005);
-    this.drawBar();
+    const before = [this.min, this.max];
+    if (this.range) {
+      this.max = this.max === 1e-12 ? hi : Math.max(hi, this.max);
+      this.min = this.max - this.range;
+    } else if (this.d.kind === "binary-mask") {
+      this.min = 0; this.max = 1;
+    } else {
+      this.max = Math.max(hi, this.max);
+      this.min = Math.min(lo, this.min);
+    }
+    if (before[0] !== this.min || before[1] !== this.max) this.drawBar();
   }
 
   // Scrolls the canvas by `n` columns and returns the image of the new columns.

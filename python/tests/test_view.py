@@ -1,0 +1,112 @@
+"""The live web view in a real browser: headless Chromium (selenium) against
+`afe serve --http` on loopback with a synthetic source. Skipped, with the reason, where
+Chromium, chromedriver or selenium is missing; `.ci/run` installs them so CI never skips."""
+import json
+import os
+import shutil
+import socket
+import subprocess
+import time
+
+import pytest
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+SOURCE = "synth:fs=16000,tone=440,noise=0.1,itd_ms=0.3,ild_db=-6,seed=1"
+
+
+def _browser():
+    chromium = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
+    driver = shutil.which("chromedriver")
+    try:
+        import selenium  # noqa: F401
+    except ImportError:
+        pytest.skip("selenium is not installed (pip install selenium)")
+    if not chromium or not driver:
+        pytest.skip("no Chromium/chromedriver here (Debian: apt-get install chromium chromium-driver)")
+    return chromium, driver
+
+
+def _free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _wait_for_port(port, proc, timeout=10.0):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if proc.poll() is not None:
+            raise AssertionError(f"afe serve exited: {proc.stderr.read()}")
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=0.2).close()
+            return
+        except OSError:
+            time.sleep(0.05)
+    raise AssertionError("afe serve did not listen")
+
+
+def test_the_live_page_shows_the_stream_and_edits_the_graph(cli):
+    chromium, driver_path = _browser()
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.support.ui import Select, WebDriverWait
+
+    port = _free_port()
+    server = subprocess.Popen(
+        [cli, "serve", "--source", SOURCE, "-r", "ratemap,ild", "-p", "fb_nChannels=16",
+         "--http", f"127.0.0.1:{port}", "--for", "30", "--json"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    opts = webdriver.ChromeOptions()
+    opts.binary_location = chromium
+    for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+                "--window-size=1200,1400", "--autoplay-policy=no-user-gesture-required"):
+        opts.add_argument(arg)
+    opts.set_capability("goog:loggingPrefs", {"browser": "ALL"})
+    browser = None
+    try:
+        _wait_for_port(port, server)
+        browser = webdriver.Chrome(service=Service(driver_path), options=opts)
+        browser.get(f"http://127.0.0.1:{port}/")
+        wait = WebDriverWait(browser, 10)
+        wait.until(lambda b: b.find_element(By.ID, "conn").text == "live")
+        wait.until(lambda b: int(b.find_element(By.ID, "frames").text) > 0)
+        wait.until(lambda b: b.find_elements(By.ID, "panel-ratemap_left"))
+        canvas = "return document.querySelector('#panel-ratemap_left canvas.data').toDataURL()"
+        wave = "return document.getElementById('wave').toDataURL()"
+        before = (browser.execute_script(canvas), browser.execute_script(wave))
+        start = int(browser.find_element(By.ID, "frames").text)
+        time.sleep(1.0)
+        assert browser.execute_script(canvas) != before[0], "the ratemap canvas does not move"
+        assert browser.execute_script(wave) != before[1], "the waveform does not move"
+
+        # a request added from the page gets its panel
+        Select(browser.find_element(By.ID, "request")).select_by_visible_text("itd")
+        browser.find_element(By.ID, "add").click()
+        wait.until(lambda b: b.find_elements(By.ID, "panel-itd_mono"))
+
+        # 10 s more: the counter follows real time, nothing lost
+        time.sleep(9.0)
+        frames = int(browser.find_element(By.ID, "frames").text)
+        assert 0.8 * 10 * 16000 < frames - start < 1.2 * 10 * 16000, (start, frames)
+        assert browser.find_element(By.ID, "lost").text == "0"
+        stats = browser.execute_script("return window.afeStats")
+        assert stats["lost"] == 0 and stats["batches"] > 150, stats
+
+        shots = os.path.join(ROOT, "target", "artifacts")
+        os.makedirs(shots, exist_ok=True)
+        shot = os.path.join(shots, "live-view.png")
+        browser.save_screenshot(shot)
+        print(f"\nscreenshot of the live view: {shot}")
+        assert os.path.getsize(shot) > 20_000
+
+        errors = [e for e in browser.get_log("browser") if e["level"] == "SEVERE"]
+        assert errors == [], errors
+    finally:
+        if browser is not None:
+            browser.quit()
+        server.terminate()
+        out, err = server.communicate(timeout=10)
+    report = json.loads(out)
+    assert report["lost_frames"] == 0, report
