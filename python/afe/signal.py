@@ -136,7 +136,9 @@ class Signal(np.ndarray):
 
     @property
     def cf_hz(self) -> np.ndarray:
-        """Centre frequency of each channel in Hz (bin frequencies of a spectrum)."""
+        """Centre frequency of each channel in Hz (bin frequencies of a spectrum). Feature
+        signals have no channels: the filterbank's centre frequencies that spectral
+        features are computed over are in ``parameters["fb_cfHz"]``."""
         return np.asarray(self._meta["cf_hz"], dtype=float)
 
     @property
