@@ -37,6 +37,7 @@ __all__ = [
     "batch",
     "open_store",
     "parameters",
+    "plot",
     "process",
     "read_wav",
     "requests",
@@ -367,3 +368,4 @@ def process(
 
 
 from .corpus import Store, batch, open_store  # noqa: E402  (uses _params_json above)
+from .plot import plot  # noqa: E402  (calls process above)

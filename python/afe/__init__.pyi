@@ -95,3 +95,12 @@ class Manager:
     def outputs(self, handle: Optional[int] = ...) -> Dict[str, Signal]: ...
     def info(self) -> Dict[str, Dict[str, Any]]: ...
 from .corpus import Store as Store, batch as batch, open_store as open_store
+def plot(
+    source: Union[Mapping[str, Signal], np.ndarray, str, os.PathLike],
+    requests: Optional[Union[str, Sequence[str]]] = ...,
+    params: Optional[Mapping[str, Any]] = ...,
+    fs: Optional[float] = ...,
+    out: Optional[Union[str, os.PathLike]] = ...,
+    at: Optional[float] = ...,
+    width: float = ...,
+) -> Any: ...

@@ -45,7 +45,7 @@ def test_catalogue_matches_the_afe_names():
 
 def test_dir_shows_the_public_api_only():
     assert dir(afe) == sorted(
-        ["Manager", "Signal", "Store", "batch", "open_store", "parameters", "process", "read_wav", "requests", "__version__"]
+        ["Manager", "Signal", "Store", "batch", "open_store", "parameters", "plot", "process", "read_wav", "requests", "__version__"]
     )
 
 

@@ -1,0 +1,197 @@
+"""Figures of afe's outputs with matplotlib (``pip install afe[plot]``).
+
+One panel per signal, drawn the way its kind needs: time-frequency maps over time and
+centre frequency (signed cues on a diverging map centred on zero), waveforms, the frame
+of a correlation, modulation spectrum or DUET histogram at a chosen time, feature
+trajectories, binary masks and STFT magnitudes in dB. Axes are labelled in seconds and
+Hz, colour bars with the signal's unit.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any, Mapping, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from .signal import Signal
+
+#: Signals drawn on a diverging colour map centred on zero.
+SIGNED = {"ild", "itd", "precedence_itd", "precedence_ild"}
+#: Signals of powers drawn in dB (10·log10) over this range below their peak.
+POWER_DB = {"ratemap": 60.0}
+#: Longest time axis drawn, in columns: longer signals are reduced by block maxima.
+MAX_COLUMNS = 2000
+
+
+def _matplotlib() -> Any:
+    try:
+        from matplotlib.figure import Figure
+    except ImportError as e:  # pragma: no cover - depends on the environment
+        raise ImportError("afe.plot needs matplotlib: pip install 'afe[plot]' (or matplotlib)") from e
+    return Figure
+
+
+def _channel_axis(ax: Any, cf_hz: np.ndarray, label: str = "centre frequency (Hz)") -> None:
+    """Channels bottom to top, ticks labelled with their centre frequencies (an ERB axis
+    for a gammatone filterbank)."""
+    n = len(cf_hz)
+    ticks = sorted({0, n // 4, n // 2, (3 * n) // 4, n - 1}) if n else []
+    ax.set_yticks(ticks)
+    ax.set_yticklabels([f"{cf_hz[k]:.0f}" for k in ticks])
+    ax.set_ylabel(label)
+
+
+def _reduce(values: np.ndarray, t: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """At most MAX_COLUMNS rows: the largest magnitude of each block of rows."""
+    if len(values) <= MAX_COLUMNS:
+        return values, t
+    step = int(np.ceil(len(values) / MAX_COLUMNS))
+    n = len(values) // step * step
+    blocks = np.abs(values[:n]).reshape(n // step, step, *values.shape[1:])
+    return blocks.max(axis=1), t[:n:step]
+
+
+def _image(fig: Any, ax: Any, data: np.ndarray, extent: Sequence[float], unit: str,
+           signed: bool = False, vmin: Optional[float] = None, vmax: Optional[float] = None,
+           cmap: Optional[str] = None) -> None:
+    finite = data[np.isfinite(data)]
+    if signed:
+        lim = float(np.max(np.abs(finite))) if finite.size else 1.0
+        vmin, vmax, cmap = -lim or -1.0, lim or 1.0, cmap or "RdBu_r"
+    im = ax.imshow(data, origin="lower", aspect="auto", extent=extent, interpolation="nearest",
+                   cmap=cmap or "viridis", vmin=vmin, vmax=vmax)
+    bar = fig.colorbar(im, ax=ax, pad=0.01)
+    bar.set_label(unit)
+
+
+def _row_at(s: Signal, at: Optional[float]) -> Tuple[int, float]:
+    """The row drawn for a layout shown one frame at a time: the one at time ``at`` (s),
+    by default the middle one."""
+    t = s.t_s
+    if len(t) == 0:
+        raise ValueError(f"{s.key} is empty: nothing to draw")
+    if at is None:
+        k = len(t) // 2
+    else:
+        if not t[0] <= at <= t[-1] + 1.0 / s.fs_hz:
+            raise ValueError(f"at = {at} s is outside {s.key}, which covers {t[0]:g} to {t[-1]:g} s")
+        k = int(np.clip(np.searchsorted(t, at, side="right") - 1, 0, len(t) - 1))
+    return k, float(t[k])
+
+
+def draw(fig: Any, ax: Any, s: Signal, at: Optional[float] = None) -> None:
+    """Draws signal ``s`` on the axes ``ax`` of figure ``fig``."""
+    values = np.asarray(s)
+    t = s.t_s
+    unit = s.unit
+    span = [float(t[0]) if len(t) else 0.0, float(t[-1] + 1.0 / s.fs_hz) if len(t) else 1.0]
+    title = s.key
+    if s.kind == "time-domain" and values.ndim == 1:
+        ax.plot(t, values, lw=0.5)
+        ax.set_ylabel("amplitude")
+    elif s.kind in ("time-domain", "time-frequency", "binary-mask") and values.ndim == 2:
+        data, _ = _reduce(values, t) if s.kind == "time-domain" else (values, t)
+        extent = [span[0], span[1], -0.5, values.shape[1] - 0.5]
+        if s.name in POWER_DB:
+            db = 10 * np.log10(np.maximum(data, 1e-30))
+            peak = float(np.max(db))
+            _image(fig, ax, db.T, extent, "dB", vmin=peak - POWER_DB[s.name], vmax=peak)
+        elif s.kind == "binary-mask":
+            _image(fig, ax, data.T, extent, "mask", vmin=0, vmax=1, cmap="gray_r")
+        elif s.kind == "time-domain":
+            _image(fig, ax, data.T, extent, "largest |value|" + (f" ({unit})" if unit else ""))
+        else:
+            _image(fig, ax, data.T, extent, unit or "value", signed=s.name in SIGNED)
+        _channel_axis(ax, s.cf_hz)
+    elif s.kind == "spectrum":
+        db = 20 * np.log10(np.maximum(np.abs(values), 1e-12))
+        peak = float(np.max(db))
+        _image(fig, ax, db.T, [span[0], span[1], float(s.cf_hz[0]), float(s.cf_hz[-1])],
+               "dB", vmin=peak - 80, vmax=peak, cmap="magma")
+        ax.set_ylabel("frequency (Hz)")
+    elif s.kind == "feature" and s.name == "pitch":
+        ax.plot(t, values[:, 0], ".", ms=2)
+        ax.set_ylabel(f"{s.features[0]} (Hz)")
+    elif s.kind == "feature":
+        # each feature on its own scale: z-scores over time
+        mean = np.nanmean(values, axis=0)
+        std = np.nanstd(values, axis=0)
+        z = (values - mean) / np.where(std > 0, std, 1.0)
+        _image(fig, ax, z.T, [span[0], span[1], -0.5, values.shape[1] - 0.5], "z-score", signed=True)
+        if values.shape[1] <= 20:
+            ax.set_yticks(range(values.shape[1]))
+            ax.set_yticklabels(s.features, fontsize=7)
+        else:
+            ax.set_ylabel(f"feature (of {values.shape[1]})")
+    elif s.kind in ("correlation", "modulation"):
+        k, when = _row_at(s, at)
+        frame = values[k]
+        if s.kind == "correlation":
+            lags_ms = 1e3 * s.lags_s
+            _image(fig, ax, frame, [lags_ms[0], lags_ms[-1], -0.5, frame.shape[0] - 0.5], unit or "value",
+                   signed=bool(np.min(frame) < 0))
+            ax.set_xlabel("lag (ms)")
+        else:
+            mod = s.mod_cf_hz
+            _image(fig, ax, frame, [-0.5, len(mod) - 0.5, -0.5, frame.shape[0] - 0.5], unit or "value")
+            ticks = sorted({0, len(mod) // 2, len(mod) - 1})
+            ax.set_xticks(ticks)
+            ax.set_xticklabels([f"{mod[j]:.0f}" for j in ticks])
+            ax.set_xlabel("modulation frequency (Hz)")
+        _channel_axis(ax, s.cf_hz)
+        title = f"{s.key} at {when:.3f} s"
+    elif s.kind == "duet-histogram":
+        k, when = _row_at(s, at)
+        alpha = np.asarray(s.meta["alpha"])
+        delta = np.asarray(s.meta["delta_samples"])
+        _image(fig, ax, values[k], [delta[0], delta[-1], alpha[0], alpha[-1]], "weight", cmap="magma")
+        ax.set_xlabel("delay (samples)")
+        ax.set_ylabel("attenuation α")
+        title = f"{s.key} at {when:.3f} s"
+    else:
+        raise ValueError(f"{s.key}: no drawing for kind {s.kind!r} of shape {values.shape}")
+    if s.kind not in ("correlation", "modulation", "duet-histogram"):
+        ax.set_xlim(span)
+        ax.set_xlabel("time (s)")
+    ax.set_title(title, fontsize=10, loc="left")
+
+
+def plot(
+    source: Union[Mapping[str, Signal], np.ndarray, str, "os.PathLike[str]"],
+    requests: Optional[Union[str, Sequence[str]]] = None,
+    params: Optional[Mapping[str, Any]] = None,
+    fs: Optional[float] = None,
+    out: Optional[Union[str, "os.PathLike[str]"]] = None,
+    at: Optional[float] = None,
+    width: float = 10.0,
+) -> Any:
+    """Draws representations, one panel per signal; returns the matplotlib ``Figure``.
+
+    ``source``: the dict of :class:`afe.Signal` that :func:`afe.process` returns, or a
+    WAV path or an array (with ``fs``) to compute ``requests`` with ``params`` on.
+    ``out``: save the figure there (PNG, SVG, PDF by its extension). ``at``: the time in
+    s of the frame drawn for correlations, modulation features and DUET histograms
+    (default: the middle). ``width``: figure width in inches.
+    """
+    from . import process
+
+    Figure = _matplotlib()
+    if isinstance(source, Mapping):
+        signals = dict(source)
+    else:
+        if requests is None:
+            raise ValueError("give the requests to compute, e.g. ['ratemap', 'ild']")
+        signals = process(source, fs, requests, params)
+    for key, s in signals.items():
+        if not isinstance(s, Signal):
+            raise ValueError(f"'{key}' is a plain array: pass afe.process's output (afe.Signal objects)")
+    if not signals:
+        raise ValueError("nothing to draw")
+    fig = Figure(figsize=(width, 2.4 * len(signals) + 0.4), layout="constrained")
+    axes = fig.subplots(len(signals), 1, squeeze=False)[:, 0]
+    for ax, s in zip(axes, signals.values()):
+        draw(fig, ax, s, at)
+    if out is not None:
+        fig.savefig(os.fspath(out), dpi=100)
+    return fig
