@@ -171,3 +171,34 @@ fn a_page_sees_every_frame_and_edits_the_graph() {
         assert_eq!(got[..], want[..got.len()], "{key}");
     }
 }
+
+#[test]
+fn afe_serve_runs_for_its_time_and_names_a_busy_address() {
+    let serve = |addr: &str| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_afe"))
+            .args([
+                "serve",
+                "--source",
+                "synth:fs=16000,tone=440",
+                "-r",
+                "ratemap",
+            ])
+            .args(["--http", addr, "--for", "0.5"])
+            .output()
+            .expect("run afe serve")
+    };
+    let out = serve("127.0.0.1:0");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("live view: http://127.0.0.1:"), "{stderr}");
+    assert!(String::from_utf8_lossy(&out.stdout).contains("0 frame(s) lost"));
+    let busy = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
+    let addr = busy.local_addr().expect("addr").to_string();
+    let out = serve(&addr);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        stderr.contains(&format!("cannot serve the live view on {addr}")),
+        "{stderr}"
+    );
+}
