@@ -91,9 +91,10 @@ impl Sink for Recorder {
 
 /// Computes `job` on input drawn block by block from `next`, which fills one vector per
 /// ear (replacing their content) with up to the asked number of frames and returns how
-/// many it gave, 0 at the end. Where the graph is chunk-invariant, only one block of input
-/// is held at a time; otherwise (and only without `job.chunk`) the whole input is drawn
-/// first and processed in one call, as the AFE's `processSignal` does.
+/// many it gave, 0 at the end. Where the graph is chunk-invariant (or is past a prefix,
+/// as with the AGC: see [`Manager::one_call_prefix`]), only one block of input is held at
+/// a time; otherwise (and only without `job.chunk`) the whole input is drawn first and
+/// processed in one call, as the AFE's `processSignal` does.
 pub fn run_source(
     mgr: &mut Manager,
     job: &Job,
@@ -128,13 +129,19 @@ pub fn run_into<S: Sink>(
     mgr.set_keep_all(job.all);
     let mut buf = vec![Vec::new(); ears];
     let empty = || Error::InvalidInput("the signal is empty".into());
-    let block = match job.chunk {
-        Some(n) => n,
+    let (block, mut first) = match (job.chunk, mgr.one_call_prefix()) {
+        (Some(n), _) => (n, n),
         // a whole signal: one call where the AFE depends on chunk boundaries
-        None if !mgr.is_chunk_invariant() => {
-            next(usize::MAX, &mut buf)?;
-            if crate::interrupt::requested() {
-                return Err(Error::Interrupted.into());
+        (None, None) => {
+            let mut part = vec![Vec::new(); ears];
+            while next(WHOLE_SIGNAL_BLOCK << 4, &mut part)? > 0 {
+                for (all, p) in buf.iter_mut().zip(&part) {
+                    all.extend_from_slice(p);
+                }
+                mgr.check_whole_signal(buf[0].len())?;
+                if crate::interrupt::requested() {
+                    return Err(Error::Interrupted.into());
+                }
             }
             if buf.first().is_none_or(Vec::is_empty) {
                 return Err(empty().into());
@@ -143,9 +150,10 @@ pub fn run_into<S: Sink>(
             mgr.process_signal(&refs)?;
             return sink.whole(mgr);
         }
-        None => {
+        // blocks give one call's output, the first holding the AGC's seeding time
+        (None, Some(prefix)) => {
             mgr.reset()?;
-            WHOLE_SIGNAL_BLOCK
+            (WHOLE_SIGNAL_BLOCK, WHOLE_SIGNAL_BLOCK.max(prefix))
         }
     };
     let mut total = 0;
@@ -153,7 +161,7 @@ pub fn run_into<S: Sink>(
         if crate::interrupt::requested() {
             return Err(Error::Interrupted.into());
         }
-        let got = next(block, &mut buf)?;
+        let got = next(std::mem::replace(&mut first, block), &mut buf)?;
         if got == 0 {
             break;
         }

@@ -207,6 +207,40 @@ proptest! {
     }
 }
 
+/// A whole signal through the AGC runs in blocks (bounded memory), the first holding the
+/// seeding time, and still gives one call's output bit for bit: seeding shorter than a
+/// block, longer than one, and longer than the signal.
+#[test]
+fn a_whole_signal_through_the_agc_runs_in_blocks_as_one_call() {
+    let fs = 16000.0;
+    let (left, right) = signal(fs, 20000);
+    for tau in [0.1, 0.4, 2.0] {
+        let p = params(&[
+            ("pp_bNormalizeRMS", json!(true)),
+            ("pp_intTimeSecRMS", json!(tau)),
+        ]);
+        let one_call = run(fs, &["ratemap", "ild"], &p, &left, &right, None);
+        let mut mgr = Manager::new(fs, 2).expect("manager");
+        mgr.add_request("ratemap", &p).expect("request");
+        mgr.add_request("ild", &p).expect("request");
+        assert!(!mgr.is_chunk_invariant());
+        assert_eq!(mgr.one_call_prefix(), Some((tau * fs).ceil() as usize + 1));
+        mgr.set_keep_all(true);
+        mgr.process_signal(&[&left, &right]).expect("process");
+        let mut whole = Recorder::new(true);
+        whole.record_whole(&mut mgr);
+        assert_identical(&one_call, &whole);
+        let job = afe::extract::Job {
+            requests: vec!["ratemap".into(), "ild".into()],
+            params: p,
+            all: true,
+            ..Default::default()
+        };
+        let extracted = afe::extract::run(&job, fs, &[&left, &right]).expect("extract");
+        assert_identical(&one_call, &extracted);
+    }
+}
+
 /// |analytic signal| of `x` by a direct DFT (MATLAB's `hilbert`, spec 01-P5), written
 /// independently of the FFT the processor uses.
 fn hilbert_envelope_by_dft(x: &[f64]) -> Vec<f64> {

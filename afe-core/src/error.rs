@@ -59,6 +59,19 @@ pub enum Error {
     /// cannot start, chunks submitted or collected out of turn).
     #[error("scheduler: {0}")]
     Scheduler(String),
+    /// A whole-signal call would hold more intermediate signals than the limit allows
+    /// (processors that, as in the AFE, take their whole input at once).
+    #[error("processing the signal in one call would hold {need_mb} MB of intermediate signals for {seconds:.1} s of it ({what} take the whole input at once, as in the AFE), over the limit of {limit_mb} MB: feed it in chunks (the AFE's per-chunk semantics: `afe extract --chunk N`, `chunk=` in Python, `Manager::process_chunk`), shorten it, or raise the limit with the environment variable AFE_WHOLE_SIGNAL_LIMIT_MB")]
+    WholeSignalTooLarge {
+        /// Length of the signal (or of its part read so far) in seconds.
+        seconds: f64,
+        /// Memory the call would need, in MB.
+        need_mb: u64,
+        /// The limit, in MB.
+        limit_mb: u64,
+        /// The processors that need the whole input, e.g. `innerhaircell (ihc_method 'hilbert')`.
+        what: String,
+    },
     /// Stopped on request (SIGINT or SIGTERM, Ctrl-C in Python) before the input's end.
     #[error("interrupted before the end of the input")]
     Interrupted,

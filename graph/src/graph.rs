@@ -175,6 +175,29 @@ impl Graph {
         invariant
     }
 
+    /// How a whole signal may be fed in chunks and still give one call's output:
+    /// `Some(n)` when every chunk size works once the first chunk holds at least `n`
+    /// input samples (or the whole signal; `n` = 0 for a chunk-invariant graph), `None`
+    /// when some node needs its whole input in one call.
+    pub fn one_call_prefix(&self) -> Option<usize> {
+        let fs = self.nodes[0].infos.first().map_or(0.0, |i| i.fs_hz);
+        let mut prefix = 0;
+        for node in self.nodes.iter().skip(1) {
+            let own = match node.def {
+                Some(d) if !(d.chunk_invariant)(&node.build_params) => {
+                    (d.one_call_prefix_s)(&node.build_params)
+                        .map(|s| (s.max(0.0) * fs).ceil() as usize + 1)
+                }
+                _ => Some(0),
+            };
+            match own {
+                Some(n) if node.feedback_from.is_none() => prefix = prefix.max(n),
+                _ => return None,
+            }
+        }
+        Some(prefix)
+    }
+
     /// Processes a whole signal (one slice per ear) as one call would, appending every
     /// node's output to `whole` (per node and output) where it has a block, which it
     /// must for every input of a node that is not chunk-invariant and does not absorb

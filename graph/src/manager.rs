@@ -156,6 +156,11 @@ pub const MAX_AMPLITUDE: f64 = 1e100;
 /// bit-identical to one call, and the intermediate signals stay in cache.
 pub const WHOLE_SIGNAL_BLOCK: usize = 4096;
 
+/// Default bound (MB) on the intermediate signals a whole-signal call may hold beyond the
+/// requested outputs (e.g. the joined filterbank output under the Hilbert IHC); the
+/// environment variable `AFE_WHOLE_SIGNAL_LIMIT_MB` replaces it.
+pub const WHOLE_SIGNAL_LIMIT_MB: u64 = 2048;
+
 impl std::fmt::Debug for Manager {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Manager")
@@ -354,6 +359,64 @@ impl Manager {
     /// Hilbert-based IHC methods or the AGC, whose output depends on chunk boundaries).
     pub fn is_chunk_invariant(&self) -> bool {
         self.graph.invariant_nodes().iter().all(|i| *i)
+    }
+
+    /// How a whole signal may be fed in chunks and still give one call's output (see
+    /// [`Manager::process_signal`]): `Some(n)` when any chunking does once the first
+    /// chunk holds at least `n` input samples or the whole signal (`n` = 0 for a
+    /// chunk-invariant graph; with the AGC, its seeding time), `None` when some
+    /// processor needs its whole input in one call.
+    pub fn one_call_prefix(&self) -> Option<usize> {
+        self.graph.one_call_prefix()
+    }
+
+    /// Checks that a whole signal of `len` samples fits [`WHOLE_SIGNAL_LIMIT_MB`] (or
+    /// `AFE_WHOLE_SIGNAL_LIMIT_MB`) where [`Manager::process_signal`] must hold it in one
+    /// call: the joined inputs and the outputs of the processors that take their whole
+    /// input at once, requested outputs aside. Always fine for a graph that runs in
+    /// blocks (see [`Manager::one_call_prefix`]).
+    pub fn check_whole_signal(&self, len: usize) -> Result<()> {
+        if self.graph.one_call_prefix().is_some() {
+            return Ok(());
+        }
+        let invariant = self.graph.invariant_nodes();
+        let kept = self.kept_outputs(&invariant);
+        let absorbing = self.graph.absorbing_nodes(&invariant);
+        let requested = |r: OutputRef| {
+            self.requests
+                .iter()
+                .flatten()
+                .any(|q| q.outputs.contains(&r))
+        };
+        let fs = self.graph.nodes[0].infos[0].fs_hz;
+        let mut bytes = 0.0;
+        let mut what: Vec<&str> = Vec::new();
+        for (i, node) in self.graph.nodes.iter().enumerate() {
+            let one_call = !invariant[i] && !absorbing[i];
+            if one_call && !what.contains(&node.name) {
+                what.push(node.name);
+            }
+            for (o, info) in node.infos.iter().enumerate() {
+                let held = (kept[i][o] || one_call) && !requested(OutputRef { node: i, output: o });
+                if held {
+                    bytes += len as f64 * info.fs_hz / fs * info.width() as f64 * 8.0;
+                }
+            }
+        }
+        let limit_mb = std::env::var("AFE_WHOLE_SIGNAL_LIMIT_MB")
+            .ok()
+            .and_then(|v| v.trim().parse().ok())
+            .unwrap_or(WHOLE_SIGNAL_LIMIT_MB);
+        let need_mb = (bytes / 1e6).ceil() as u64;
+        if need_mb <= limit_mb {
+            return Ok(());
+        }
+        Err(Error::WholeSignalTooLarge {
+            seconds: len as f64 / fs,
+            need_mb,
+            limit_mb,
+            what: what.join(", "),
+        })
     }
 
     /// Number of processor instances in the graph (the input node excluded).
@@ -558,10 +621,12 @@ impl Manager {
     /// Processes a whole signal from a fresh state (every processor is reset first), as
     /// the AFE's `processSignal`. A chunk-invariant graph runs it in blocks of
     /// [`WHOLE_SIGNAL_BLOCK`] samples, bit-identical to one call and faster (the
-    /// intermediate signals stay in cache), and joins each output's blocks. In a graph
-    /// with processors that depend on chunk boundaries (pitch, the maps, gabor, the
-    /// Hilbert IHC, the AGC), those get the whole signal in one call, and the invariant
-    /// chain below them still runs in blocks (on this thread).
+    /// intermediate signals stay in cache), and joins each output's blocks; so does a
+    /// graph with the AGC, whose first block then holds its seeding time (see
+    /// [`Manager::one_call_prefix`]). In a graph with processors that depend on chunk
+    /// boundaries (pitch, the maps, gabor, the Hilbert IHC), those get the whole signal
+    /// in one call, and the invariant chain below them still runs in blocks (on this
+    /// thread).
     pub fn process_signal(&mut self, signal: &[&[f64]]) -> Result<()> {
         self.check_chunk(signal)?;
         let len = signal[0].len();
@@ -569,11 +634,12 @@ impl Manager {
             return Err(Error::InvalidInput("the signal is empty".into()));
         }
         self.reset()?;
-        let invariant = self.graph.invariant_nodes();
-        if invariant.iter().any(|i| !i) {
+        let Some(prefix) = self.graph.one_call_prefix() else {
+            self.check_whole_signal(len)?;
             // The nodes that depend on chunk boundaries must see the signal in one call:
             // the graph runs on this thread, its invariant part in blocks (and the
             // processors are in the graph, which tells which nodes absorb blocks).
+            let invariant = self.graph.invariant_nodes();
             self.edit(|m| {
                 let mut whole = m.whole_buffers(&invariant);
                 m.graph.run_whole(signal, WHOLE_SIGNAL_BLOCK, &mut whole);
@@ -588,11 +654,13 @@ impl Manager {
             self.stream_pos += len as u64;
             self.whole_shown = true;
             return Ok(());
-        }
-        let mut whole = self.whole_buffers(&invariant);
-        for start in (0..len).step_by(WHOLE_SIGNAL_BLOCK) {
-            let end = (start + WHOLE_SIGNAL_BLOCK).min(len);
+        };
+        let mut whole = self.whole_buffers(&vec![true; self.graph.nodes.len()]);
+        let mut start = 0;
+        while start < len {
+            let end = len.min(start + WHOLE_SIGNAL_BLOCK.max(prefix.saturating_sub(start)));
             let part: Vec<&[f64]> = signal.iter().map(|c| &c[start..end]).collect();
+            start = end;
             self.submit_chunk(&part)?;
             if self.in_flight() >= self.pipeline_depth() {
                 self.collect_chunk()?;
@@ -920,6 +988,49 @@ impl Manager {
 mod tests {
     use super::*;
     use serde_json::json;
+
+    /// A whole signal that processors take at once (the Hilbert IHC) is refused before
+    /// anything is allocated when its intermediate signals would pass the limit, naming
+    /// the processor; a graph that runs in blocks (here the AGC) is never refused.
+    #[test]
+    fn a_whole_signal_too_large_for_one_call_is_refused_up_front() {
+        let fs = 16000.0;
+        let p: ParamMap = [("ihc_method".to_string(), json!("hilbert"))]
+            .into_iter()
+            .collect();
+        let mut m = Manager::new(fs, 2).expect("manager");
+        m.add_request("ratemap", &p).expect("request");
+        // joined filterbank and IHC output, 31 channels, both ears: 15.9 MB per second
+        assert!(m.check_whole_signal(60 * 16000).is_ok());
+        let long = 200 * 16000;
+        match m.check_whole_signal(long) {
+            Err(Error::WholeSignalTooLarge {
+                need_mb,
+                limit_mb,
+                what,
+                ..
+            }) => {
+                assert_eq!(
+                    need_mb,
+                    (long as f64 * 4.0 * 31.0 * 8.0 / 1e6).ceil() as u64
+                );
+                assert_eq!(limit_mb, WHOLE_SIGNAL_LIMIT_MB);
+                assert!(what.starts_with("innerhaircell"), "{what}");
+            }
+            other => panic!("expected the limit, got {other:?}"),
+        }
+        let x = vec![0.1; long];
+        assert!(matches!(
+            m.process_signal(&[&x, &x]),
+            Err(Error::WholeSignalTooLarge { .. })
+        ));
+        let agc: ParamMap = [("pp_bNormalizeRMS".to_string(), json!(true))]
+            .into_iter()
+            .collect();
+        let mut m = Manager::new(fs, 2).expect("manager");
+        m.add_request("ratemap", &agc).expect("request");
+        assert!(m.check_whole_signal(100 * long).is_ok());
+    }
 
     /// Chunks of 10 ms with a window change after 0.5 s and a reset after 1 s: the frame
     /// times stay monotonic, the index keeps counting, and each restart's first frame

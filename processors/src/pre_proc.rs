@@ -399,6 +399,12 @@ impl Descriptor for PreProc {
     fn chunk_invariant(params: &PreProcParams) -> bool {
         !params.normalize_rms
     }
+
+    /// The seed is the mean square of the first `round(pp_intTimeSecRMS·fs)` samples of
+    /// the first chunk; past that prefix the AGC is a plain recursive filter.
+    fn one_call_prefix_s(params: &PreProcParams) -> Option<f64> {
+        Some(params.int_time_sec_rms)
+    }
 }
 
 /// The registry entry of `time`.

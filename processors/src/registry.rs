@@ -55,6 +55,10 @@ pub struct RequestDef {
     /// Whether, with these request parameters, any chunking gives the output of one call
     /// (false where the AFE itself depends on chunk boundaries).
     pub chunk_invariant: fn(&ParamMap) -> bool,
+    /// Where not chunk-invariant: the seconds of input a whole signal's first chunk must
+    /// hold (or be the whole signal) for chunks of any size after it to give one call's
+    /// output (the AGC seeds from a fixed prefix); `None` when one call is needed.
+    pub one_call_prefix_s: fn(&ParamMap) -> Option<f64>,
     /// Requests read beside the dependency, with these request parameters (resolved with
     /// the same parameters, so they are the nodes of the chain below when it has them).
     /// Per-ear processors get the same ear's output after their dependency's; binaural
@@ -133,6 +137,12 @@ pub trait Descriptor {
         true
     }
 
+    /// Where not chunk-invariant, the prefix of a whole signal (seconds) after which
+    /// any chunking gives one call's output (see [`RequestDef::one_call_prefix_s`]).
+    fn one_call_prefix_s(_: &Self::Params) -> Option<f64> {
+        None
+    }
+
     /// Requests read beside the dependency (see [`RequestDef::extra_inputs`]).
     fn extra_inputs(_: &Self::Params) -> &'static [&'static str] {
         &[]
@@ -152,6 +162,7 @@ pub const fn request_def<D: Descriptor>() -> RequestDef {
         canonical: canonical::<D>,
         build: build::<D>,
         chunk_invariant: chunk_invariant::<D>,
+        one_call_prefix_s: one_call_prefix_s::<D>,
         extra_inputs: extra_inputs::<D>,
         fixed: D::FIXED,
         feeds_back_to: D::FEEDS_BACK_TO,
@@ -172,6 +183,10 @@ fn build<D: Descriptor>(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> 
 
 fn chunk_invariant<D: Descriptor>(map: &ParamMap) -> bool {
     D::params(map).is_ok_and(|p| D::chunk_invariant(&p))
+}
+
+fn one_call_prefix_s<D: Descriptor>(map: &ParamMap) -> Option<f64> {
+    D::params(map).ok().and_then(|p| D::one_call_prefix_s(&p))
 }
 
 fn extra_inputs<D: Descriptor>(map: &ParamMap) -> &'static [&'static str] {

@@ -20,6 +20,9 @@ fn to_py(e: afe::Error) -> PyErr {
     match e {
         afe::Error::UnknownHandle(_) => PyKeyError::new_err(e.to_string()),
         afe::Error::Interrupted => pyo3::exceptions::PyKeyboardInterrupt::new_err(e.to_string()),
+        afe::Error::WholeSignalTooLarge { .. } => {
+            pyo3::exceptions::PyMemoryError::new_err(e.to_string())
+        }
         afe::Error::WorkerPanicked | afe::Error::Stalled(_) | afe::Error::Scheduler(_) => {
             pyo3::exceptions::PyRuntimeError::new_err(e.to_string())
         }
