@@ -56,5 +56,5 @@ pub use replay::Replay;
 pub use sample::Sample;
 pub use source::{Clock, Source};
 pub use synth::{Synth, SynthSpec};
-pub use wav::{open_wav, WavSource};
+pub use wav::{open_wav, Stored, WavFile, WavSource};
 pub use wav_reader::{WavFormat, WavReadError, WavReader, WavSamples};

@@ -1,68 +1,178 @@
-//! WAV replay: a file decoded into the samples it stores, replayed through a port.
+//! WAV replay: a file read as it plays, block by block, in the samples it stores.
 
-use std::path::Path;
+use std::marker::PhantomData;
+use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
-use crate::replay::Replay;
+use crate::port::PortFormat;
+use crate::sample::Sample;
+use crate::source::{Clock, Source};
 use crate::wav_reader::{WavReadError, WavReader, WavSamples};
 
 /// A WAV file ready to replay, in the sample type the file stores.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub enum WavSource {
     /// An integer PCM file (8 to 32 bits), as `i32` samples at full scale: a `b`-bit
     /// sample `v` becomes `v · 2^(32−b)`, so that `v / 2^(b−1)` = the `i32` / 2³¹.
-    Int(Replay<i32>),
+    Int(WavFile<i32>),
     /// An IEEE-float file, as its `f32` samples.
-    Float(Replay<f32>),
+    Float(WavFile<f32>),
 }
 
-/// Decodes the WAV file at `path` for replay, from the start again after the end when
-/// `looping`.
+/// Opens the WAV file at `path` for replay, from the start again after the end when
+/// `looping`. The samples are read as they are played, so memory does not grow with the
+/// file's length.
 ///
 /// ```
 /// let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../data/example_binaural.wav");
 /// let wav = afe_bass_source::open_wav(std::path::Path::new(path), false)?;
-/// let afe_bass_source::WavSource::Int(replay) = wav else { panic!("a 16-bit file") };
-/// assert_eq!(replay.frames(), 44100);
+/// let afe_bass_source::WavSource::Int(file) = wav else { panic!("a 16-bit file") };
+/// assert_eq!(file.frames(), 44100);
 /// # Ok::<(), afe_bass_source::Error>(())
 /// ```
 pub fn open_wav(path: &Path, looping: bool) -> Result<WavSource> {
-    let mut reader = WavReader::open(path).map_err(|e| match e {
+    let reader = WavReader::open(path).map_err(|e| wav_error(path, e))?;
+    let format = reader.format();
+    if reader.frames() == 0 {
+        return Err(Error::Wav {
+            path: path.display().to_string(),
+            reason: "the file holds no samples".into(),
+        });
+    }
+    let port = PortFormat::bass_timing(format.sample_rate, usize::from(format.channels));
+    port.check().map_err(|e| Error::Wav {
+        path: path.display().to_string(),
+        reason: e.to_string(),
+    })?;
+    Ok(if format.float {
+        WavSource::Float(WavFile::new(
+            reader,
+            path,
+            port,
+            looping,
+            WavSamples::Float(Vec::new()),
+        ))
+    } else {
+        WavSource::Int(WavFile::new(
+            reader,
+            path,
+            port,
+            looping,
+            WavSamples::Int(Vec::new()),
+        ))
+    })
+}
+
+fn wav_error(path: &Path, e: WavReadError) -> Error {
+    match e {
         WavReadError::Open { path, source } => Error::Open {
             path,
             reason: source.to_string(),
         },
-        WavReadError::Format { path, reason } => Error::Wav { path, reason },
-    })?;
-    let wav = |reason: String| Error::Wav {
-        path: path.display().to_string(),
-        reason,
-    };
-    let format = reader.format();
-    if reader.frames() == 0 {
-        return Err(wav("the file holds no samples".into()));
+        WavReadError::Format { reason, .. } => Error::Wav {
+            path: path.display().to_string(),
+            reason,
+        },
     }
-    let nch = usize::from(format.channels);
-    let mut samples = WavSamples::Int(Vec::new());
-    reader
-        .read(usize::MAX, &mut samples)
-        .map_err(|e| wav(e.to_string()))?;
-    match samples {
-        WavSamples::Int(v) => {
-            Replay::new(format.sample_rate, deinterleave(&v, nch), looping).map(WavSource::Int)
-        }
-        WavSamples::Float(v) => {
-            Replay::new(format.sample_rate, deinterleave(&v, nch), looping).map(WavSource::Float)
-        }
-    }
-    .map_err(|e| wav(e.to_string()))
 }
 
-/// Splits interleaved samples into `channels` signals (an incomplete last frame is dropped).
-fn deinterleave<S: Copy>(samples: &[S], channels: usize) -> Vec<Vec<S>> {
-    (0..channels)
-        .map(|c| samples.chunks_exact(channels).map(|f| f[c]).collect())
-        .collect()
+/// The samples a WAV file stores, as one of the port's sample types.
+pub trait Stored: Sample {
+    /// The samples of `raw` (empty if `raw` holds the other type, which a [`WavFile`]
+    /// of this type never reads).
+    fn stored(raw: &WavSamples) -> &[Self];
+}
+
+impl Stored for i32 {
+    fn stored(raw: &WavSamples) -> &[i32] {
+        match raw {
+            WavSamples::Int(v) => v,
+            WavSamples::Float(_) => &[],
+        }
+    }
+}
+
+impl Stored for f32 {
+    fn stored(raw: &WavSamples) -> &[f32] {
+        match raw {
+            WavSamples::Float(v) => v,
+            WavSamples::Int(_) => &[],
+        }
+    }
+}
+
+/// A WAV file replayed as it is read: each chunk is read from the file when asked for.
+#[derive(Debug)]
+pub struct WavFile<S> {
+    reader: WavReader,
+    path: PathBuf,
+    format: PortFormat,
+    looping: bool,
+    raw: WavSamples,
+    samples: PhantomData<S>,
+}
+
+impl<S: Stored> WavFile<S> {
+    fn new(
+        reader: WavReader,
+        path: &Path,
+        format: PortFormat,
+        looping: bool,
+        raw: WavSamples,
+    ) -> Self {
+        WavFile {
+            path: path.to_path_buf(),
+            reader,
+            format,
+            looping,
+            raw,
+            samples: PhantomData,
+        }
+    }
+
+    /// Length of the file in frames (one pass).
+    pub fn frames(&self) -> u64 {
+        self.reader.frames()
+    }
+
+    /// Publishes chunks of `frames_per_chunk` frames on a port of `chunks_on_port` chunks.
+    pub fn set_chunking(&mut self, frames_per_chunk: usize, chunks_on_port: usize) -> Result<()> {
+        let format = PortFormat {
+            frames_per_chunk,
+            chunks_on_port,
+            ..self.format
+        };
+        format.check()?;
+        self.format = format;
+        Ok(())
+    }
+}
+
+impl<S: Stored> Source for WavFile<S> {
+    type Sample = S;
+
+    fn format(&self) -> PortFormat {
+        self.format
+    }
+
+    fn clock(&self) -> Clock {
+        Clock::OnDemand
+    }
+
+    fn read_chunk(&mut self, out: &mut [Vec<S>], max_frames: usize) -> Result<usize> {
+        let fail = |e| wav_error(&self.path, e);
+        let mut n = self.reader.read(max_frames, &mut self.raw).map_err(fail)?;
+        if n == 0 && self.looping && max_frames > 0 {
+            self.reader.rewind().map_err(fail)?;
+            n = self.reader.read(max_frames, &mut self.raw).map_err(fail)?;
+        }
+        let channels = out.len();
+        for (c, o) in out.iter_mut().enumerate() {
+            o.clear();
+            o.extend(S::stored(&self.raw).chunks_exact(channels).map(|f| f[c]));
+        }
+        Ok(n)
+    }
 }
 
 #[cfg(test)]
@@ -124,6 +234,34 @@ mod tests {
         assert_eq!(out[0], [0.25, -0.5]);
         r.read_chunk(&mut out, 3).expect("read");
         assert_eq!(out[0], [0.25, -0.5], "looping");
+    }
+
+    /// The file is read as it plays: a looping replay reads it again from the first
+    /// sample, each pass ending with the file.
+    #[test]
+    fn a_looping_file_is_read_again_pass_after_pass() {
+        let p = temp("loop.wav");
+        let spec = hound::WavSpec {
+            channels: 2,
+            sample_rate: 8000,
+            bits_per_sample: 16,
+            sample_format: hound::SampleFormat::Int,
+        };
+        write(&p, spec, &[1, -1, 2, -2, 3, -3, 4, -4, 5, -5]);
+        let WavSource::Int(mut r) = open_wav(&p, true).expect("open") else {
+            panic!("integer file");
+        };
+        assert_eq!(r.frames(), 5);
+        let mut out = vec![Vec::new(), Vec::new()];
+        let mut lengths = Vec::new();
+        let mut left = Vec::new();
+        for _ in 0..4 {
+            lengths.push(r.read_chunk(&mut out, 3).expect("read"));
+            left.extend(out[0].iter().map(|v| v >> 16));
+            assert!(out[0].iter().zip(&out[1]).all(|(a, b)| *a == -*b));
+        }
+        assert_eq!(lengths, [3, 2, 3, 2]);
+        assert_eq!(left, [1, 2, 3, 4, 5, 1, 2, 3, 4, 5]);
     }
 
     #[test]

@@ -2,7 +2,7 @@
 //! byte, as the RIFF specification says), the `fmt ` chunk (PCM, IEEE float, or their
 //! WAVE_FORMAT_EXTENSIBLE form), and the samples of the `data` chunk, read block by block.
 
-use std::io::{BufReader, Read};
+use std::io::{BufReader, Read, Seek, SeekFrom};
 use std::path::Path;
 
 /// Why a file cannot be read as WAV.
@@ -63,6 +63,8 @@ pub struct WavReader {
     /// Whole frames of the data chunk not read yet.
     frames_left: u64,
     frames: u64,
+    /// Offset of the first sample in the file, in bytes.
+    data_start: u64,
     bytes: Vec<u8>,
 }
 
@@ -98,12 +100,14 @@ impl WavReader {
         })?;
         let frame_bytes = format.bytes_per_sample() * usize::from(format.channels);
         let frames = data_len / frame_bytes as u64;
+        let data_start = file.stream_position().map_err(|e| bad(e.to_string()))?;
         Ok(WavReader {
             file,
             path: shown,
             format,
             frames_left: frames,
             frames,
+            data_start,
             bytes: Vec::new(),
         })
     }
@@ -116,6 +120,18 @@ impl WavReader {
     /// Whole frames in the data chunk (an incomplete last frame is not counted).
     pub fn frames(&self) -> u64 {
         self.frames
+    }
+
+    /// Goes back to the first frame (to replay the file again).
+    pub fn rewind(&mut self) -> Result<(), WavReadError> {
+        self.file
+            .seek(SeekFrom::Start(self.data_start))
+            .map_err(|e| WavReadError::Format {
+                path: self.path.clone(),
+                reason: format!("cannot go back to the first sample ({e})"),
+            })?;
+        self.frames_left = self.frames;
+        Ok(())
     }
 
     /// Reads up to `frames` more frames, interleaved, into `out` (replaced; it must be of
