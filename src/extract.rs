@@ -4,6 +4,7 @@ use afe_core::{Error, ParamMap, Result};
 use afe_graph::Manager;
 
 use crate::recorder::Recorder;
+use crate::wav::WavBlocks;
 
 pub use afe_graph::WHOLE_SIGNAL_BLOCK;
 
@@ -61,6 +62,25 @@ pub fn run_with(mgr: &mut Manager, job: &Job, channels: &[&[f64]]) -> Result<Rec
         pos = end;
         Ok(got)
     })
+}
+
+/// Computes `job` on the WAV file `wav` with `mgr` (made for its rate and channels),
+/// decoding it block by block where the graph allows, into outputs sized up front for
+/// the file's length (each written once).
+pub fn run_wav(mgr: &mut Manager, job: &Job, wav: &mut WavBlocks) -> Result<Recorder> {
+    let mut rec = Recorder::new(job.all);
+    rec.expect_input(wav.frames());
+    run_into(
+        mgr,
+        job,
+        wav.channels(),
+        |frames, out| {
+            wav.read(frames, out)
+                .map_err(|e| Error::InvalidInput(e.to_string()))
+        },
+        &mut rec,
+    )?;
+    Ok(rec)
 }
 
 /// Where a run's output goes as it is computed: kept in memory ([`Recorder`]) or written

@@ -37,6 +37,8 @@ impl Recorded {
 pub struct Recorder {
     all: bool,
     signals: Vec<Recorded>,
+    /// Input samples the run will have in all, where known (a file's length).
+    expected: Option<u64>,
 }
 
 impl Recorder {
@@ -45,7 +47,14 @@ impl Recorder {
         Recorder {
             all,
             signals: Vec::new(),
+            expected: None,
         }
+    }
+
+    /// Sizes each signal's history when it starts for a run of `samples` input samples in
+    /// all (a file's length), so that its values are written once instead of growing.
+    pub fn expect_input(&mut self, samples: u64) {
+        self.expected = Some(samples);
     }
 
     /// Appends what `manager` computed in its last chunk.
@@ -53,13 +62,22 @@ impl Recorder {
         for s in manager.signals(self.all) {
             match self.signals.iter_mut().find(|r| r.source == s.source) {
                 Some(r) => r.data.extend_from(s.new),
-                None => self.signals.push(Recorded {
-                    key: s.key(),
-                    info: s.info.clone(),
-                    data: s.new.clone(),
-                    description: describe(manager, &s),
-                    source: s.source,
-                }),
+                None => {
+                    let mut data = Block::new(s.new.width());
+                    if let Some(n) = self.expected {
+                        // frames of the whole run at this signal's rate, and one for rounding
+                        let frames = n as f64 * s.info.fs_hz / manager.fs();
+                        data.reserve_frames(frames.ceil() as usize + 1);
+                    }
+                    data.extend_from(s.new);
+                    self.signals.push(Recorded {
+                        key: s.key(),
+                        info: s.info.clone(),
+                        data,
+                        description: describe(manager, &s),
+                        source: s.source,
+                    });
+                }
             }
         }
     }
@@ -94,6 +112,11 @@ impl Recorder {
         &self.signals
     }
 
+    /// The recorded signals, moved out (to hand their values on without a copy).
+    pub fn into_signals(self) -> Vec<Recorded> {
+        self.signals
+    }
+
     /// Every recorded signal's description, as a JSON object keyed by output name.
     pub fn metadata(&self) -> Value {
         Value::Object(
@@ -119,5 +142,53 @@ impl Recorder {
     /// The signal named `key`, if recorded.
     pub fn get(&self, key: &str) -> Option<&Recorded> {
         self.signals.iter().find(|r| r.key == key)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// With the input's length known, every history is sized when it starts: the chunks
+    /// of a whole run are appended without moving it (written once, never copied), for
+    /// full-rate and framed signals alike.
+    #[test]
+    fn histories_sized_up_front_are_never_moved() {
+        let fs = 16000.0;
+        let x: Vec<f64> = (0..16037).map(|t| (0.05 * t as f64).sin()).collect();
+        let mut mgr = Manager::new(fs, 2).expect("manager");
+        for r in ["ratemap", "itd"] {
+            mgr.add_request(r, &afe_core::ParamMap::new())
+                .expect("request");
+        }
+        let mut rec = Recorder::new(true);
+        rec.expect_input(x.len() as u64);
+        let mut start = 0;
+        let mut first: Vec<*const f64> = Vec::new();
+        for size in [100, 4000, 1, 3000].iter().cycle() {
+            let end = (start + size).min(x.len());
+            mgr.process_chunk(&[&x[start..end], &x[start..end]])
+                .expect("chunk");
+            rec.record(&mgr);
+            start = end;
+            if first.is_empty() {
+                first = rec
+                    .signals()
+                    .iter()
+                    .map(|s| s.data.as_slice().as_ptr())
+                    .collect();
+            }
+            if start == x.len() {
+                break;
+            }
+        }
+        assert!(
+            rec.signals().len() >= 8,
+            "time, filterbank, ... for both ears"
+        );
+        for (s, p) in rec.signals().iter().zip(first) {
+            assert!(s.data.frames() > 0, "{}", s.key);
+            assert_eq!(s.data.as_slice().as_ptr(), p, "{} was moved", s.key);
+        }
     }
 }

@@ -90,19 +90,26 @@ impl WavBlocks {
 
 /// Opens a WAV file that afe can process: mono or two channels (left, right), not empty.
 pub fn open_input(path: &Path) -> Result<WavBlocks, afe_core::Error> {
-    let bad = |why: String| afe_core::Error::InvalidInput(why);
-    let wav = WavBlocks::open(path).map_err(|e| bad(e.to_string()))?;
+    let wav = WavBlocks::open(path).map_err(|e| afe_core::Error::InvalidInput(e.to_string()))?;
+    check_input(path, &wav)?;
+    Ok(wav)
+}
+
+/// Checks that the open WAV file `wav` (from `path`) is one afe can process: mono or two
+/// channels (left, right), not empty.
+pub fn check_input(path: &Path, wav: &WavBlocks) -> Result<(), afe_core::Error> {
+    let bad = |why: String| Err(afe_core::Error::InvalidInput(why));
     if wav.channels() > 2 {
-        return Err(bad(format!(
+        return bad(format!(
             "'{}' has {} channels: afe takes mono or two-channel (left, right) input",
             path.display(),
             wav.channels()
-        )));
+        ));
     }
     if wav.frames() == 0 {
-        return Err(bad(format!("'{}' holds no samples", path.display())));
+        return bad(format!("'{}' holds no samples", path.display()));
     }
-    Ok(wav)
+    Ok(())
 }
 
 /// Reads a PCM (8/16/24/32-bit) or IEEE-float WAV file, scaling integers to ±1.0.

@@ -287,6 +287,11 @@ impl Block {
         self.data.extend_from_slice(&other.data);
     }
 
+    /// Makes room for `frames` more rows, so that appending them does not reallocate.
+    pub fn reserve_frames(&mut self, frames: usize) {
+        self.data.reserve(frames.saturating_mul(self.width));
+    }
+
     /// Removes every row, keeping the capacity.
     pub fn clear(&mut self) {
         self.data.clear();

@@ -339,31 +339,29 @@ def process(
     """
     if keep not in ("requested", "all"):
         raise ValueError(f"keep must be 'requested' or 'all', got {keep!r}")
-    if isinstance(signal, (str, os.PathLike)):
-        x, file_fs = read_wav(signal)
-        if fs is not None and float(fs) != file_fs:
-            raise ValueError(f"fs = {fs} Hz, but '{os.fspath(signal)}' is sampled at {file_fs} Hz")
-        fs = file_fs
-    else:
-        x = signal
-        if fs is None:
-            raise ValueError("fs is required when the signal is an array")
-    x = _as_channels(x)
-    if x.shape[0] == 0:
-        raise ValueError("the signal is empty")
     if isinstance(requests, str):
         requests = [r for r in requests.split(",") if r.strip()]
     if chunk is not None and int(chunk) < 1:
         raise ValueError(f"chunk = {chunk}: expected a positive number of samples")
-    arrays, meta = _afe.process(
-        x,
-        float(fs),
+    settings = (
         [str(r).strip() for r in requests],
         _params_json(params),
         None if chunk is None else int(chunk),
         int(threads or 0),
         keep == "all",
     )
+    if isinstance(signal, (str, os.PathLike)):
+        # decoded block by block in Rust: a long file is never held whole
+        arrays, meta = _afe.process_file(
+            os.fspath(signal), None if fs is None else float(fs), *settings
+        )
+        return _signals(arrays, json.loads(meta))
+    if fs is None:
+        raise ValueError("fs is required when the signal is an array")
+    x = _as_channels(signal)
+    if x.shape[0] == 0:
+        raise ValueError("the signal is empty")
+    arrays, meta = _afe.process(x, float(fs), *settings)
     return _signals(arrays, json.loads(meta))
 
 

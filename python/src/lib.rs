@@ -65,6 +65,31 @@ fn array<'py>(py: Python<'py>, shape: &[usize], data: &[f64]) -> PyResult<Bound<
     Ok(flat.reshape(shape.to_vec())?.into_any())
 }
 
+/// As [`array`], taking the values over: a float64 array is handed to numpy without a copy.
+fn owned_array<'py>(
+    py: Python<'py>,
+    shape: &[usize],
+    data: Vec<f64>,
+) -> PyResult<Bound<'py, PyAny>> {
+    if afe::npy::is_complex(shape, &data) {
+        return array(py, shape, &data);
+    }
+    Ok(PyArray1::from_vec(py, data)
+        .reshape(shape.to_vec())?
+        .into_any())
+}
+
+/// A run's recorded outputs, moved into numpy arrays, and their descriptions as JSON text.
+fn recorded<'py>(py: Python<'py>, rec: afe::Recorder) -> PyResult<(Bound<'py, PyDict>, String)> {
+    let meta = rec.metadata().to_string();
+    let d = PyDict::new(py);
+    for r in rec.into_signals() {
+        let shape = r.shape();
+        d.set_item(r.key, owned_array(py, &shape, r.data.into_vec())?)?;
+    }
+    Ok((d, meta))
+}
+
 fn signals_dict<'py, 'a>(
     py: Python<'py>,
     items: impl Iterator<Item = (String, Vec<usize>, &'a [f64])>,
@@ -371,13 +396,60 @@ fn process<'py>(
         afe::extract::run(&job, fs, &refs)
     })?
     .map_err(to_py)?;
-    let arrays = signals_dict(
-        py,
-        rec.signals()
-            .iter()
-            .map(|s| (s.key.clone(), s.shape(), s.data.as_slice())),
-    )?;
-    Ok((arrays, rec.metadata().to_string()))
+    drop(ears);
+    recorded(py, rec)
+}
+
+/// As [`process`] on the WAV file at `path`, decoded block by block where the graph
+/// allows (the file is never held whole), with `fs` (if given) checked against the file's.
+#[pyfunction]
+#[pyo3(signature = (path, fs, requests, params_json, chunk, threads, all))]
+#[allow(clippy::too_many_arguments)]
+fn process_file<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    fs: Option<f64>,
+    requests: Vec<String>,
+    params_json: &str,
+    chunk: Option<usize>,
+    threads: usize,
+    all: bool,
+) -> PyResult<(Bound<'py, PyDict>, String)> {
+    let job = afe::extract::Job {
+        requests,
+        params: parse_params(params_json)?,
+        chunk,
+        all,
+        threads,
+    };
+    let mut wav = afe::wav::WavBlocks::open(&path).map_err(wav_error)?;
+    if let Some(fs) = fs.filter(|f| *f != wav.fs()) {
+        return Err(PyValueError::new_err(format!(
+            "fs = {fs} Hz, but '{}' is sampled at {} Hz",
+            path.display(),
+            wav.fs()
+        )));
+    }
+    let rec = interrupt::interruptible(py, || {
+        afe::wav::check_input(&path, &wav)?;
+        let mut mgr = afe::Manager::with_threads(wav.fs(), wav.channels(), threads)?;
+        afe::extract::run_wav(&mut mgr, &job, &mut wav)
+    })?
+    .map_err(to_py)?;
+    recorded(py, rec)
+}
+
+/// The Python exception for a WAV file that cannot be read.
+fn wav_error(e: afe::wav::WavError) -> PyErr {
+    match &e {
+        afe::wav::WavError::Open { source, .. }
+            if source.kind() == std::io::ErrorKind::NotFound =>
+        {
+            PyFileNotFoundError::new_err(e.to_string())
+        }
+        afe::wav::WavError::Open { .. } => PyOSError::new_err(e.to_string()),
+        afe::wav::WavError::Format { .. } => PyValueError::new_err(e.to_string()),
+    }
 }
 
 /// The catalogue of requests and parameters, as JSON text (`afe list --json`).
@@ -391,15 +463,7 @@ fn catalog_json() -> String {
 fn read_wav<'py>(py: Python<'py>, path: PathBuf) -> PyResult<(Bound<'py, PyAny>, f64)> {
     let audio = py
         .allow_threads(|| afe::wav::read_wav(&path))
-        .map_err(|e| match &e {
-            afe::wav::WavError::Open { source, .. }
-                if source.kind() == std::io::ErrorKind::NotFound =>
-            {
-                PyFileNotFoundError::new_err(e.to_string())
-            }
-            afe::wav::WavError::Open { .. } => PyOSError::new_err(e.to_string()),
-            afe::wav::WavError::Format { .. } => PyValueError::new_err(e.to_string()),
-        })?;
+        .map_err(wav_error)?;
     let ch = audio.channels.len();
     let n = audio.channels.first().map_or(0, Vec::len);
     let mut interleaved = Vec::with_capacity(n * ch);
@@ -418,6 +482,7 @@ fn _afe(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyManager>()?;
     m.add_function(wrap_pyfunction!(catalog_json, m)?)?;
     m.add_function(wrap_pyfunction!(process, m)?)?;
+    m.add_function(wrap_pyfunction!(process_file, m)?)?;
     m.add_function(wrap_pyfunction!(read_wav, m)?)?;
     m.add_function(wrap_pyfunction!(batch::batch_run, m)?)?;
     m.add_function(wrap_pyfunction!(batch::batch_plan, m)?)?;

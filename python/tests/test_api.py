@@ -3,6 +3,7 @@ import json
 import os
 import pickle
 import subprocess
+import sys
 import threading
 import time
 import wave
@@ -81,6 +82,60 @@ def test_read_wav_mono_and_stereo(tmp_path, example_wav):
         w.writeframes(np.array([0, 16384, -32768], dtype="<i2").tobytes())
     y, fs = afe.read_wav(mono)
     assert fs == 8000.0 and y.tolist() == [0.0, 0.5, -1.0]
+
+
+def test_a_file_is_processed_as_its_samples_are(tmp_path, example_wav):
+    """A path is decoded block by block in Rust; the arrays equal those of the decoded
+    samples, for a chunk-invariant graph, one that runs past the AGC's seed, one that
+    needs a whole call, and in chunks; a file's own errors name it."""
+    x, fs = afe.read_wav(example_wav)
+    for requests, params, chunk in [
+        (["ratemap", "ild"], None, None),
+        (["ratemap"], {"pp_bNormalizeRMS": True, "pp_intTimeSecRMS": 0.2}, None),
+        (["pitch", "onsetMap"], None, None),
+        (["itd"], None, 1000),
+    ]:
+        from_file = afe.process(example_wav, None, requests, params, chunk=chunk)
+        from_array = afe.process(x, fs, requests, params, chunk=chunk)
+        assert from_file.keys() == from_array.keys()
+        for k in from_file:
+            np.testing.assert_array_equal(from_file[k], from_array[k], err_msg=k)
+            assert from_file[k].meta == from_array[k].meta
+    with pytest.raises(ValueError, match="is sampled at 44100 Hz"):
+        afe.process(example_wav, 16000, ["ratemap"])
+    three = tmp_path / "three.wav"
+    with wave.open(str(three), "wb") as w:
+        w.setnchannels(3)
+        w.setsampwidth(2)
+        w.setframerate(8000)
+        w.writeframes(np.zeros(30, dtype="<i2").tobytes())
+    with pytest.raises(ValueError, match="3 channels"):
+        afe.process(three, None, ["ratemap"])
+    bad = tmp_path / "bad.wav"
+    bad.write_bytes(b"RIFF not really")
+    with pytest.raises(ValueError, match="as WAV"):
+        afe.process(bad, None, ["ratemap"])
+
+
+def test_a_whole_call_too_large_is_a_memory_error_naming_the_way_out():
+    """The Hilbert IHC transforms the whole signal at once (as in the AFE): past the
+    limit (here 4 MB: the joined filterbank and IHC output, 2 × 2 × 32 channels of
+    float64, take 1 kB per sample, so 0.25 s at 16 kHz) the call is refused before
+    anything is computed; a shorter signal runs."""
+    script = (
+        "import numpy as np, afe\n"
+        "x = np.zeros((16000 * 3, 2))\n"
+        "try:\n"
+        "    afe.process(x, 16000, ['ratemap'], {'ihc_method': 'hilbert'})\n"
+        "except MemoryError as e:\n"
+        "    print(e)\n"
+        "print(afe.process(x[:2000], 16000, ['ratemap'], {'ihc_method': 'hilbert'})['ratemap_left'].shape[0])\n"
+    )
+    env = dict(os.environ, AFE_WHOLE_SIGNAL_LIMIT_MB="4")
+    out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True)
+    message, frames = out.stdout.strip().splitlines()
+    assert "innerhaircell" in message and "limit of 4 MB" in message and "chunk" in message
+    assert int(frames) == 11  # floor((2000 - 320) / 160) + 1: 20-ms windows every 10 ms
 
 
 def test_chunked_stream_equals_whole_signal():

@@ -8,7 +8,7 @@ use std::io::{IsTerminal, Write as _};
 use std::time::{Duration, Instant};
 
 use afe::bass_source::Pacing;
-use afe::extract::{run_source, run_with, Job};
+use afe::extract::{run_wav, run_with, Job};
 use afe::output::OutputFile;
 use afe::stream::{SourceSpec, StreamJob, StreamReport};
 use afe::wav::{Audio, WavBlocks};
@@ -645,13 +645,7 @@ fn extract(input: &Path, job: Job, trace: Option<&Path>, output: &Path) -> Resul
     // trace events preallocated per worker (48 bytes each): 12 MiB, ~5000 chunks of 11 nodes
     let capacity = if trace.is_some() { 1 << 18 } else { 0 };
     let mut mgr = Manager::with_engine(wav.fs(), wav.channels(), job.threads, capacity)?;
-    // the file is decoded block by block where the graph allows (see `run_source`)
-    let ears = wav.channels();
-    let rec = run_source(&mut mgr, &job, ears, |frames, out| {
-        wav.read(frames, out)
-            .map_err(|e| afe::Error::InvalidInput(e.to_string()))
-    })
-    .map_err(|e| match e {
+    let rec = run_wav(&mut mgr, &job, &mut wav).map_err(|e| match e {
         afe::Error::Interrupted => CliError::Message(format!("{e}: nothing was written")),
         e => e.into(),
     })?;
