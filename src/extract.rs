@@ -52,16 +52,25 @@ pub fn run_with(mgr: &mut Manager, job: &Job, channels: &[&[f64]]) -> Result<Rec
         ));
     }
     let mut pos = 0;
-    run_source(mgr, job, channels.len(), |frames, out| {
-        let end = pos + frames.min(len - pos);
-        for (o, c) in out.iter_mut().zip(channels) {
-            o.clear();
-            o.extend_from_slice(&c[pos..end]);
-        }
-        let got = end - pos;
-        pos = end;
-        Ok(got)
-    })
+    let mut rec = Recorder::new(job.all);
+    rec.expect_input(len as u64);
+    run_into(
+        mgr,
+        job,
+        channels.len(),
+        |frames, out| {
+            let end = pos + frames.min(len - pos);
+            for (o, c) in out.iter_mut().zip(channels) {
+                o.clear();
+                o.extend_from_slice(&c[pos..end]);
+            }
+            let got = end - pos;
+            pos = end;
+            Ok(got)
+        },
+        &mut rec,
+    )?;
+    Ok(rec)
 }
 
 /// Computes `job` on the WAV file `wav` with `mgr` (made for its rate and channels),

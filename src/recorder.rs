@@ -42,7 +42,8 @@ pub struct Recorder {
 }
 
 impl Recorder {
-    /// A recorder of the requested signals, or (`all`) of every intermediate signal too.
+    /// A recorder of the requested signals, or (`all`) of every intermediate signal too
+    /// (those the manager keeps: see [`Manager::set_keep_all`]).
     pub fn new(all: bool) -> Self {
         Recorder {
             all,
@@ -157,6 +158,7 @@ mod tests {
         let fs = 16000.0;
         let x: Vec<f64> = (0..16037).map(|t| (0.05 * t as f64).sin()).collect();
         let mut mgr = Manager::new(fs, 2).expect("manager");
+        mgr.set_keep_all(true);
         for r in ["ratemap", "itd"] {
             mgr.add_request(r, &afe_core::ParamMap::new())
                 .expect("request");

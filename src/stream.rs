@@ -421,6 +421,7 @@ pub fn run<Src: Source>(
     // before the workers and the feeder start, so that they inherit the policy
     let realtime = job.rt.then(crate::realtime::enable);
     let mut mgr = Manager::with_threads(fs, format.channels, job.threads)?;
+    mgr.set_keep_all(job.all);
     for r in &job.requests {
         mgr.add_request(r, &job.params)?;
     }

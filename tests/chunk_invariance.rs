@@ -31,6 +31,7 @@ fn run(
     chunks: Option<&[usize]>,
 ) -> Recorder {
     let mut mgr = Manager::new(fs, 2).expect("manager");
+    mgr.set_keep_all(true);
     for r in requests {
         mgr.add_request(r, params).expect("request");
     }

@@ -70,6 +70,7 @@ fn place_requests(mgr: &mut Manager) {
 fn manager(threads: usize) -> Manager {
     let mut mgr = Manager::with_threads(FS, 2, threads).expect("manager");
     mgr.set_stall_timeout(Duration::from_secs(20));
+    mgr.set_keep_all(true);
     mgr
 }
 
@@ -313,5 +314,30 @@ fn modify_parameter_resets_the_processor_and_its_dependants() {
             .expect_err("misspelt")
             .to_string();
         assert!(e.contains("rm_wSizeSec"), "did you mean: {e}");
+    }
+}
+
+/// Without `set_keep_all`, each executor shows only the requested signals after a chunk
+/// (the concurrent one copies nothing else), with the same values as when every signal
+/// is kept.
+#[test]
+fn by_default_only_the_requested_signals_are_shown_with_the_same_values() {
+    let (left, right) = signal(4800);
+    let sizes = [441, 1000, 17];
+    let requested = ["ratemap_left", "ratemap_right", "itd_mono", "ic_mono"];
+    let reference = run(0, &sizes, &left, &right);
+    for threads in [0, 2] {
+        let mut mgr = Manager::with_threads(FS, 2, threads).expect("manager");
+        for r in ["ratemap", "itd", "ic"] {
+            mgr.add_request(r, &ParamMap::new()).expect("request");
+        }
+        let mut rec = Recorder::new(true);
+        feed(&mut mgr, &mut rec, &left, &right, &sizes);
+        let keys: Vec<&str> = rec.signals().iter().map(|s| s.key.as_str()).collect();
+        assert_eq!(keys, requested, "{threads} threads");
+        for s in rec.signals() {
+            let want = reference.get(&s.key).expect("kept in the reference");
+            assert_eq!(s.data.as_slice(), want.data.as_slice(), "{}", s.key);
+        }
     }
 }

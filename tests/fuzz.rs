@@ -1012,6 +1012,7 @@ fn parameter_json() {
             Err(e) => return check_error(&e),
         };
         mgr.set_stall_timeout(CASE_LIMIT);
+        mgr.set_keep_all(true);
         let mut accepted = false;
         for _ in 0..1 + rng.below(3) {
             let name = if rng.one_in(12) {
@@ -1222,9 +1223,12 @@ fn manager_edits() {
     fuzz("manager_edits", |rng, _| {
         let fs = *rng.pick(&[8000.0, 16000.0, 22050.0, 44100.0, 48000.0]);
         let ears = 1 + rng.below(2);
-        let seq = Manager::new(fs, ears).map_err(|e| e.to_string())?;
+        let mut seq = Manager::new(fs, ears).map_err(|e| e.to_string())?;
         let mut con = Manager::with_threads(fs, ears, 2).map_err(|e| e.to_string())?;
         con.set_stall_timeout(CASE_LIMIT);
+        // every signal, intermediate ones too, is compared between the executors
+        seq.set_keep_all(true);
+        con.set_keep_all(true);
         note(|| format!("{fs} Hz, {ears} ear(s)"));
         let mut m = Lockstep {
             seq,

@@ -41,6 +41,7 @@ fn drnl() -> ParamMap {
 fn manager(threads: usize, requests: &[&str], params: &ParamMap) -> Manager {
     let mut m = Manager::with_threads(FS, 2, threads).expect("manager");
     m.set_stall_timeout(Duration::from_secs(20));
+    m.set_keep_all(true);
     for r in requests {
         m.add_request(r, params).expect("request");
     }

@@ -238,8 +238,12 @@ pub struct Engine {
     submitted: u64,
     /// Chunks collected by the caller.
     collected: u64,
-    /// The caller's copy of every node's output of the last collected chunk.
+    /// The caller's copy of the last collected chunk's outputs that it reads (`copied`).
     views: Vec<Vec<Block>>,
+    /// Per node and output: whether [`Engine::collect`] copies it (all by default).
+    copied: Vec<Vec<bool>>,
+    /// Frames of every output in the last collected chunk, copied or not.
+    frames: Vec<Vec<usize>>,
     stall_timeout: Duration,
 }
 
@@ -289,6 +293,8 @@ impl Engine {
             submitted: 0,
             collected: 0,
             views: Vec::new(),
+            copied: Vec::new(),
+            frames: Vec::new(),
             stall_timeout: Duration::from_secs(30),
         };
         for id in 0..threads {
@@ -462,9 +468,14 @@ impl Engine {
             // reader token keeps it there until `consumed` below.
             #[allow(unsafe_code)]
             let published = unsafe { &*table.rt[n].slots[slot].get() };
-            for (dst, src) in view.iter_mut().zip(published) {
+            let copied = self.copied.get(n).map_or(&[][..], Vec::as_slice);
+            let frames = &mut self.frames[n];
+            for (o, (dst, src)) in view.iter_mut().zip(published).enumerate() {
+                frames[o] = src.frames();
                 dst.clear();
-                dst.extend_from(src);
+                if copied.get(o).copied().unwrap_or(true) {
+                    dst.extend_from(src);
+                }
             }
             consumed(&table.sync, n, k, |x| {
                 queued += usize::from(shared.offer(table, x));
@@ -475,9 +486,26 @@ impl Engine {
         Ok(k)
     }
 
-    /// Output `r` of the last collected chunk.
-    pub fn block(&self, r: OutputRef) -> &Block {
-        &self.views[r.node][r.output]
+    /// Output `r` of the last collected chunk; `None` for one not copied (see
+    /// [`Engine::set_copied`]).
+    pub fn block(&self, r: OutputRef) -> Option<&Block> {
+        let copied = self.copied.get(r.node).and_then(|c| c.get(r.output));
+        copied
+            .copied()
+            .unwrap_or(true)
+            .then(|| &self.views[r.node][r.output])
+    }
+
+    /// Frames of output `r` in the last collected chunk (copied or not).
+    pub fn frames(&self, r: OutputRef) -> usize {
+        self.frames[r.node][r.output]
+    }
+
+    /// Which outputs [`Engine::collect`] copies for the caller, per node and output (an
+    /// output not listed is copied): only those read, so that the caller's cost grows
+    /// with what is asked for rather than with the graph. Takes effect at the next collect.
+    pub fn set_copied(&mut self, copied: Vec<Vec<bool>>) {
+        self.copied = copied;
     }
 
     /// Collects every chunk in flight, gives back the caller's tokens and waits until no
@@ -577,6 +605,11 @@ impl Engine {
             .nodes
             .iter()
             .map(|n| n.outputs.iter().map(|b| Block::new(b.width())).collect())
+            .collect();
+        self.frames = graph
+            .nodes
+            .iter()
+            .map(|n| vec![0; n.outputs.len()])
             .collect();
         self.submitted = 0;
         self.collected = 0;

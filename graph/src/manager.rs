@@ -301,7 +301,38 @@ impl Manager {
             e.install(&mut self.graph);
         }
         self.sync_clocks();
+        self.sync_copied();
         r
+    }
+
+    /// Whether output `r` is read after each chunk: requested, kept by
+    /// [`Manager::set_keep_all`], or fed back (the executors pass it on between tables).
+    fn is_read(&self, r: OutputRef) -> bool {
+        (self.keep_all && r.node > 0)
+            || self.graph.nodes[r.node].infos[r.output].feedback
+            || self
+                .requests
+                .iter()
+                .flatten()
+                .any(|q| q.outputs.contains(&r))
+    }
+
+    /// Tells the concurrent executor which outputs to copy after each chunk: those read.
+    fn sync_copied(&mut self) {
+        let mask = self
+            .graph
+            .nodes
+            .iter()
+            .enumerate()
+            .map(|(node, n)| {
+                (0..n.outputs.len())
+                    .map(|output| self.is_read(OutputRef { node, output }))
+                    .collect()
+            })
+            .collect();
+        if let Some(e) = self.engine.as_mut() {
+            e.set_copied(mask);
+        }
     }
 
     /// Gives every output of the graph a frame clock: outputs new since the last edit
@@ -328,7 +359,7 @@ impl Manager {
             for (o, c) in clocks.iter_mut().enumerate() {
                 let r = OutputRef { node: n, output: o };
                 let frames = match &self.engine {
-                    Some(e) => e.block(r).frames(),
+                    Some(e) => e.frames(r),
                     None => self.graph.nodes[n].outputs[o].frames(),
                 };
                 c.advance(frames as u64);
@@ -746,11 +777,13 @@ impl Manager {
         self.whole.get_mut(r.node)?.get_mut(r.output)?.take()
     }
 
-    /// Whether [`Manager::process_signal`] keeps every intermediate signal for
-    /// [`Manager::signals`]`(true)` (`true`), or only the requested ones (`false`, the
-    /// default: less memory and time).
+    /// Whether every intermediate signal is kept for [`Manager::signals`]`(true)` after
+    /// each chunk and after [`Manager::process_signal`] (`true`), or only the requested
+    /// ones (`false`, the default: less memory and time, and the concurrent executor
+    /// copies only what is asked for).
     pub fn set_keep_all(&mut self, keep: bool) {
         self.keep_all = keep;
+        self.sync_copied();
     }
 
     /// Returns every processor to its initial state (chunks in flight are finished and
@@ -927,9 +960,8 @@ impl Manager {
     }
 
     /// Signals of the graph: the requested ones, or (`all`) every processor output,
-    /// including intermediate ones (time, filterbank, innerhaircell, ...). After
-    /// [`Manager::process_signal`], intermediate signals are there only if
-    /// [`Manager::set_keep_all`] was on.
+    /// including intermediate ones (time, filterbank, innerhaircell, ...), which are
+    /// there only with [`Manager::set_keep_all`] on.
     pub fn signals(&self, all: bool) -> Vec<Signal<'_>> {
         let mut refs: Vec<OutputRef> = if all {
             self.graph
@@ -957,7 +989,8 @@ impl Manager {
         refs.into_iter().filter_map(|r| self.signal(r)).collect()
     }
 
-    /// Output `r`'s signal; `None` for one that the last `process_signal` did not keep.
+    /// Output `r`'s signal; `None` for an intermediate one not kept (see
+    /// [`Manager::set_keep_all`]).
     fn signal(&self, r: OutputRef) -> Option<Signal<'_>> {
         let node = &self.graph.nodes[r.node];
         let clock = self
@@ -976,7 +1009,8 @@ impl Manager {
             info: &node.infos[r.output],
             new: match (self.whole_shown, &self.engine) {
                 (true, _) => self.whole[r.node][r.output].as_ref()?,
-                (false, Some(e)) => e.block(r),
+                (false, _) if !self.is_read(r) => return None,
+                (false, Some(e)) => e.block(r)?,
                 (false, None) => &node.outputs[r.output],
             },
             source: r,
