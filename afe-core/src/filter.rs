@@ -242,7 +242,14 @@ fn run_lanes<const M: usize>(
     }
 }
 
-#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+#[cfg_attr(
+    not(feature = "no-avx512"),
+    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
+)]
+#[cfg_attr(
+    feature = "no-avx512",
+    multiversion::multiversion(targets("x86_64+avx2"))
+)]
 fn lanes_kernel<const M: usize, const V: usize>(
     (b, a): (&[f64], &[f64]),
     (z, lanes, first): (&mut [f64], usize, usize),

@@ -273,7 +273,14 @@ struct Limit {
 /// Runs the loops over `input` (`[time][channel]`) into `out`. Each step is a pass over
 /// the channels of one sample, so the divisions and state updates vectorise; the
 /// overshoot limitation, whose `exp` only applies above 1, is a pass of its own.
-#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2+fma"))]
+#[cfg_attr(
+    not(feature = "no-avx512"),
+    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2+fma"))
+)]
+#[cfg_attr(
+    feature = "no-avx512",
+    multiversion::multiversion(targets("x86_64+avx2+fma"))
+)]
 fn adapt(a: &mut Adaptation, input: &[f64], out: &mut [f64]) {
     let nc = a.min_level.len().max(1);
     for (x, y) in input.chunks_exact(nc).zip(out.chunks_exact_mut(nc)) {

@@ -258,7 +258,14 @@ fn clip(f: &[f64], method: ClipMethod, alpha: f64, g: &mut [f64]) {
 
 /// Windows each complete frame of `input` into columns and correlates every channel,
 /// into `out` (`[frame][channel][lag]`).
-#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2+fma"))]
+#[cfg_attr(
+    not(feature = "no-avx512"),
+    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2+fma"))
+)]
+#[cfg_attr(
+    feature = "no-avx512",
+    multiversion::multiversion(targets("x86_64+avx2+fma"))
+)]
 fn correlate_frames(ac: &mut Autocorrelation, input: &Block, out: &mut [f64]) {
     let nc = input.width();
     let w = ac.win.len();

@@ -326,7 +326,14 @@ type Energy = ([f64; LANES], [f64; LANES]);
 /// the differences with its neighbour (`L[p−1] − L[p]` at row `p/2 − 1` for an even `p`,
 /// `r[n−1] − r[n]` at row `n / 2` for an odd `n`). `WIDE`: at least `LANES` channels
 /// (else the first `nc` lanes are filled, the others stay zero).
-#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+#[cfg_attr(
+    not(feature = "no-avx512"),
+    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
+)]
+#[cfg_attr(
+    feature = "no-avx512",
+    multiversion::multiversion(targets("x86_64+avx2"))
+)]
 fn window_frames<'a, const G: usize, const WIDE: bool>(
     win: &[f64],
     (frame_l, frame_r): (Frame<'a>, Frame<'a>),
@@ -398,7 +405,14 @@ fn window_frames<'a, const G: usize, const WIDE: bool>(
 /// `acc[i] = Σ_n left[n + i] · right[n]` for every row `i` of `acc`, lanes apart, with
 /// `B` accumulators in registers per pass. Fused multiply-adds: one rounding per term,
 /// the same on every machine (a library call where the CPU lacks FMA).
-#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl+fma", "x86_64+avx2+fma"))]
+#[cfg_attr(
+    not(feature = "no-avx512"),
+    multiversion::multiversion(targets("x86_64+avx512f+avx512vl+fma", "x86_64+avx2+fma"))
+)]
+#[cfg_attr(
+    feature = "no-avx512",
+    multiversion::multiversion(targets("x86_64+avx2+fma"))
+)]
 fn dot_lags<const B: usize>(left: &[Lanes], right: &[Lanes], acc: &mut [Lanes]) {
     let w = right.len();
     for (j, out) in acc.chunks_exact_mut(B).enumerate() {

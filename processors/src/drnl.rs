@@ -386,7 +386,14 @@ fn sum_out<const W: usize>(lin: &[[f64; W]], nl: &[[f64; W]], out: &mut [f64], s
 /// Compiled for AVX-512 and AVX2 too, chosen at run time; every lane does the scalar
 /// operations in order, so the numbers depend neither on the instruction set nor on the
 /// lane.
-#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+#[cfg_attr(
+    not(feature = "no-avx512"),
+    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
+)]
+#[cfg_attr(
+    feature = "no-avx512",
+    multiversion::multiversion(targets("x86_64+avx2"))
+)]
 fn run_casp<const W: usize>(
     g: &mut Group<W>,
     delta: f64,
@@ -421,7 +428,14 @@ fn run_casp<const W: usize>(
 
 /// MAP: `lin = GT³(500·x)`, `nlin = GT³(compress(GT³(moc·x)))`, out `lin + nlin`, for
 /// one group over one time block of the middle-ear output (see [`run_casp`]).
-#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+#[cfg_attr(
+    not(feature = "no-avx512"),
+    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
+)]
+#[cfg_attr(
+    feature = "no-avx512",
+    multiversion::multiversion(targets("x86_64+avx2"))
+)]
 fn run_map<const W: usize>(
     g: &mut Group<W>,
     ct_bm: f64,

@@ -266,7 +266,14 @@ impl Gammatone {
 /// output `2·Re y`), so the output is bit-identical to a channel-by-channel evaluation,
 /// signed zeros and subnormals included. Compiled for AVX-512 and AVX2 too, chosen at
 /// run time.
-#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+#[cfg_attr(
+    not(feature = "no-avx512"),
+    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
+)]
+#[cfg_attr(
+    feature = "no-avx512",
+    multiversion::multiversion(targets("x86_64+avx2"))
+)]
 fn run_group<const M: usize, const W: usize>(
     g: &mut Group<W>,
     x: &[f64],

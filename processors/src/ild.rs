@@ -106,7 +106,14 @@ const LANES: usize = 8;
 /// `Σ (win·x)²` over the frame for the `V` vectors of channels starting at `starts`,
 /// written (not yet divided by the length) into `out`; each channel's terms are added
 /// in time order, as on the scalar path.
-#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+#[cfg_attr(
+    not(feature = "no-avx512"),
+    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
+)]
+#[cfg_attr(
+    feature = "no-avx512",
+    multiversion::multiversion(targets("x86_64+avx2"))
+)]
 fn power_lanes<'a, const V: usize>(
     win: &[f64],
     frame: Frame<'a>,

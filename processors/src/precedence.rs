@@ -275,13 +275,27 @@ fn dot_lanes(a: &[f64], b: &[f64]) -> f64 {
 }
 
 /// `Σ a[i]·b[i]` over the shorter length.
-#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+#[cfg_attr(
+    not(feature = "no-avx512"),
+    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
+)]
+#[cfg_attr(
+    feature = "no-avx512",
+    multiversion::multiversion(targets("x86_64+avx2"))
+)]
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     dot_lanes(a, b)
 }
 
 /// The frame's autocorrelation at lags `k·τ`, `k = 0..5` (0 from lag `len(x)` on).
-#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+#[cfg_attr(
+    not(feature = "no-avx512"),
+    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
+)]
+#[cfg_attr(
+    feature = "no-avx512",
+    multiversion::multiversion(targets("x86_64+avx2"))
+)]
 fn lag_products(x: &[f64], tau: usize) -> [f64; TAPS] {
     let mut r = [0.0; TAPS];
     for (k, rk) in r.iter_mut().enumerate() {
@@ -296,7 +310,14 @@ fn lag_products(x: &[f64], tau: usize) -> [f64; TAPS] {
 /// `out[m + maxLag] = Σ_j a[j + m]·b[j]` for `m = −maxLag..maxLag`, `out` being
 /// `2·maxLag + 1` long (calcXCorr with `'none'` scaling; zero where the signals do not
 /// overlap).
-#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+#[cfg_attr(
+    not(feature = "no-avx512"),
+    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
+)]
+#[cfg_attr(
+    feature = "no-avx512",
+    multiversion::multiversion(targets("x86_64+avx2"))
+)]
 fn xcorr(a: &[f64], b: &[f64], out: &mut [f64]) {
     let max_lag = (out.len() / 2) as isize;
     let (la, lb) = (a.len() as isize, b.len() as isize);
@@ -321,7 +342,14 @@ const TILE: usize = 8;
 
 /// Windows the frame (`[time][channel]`, `nc` wide) into `cols` (`[channel][time]`) and
 /// each channel's largest windowed value into `peaks` (NaN ignored, as MATLAB's `max`).
-#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+#[cfg_attr(
+    not(feature = "no-avx512"),
+    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
+)]
+#[cfg_attr(
+    feature = "no-avx512",
+    multiversion::multiversion(targets("x86_64+avx2"))
+)]
 fn window_columns<'a>(win: &[f64], frame: Frame<'a>, cols: &mut [f64], peaks: &mut [f64]) {
     let (nc, w) = (peaks.len(), win.len());
     peaks.fill(f64::NAN);
@@ -353,7 +381,14 @@ fn window_columns<'a>(win: &[f64], frame: Frame<'a>, cols: &mut [f64], peaks: &m
 /// Adds a channel's power spectrum `|x|²` to its cumulative weighted one
 /// (`power += |x|²·weight`, or `=` on the first frame) and to the summary spectrum
 /// (the raw power on the first frame, the cumulative weighted one after).
-#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+#[cfg_attr(
+    not(feature = "no-avx512"),
+    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
+)]
+#[cfg_attr(
+    feature = "no-avx512",
+    multiversion::multiversion(targets("x86_64+avx2"))
+)]
 fn accumulate_power(
     x: &[Complex64],
     power: &mut [f64],
@@ -800,7 +835,14 @@ impl FftBuffers {
 }
 
 /// `out[k] = fa[k]·conj(fb[k])`: the spectrum of the cross-correlation.
-#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+#[cfg_attr(
+    not(feature = "no-avx512"),
+    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
+)]
+#[cfg_attr(
+    feature = "no-avx512",
+    multiversion::multiversion(targets("x86_64+avx2"))
+)]
 fn conj_product(fa: &[Complex64], fb: &[Complex64], out: &mut [Complex64]) {
     for ((s, a), b) in out.iter_mut().zip(fa).zip(fb) {
         *s = Complex64::new(a.re * b.re + a.im * b.im, a.im * b.re - a.re * b.im);
@@ -810,7 +852,14 @@ fn conj_product(fa: &[Complex64], fb: &[Complex64], out: &mut [Complex64]) {
 /// `xcorr(S_l, S_r)` over lags `±(out.len()/2)` into `out`, from the full
 /// cross-correlation `r` of the frames (lags `−(W−1)..W−1`): as `S` is a sum of shifted
 /// copies of its frame, `xcorr(S_l, S_r)[m] = Σ_{q,p} c_q·d_p·R[m − qτ_l + pτ_r]`.
-#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+#[cfg_attr(
+    not(feature = "no-avx512"),
+    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
+)]
+#[cfg_attr(
+    feature = "no-avx512",
+    multiversion::multiversion(targets("x86_64+avx2"))
+)]
 fn short_xcorr(r: &[f64], ll: &LagRemoval, lr: &LagRemoval, out: &mut [f64]) {
     let span = r.len() as isize;
     let (half, nl) = ((span - 1) / 2, out.len() as isize);
