@@ -470,9 +470,16 @@ fn threads_trace_and_bench() {
     let events = t["traceEvents"].as_array().expect("events");
     let processed: Vec<&serde_json::Value> =
         events.iter().filter(|e| e["cat"] == "process").collect();
-    // 50 chunks × (time, 2 filterbanks, 2 IHC, 2 ratemaps, crosscorrelation, itd)
-    assert_eq!(processed.len(), 50 * 9);
-    assert!(processed.iter().any(|e| e["name"] == "crosscorrelation#1"));
+    // 50 chunks × (time, 2 filterbanks, 2 IHC, 2 ratemaps, crosscorrelation, itd), and
+    // the two halves of the crosscorrelation's channels, one per worker, that it joins
+    assert_eq!(processed.len(), 50 * 11);
+    for name in [
+        "crosscorrelation#1",
+        "crosscorrelation#1/part0",
+        "crosscorrelation#1/part1",
+    ] {
+        assert!(processed.iter().any(|e| e["name"] == name), "{name}");
+    }
     let never = tmp("never-traced.npz");
     let out = afe(&[
         "extract",

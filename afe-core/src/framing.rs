@@ -120,6 +120,11 @@ impl FrameBuffer {
     pub fn window(&self) -> usize {
         self.window
     }
+
+    /// Values per row.
+    pub fn width(&self) -> usize {
+        self.width
+    }
 }
 
 /// Window length in samples, `2·round(w_size_s·fs/2)`, evaluated in that order.

@@ -20,4 +20,4 @@ pub mod window;
 pub use block::{Block, SignalInfo, SignalKind};
 pub use error::{Error, Result};
 pub use params::{NoParams, ParamKind, ParamMap, ParamSpec, Params};
-pub use processor::Processor;
+pub use processor::{Part, Processor};

@@ -2,6 +2,14 @@
 
 use crate::block::Block;
 
+/// One share of a split processor (see [`Processor::split`]).
+pub struct Part {
+    /// Computes the share.
+    pub processor: Box<dyn Processor>,
+    /// Width of each of its output blocks (values per row).
+    pub widths: Vec<usize>,
+}
+
 /// One node's computation: a pure function of its state and the new input of a chunk.
 ///
 /// `inputs` holds the new input of this chunk, one block per parent output (one for a
@@ -37,4 +45,21 @@ pub trait Processor: Send {
     /// with a non-empty block; ignored by default, as the gammatone filterbank ignores
     /// the MOC in the AFE. [`Processor::reset`] undoes what it changed.
     fn receive_feedback(&mut self, _feedback: &Block) {}
+
+    /// For a processor whose channels are computed independently: up to `parts`
+    /// processors over consecutive channel ranges, each starting from this one's state,
+    /// reading the same inputs and writing its channels' share of each output row (in
+    /// order, the shares make the row). `None` where the processor does not split.
+    /// While its parts run, this processor runs as their [`Processor::join`] instead of
+    /// [`Processor::process`], which keeps its own state current, so the parts can be
+    /// dropped at any chunk boundary.
+    fn split(&self, _parts: usize) -> Option<Vec<Part>> {
+        None
+    }
+
+    /// With the new input of a chunk and its parts' outputs of that chunk (`parts[p]`:
+    /// part `p`'s output blocks), writes the whole outputs and moves its state on as
+    /// [`Processor::process`] would. Called only on a processor whose
+    /// [`Processor::split`] gave parts.
+    fn join(&mut self, _inputs: &[&Block], _parts: &[&[Block]], _outputs: &mut [Block]) {}
 }

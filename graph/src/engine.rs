@@ -16,7 +16,7 @@ use std::sync::Arc;
 use std::thread::{self, JoinHandle, Thread};
 use std::time::{Duration, Instant};
 
-use afe_core::{Block, Error, Processor, Result};
+use afe_core::{Block, Error, Part, Processor, Result};
 
 use crate::graph::{Graph, OutputRef, MAX_INPUTS};
 use crate::protocol::{consumed, is_ready, next_chunk, release, Links, NodeSync};
@@ -54,8 +54,14 @@ struct NodeRt {
     /// The feedback output this node takes from the previous chunk (see
     /// [`crate::protocol`]).
     feedback: Option<OutputRef>,
+    /// Where the node's processor is split: the table entries of its parts (after the
+    /// graph's nodes), whose outputs it joins (see [`Processor::split`]).
+    parts: Box<[usize]>,
     claimed_at_ns: AtomicU64,
 }
+
+/// Most parts a heavy node is split into (its join reads them beside its inputs).
+const MAX_PARTS: usize = 4;
 
 /// The compiled graph: synchronisation state, links, processors and slots.
 struct Table {
@@ -175,10 +181,10 @@ impl Shared {
         let ready = rt.claimed_at_ns.load(Ordering::Relaxed);
         let start = self.now_ns();
         // SAFETY: we hold the claim of `n`, so its processor and its slot `k % 2` (free:
-        // READY checked `readers_left == 0`) are ours alone; every parent has published
-        // chunk `k` into its slot `k % 2`, and a feedback source its chunk `k − 1` into
-        // its slot `(k + 1) % 2`, each untouched until we return our consumed-token in
-        // `release` below.
+        // READY checked `readers_left == 0`) are ours alone; every parent (the parts of a
+        // split node among them) has published chunk `k` into its slot `k % 2`, and a
+        // feedback source its chunk `k − 1` into its slot `(k + 1) % 2`, each untouched
+        // until we return our consumed-token in `release` below.
         #[allow(unsafe_code)]
         let ok = unsafe {
             let feedback = rt
@@ -192,12 +198,20 @@ impl Shared {
             }
             let outputs = &mut *rt.slots[slot].get();
             let processor = &mut *rt.processor.get();
+            let mut parts: [&[Block]; MAX_PARTS] = [&[]; MAX_PARTS];
+            for (dst, &p) in parts.iter_mut().zip(rt.parts.iter()) {
+                *dst = &*table.rt[p].slots[slot].get();
+            }
             catch_unwind(AssertUnwindSafe(|| {
                 if let Some(p) = processor.as_mut() {
                     if let Some(f) = feedback.filter(|f| !f.is_empty()) {
                         p.receive_feedback(f);
                     }
-                    p.process(&inputs[..rt.inputs.len()], outputs);
+                    let inputs = &inputs[..rt.inputs.len()];
+                    match rt.parts.len() {
+                        0 => p.process(inputs, outputs),
+                        n => p.join(inputs, &parts[..n], outputs),
+                    }
                 }
             }))
             .is_ok()
@@ -536,40 +550,70 @@ impl Engine {
     /// quiescent: call [`Engine::quiesce`] first). Chunk counting restarts at 0.
     pub(crate) fn install(&mut self, graph: &mut Graph) {
         let n = graph.nodes.len();
-        let mut children: Vec<Vec<usize>> = vec![Vec::new(); n];
-        let mut feedback_to: Vec<Vec<usize>> = vec![Vec::new(); n];
-        for (i, node) in graph.nodes.iter().enumerate() {
-            for p in &node.parents {
-                if !children[p.node].contains(&i) {
-                    children[p.node].push(i);
+        // a heavy node whose processor splits runs as parts, one per worker, appended
+        // after the graph's nodes; the node joins them
+        let parts_per_node = self.threads().min(MAX_PARTS);
+        let mut split: Vec<(usize, Vec<Part>)> = Vec::new();
+        if parts_per_node > 1 {
+            for (i, node) in graph.nodes.iter().enumerate() {
+                if let Some(parts) = node
+                    .processor
+                    .as_ref()
+                    .and_then(|p| p.split(parts_per_node))
+                {
+                    split.push((i, parts));
                 }
             }
+        }
+        let total = n + split.iter().map(|(_, p)| p.len()).sum::<usize>();
+        let mut inputs: Vec<Vec<OutputRef>> =
+            graph.nodes.iter().map(|n| n.parents.clone()).collect();
+        let mut part_entries: Vec<Vec<usize>> = vec![Vec::new(); n];
+        for (i, parts) in &split {
+            for _ in parts {
+                part_entries[*i].push(inputs.len());
+                inputs.push(graph.nodes[*i].parents.clone());
+            }
+        }
+        let mut children: Vec<Vec<usize>> = vec![Vec::new(); total];
+        let mut feedback_to: Vec<Vec<usize>> = vec![Vec::new(); total];
+        for (i, own) in inputs.iter().enumerate() {
+            let parents = own.iter().map(|p| p.node);
+            for p in parents.chain(part_entries.get(i).into_iter().flatten().copied()) {
+                if !children[p].contains(&i) {
+                    children[p].push(i);
+                }
+            }
+        }
+        for (i, node) in graph.nodes.iter().enumerate() {
             if let Some(f) = node.feedback_from {
                 feedback_to[f.node].push(i);
             }
         }
-        let links: Vec<Links> = graph
-            .nodes
-            .iter()
-            .enumerate()
-            .map(|(i, node)| {
-                let mut parents: Vec<usize> = node.parents.iter().map(|p| p.node).collect();
+        let links: Vec<Links> = (0..total)
+            .map(|i| {
+                let own_parts = part_entries.get(i).into_iter().flatten().copied();
+                let mut parents: Vec<usize> =
+                    inputs[i].iter().map(|p| p.node).chain(own_parts).collect();
                 parents.sort_unstable();
                 parents.dedup();
-                let sink = u32::from(i != 0);
+                // the caller collects the graph's nodes, not the input or the parts
+                let sink = u32::from(i != 0 && i < n);
+                let feedback_from = graph.nodes.get(i).and_then(|n| n.feedback_from);
                 Links {
                     parents: parents.into(),
                     children: children[i].clone().into(),
                     readers: (children[i].len() + feedback_to[i].len()) as u32 + sink,
-                    feedback_from: node.feedback_from.map(|f| f.node).into_iter().collect(),
+                    feedback_from: feedback_from.map(|f| f.node).into_iter().collect(),
                     feedback_to: feedback_to[i].clone().into(),
                 }
             })
             .collect();
-        let rt: Vec<NodeRt> = graph
+        let mut rt: Vec<NodeRt> = graph
             .nodes
             .iter_mut()
-            .map(|node| NodeRt {
+            .zip(&part_entries)
+            .map(|(node, parts)| NodeRt {
                 label: format!("{}#{}", node.name, node.instance),
                 processor: UnsafeCell::new(node.processor.take()),
                 // slot 1 stands for chunk −1: a feedback source's last output before
@@ -580,10 +624,26 @@ impl Engine {
                 ],
                 inputs: node.parents.clone().into(),
                 feedback: node.feedback_from,
+                parts: parts.clone().into(),
                 claimed_at_ns: AtomicU64::new(0),
             })
             .collect();
-        let sync: Vec<NodeSync> = (0..n).map(|_| NodeSync::new()).collect();
+        for (i, parts) in split {
+            let label = rt[i].label.clone();
+            for (j, part) in parts.into_iter().enumerate() {
+                let blocks = || part.widths.iter().map(|&w| Block::new(w)).collect();
+                rt.push(NodeRt {
+                    label: format!("{label}/part{j}"),
+                    processor: UnsafeCell::new(Some(part.processor)),
+                    slots: [UnsafeCell::new(blocks()), UnsafeCell::new(blocks())],
+                    inputs: graph.nodes[i].parents.clone().into(),
+                    feedback: None,
+                    parts: Box::new([]),
+                    claimed_at_ns: AtomicU64::new(0),
+                });
+            }
+        }
+        let sync: Vec<NodeSync> = (0..total).map(|_| NodeSync::new()).collect();
         for (s, targets) in sync.iter().zip(&feedback_to) {
             s.readers_left[1].store(targets.len() as u32, Ordering::Relaxed);
         }
@@ -591,7 +651,7 @@ impl Engine {
             sync,
             links,
             rt,
-            ready: ReadySet::new(n),
+            ready: ReadySet::new(total),
         };
         let old = self.with_table_swapped(|shared| {
             // SAFETY: no worker is active and the pool is quiescent.

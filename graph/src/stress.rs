@@ -1,11 +1,13 @@
 //! Stress test of the concurrent scheduler: random DAGs of up to 64 nodes with random
 //! fan-in (1–2 parents) and fan-out, random feedback edges and random per-node work, run over many chunks on
-//! 1..8 workers, must give exactly the sequential executor's output. A stall fails with
-//! a dump of every node's protocol state (the engine's watchdog) instead of hanging.
+//! 1..8 workers, must give exactly the sequential executor's output; some nodes split
+//! into parts that workers run at once (as the cross-correlation's channel ranges). A
+//! stall fails with a dump of every node's protocol state (the engine's watchdog) instead
+//! of hanging.
 
 use std::time::Duration;
 
-use afe_core::{Block, ParamMap, Processor, SignalInfo};
+use afe_core::{Block, ParamMap, Part, Processor, SignalInfo};
 
 use crate::engine::Engine;
 use crate::graph::{Channel, Graph, Node, OutputRef};
@@ -50,6 +52,77 @@ impl Processor for Mix {
     }
 }
 
+/// Two channels mixed as [`Mix`] mixes, each from its own state: a processor that splits
+/// into one part per channel. Its join takes the parts' values and moves its own states on
+/// by computing them again, so a part's torn or stale slot changes the output.
+#[derive(Clone)]
+struct Halves {
+    id: u64,
+    states: [u64; 2],
+    work: u32,
+    /// As a part: the one channel it computes.
+    only: Option<usize>,
+}
+
+impl Halves {
+    fn step(&mut self, c: usize, inputs: &[&Block], t: usize) -> f64 {
+        let mut h = self.states[c] ^ self.id ^ c as u64;
+        for input in inputs {
+            h = h.rotate_left(17) ^ input.as_slice()[t].to_bits();
+            h = h.wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        }
+        for _ in 0..self.work {
+            h = h
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+        }
+        self.states[c] = h;
+        (h >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+impl Processor for Halves {
+    fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
+        let n = inputs[0].frames();
+        let channels = self.only.map_or(0..2, |c| c..c + 1);
+        let out = outputs[0].reset_to(n);
+        for t in 0..n {
+            for (i, c) in channels.clone().enumerate() {
+                out[t * channels.len() + i] = self.step(c, inputs, t);
+            }
+        }
+    }
+
+    fn reset(&mut self) {
+        self.states = [0; 2];
+    }
+
+    fn split(&self, parts: usize) -> Option<Vec<Part>> {
+        (parts >= 2 && self.only.is_none()).then(|| {
+            (0..2)
+                .map(|c| Part {
+                    processor: Box::new(Halves {
+                        only: Some(c),
+                        ..self.clone()
+                    }),
+                    widths: vec![1],
+                })
+                .collect()
+        })
+    }
+
+    fn join(&mut self, inputs: &[&Block], parts: &[&[Block]], outputs: &mut [Block]) {
+        let n = inputs[0].frames();
+        let out = outputs[0].reset_to(n);
+        for t in 0..n {
+            for c in 0..2 {
+                self.step(c, inputs, t);
+                out[2 * t + c] = parts[c][0].as_slice()[t];
+            }
+        }
+    }
+}
+
 struct Rng(u64);
 
 impl Rng {
@@ -85,6 +158,21 @@ fn random_graph(seed: u64, nodes: usize) -> Graph {
                 parents.push(r);
             }
         }
+        let (id, work) = (i as u64, rng.below(64) as u32);
+        let (processor, width): (Box<dyn Processor>, usize) = if rng.below(4) == 0 {
+            let states = [0; 2];
+            (
+                Box::new(Halves {
+                    id,
+                    states,
+                    work,
+                    only: None,
+                }),
+                2,
+            )
+        } else {
+            (Box::new(Mix { id, state: 0, work }), 1)
+        };
         g.nodes.push(Node {
             name: "mix",
             def: None,
@@ -93,12 +181,8 @@ fn random_graph(seed: u64, nodes: usize) -> Graph {
             params: ParamMap::new(),
             parents,
             feedback_from: None,
-            processor: Some(Box::new(Mix {
-                id: i as u64,
-                state: 0,
-                work: rng.below(64) as u32,
-            })),
-            outputs: vec![Block::new(1)],
+            processor: Some(processor),
+            outputs: vec![Block::new(width)],
             infos: vec![SignalInfo::time_domain(1000.0)],
             channels: vec![Channel::Mono],
         });

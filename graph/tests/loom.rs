@@ -169,6 +169,13 @@ fn fan_out_to_two_children() {
     check(&[&[], &[0], &[1], &[1]]);
 }
 
+/// A node split into two parts, as the engine lays it out: input → a → {part 0, part 1}
+/// (table entries after the node), and the node joining both parts beside its own input.
+#[test]
+fn split_node_joins_its_parts() {
+    check(&[&[], &[0], &[1, 3, 4], &[1], &[1]]);
+}
+
 /// input → a → b → c, with c feeding a back: a's chunk k waits for c's chunk k − 1, and
 /// c's slot of chunk k − 1 stays pinned until a has read it.
 #[test]

@@ -2,12 +2,13 @@
 //! lags −maxLag..maxLag (spec 18-crosscorrelation): by dot products over even and odd
 //! samples for short lag ranges, by zero-padded real FFTs for long ones.
 
+use std::ops::Range;
 use std::sync::Arc;
 
 use afe_core::framing::Frame;
 use afe_core::lanes::vector_start;
 use afe_core::window::{window, WINDOW_NAMES};
-use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
+use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Part, Processor, Result, SignalInfo};
 use realfft::num_complex::Complex64;
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use serde::{Deserialize, Serialize};
@@ -79,6 +80,8 @@ impl Params for CrosscorrelationParams {
 pub struct Crosscorrelation {
     frames: EarFrames,
     engine: Engine,
+    /// The channels it outputs: all (`None`) or, as a part of a split, this range.
+    part: Option<Range<usize>>,
 }
 
 /// How the lags are computed: the choice depends only on the configuration.
@@ -196,6 +199,7 @@ impl Crosscorrelation {
         let cc = Crosscorrelation {
             frames: EarFrames::new(nc, w, h),
             engine,
+            part: None,
         };
         let lags_s = (0..=2 * max_lag)
             .map(|i| (i as f64 - max_lag as f64) / fs)
@@ -253,9 +257,31 @@ impl Direct {
         }
     }
 
-    /// Correlates every channel of one frame pair (`[time][channel]`) into `out`
-    /// (`[channel][lag]`).
-    fn correlate(&mut self, frame_l: Frame<'_>, frame_r: Frame<'_>, nc: usize, out: &mut [f64]) {
+    /// The same computation for groups `groups` only (their lanes compute what they
+    /// compute here, so a part's channels get the same values bit for bit).
+    fn part(&self, groups: Range<usize>) -> Direct {
+        let half = self.win.len() / 2;
+        let n = groups.len();
+        Direct {
+            starts: self.starts[groups].to_vec(),
+            left: vec![Lanes::default(); n * 3 * (half + self.half_lags)],
+            right: vec![Lanes::default(); n * 3 * half],
+            acc: vec![Lanes::default(); 3 * self.half_lags],
+            energy: vec![([0.0; LANES], [0.0; LANES]); n],
+            win: self.win.clone(),
+            ..*self
+        }
+    }
+
+    /// Correlates the channels of its groups of one frame pair (`[time][channel]`, `nc`
+    /// wide) into `out` (`[channel][lag]`, from channel `first` on).
+    fn correlate(
+        &mut self,
+        frame_l: Frame<'_>,
+        frame_r: Frame<'_>,
+        (nc, first): (usize, usize),
+        out: &mut [f64],
+    ) {
         let half = self.win.len() / 2;
         let (rows_l, k) = (half + self.half_lags, self.half_lags);
         let groups = self.starts.len();
@@ -298,7 +324,8 @@ impl Direct {
             let (o, d) = rest.split_at(k);
             for l in 0..LANES.min(nc) {
                 let norm = f64::EPSILON + (el[l] * er[l]).sqrt();
-                let out = &mut out[(c0 + l) * nl..(c0 + l + 1) * nl];
+                let c = c0 + l - first;
+                let out = &mut out[c * nl..(c + 1) * nl];
                 for (i, v) in out.iter_mut().enumerate() {
                     let j = i / 2;
                     let sum = if i % 2 == 0 {
@@ -514,23 +541,60 @@ impl FftEngine {
     }
 }
 
+impl Crosscorrelation {
+    fn max_lag(&self) -> usize {
+        match &self.engine {
+            Engine::Direct(d) => d.max_lag,
+            Engine::Fft(f) => f.max_lag,
+        }
+    }
+
+    /// Channel ranges of up to `parts` parts over `nc` channels: for the direct method,
+    /// whole groups, cut only where a group does not overlap the next (see
+    /// [`vector_start`]), so each part's lanes are the groups of one call.
+    fn part_ranges(&self, parts: usize, nc: usize) -> Vec<(Range<usize>, Range<usize>)> {
+        match &self.engine {
+            Engine::Direct(d) => {
+                let groups = d.starts.len();
+                let mut cuts = vec![0];
+                for p in 1..parts.min(groups) {
+                    let g = p * groups / parts;
+                    if g > *cuts.last().unwrap_or(&0) && d.starts[g] == g * LANES {
+                        cuts.push(g);
+                    }
+                }
+                cuts.push(groups);
+                cuts.windows(2)
+                    .map(|w| {
+                        let end = if w[1] == groups { nc } else { d.starts[w[1]] };
+                        (d.starts[w[0]]..end, w[0]..w[1])
+                    })
+                    .collect()
+            }
+            Engine::Fft(_) => {
+                let parts = parts.min(nc).max(1);
+                (0..parts)
+                    .map(|p| (p * nc / parts..(p + 1) * nc / parts, 0..0))
+                    .collect()
+            }
+        }
+    }
+}
+
 impl Processor for Crosscorrelation {
     fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
         let nc = inputs[0].width();
         let ears = (inputs[0].as_slice(), inputs[1].as_slice());
         let n = self.frames.available(ears.0, ears.1);
-        let max_lag = match &self.engine {
-            Engine::Direct(d) => d.max_lag,
-            Engine::Fft(f) => f.max_lag,
-        };
-        let nl = 2 * max_lag + 1;
+        let nl = 2 * self.max_lag() + 1;
+        let channels = self.part.clone().unwrap_or(0..nc);
         let out = outputs[0].resize_to(n);
-        for (k, out) in out.chunks_exact_mut(nc * nl).enumerate() {
+        for (k, out) in out.chunks_exact_mut(channels.len() * nl).enumerate() {
             let (fl, fr) = self.frames.frame(ears, k);
             match &mut self.engine {
-                Engine::Direct(d) => d.correlate(fl, fr, nc, out),
+                Engine::Direct(d) => d.correlate(fl, fr, (nc, channels.start), out),
                 Engine::Fft(f) => {
-                    for (c, o) in out.chunks_exact_mut(nl).enumerate() {
+                    for (c, o) in channels.clone().zip(out.chunks_exact_mut(nl)) {
                         f.correlate(fl, fr, c, o);
                     }
                 }
@@ -541,6 +605,49 @@ impl Processor for Crosscorrelation {
 
     fn reset(&mut self) {
         self.frames.reset();
+    }
+
+    /// Splits the channels (whole groups of the direct method) into up to `parts` ranges.
+    fn split(&self, parts: usize) -> Option<Vec<Part>> {
+        let nc = self.frames.width();
+        let ranges = self.part_ranges(parts, nc);
+        if ranges.len() < 2 || self.part.is_some() {
+            return None;
+        }
+        let nl = 2 * self.max_lag() + 1;
+        let part = |(channels, groups): (Range<usize>, Range<usize>)| {
+            let engine = match &self.engine {
+                Engine::Direct(d) => Engine::Direct(d.part(groups)),
+                Engine::Fft(f) => Engine::Fft(Box::new(FftEngine::new(f.win.clone(), f.max_lag))),
+            };
+            Part {
+                widths: vec![channels.len() * nl],
+                processor: Box::new(Crosscorrelation {
+                    frames: self.frames.clone(),
+                    engine,
+                    part: Some(channels),
+                }),
+            }
+        };
+        Some(ranges.into_iter().map(part).collect())
+    }
+
+    /// Each output row is the parts' rows side by side; the framing moves on as in
+    /// `process`.
+    fn join(&mut self, inputs: &[&Block], parts: &[&[Block]], outputs: &mut [Block]) {
+        let ears = (inputs[0].as_slice(), inputs[1].as_slice());
+        let n = self.frames.available(ears.0, ears.1);
+        let row_width = outputs[0].width();
+        let out = outputs[0].resize_to(n);
+        let mut at = 0;
+        for part in parts {
+            let width = part[0].width();
+            for (row, share) in out.chunks_exact_mut(row_width).zip(part[0].rows()) {
+                row[at..at + width].copy_from_slice(share);
+            }
+            at += width;
+        }
+        self.frames.advance(ears.0, ears.1, n);
     }
 }
 
@@ -565,6 +672,84 @@ pub static REQUEST: RequestDef = request_def::<Crosscorrelation>();
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Parts over channel ranges, joined, give the unsplit output bit for bit, for the
+    /// direct method (groups cut where they do not overlap) and the FFT, over chunks
+    /// with and without complete frames; where no cut is possible there is no split.
+    #[test]
+    fn split_parts_joined_equal_one_processor() {
+        let direct = CrosscorrelationParams::default();
+        // lags as long as a 100-ms window: the FFT method
+        let fft = CrosscorrelationParams {
+            w_size_sec: 0.1,
+            h_size_sec: 0.05,
+            max_delay_sec: 0.1,
+            ..Default::default()
+        };
+        let cases = [
+            (31, &direct, 2, 2),
+            (32, &direct, 3, 3),
+            (16, &direct, 2, 2),
+            (9, &direct, 2, 0),
+            (6, &direct, 2, 0),
+            (5, &fft, 2, 2),
+        ];
+        for (nc, p, parts, expected) in cases {
+            let fs = 16000.0;
+            let cf = (0..nc).map(|c| 100.0 * (c + 1) as f64).collect();
+            let info = SignalInfo::time_frequency(fs, cf);
+            let (mut whole, out_info) = Crosscorrelation::new(p, &info).expect("valid");
+            let (mut joined, _) = Crosscorrelation::new(p, &info).expect("valid");
+            assert_eq!(
+                matches!(whole.engine, Engine::Fft(_)),
+                std::ptr::eq(p, &fft),
+                "{nc}"
+            );
+            let mut state = 7u64;
+            let mut noise = move || {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (state >> 11) as f64 / (1u64 << 53) as f64
+            };
+            let mut split: Option<Vec<Part>> = None;
+            for (k, len) in [100, 400, 7, 1000, 3333, 1].into_iter().enumerate() {
+                let l = Block::from_vec((0..len * nc).map(|_| noise()).collect(), nc);
+                let r = Block::from_vec((0..len * nc).map(|_| noise()).collect(), nc);
+                let mut want = vec![Block::new(out_info.width())];
+                whole.process(&[&l, &r], &mut want);
+                // split after the first chunk, so that the parts start from a state
+                if k == 1 {
+                    split = joined.split(parts);
+                }
+                let mut got = vec![Block::new(out_info.width())];
+                match split.as_mut() {
+                    Some(split) => {
+                        let mut shares: Vec<Vec<Block>> = Vec::new();
+                        for part in split.iter_mut() {
+                            let mut out = vec![Block::new(part.widths[0])];
+                            part.processor.process(&[&l, &r], &mut out);
+                            shares.push(out);
+                        }
+                        let views: Vec<&[Block]> = shares.iter().map(Vec::as_slice).collect();
+                        joined.join(&[&l, &r], &views, &mut got);
+                    }
+                    None => joined.process(&[&l, &r], &mut got),
+                }
+                assert_eq!(
+                    got[0].as_slice(),
+                    want[0].as_slice(),
+                    "{nc} channels, chunk {k}"
+                );
+            }
+            // 9 channels: groups at 0 and 1 overlap; 6: one group
+            assert_eq!(
+                split.as_ref().map_or(0, Vec::len),
+                expected,
+                "{nc} channels"
+            );
+        }
+    }
 
     #[test]
     fn specs_match_struct() {
@@ -640,7 +825,7 @@ mod tests {
                 for lag_block in [4, 5, 8, 9, 10, 11, 12] {
                     let mut direct = Direct::with_lag_block(win.clone(), max_lag, nc, lag_block);
                     let mut a = vec![0.0; nc * nl];
-                    direct.correlate(fl, fr, nc, &mut a);
+                    direct.correlate(fl, fr, (nc, 0), &mut a);
                     for (i, (u, v)) in a.iter().zip(&b).enumerate() {
                         let (c, lag) = (i / nl, i % nl);
                         assert!(

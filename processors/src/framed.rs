@@ -112,6 +112,11 @@ impl EarFrames {
         self.right.advance(right, frames);
     }
 
+    /// Values per row.
+    pub fn width(&self) -> usize {
+        self.left.width()
+    }
+
     /// Forgets the kept rows of both ears.
     pub fn reset(&mut self) {
         self.left.reset();
