@@ -156,6 +156,10 @@ pub const MAX_AMPLITUDE: f64 = 1e100;
 /// bit-identical to one call, and the intermediate signals stay in cache.
 pub const WHOLE_SIGNAL_BLOCK: usize = 4096;
 
+/// Chunks longer than this (samples) go through a chunk-invariant graph in blocks of
+/// [`WHOLE_SIGNAL_BLOCK`].
+const LONG_CHUNK: usize = 4 * WHOLE_SIGNAL_BLOCK;
+
 /// Default bound (MB) on the intermediate signals a whole-signal call may hold beyond the
 /// requested outputs (e.g. the joined filterbank output under the Hilbert IHC); the
 /// environment variable `AFE_WHOLE_SIGNAL_LIMIT_MB` replaces it.
@@ -563,8 +567,49 @@ impl Manager {
         while self.in_flight() > 0 {
             self.collect_chunk()?;
         }
+        let len = chunk.first().map_or(0, |c| c.len());
+        if len > LONG_CHUNK && self.is_chunk_invariant() {
+            return self.process_long_chunk(chunk);
+        }
         self.submit_chunk(chunk)?;
         self.collect_chunk()
+    }
+
+    /// A long chunk through a chunk-invariant graph, in blocks (bit-identical), keeping
+    /// only the outputs shown ([`Manager::set_keep_all`]): its intermediate signals are
+    /// never held whole, so memory does not grow with the chunk's length.
+    fn process_long_chunk(&mut self, chunk: &[&[f64]]) -> Result<()> {
+        self.check_chunk(chunk)?;
+        let before: Vec<Vec<(u64, u64)>> = self
+            .clocks
+            .iter()
+            .map(|c| c.iter().map(|c| (c.since, c.given)).collect())
+            .collect();
+        let mut whole = self.whole_buffers(&vec![true; self.graph.nodes.len()]);
+        let len = chunk[0].len();
+        for start in (0..len).step_by(WHOLE_SIGNAL_BLOCK) {
+            let end = (start + WHOLE_SIGNAL_BLOCK).min(len);
+            let part: Vec<&[f64]> = chunk.iter().map(|c| &c[start..end]).collect();
+            self.submit_chunk(&part)?;
+            if self.in_flight() >= self.pipeline_depth() {
+                self.collect_chunk()?;
+                self.append_outputs(&mut whole);
+            }
+        }
+        while self.in_flight() > 0 {
+            self.collect_chunk()?;
+            self.append_outputs(&mut whole);
+        }
+        self.whole = whole;
+        self.whole_shown = true;
+        // the chunk's first frame is the first of its first block
+        for (clocks, before) in self.clocks.iter_mut().zip(before) {
+            for (c, (since, given)) in clocks.iter_mut().zip(before) {
+                c.first_since = since;
+                c.first_given = given;
+            }
+        }
+        Ok(())
     }
 
     /// Starts processing the next chunk without waiting for it: with the concurrent
