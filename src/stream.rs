@@ -425,6 +425,8 @@ pub fn run<Src: Source>(
     for r in &job.requests {
         mgr.add_request(r, &job.params)?;
     }
+    // every buffer sized for a block before the audio starts: nothing allocates on it
+    mgr.prepare(block)?;
     let mut feeder = Feeder::new(source, limit)?;
     let mut consumer = Consumer {
         reader: Reader::new(feeder.port(), 0),

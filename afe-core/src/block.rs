@@ -212,6 +212,27 @@ impl Block {
         }
     }
 
+    /// An empty block of `width`-value rows with room for `frames` rows.
+    pub fn with_room(width: usize, frames: usize) -> Self {
+        Block {
+            data: Vec::with_capacity(width.saturating_mul(frames)),
+            width,
+        }
+    }
+
+    /// An empty block as wide as this one, with as much room.
+    pub fn empty_like(&self) -> Self {
+        Block {
+            data: Vec::with_capacity(self.data.capacity()),
+            width: self.width,
+        }
+    }
+
+    /// Rows it holds without reallocating.
+    pub fn room(&self) -> usize {
+        self.data.capacity().checked_div(self.width).unwrap_or(0)
+    }
+
     /// A block holding `data` as rows of `width` values.
     ///
     /// # Panics

@@ -12,7 +12,7 @@
 /// chunking, which makes every framed processor chunk-invariant. Frames are read over
 /// the kept rows followed by the new chunk, which is borrowed, not copied: only the rows
 /// that later frames still need are kept, at [`FrameBuffer::advance`].
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, PartialEq)]
 pub struct FrameBuffer {
     width: usize,
     window: usize,
@@ -41,6 +41,16 @@ impl<'a> Frame<'a> {
         let (head, tail) = (self.head, self.tail);
         head.chunks_exact(self.width)
             .chain(tail.chunks_exact(self.width))
+    }
+}
+
+/// A copy with as much room as the original, so that a copy made before the audio
+/// starts (a split processor's part) never grows on the audio path.
+impl Clone for FrameBuffer {
+    fn clone(&self) -> Self {
+        let mut kept = Vec::with_capacity(self.kept.capacity());
+        kept.extend_from_slice(&self.kept);
+        FrameBuffer { kept, ..*self }
     }
 }
 

@@ -619,8 +619,17 @@ impl Engine {
                 // slot 1 stands for chunk −1: a feedback source's last output before
                 // the table was built, which its targets take with their chunk 0
                 slots: [
-                    UnsafeCell::new(node.outputs.iter().map(|b| Block::new(b.width())).collect()),
-                    UnsafeCell::new(node.outputs.clone()),
+                    UnsafeCell::new(node.outputs.iter().map(Block::empty_like).collect()),
+                    UnsafeCell::new(
+                        node.outputs
+                            .iter()
+                            .map(|b| {
+                                let mut slot = b.empty_like();
+                                slot.extend_from(b);
+                                slot
+                            })
+                            .collect(),
+                    ),
                 ],
                 inputs: node.parents.clone().into(),
                 feedback: node.feedback_from,
@@ -630,8 +639,20 @@ impl Engine {
             .collect();
         for (i, parts) in split {
             let label = rt[i].label.clone();
+            // room for as many rows as the node's own blocks (see `Manager::prepare`)
+            let rows = graph.nodes[i]
+                .outputs
+                .iter()
+                .map(Block::room)
+                .max()
+                .unwrap_or(0);
             for (j, part) in parts.into_iter().enumerate() {
-                let blocks = || part.widths.iter().map(|&w| Block::new(w)).collect();
+                let blocks = || {
+                    part.widths
+                        .iter()
+                        .map(|&w| Block::with_room(w, rows))
+                        .collect()
+                };
                 rt.push(NodeRt {
                     label: format!("{label}/part{j}"),
                     processor: UnsafeCell::new(Some(part.processor)),
@@ -664,7 +685,7 @@ impl Engine {
         self.views = graph
             .nodes
             .iter()
-            .map(|n| n.outputs.iter().map(|b| Block::new(b.width())).collect())
+            .map(|n| n.outputs.iter().map(Block::empty_like).collect())
             .collect();
         self.frames = graph
             .nodes

@@ -156,6 +156,9 @@ pub const MAX_AMPLITUDE: f64 = 1e100;
 /// bit-identical to one call, and the intermediate signals stay in cache.
 pub const WHOLE_SIGNAL_BLOCK: usize = 4096;
 
+/// Largest chunk (samples) [`Manager::prepare`] sizes buffers for: 10 s at 96 kHz.
+pub const MAX_PREPARED_CHUNK: usize = 960_000;
+
 /// Chunks longer than this (samples) go through a chunk-invariant graph in blocks of
 /// [`WHOLE_SIGNAL_BLOCK`].
 const LONG_CHUNK: usize = 4 * WHOLE_SIGNAL_BLOCK;
@@ -610,6 +613,36 @@ impl Manager {
             }
         }
         Ok(())
+    }
+
+    /// Sizes every output block and every processor's buffers for chunks of up to
+    /// `max_chunk` samples before the first chunk, so that no chunk up to that size
+    /// allocates on the audio path, the first ones included: two silent chunks of that
+    /// size run through the processors on this thread, which are then reset. Only before
+    /// the first chunk (or after [`Manager::reset`]); a request added later is sized by
+    /// its first chunks.
+    pub fn prepare(&mut self, max_chunk: usize) -> Result<()> {
+        if self.position != 0 {
+            return Err(Error::InvalidInput(
+                "prepare sizes the buffers before the stream starts: call it before the first chunk or after reset".into(),
+            ));
+        }
+        if !(1..=MAX_PREPARED_CHUNK).contains(&max_chunk) {
+            return Err(Error::InvalidInput(format!(
+                "prepare({max_chunk}): give the largest chunk, 1 to {MAX_PREPARED_CHUNK} samples"
+            )));
+        }
+        let silence = vec![0.0; max_chunk];
+        self.edit(|m| {
+            let chunk: Vec<&[f64]> = (0..m.ears).map(|_| silence.as_slice()).collect();
+            // the second chunk also meets the rows the first one left for later frames
+            for _ in 0..2 {
+                m.graph.load_input(&chunk);
+                m.graph.run_sequential();
+            }
+            m.graph.reset();
+            Ok(())
+        })
     }
 
     /// Starts processing the next chunk without waiting for it: with the concurrent

@@ -1,6 +1,7 @@
-//! The audio path allocates nothing in steady state: once every processor has seen a
-//! chunk of the size in use, the scheduler's worker threads make no allocation at all
-//! (a counting global allocator checks it on the real {ratemap, ild, itd, ic} graph).
+//! The audio path allocates nothing: after `Manager::prepare` with the chunk size in use,
+//! the scheduler's worker threads make no allocation at all, from the first chunk on (a
+//! counting global allocator checks it on the real {ratemap, ild, itd, ic} graph, with
+//! the cross-correlation split over the workers).
 
 #![allow(unsafe_code)]
 
@@ -44,45 +45,41 @@ unsafe impl GlobalAlloc for Counting {
 static ALLOCATOR: Counting = Counting;
 
 #[test]
-fn workers_do_not_allocate_in_steady_state() {
+fn workers_do_not_allocate_after_prepare() {
     let fs = 44100.0;
     let x: Vec<f64> = (0..44100).map(|t| (0.05 * t as f64).sin() * 0.3).collect();
     let y: Vec<f64> = x.iter().map(|v| 0.5 * v).collect();
     for threads in [1, 2, 4] {
-        let mut mgr = Manager::with_threads(fs, 2, threads).expect("manager");
-        let big: ParamMap = [("fb_nChannels".to_string(), json!(40))]
-            .into_iter()
-            .collect();
-        for p in [ParamMap::new(), big] {
-            for r in ["ratemap", "ild", "itd", "ic"] {
-                mgr.add_request(r, &p).expect("request");
+        for prepared in [false, true] {
+            let mut mgr = Manager::with_threads(fs, 2, threads).expect("manager");
+            let big: ParamMap = [("fb_nChannels".to_string(), json!(40))]
+                .into_iter()
+                .collect();
+            for p in [ParamMap::new(), big] {
+                for r in ["ratemap", "ild", "itd", "ic"] {
+                    mgr.add_request(r, &p).expect("request");
+                }
             }
-        }
-        let mut chunks = x.chunks(441).zip(y.chunks(441));
-        let mut feed = |n: usize, mgr: &mut Manager| {
-            for (l, r) in chunks.by_ref().take(n) {
+            if prepared {
+                mgr.prepare(441).expect("prepare");
+            }
+            let start = WORKER_ALLOCATIONS.load(Ordering::SeqCst);
+            for (l, r) in x.chunks(441).zip(y.chunks(441)).take(90) {
                 mgr.submit_chunk(&[l, r]).expect("submit");
                 if mgr.in_flight() >= mgr.pipeline_depth() {
                     mgr.collect_chunk().expect("collect");
                 }
             }
-        };
-        let start = WORKER_ALLOCATIONS.load(Ordering::SeqCst);
-        feed(10, &mut mgr); // first chunks: buffers grow to their steady size
-        let before = WORKER_ALLOCATIONS.load(Ordering::SeqCst);
-        assert!(
-            before > start,
-            "the counter must see the workers' first allocations"
-        );
-        feed(80, &mut mgr);
-        while mgr.in_flight() > 0 {
-            mgr.collect_chunk().expect("collect");
+            while mgr.in_flight() > 0 {
+                mgr.collect_chunk().expect("collect");
+            }
+            let allocations = WORKER_ALLOCATIONS.load(Ordering::SeqCst) - start;
+            if prepared {
+                assert_eq!(allocations, 0, "{threads} workers allocated after prepare");
+            } else {
+                // the counter sees the workers: unprepared buffers grow in the first chunks
+                assert!(allocations > 0, "{threads} workers: no allocation seen");
+            }
         }
-        let after = WORKER_ALLOCATIONS.load(Ordering::SeqCst);
-        assert_eq!(
-            after - before,
-            0,
-            "{threads} workers allocated in steady state"
-        );
     }
 }

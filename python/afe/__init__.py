@@ -283,6 +283,12 @@ class Manager:
         and returns the output of every request."""
         return self._with_descriptions(self._m.process_signal(_as_channels(x, self.channels)))
 
+    def prepare(self, max_chunk: int) -> None:
+        """Sizes every buffer for chunks of up to ``max_chunk`` samples before the first
+        chunk, so that processing allocates nothing from the first chunk on (for live
+        audio). Only before the first chunk or after ``reset``."""
+        self._m.prepare(int(max_chunk))
+
     def reset(self) -> None:
         """Returns every processor to its initial state and clears the history."""
         self._m.reset()

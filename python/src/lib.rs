@@ -303,6 +303,10 @@ impl PyManager {
         self.process(py, x, true)
     }
 
+    fn prepare(&self, py: Python<'_>, max_chunk: usize) -> PyResult<()> {
+        self.with(py, |st| st.manager.prepare(max_chunk))
+    }
+
     fn reset(&self, py: Python<'_>) -> PyResult<()> {
         self.with(py, |st| {
             st.manager.reset()?;

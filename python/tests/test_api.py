@@ -138,6 +138,25 @@ def test_a_whole_call_too_large_is_a_memory_error_naming_the_way_out():
     assert int(frames) == 11  # floor((2000 - 320) / 160) + 1: 20-ms windows every 10 ms
 
 
+def test_a_prepared_manager_gives_the_same_numbers_and_prepares_only_before_the_stream():
+    x = signal(3200)
+    plain = afe.Manager(16000, 2)
+    prepared = afe.Manager(16000, 2, threads=2)
+    for m in (plain, prepared):
+        m.add_request("ild")
+    prepared.prepare(160)
+    for start in range(0, 3200, 160):
+        a = plain.process_chunk(x[start : start + 160])
+        b = prepared.process_chunk(x[start : start + 160])
+        np.testing.assert_array_equal(a["ild_mono"], b["ild_mono"])
+    with pytest.raises(ValueError, match="before the first chunk"):
+        prepared.prepare(160)
+    prepared.reset()
+    prepared.prepare(160)
+    with pytest.raises(ValueError, match="largest chunk"):
+        prepared.prepare(0)
+
+
 def test_chunked_stream_equals_whole_signal():
     x = signal()
     whole = afe.process(x, 16000, ["ratemap", "ild", "itd", "ic"])
