@@ -29,6 +29,8 @@ pub mod interrupt;
 pub mod metadata;
 pub mod npy;
 pub mod output;
+#[cfg(feature = "plot")]
+pub mod plot;
 pub mod realtime;
 mod recorder;
 pub mod rss;

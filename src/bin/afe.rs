@@ -82,6 +82,25 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Draw representations of a WAV file: one panel per signal, axes in s and Hz, colour
+    /// bars with units (PNG or SVG, by the output's extension).
+    #[cfg(feature = "plot")]
+    Plot {
+        /// Input WAV file (mono or two-channel binaural).
+        input: PathBuf,
+        #[command(flatten)]
+        requests: Requests,
+        /// Time (s) at which correlations, modulation spectra and DUET histograms are
+        /// drawn (default: the middle of the signal).
+        #[arg(long, value_name = "S")]
+        at: Option<f64>,
+        /// Figure width in pixels.
+        #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u32).range(300..=10_000))]
+        width: u32,
+        /// Output figure, .png or .svg.
+        #[arg(short = 'o', long = "output", value_name = "FIG.png")]
+        output: PathBuf,
+    },
     /// Compute representations of many WAV files into one store (Zarr v3, or one .npz per
     /// file): longest files first on every core, progress, failed files recorded and
     /// skipped, and a second run resumes where a killed one stopped.
@@ -205,6 +224,9 @@ enum CliError {
     #[cfg(feature = "view")]
     #[error(transparent)]
     View(#[from] afe::view::ViewError),
+    #[cfg(feature = "plot")]
+    #[error(transparent)]
+    Plot(#[from] afe::plot::PlotError),
     #[error("{0}")]
     Message(String),
 }
@@ -317,6 +339,21 @@ fn main() -> ExitCode {
                 threads: threads.count(),
             };
             extract(&input, job, trace.as_deref(), &output)
+        }),
+        #[cfg(feature = "plot")]
+        Command::Plot {
+            input,
+            requests,
+            at,
+            width,
+            output,
+        } => requests.load().and_then(|(requests, params)| {
+            let job = Job {
+                requests,
+                params,
+                ..Job::default()
+            };
+            plot(&input, &job, at, width, &output)
         }),
         Command::Bench {
             input,
@@ -792,6 +829,34 @@ fn batch_status(store: &Path, as_json: bool) -> Result<(), CliError> {
             r.error.as_deref().unwrap_or("")
         );
     }
+    Ok(())
+}
+
+#[cfg(feature = "plot")]
+fn plot(
+    input: &Path,
+    job: &Job,
+    at: Option<f64>,
+    width: u32,
+    output: &Path,
+) -> Result<(), CliError> {
+    let format = afe::plot::Format::of(output)?;
+    let output = checked_output(output, input)?;
+    let mut wav = open_input(input)?;
+    let mut mgr = Manager::new(wav.fs(), wav.channels())?;
+    let rec = run_wav(&mut mgr, job, &mut wav)?;
+    let layout = afe::plot::Layout {
+        width,
+        at_s: at,
+        ..afe::plot::Layout::default()
+    };
+    let figure = afe::plot::render(&rec, format, &layout)?;
+    output.write(|file| file.write_all(&figure))?;
+    outln!(
+        "drew {} panel(s) to {}",
+        rec.signals().len(),
+        output.path().display()
+    );
     Ok(())
 }
 

@@ -1,0 +1,693 @@
+//! Static figures of computed signals (`afe plot`): one panel per signal, drawn the way its
+//! kind needs — images over time and centre frequency (powers in dB, signed cues on a
+//! diverging map centred on zero, masks in grey), waveforms and pitch as lines, feature
+//! vectors as z-scores, correlations, modulation spectra and the DUET histogram as images
+//! at a chosen time — with axes in seconds and Hz and a colour bar with its unit. PNG or
+//! SVG, chosen by the output's extension.
+
+use std::path::Path;
+
+use afe_core::SignalKind;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::{register_font, FontStyle};
+
+use crate::recorder::Recorded;
+use crate::Recorder;
+
+/// Why a figure cannot be made.
+#[derive(Debug, thiserror::Error)]
+pub enum PlotError {
+    /// The output's extension names no format afe draws.
+    #[error("cannot tell the figure's format from '{0}': name it .png or .svg")]
+    Format(String),
+    /// The time asked for lies outside a signal.
+    #[error("--at {at} s is outside {key}, which spans {start:.3} to {end:.3} s")]
+    At {
+        /// The signal.
+        key: String,
+        /// The time asked for, in s.
+        at: f64,
+        /// First frame's time, in s.
+        start: f64,
+        /// Time after the last frame, in s.
+        end: f64,
+    },
+    /// Nothing to draw.
+    #[error("no signal to draw: the run produced no output")]
+    Empty,
+    /// The drawing backend failed.
+    #[error("cannot draw the figure: {reason}")]
+    Draw {
+        /// What went wrong.
+        reason: String,
+    },
+}
+
+/// How the figure is laid out.
+#[derive(Debug, Clone, Copy)]
+pub struct Layout {
+    /// Figure width in pixels.
+    pub width: u32,
+    /// Height of each panel in pixels.
+    pub panel_height: u32,
+    /// Time (s) at which correlations, modulation spectra and DUET histograms are drawn
+    /// (`None`: the middle of the signal).
+    pub at_s: Option<f64>,
+}
+
+impl Default for Layout {
+    fn default() -> Self {
+        Layout {
+            width: 1000,
+            panel_height: 230,
+            at_s: None,
+        }
+    }
+}
+
+/// Longest image axis drawn, in cells: longer signals are reduced by block maxima.
+const MAX_COLUMNS: usize = 1000;
+/// Dynamic range (dB below the peak) of signals of powers and of STFT magnitudes.
+const POWER_RANGE_DB: f64 = 60.0;
+const SPECTRUM_RANGE_DB: f64 = 80.0;
+/// Signals drawn on a diverging colour map centred on zero.
+const SIGNED: &[&str] = &["ild", "itd", "precedence_itd", "precedence_ild"];
+/// Signals of powers, drawn in dB.
+const POWERS: &[&str] = &["ratemap"];
+
+/// The font for text in bitmaps (DejaVu Sans Mono, see `assets/fonts/LICENSE`).
+static FONT: &[u8] = include_bytes!("../assets/fonts/DejaVuSansMono.ttf");
+
+/// A colour scale.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Map {
+    /// Dark blue to yellow, for magnitudes.
+    Sequential,
+    /// Blue, white, red around zero, for signed cues.
+    Diverging,
+    /// Light grey to black, for binary masks.
+    Grey,
+}
+
+impl Map {
+    fn color(self, u: f64) -> RGBColor {
+        let stops: &[(u8, u8, u8)] = match self {
+            Map::Sequential => &[
+                (68, 1, 84),
+                (59, 82, 139),
+                (33, 145, 140),
+                (94, 201, 98),
+                (253, 231, 37),
+            ],
+            Map::Diverging => &[(33, 102, 172), (247, 247, 247), (178, 24, 43)],
+            Map::Grey => &[(240, 240, 240), (0, 0, 0)],
+        };
+        let u = if u.is_finite() {
+            u.clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let x = u * (stops.len() - 1) as f64;
+        let i = (x.floor() as usize).min(stops.len() - 2);
+        let f = x - i as f64;
+        let mix = |a: u8, b: u8| (f64::from(a) + f * (f64::from(b) - f64::from(a))).round() as u8;
+        let (a, b) = (stops[i], stops[i + 1]);
+        RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
+    }
+}
+
+/// An image panel: `rows × cols` values, row `r` drawn at height `r` (bottom up).
+#[derive(Debug, Clone)]
+struct Image {
+    values: Vec<f64>,
+    rows: usize,
+    cols: usize,
+    /// The horizontal extent of the columns.
+    x: (f64, f64),
+    x_label: String,
+    /// Label of each row (centre frequencies, feature names), shown for a few rows.
+    row_labels: Vec<String>,
+    y_label: String,
+    lo: f64,
+    hi: f64,
+    map: Map,
+    unit: String,
+}
+
+/// One panel's content.
+#[derive(Debug, Clone)]
+enum Content {
+    Image(Image),
+    /// A line over time (waveform, pitch); NaN values are gaps.
+    Line {
+        x: Vec<f64>,
+        y: Vec<f64>,
+        y_label: String,
+    },
+}
+
+/// A titled panel.
+#[derive(Debug, Clone)]
+struct Panel {
+    title: String,
+    content: Content,
+}
+
+/// The figure's file format.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// A PNG bitmap (text in the bundled font).
+    Png,
+    /// An SVG drawing.
+    Svg,
+}
+
+impl Format {
+    /// The format `path`'s extension names (`.png` or `.svg`, any case).
+    pub fn of(path: &Path) -> Result<Format, PlotError> {
+        match path.extension().and_then(|e| e.to_str()) {
+            Some(e) if e.eq_ignore_ascii_case("png") => Ok(Format::Png),
+            Some(e) if e.eq_ignore_ascii_case("svg") => Ok(Format::Svg),
+            _ => Err(PlotError::Format(path.display().to_string())),
+        }
+    }
+}
+
+/// Draws every signal of `rec`, one panel each, and returns the encoded figure.
+pub fn render(rec: &Recorder, format: Format, layout: &Layout) -> Result<Vec<u8>, PlotError> {
+    let panels = rec
+        .signals()
+        .iter()
+        .map(|s| panel(s, layout.at_s))
+        .collect::<Result<Vec<_>, _>>()?;
+    if panels.is_empty() {
+        return Err(PlotError::Empty);
+    }
+    let (w, h) = (layout.width, layout.panel_height * panels.len() as u32);
+    let failed = |reason: String| PlotError::Draw { reason };
+    // text is measured (and in a PNG drawn) with the bundled font
+    static REGISTER: std::sync::Once = std::sync::Once::new();
+    REGISTER.call_once(|| {
+        // it parses: checked by the tests
+        let _ = register_font("sans-serif", FontStyle::Normal, FONT);
+    });
+    match format {
+        Format::Png => {
+            let mut rgb = vec![0u8; 3 * w as usize * h as usize];
+            {
+                let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
+                draw_all(&root, &panels).map_err(failed)?;
+                root.present().map_err(|e| failed(e.to_string()))?;
+            }
+            let mut png_bytes = Vec::new();
+            let mut encoder = png::Encoder::new(&mut png_bytes, w, h);
+            encoder.set_color(png::ColorType::Rgb);
+            encoder.set_depth(png::BitDepth::Eight);
+            encoder
+                .write_header()
+                .and_then(|mut writer| writer.write_image_data(&rgb))
+                .map_err(|e| failed(e.to_string()))?;
+            Ok(png_bytes)
+        }
+        Format::Svg => {
+            let mut svg = String::new();
+            {
+                let root = SVGBackend::with_string(&mut svg, (w, h)).into_drawing_area();
+                draw_all(&root, &panels).map_err(failed)?;
+                root.present().map_err(|e| failed(e.to_string()))?;
+            }
+            Ok(svg.into_bytes())
+        }
+    }
+}
+
+/// The time of each row of `s`, in s.
+fn times(s: &Recorded) -> impl Iterator<Item = f64> + '_ {
+    let first = s.description["first_time_s"].as_f64().unwrap_or(0.0);
+    (0..s.data.frames()).map(move |k| first + k as f64 / s.info.fs_hz)
+}
+
+/// The span of `s` over time: first row to one hop after the last, in s.
+fn span(s: &Recorded) -> (f64, f64) {
+    let first = s.description["first_time_s"].as_f64().unwrap_or(0.0);
+    let end = first + s.data.frames().max(1) as f64 / s.info.fs_hz;
+    (first, end)
+}
+
+fn unit_of(s: &Recorded) -> String {
+    s.description["unit"]
+        .as_str()
+        .unwrap_or_default()
+        .to_string()
+}
+
+fn cf_labels(cf: &[f64]) -> Vec<String> {
+    cf.iter().map(|f| format!("{f:.0}")).collect()
+}
+
+/// Reduces `rows × cols` values (row-major, one row per frame) to at most
+/// [`MAX_COLUMNS`] frames by the largest |value| of each block, transposed so that each
+/// image row is a channel.
+fn over_time(values: &[f64], frames: usize, width: usize, abs_max: bool) -> (Vec<f64>, usize) {
+    let block = frames.div_ceil(MAX_COLUMNS).max(1);
+    let cols = frames.div_ceil(block);
+    let mut out = vec![f64::NAN; width * cols];
+    for col in 0..cols {
+        let rows = col * block..((col + 1) * block).min(frames);
+        for ch in 0..width {
+            let cell = &mut out[ch * cols + col];
+            for r in rows.clone() {
+                let v = values[r * width + ch];
+                let v = if abs_max { v.abs() } else { v };
+                if v.is_finite() && !(cell.is_finite() && *cell >= v) {
+                    *cell = v;
+                }
+            }
+        }
+    }
+    (out, cols)
+}
+
+fn finite_range(values: &[f64]) -> (f64, f64) {
+    let (lo, hi) = values
+        .iter()
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(*v), b.max(*v))
+        });
+    if lo.is_finite() && hi > lo {
+        (lo, hi)
+    } else if lo.is_finite() {
+        (lo - 0.5, lo + 0.5)
+    } else {
+        (0.0, 1.0)
+    }
+}
+
+/// The frame of `s` nearest to `at` (default: the middle), with its time.
+fn frame_at(s: &Recorded, at: Option<f64>) -> Result<(usize, f64), PlotError> {
+    let (start, end) = span(s);
+    let frames = s.data.frames();
+    if frames == 0 {
+        return Err(PlotError::At {
+            key: s.key.clone(),
+            at: at.unwrap_or(0.0),
+            start,
+            end: start,
+        });
+    }
+    let k = match at {
+        Some(t) if !(start..=end).contains(&t) => {
+            return Err(PlotError::At {
+                key: s.key.clone(),
+                at: t,
+                start,
+                end,
+            })
+        }
+        Some(t) => (((t - start) * s.info.fs_hz).floor().max(0.0) as usize).min(frames - 1),
+        None => frames / 2,
+    };
+    Ok((k, start + k as f64 / s.info.fs_hz))
+}
+
+/// What to draw for signal `s`.
+fn panel(s: &Recorded, at: Option<f64>) -> Result<Panel, PlotError> {
+    let name = s.description["name"].as_str().unwrap_or(&s.key).to_string();
+    let unit = unit_of(s);
+    let frames = s.data.frames();
+    let width = s.data.width();
+    let values = s.data.as_slice();
+    let time_label = "time (s)".to_string();
+    let mut title = s.key.clone();
+    let content = match s.info.kind {
+        SignalKind::TimeDomain if width == 1 => {
+            let (x, y) = line_reduced(s);
+            Content::Line {
+                x,
+                y,
+                y_label: "amplitude".into(),
+            }
+        }
+        SignalKind::TimeDomain | SignalKind::TimeFrequency | SignalKind::BinaryMask => {
+            let full_rate = frames > MAX_COLUMNS && s.info.fs_hz == s.info.audio_fs_hz;
+            let (mut cells, cols) = over_time(values, frames, width, full_rate);
+            let (lo, hi, map, unit) = if POWERS.contains(&name.as_str()) {
+                cells
+                    .iter_mut()
+                    .for_each(|v| *v = 10.0 * v.max(1e-30).log10());
+                let peak = finite_range(&cells).1;
+                (
+                    peak - POWER_RANGE_DB,
+                    peak,
+                    Map::Sequential,
+                    "dB".to_string(),
+                )
+            } else if s.info.kind == SignalKind::BinaryMask {
+                (0.0, 1.0, Map::Grey, "mask".to_string())
+            } else if SIGNED.contains(&name.as_str()) {
+                let m = finite_range(&cells);
+                let lim = m.0.abs().max(m.1.abs()).max(f64::MIN_POSITIVE);
+                (-lim, lim, Map::Diverging, unit)
+            } else {
+                let (lo, hi) = finite_range(&cells);
+                let unit = if full_rate {
+                    format!("largest |value| {unit}")
+                } else {
+                    unit
+                };
+                (lo, hi, Map::Sequential, unit)
+            };
+            let row_labels = if s.info.cf_hz.len() == width {
+                cf_labels(&s.info.cf_hz)
+            } else {
+                (0..width).map(|c| c.to_string()).collect()
+            };
+            Content::Image(Image {
+                values: cells,
+                rows: width,
+                cols,
+                x: span(s),
+                x_label: time_label,
+                row_labels,
+                y_label: "centre frequency (Hz)".into(),
+                lo,
+                hi,
+                map,
+                unit,
+            })
+        }
+        SignalKind::Spectrum => {
+            // (re, im) pairs per bin: magnitudes in dB
+            let bins = s.info.cf_hz.len();
+            let mags: Vec<f64> = values
+                .chunks_exact(2)
+                .map(|z| 20.0 * z[0].hypot(z[1]).max(1e-12).log10())
+                .collect();
+            let (cells, cols) = over_time(&mags, frames, bins, false);
+            let peak = finite_range(&cells).1;
+            Content::Image(Image {
+                values: cells,
+                rows: bins,
+                cols,
+                x: span(s),
+                x_label: time_label,
+                row_labels: cf_labels(&s.info.cf_hz),
+                y_label: "frequency (Hz)".into(),
+                lo: peak - SPECTRUM_RANGE_DB,
+                hi: peak,
+                map: Map::Sequential,
+                unit: "dB".into(),
+            })
+        }
+        SignalKind::Feature if name == "pitch" => Content::Line {
+            x: times(s).collect(),
+            y: values.chunks_exact(width).map(|row| row[0]).collect(),
+            y_label: format!(
+                "{} (Hz)",
+                s.info.features.first().map_or("pitch", String::as_str)
+            ),
+        },
+        SignalKind::Feature => {
+            // each feature on its own scale: z-scores over time
+            let mut z = values.to_vec();
+            for f in 0..width {
+                let col: Vec<f64> = (0..frames)
+                    .map(|k| values[k * width + f])
+                    .filter(|v| v.is_finite())
+                    .collect();
+                let n = col.len().max(1) as f64;
+                let mean = col.iter().sum::<f64>() / n;
+                let sd = (col.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();
+                for k in 0..frames {
+                    let v = &mut z[k * width + f];
+                    *v = (*v - mean) / if sd > 0.0 { sd } else { 1.0 };
+                }
+            }
+            let (cells, cols) = over_time(&z, frames, width, false);
+            let m = finite_range(&cells);
+            let lim = m.0.abs().max(m.1.abs()).max(f64::MIN_POSITIVE);
+            Content::Image(Image {
+                values: cells,
+                rows: width,
+                cols,
+                x: span(s),
+                x_label: time_label,
+                row_labels: s.info.features.clone(),
+                y_label: "feature".into(),
+                lo: -lim,
+                hi: lim,
+                map: Map::Diverging,
+                unit: "z-score".into(),
+            })
+        }
+        SignalKind::Correlation | SignalKind::Modulation | SignalKind::DuetHistogram => {
+            let (k, when) = frame_at(s, at)?;
+            title = format!("{} at {when:.3} s", s.key);
+            let frame = &values[k * width..(k + 1) * width];
+            let shape = s.info.frame_shape();
+            let (rows, cols) = (shape[0], shape[1]);
+            let (x, x_label, row_labels, y_label) = match s.info.kind {
+                SignalKind::Correlation => {
+                    let lags = &s.info.lags_s;
+                    (
+                        (1e3 * lags[0], 1e3 * lags[lags.len() - 1]),
+                        "lag (ms)".to_string(),
+                        cf_labels(&s.info.cf_hz),
+                        "centre frequency (Hz)".to_string(),
+                    )
+                }
+                SignalKind::Modulation => {
+                    let m = &s.info.mod_cf_hz;
+                    (
+                        (m[0], m[m.len() - 1]),
+                        "modulation frequency (Hz), channel by channel".to_string(),
+                        cf_labels(&s.info.cf_hz),
+                        "centre frequency (Hz)".to_string(),
+                    )
+                }
+                _ => {
+                    let d = &s.info.delta_samples;
+                    (
+                        (d[0], d[d.len() - 1]),
+                        "delay (samples)".to_string(),
+                        s.info.alpha.iter().map(|a| format!("{a:.2}")).collect(),
+                        "attenuation α".to_string(),
+                    )
+                }
+            };
+            let (lo, hi) = finite_range(frame);
+            let (lo, hi, map) = if lo < 0.0 {
+                let lim = lo.abs().max(hi.abs());
+                (-lim, lim, Map::Diverging)
+            } else {
+                (lo, hi, Map::Sequential)
+            };
+            Content::Image(Image {
+                values: frame.to_vec(),
+                rows,
+                cols,
+                x,
+                x_label,
+                row_labels,
+                y_label,
+                lo,
+                hi,
+                map,
+                unit: if unit.is_empty() {
+                    "value".into()
+                } else {
+                    unit
+                },
+            })
+        }
+    };
+    Ok(Panel { title, content })
+}
+
+/// A waveform reduced to the minimum and maximum of each block, at most 2·[`MAX_COLUMNS`]
+/// points.
+fn line_reduced(s: &Recorded) -> (Vec<f64>, Vec<f64>) {
+    let values = s.data.as_slice();
+    let t: Vec<f64> = times(s).collect();
+    let block = values.len().div_ceil(MAX_COLUMNS).max(1);
+    let mut x = Vec::new();
+    let mut y = Vec::new();
+    for (ts, vs) in t.chunks(block).zip(values.chunks(block)) {
+        let (lo, hi) = finite_range(vs);
+        x.extend([ts[0], ts[ts.len() - 1]]);
+        y.extend([lo, hi]);
+    }
+    (x, y)
+}
+
+fn draw_all<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    panels: &[Panel],
+) -> Result<(), String> {
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    for (area, p) in root.split_evenly((panels.len(), 1)).iter().zip(panels) {
+        draw_panel(area, p).map_err(|e| format!("{}: {e}", p.title))?;
+    }
+    Ok(())
+}
+
+type DrawResult<DB> = Result<(), DrawingAreaErrorKind<<DB as DrawingBackend>::ErrorType>>;
+
+fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, p: &Panel) -> DrawResult<DB> {
+    let (w, _) = area.dim_in_pixel();
+    let (main, bar) = area.split_horizontally(w.saturating_sub(110));
+    match &p.content {
+        Content::Line { x, y, y_label } => {
+            let (x0, x1) = finite_range(x);
+            let (y0, y1) = finite_range(y);
+            let pad = 0.05 * (y1 - y0);
+            let (y0, y1) = (y0 - pad, y1 + pad);
+            let mut chart = ChartBuilder::on(&main)
+                .caption(&p.title, ("sans-serif", 15))
+                .margin(6)
+                .x_label_area_size(32)
+                .y_label_area_size(70)
+                .build_cartesian_2d(x0..x1, y0..y1)?;
+            chart
+                .configure_mesh()
+                .disable_mesh()
+                .x_desc("time (s)")
+                .y_desc(y_label.as_str())
+                .label_style(("sans-serif", 11))
+                .draw()?;
+            // NaN values (unvoiced pitch) break the line
+            let segments = x.iter().zip(y).map(|(a, b)| (*a, *b)).collect::<Vec<_>>();
+            for run in segments.split(|(_, v)| !v.is_finite()) {
+                if run.len() == 1 {
+                    chart.draw_series(std::iter::once(Circle::new(run[0], 2, BLUE.filled())))?;
+                } else if !run.is_empty() {
+                    let style = BLUE.stroke_width(2);
+                    chart.draw_series(LineSeries::new(run.iter().copied(), style))?;
+                }
+            }
+        }
+        Content::Image(img) => {
+            let (x0, x1) = if img.x.1 > img.x.0 {
+                img.x
+            } else {
+                (img.x.0, img.x.0 + 1.0)
+            };
+            let rows = img.rows.max(1) as f64;
+            let labels = &img.row_labels;
+            let mut chart = ChartBuilder::on(&main)
+                .caption(&p.title, ("sans-serif", 15))
+                .margin(6)
+                .x_label_area_size(32)
+                .y_label_area_size(70)
+                .build_cartesian_2d(x0..x1, -0.5..rows - 0.5)?;
+            chart
+                .configure_mesh()
+                .disable_mesh()
+                .x_desc(img.x_label.as_str())
+                .y_desc(img.y_label.as_str())
+                .y_labels(6.min(img.rows))
+                .y_label_formatter(&|v| {
+                    let i = v.round().max(0.0) as usize;
+                    labels.get(i).cloned().unwrap_or_default()
+                })
+                .label_style(("sans-serif", 11))
+                .draw()?;
+            let dx = (x1 - x0) / img.cols.max(1) as f64;
+            let scale = |v: f64| (v - img.lo) / (img.hi - img.lo);
+            chart.draw_series((0..img.rows).flat_map(|r| {
+                (0..img.cols).map(move |c| {
+                    let v = img.values[r * img.cols + c];
+                    let color = if v.is_finite() {
+                        img.map.color(scale(v))
+                    } else {
+                        RGBColor(200, 200, 200)
+                    };
+                    let x = x0 + c as f64 * dx;
+                    let y = r as f64 - 0.5;
+                    Rectangle::new([(x, y), (x + dx, y + 1.0)], color.filled())
+                })
+            }))?;
+            draw_bar(&bar, img)?;
+        }
+    }
+    Ok(())
+}
+
+/// `v` to a hundredth of the order of magnitude of a scale spanning `span`.
+fn tick(v: f64, span: f64) -> String {
+    let decimals = (1.0 - span.abs().max(1e-300).log10().floor()).clamp(0.0, 12.0) as usize;
+    format!("{v:.decimals$}")
+}
+
+/// A vertical colour bar from `lo` to `hi`, labelled with the unit.
+fn draw_bar<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, img: &Image) -> DrawResult<DB> {
+    let (lo, hi) = (img.lo, img.hi);
+    let mut chart = ChartBuilder::on(area)
+        .margin_top(28)
+        .margin_bottom(36)
+        .margin_right(10)
+        .y_label_area_size(58)
+        .build_cartesian_2d(0.0..1.0, lo..hi)?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .disable_x_axis()
+        .y_desc(img.unit.as_str())
+        .y_labels(5)
+        .y_label_formatter(&|v| tick(*v, hi - lo))
+        .label_style(("sans-serif", 10))
+        .draw()?;
+    let steps = 64;
+    let step = (hi - lo) / steps as f64;
+    chart.draw_series((0..steps).map(|i| {
+        let v = lo + (i as f64 + 0.5) * step;
+        let y = lo + i as f64 * step;
+        Rectangle::new(
+            [(0.0, y), (1.0, y + step)],
+            img.map.color((v - lo) / (hi - lo)).filled(),
+        )
+    }))?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn colour_maps_run_from_their_first_stop_to_their_last() {
+        assert_eq!(Map::Sequential.color(0.0), RGBColor(68, 1, 84));
+        assert_eq!(Map::Sequential.color(1.0), RGBColor(253, 231, 37));
+        assert_eq!(Map::Diverging.color(0.5), RGBColor(247, 247, 247));
+        assert_eq!(Map::Grey.color(2.0), RGBColor(0, 0, 0));
+        assert_eq!(Map::Grey.color(f64::NAN), RGBColor(240, 240, 240));
+    }
+
+    #[test]
+    fn long_signals_are_reduced_by_block_maxima_per_channel() {
+        // 2500 frames of 2 channels: blocks of 3 frames, 834 columns
+        let values: Vec<f64> = (0..5000)
+            .map(|i| if i % 2 == 0 { -(i as f64) } else { 1.0 })
+            .collect();
+        let (cells, cols) = over_time(&values, 2500, 2, true);
+        assert_eq!(cols, 834);
+        assert_eq!(cells[0], 4.0); // |-(0)|, |-(2)|, |-(4)|: the largest of the first block
+        assert_eq!(cells[cols], 1.0);
+        assert_eq!(finite_range(&[f64::NAN, 2.0, -1.0]), (-1.0, 2.0));
+        assert_eq!(finite_range(&[3.0, 3.0]), (2.5, 3.5));
+    }
+
+    #[test]
+    fn bar_ticks_resolve_a_hundredth_of_their_scale() {
+        assert_eq!(tick(-40.0, 60.0), "-40");
+        assert_eq!(tick(0.0008, 0.0016), "0.0008");
+        assert_eq!(tick(0.97, 0.04), "0.970");
+    }
+
+    #[test]
+    fn the_bundled_font_parses() {
+        assert!(register_font("afe-test", FontStyle::Normal, FONT).is_ok());
+    }
+}
