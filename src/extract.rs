@@ -194,6 +194,10 @@ pub fn run_into<S: Sink>(
         if got == 0 {
             break;
         }
+        if total == 0 && job.chunk.is_none() {
+            // a first block that holds a long seeding time holds every node's output
+            mgr.check_whole_signal(got)?;
+        }
         total += got;
         let refs: Vec<&[f64]> = buf.iter().map(Vec::as_slice).collect();
         mgr.submit_chunk(&refs)?;

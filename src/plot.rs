@@ -285,6 +285,13 @@ fn finite_range(values: &[f64]) -> (f64, f64) {
     }
 }
 
+/// A range centred on zero that holds every finite value.
+fn symmetric(values: &[f64]) -> (f64, f64) {
+    let (lo, hi) = finite_range(values);
+    let lim = lo.abs().max(hi.abs()).max(f64::MIN_POSITIVE);
+    (-lim, lim)
+}
+
 /// The frame of `s` nearest to `at` (default: the middle), with its time.
 fn frame_at(s: &Recorded, at: Option<f64>) -> Result<(usize, f64), PlotError> {
     let (start, end) = span(s);
@@ -347,9 +354,8 @@ fn panel(s: &Recorded, at: Option<f64>) -> Result<Panel, PlotError> {
             } else if s.info.kind == SignalKind::BinaryMask {
                 (0.0, 1.0, Map::Grey, "mask".to_string())
             } else if SIGNED.contains(&name.as_str()) {
-                let m = finite_range(&cells);
-                let lim = m.0.abs().max(m.1.abs()).max(f64::MIN_POSITIVE);
-                (-lim, lim, Map::Diverging, unit)
+                let (lo, hi) = symmetric(&cells);
+                (lo, hi, Map::Diverging, unit)
             } else {
                 let (lo, hi) = finite_range(&cells);
                 let unit = if full_rate {
@@ -426,8 +432,7 @@ fn panel(s: &Recorded, at: Option<f64>) -> Result<Panel, PlotError> {
                 }
             }
             let (cells, cols) = over_time(&z, frames, width, false);
-            let m = finite_range(&cells);
-            let lim = m.0.abs().max(m.1.abs()).max(f64::MIN_POSITIVE);
+            let (lo, hi) = symmetric(&cells);
             Content::Image(Image {
                 values: cells,
                 rows: width,
@@ -436,8 +441,8 @@ fn panel(s: &Recorded, at: Option<f64>) -> Result<Panel, PlotError> {
                 x_label: time_label,
                 row_labels: s.info.features.clone(),
                 y_label: "feature".into(),
-                lo: -lim,
-                hi: lim,
+                lo,
+                hi,
                 map: Map::Diverging,
                 unit: "z-score".into(),
             })
@@ -477,12 +482,12 @@ fn panel(s: &Recorded, at: Option<f64>) -> Result<Panel, PlotError> {
                     )
                 }
             };
-            let (lo, hi) = finite_range(frame);
-            let (lo, hi, map) = if lo < 0.0 {
-                let lim = lo.abs().max(hi.abs());
-                (-lim, lim, Map::Diverging)
-            } else {
-                (lo, hi, Map::Sequential)
+            let (lo, hi, map) = match finite_range(frame) {
+                (lo, _) if lo < 0.0 => {
+                    let (lo, hi) = symmetric(frame);
+                    (lo, hi, Map::Diverging)
+                }
+                (lo, hi) => (lo, hi, Map::Sequential),
             };
             Content::Image(Image {
                 values: frame.to_vec(),

@@ -242,6 +242,32 @@ fn a_whole_signal_through_the_agc_runs_in_blocks_as_one_call() {
     }
 }
 
+/// A seeding time longer than any signal makes the whole signal the first block: one
+/// call for a short signal, a clear refusal where its blocks would pass the memory limit.
+#[test]
+fn an_agc_seeded_over_the_whole_signal_is_one_call_within_the_limit() {
+    let fs = 16000.0;
+    let (left, right) = signal(fs, 9000);
+    let p = params(&[
+        ("pp_bNormalizeRMS", json!(true)),
+        ("pp_intTimeSecRMS", json!(1e300)),
+    ]);
+    let one_call = run(fs, &["ild"], &p, &left, &right, None);
+    let mut mgr = Manager::new(fs, 2).expect("manager");
+    mgr.add_request("ild", &p).expect("request");
+    assert_eq!(mgr.one_call_prefix(), Some(usize::MAX));
+    mgr.process_signal(&[&left, &right]).expect("process");
+    let mut whole = Recorder::new(false);
+    whole.record_whole(&mut mgr);
+    let got = whole.get("ild_mono").expect("ild");
+    let want = one_call.get("ild_mono").expect("ild");
+    assert_eq!(got.data.as_slice(), want.data.as_slice());
+    assert!(matches!(
+        mgr.check_whole_signal(3600 * 16000),
+        Err(afe::Error::WholeSignalTooLarge { .. })
+    ));
+}
+
 /// A long chunk goes through a chunk-invariant graph in blocks: the same values as short
 /// chunks (both executors), the stream's frame count and time carry on after it, and its
 /// intermediate signals are not held.

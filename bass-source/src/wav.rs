@@ -134,18 +134,6 @@ impl<S: Stored> WavFile<S> {
     pub fn frames(&self) -> u64 {
         self.reader.frames()
     }
-
-    /// Publishes chunks of `frames_per_chunk` frames on a port of `chunks_on_port` chunks.
-    pub fn set_chunking(&mut self, frames_per_chunk: usize, chunks_on_port: usize) -> Result<()> {
-        let format = PortFormat {
-            frames_per_chunk,
-            chunks_on_port,
-            ..self.format
-        };
-        format.check()?;
-        self.format = format;
-        Ok(())
-    }
 }
 
 impl<S: Stored> Source for WavFile<S> {

@@ -186,7 +186,7 @@ impl Graph {
             let own = match node.def {
                 Some(d) if !(d.chunk_invariant)(&node.build_params) => {
                     (d.one_call_prefix_s)(&node.build_params)
-                        .map(|s| (s.max(0.0) * fs).ceil() as usize + 1)
+                        .map(|s| ((s.max(0.0) * fs).ceil() as usize).saturating_add(1))
                 }
                 _ => Some(0),
             };

@@ -414,33 +414,12 @@ impl Manager {
     /// input at once, requested outputs aside. Always fine for a graph that runs in
     /// blocks (see [`Manager::one_call_prefix`]).
     pub fn check_whole_signal(&self, len: usize) -> Result<()> {
-        if self.graph.one_call_prefix().is_some() {
-            return Ok(());
-        }
-        let invariant = self.graph.invariant_nodes();
-        let kept = self.kept_outputs(&invariant);
-        let absorbing = self.graph.absorbing_nodes(&invariant);
-        let requested = |r: OutputRef| {
-            self.requests
-                .iter()
-                .flatten()
-                .any(|q| q.outputs.contains(&r))
+        let (bytes, what) = match self.graph.one_call_prefix() {
+            Some(prefix) if prefix <= WHOLE_SIGNAL_BLOCK => return Ok(()),
+            Some(prefix) => self.first_block_bytes(prefix.min(len)),
+            None => self.one_call_bytes(len),
         };
         let fs = self.graph.nodes[0].infos[0].fs_hz;
-        let mut bytes = 0.0;
-        let mut what: Vec<&str> = Vec::new();
-        for (i, node) in self.graph.nodes.iter().enumerate() {
-            let one_call = !invariant[i] && !absorbing[i];
-            if one_call && !what.contains(&node.name) {
-                what.push(node.name);
-            }
-            for (o, info) in node.infos.iter().enumerate() {
-                let held = (kept[i][o] || one_call) && !requested(OutputRef { node: i, output: o });
-                if held {
-                    bytes += len as f64 * info.fs_hz / fs * info.width() as f64 * 8.0;
-                }
-            }
-        }
         let limit_mb = std::env::var("AFE_WHOLE_SIGNAL_LIMIT_MB")
             .ok()
             .and_then(|v| v.trim().parse().ok())
@@ -455,6 +434,54 @@ impl Manager {
             limit_mb,
             what: what.join(", "),
         })
+    }
+
+    /// Bytes of the blocks every node writes over a first block of `len` samples (a
+    /// seeding time longer than the usual block), and the nodes that ask for it.
+    fn first_block_bytes(&self, len: usize) -> (f64, Vec<&'static str>) {
+        let fs = self.graph.nodes[0].infos[0].fs_hz;
+        let invariant = self.graph.invariant_nodes();
+        let mut bytes = 0.0;
+        let mut what = Vec::new();
+        for (node, inv) in self.graph.nodes.iter().zip(&invariant) {
+            if !inv && !what.contains(&node.name) {
+                what.push(node.name);
+            }
+            for info in &node.infos {
+                bytes += len as f64 * info.fs_hz / fs * info.width() as f64 * 8.0;
+            }
+        }
+        (bytes, what)
+    }
+
+    /// Bytes of the intermediate signals a one-call run of `len` samples joins or
+    /// computes whole (requested outputs aside), and the nodes that take it whole.
+    fn one_call_bytes(&self, len: usize) -> (f64, Vec<&'static str>) {
+        let invariant = self.graph.invariant_nodes();
+        let kept = self.kept_outputs(&invariant);
+        let absorbing = self.graph.absorbing_nodes(&invariant);
+        let requested = |r: OutputRef| {
+            self.requests
+                .iter()
+                .flatten()
+                .any(|q| q.outputs.contains(&r))
+        };
+        let fs = self.graph.nodes[0].infos[0].fs_hz;
+        let mut bytes = 0.0;
+        let mut what: Vec<&'static str> = Vec::new();
+        for (i, node) in self.graph.nodes.iter().enumerate() {
+            let one_call = !invariant[i] && !absorbing[i];
+            if one_call && !what.contains(&node.name) {
+                what.push(node.name);
+            }
+            for (o, info) in node.infos.iter().enumerate() {
+                let held = (kept[i][o] || one_call) && !requested(OutputRef { node: i, output: o });
+                if held {
+                    bytes += len as f64 * info.fs_hz / fs * info.width() as f64 * 8.0;
+                }
+            }
+        }
+        (bytes, what)
     }
 
     /// Number of processor instances in the graph (the input node excluded).
@@ -588,23 +615,7 @@ impl Manager {
             .iter()
             .map(|c| c.iter().map(|c| (c.since, c.given)).collect())
             .collect();
-        let mut whole = self.whole_buffers(&vec![true; self.graph.nodes.len()]);
-        let len = chunk[0].len();
-        for start in (0..len).step_by(WHOLE_SIGNAL_BLOCK) {
-            let end = (start + WHOLE_SIGNAL_BLOCK).min(len);
-            let part: Vec<&[f64]> = chunk.iter().map(|c| &c[start..end]).collect();
-            self.submit_chunk(&part)?;
-            if self.in_flight() >= self.pipeline_depth() {
-                self.collect_chunk()?;
-                self.append_outputs(&mut whole);
-            }
-        }
-        while self.in_flight() > 0 {
-            self.collect_chunk()?;
-            self.append_outputs(&mut whole);
-        }
-        self.whole = whole;
-        self.whole_shown = true;
+        self.run_blocks(chunk, 0)?;
         // the chunk's first frame is the first of its first block
         for (clocks, before) in self.clocks.iter_mut().zip(before) {
             for (c, (since, given)) in clocks.iter_mut().zip(before) {
@@ -764,7 +775,22 @@ impl Manager {
             self.whole_shown = true;
             return Ok(());
         };
+        self.check_whole_signal(len)?;
+        self.run_blocks(signal, prefix)?;
+        // the whole output is shown: its first frame is the first since the reset
+        for c in self.clocks.iter_mut().flatten() {
+            c.first_since = 0;
+            c.first_given = c.given - c.since;
+        }
+        Ok(())
+    }
+
+    /// Runs `signal` through the graph in blocks of [`WHOLE_SIGNAL_BLOCK`] samples (the
+    /// first holding at least `prefix`), pipelined, and shows the joined outputs (the
+    /// requested ones, or all with [`Manager::set_keep_all`]).
+    fn run_blocks(&mut self, signal: &[&[f64]], prefix: usize) -> Result<()> {
         let mut whole = self.whole_buffers(&vec![true; self.graph.nodes.len()]);
+        let len = signal[0].len();
         let mut start = 0;
         while start < len {
             let end = len.min(start + WHOLE_SIGNAL_BLOCK.max(prefix.saturating_sub(start)));
@@ -782,11 +808,6 @@ impl Manager {
         }
         self.whole = whole;
         self.whole_shown = true;
-        // the whole output is shown: its first frame is the first since the reset
-        for c in self.clocks.iter_mut().flatten() {
-            c.first_since = 0;
-            c.first_given = c.given - c.since;
-        }
         Ok(())
     }
 

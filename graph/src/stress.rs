@@ -21,23 +21,29 @@ struct Mix {
     work: u32,
 }
 
+/// One step of a mixing state: `state` takes sample `t` of every input, then `work`
+/// rounds of a generator; returns the output value, in [0, 1).
+fn mix_step(state: &mut u64, seed: u64, inputs: &[&Block], t: usize, work: u32) -> f64 {
+    let mut h = *state ^ seed;
+    for input in inputs {
+        h = h.rotate_left(17) ^ input.as_slice()[t].to_bits();
+        h = h.wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    }
+    for _ in 0..work {
+        h = h
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+    }
+    *state = h;
+    (h >> 11) as f64 / (1u64 << 53) as f64
+}
+
 impl Processor for Mix {
     fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
         let n = inputs[0].frames();
         let out = outputs[0].reset_to(n);
         for (t, o) in out.iter_mut().enumerate() {
-            let mut h = self.state ^ self.id;
-            for input in inputs {
-                h = h.rotate_left(17) ^ input.as_slice()[t].to_bits();
-                h = h.wrapping_mul(0x9e37_79b9_7f4a_7c15);
-            }
-            for _ in 0..self.work {
-                h = h
-                    .wrapping_mul(6_364_136_223_846_793_005)
-                    .wrapping_add(1_442_695_040_888_963_407);
-            }
-            self.state = h;
-            *o = (h >> 11) as f64 / (1u64 << 53) as f64;
+            *o = mix_step(&mut self.state, self.id, inputs, t, self.work);
         }
     }
 
@@ -66,18 +72,13 @@ struct Halves {
 
 impl Halves {
     fn step(&mut self, c: usize, inputs: &[&Block], t: usize) -> f64 {
-        let mut h = self.states[c] ^ self.id ^ c as u64;
-        for input in inputs {
-            h = h.rotate_left(17) ^ input.as_slice()[t].to_bits();
-            h = h.wrapping_mul(0x9e37_79b9_7f4a_7c15);
-        }
-        for _ in 0..self.work {
-            h = h
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-        }
-        self.states[c] = h;
-        (h >> 11) as f64 / (1u64 << 53) as f64
+        mix_step(
+            &mut self.states[c],
+            self.id ^ c as u64,
+            inputs,
+            t,
+            self.work,
+        )
     }
 }
 

@@ -372,6 +372,23 @@ impl PyManager {
     }
 }
 
+/// The job of `process` and `process_file`.
+fn job(
+    requests: Vec<String>,
+    params_json: &str,
+    chunk: Option<usize>,
+    threads: usize,
+    all: bool,
+) -> PyResult<afe::extract::Job> {
+    Ok(afe::extract::Job {
+        requests,
+        params: parse_params(params_json)?,
+        chunk,
+        all,
+        threads,
+    })
+}
+
 /// Computes `requests` on a whole signal (`afe extract`'s code path): `{name: array}`
 /// and the arrays' descriptions as JSON text (see `afe::metadata::describe`).
 #[pyfunction]
@@ -387,13 +404,7 @@ fn process<'py>(
     threads: usize,
     all: bool,
 ) -> PyResult<(Bound<'py, PyDict>, String)> {
-    let job = afe::extract::Job {
-        requests,
-        params: parse_params(params_json)?,
-        chunk,
-        all,
-        threads,
-    };
+    let job = job(requests, params_json, chunk, threads, all)?;
     let ears = columns(&x);
     let rec = interrupt::interruptible(py, || {
         let refs: Vec<&[f64]> = ears.iter().map(Vec::as_slice).collect();
@@ -419,13 +430,7 @@ fn process_file<'py>(
     threads: usize,
     all: bool,
 ) -> PyResult<(Bound<'py, PyDict>, String)> {
-    let job = afe::extract::Job {
-        requests,
-        params: parse_params(params_json)?,
-        chunk,
-        all,
-        threads,
-    };
+    let job = job(requests, params_json, chunk, threads, all)?;
     let mut wav = afe::wav::WavBlocks::open(&path).map_err(wav_error)?;
     if let Some(fs) = fs.filter(|f| *f != wav.fs()) {
         return Err(PyValueError::new_err(format!(
