@@ -177,21 +177,25 @@ mod tests {
 
     #[test]
     fn a_hop_longer_than_the_window_skips_the_gaps_across_chunks() {
-        let x: Vec<f64> = (0..61).map(f64::from).collect();
-        let one = FrameBuffer::new(1, 3, 7);
-        let n = one.available(&x);
-        assert_eq!(n, (61 - 3) / 7 + 1);
-        let whole: Vec<Vec<f64>> = (0..n).map(|k| collect(one.frame(&x, k))).collect();
-        assert_eq!(whole[2], vec![14.0, 15.0, 16.0]);
-        for chunk in [1, 2, 3, 4, 6, 9, 61] {
-            let mut chunked = Vec::new();
-            let mut fb = FrameBuffer::new(1, 3, 7);
-            for part in x.chunks(chunk) {
-                let m = fb.available(part);
-                chunked.extend((0..m).map(|k| collect(fb.frame(part, k))));
-                fb.advance(part, m);
+        // one and three values per row: the gap is counted in rows, not values
+        for width in [1, 3] {
+            let x: Vec<f64> = (0..61 * width).map(|i| i as f64).collect();
+            let one = FrameBuffer::new(width, 3, 7);
+            let n = one.available(&x);
+            assert_eq!(n, (61 - 3) / 7 + 1);
+            let whole: Vec<Vec<f64>> = (0..n).map(|k| collect(one.frame(&x, k))).collect();
+            let third: Vec<f64> = (14 * width..17 * width).map(|i| i as f64).collect();
+            assert_eq!(whole[2], third);
+            for chunk in [1, 2, 3, 4, 6, 9, 61] {
+                let mut chunked = Vec::new();
+                let mut fb = FrameBuffer::new(width, 3, 7);
+                for part in x.chunks(chunk * width) {
+                    let m = fb.available(part);
+                    chunked.extend((0..m).map(|k| collect(fb.frame(part, k))));
+                    fb.advance(part, m);
+                }
+                assert_eq!(whole, chunked, "chunks of {chunk} rows of {width}");
             }
-            assert_eq!(whole, chunked, "chunks of {chunk} rows");
         }
     }
 
@@ -206,9 +210,25 @@ mod tests {
     }
 
     #[test]
+    fn reset_forgets_the_kept_rows_and_the_gap() {
+        let x: Vec<f64> = (0..20).map(f64::from).collect();
+        let mut fb = FrameBuffer::new(1, 4, 6);
+        let n = fb.available(&x[..9]);
+        fb.advance(&x[..9], n);
+        fb.reset();
+        let fresh = FrameBuffer::new(1, 4, 6);
+        assert_eq!(fb, fresh);
+        assert_eq!(collect(fb.frame(&x, 0)), vec![0.0, 1.0, 2.0, 3.0]);
+    }
+
+    #[test]
     fn short_first_chunk_gives_no_frame() {
         let fb = FrameBuffer::new(2, 10, 4);
+        assert_eq!((fb.width(), fb.window()), (2, 10));
         assert_eq!(fb.available(&[0.0; 2 * 5]), 0);
+        assert_eq!(fb.available(&[0.0; 2 * 9]), 0);
+        // exactly one window: one frame
+        assert_eq!(fb.available(&[0.0; 2 * 10]), 1);
     }
 
     #[test]
