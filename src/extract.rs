@@ -52,43 +52,41 @@ pub fn run_with(mgr: &mut Manager, job: &Job, channels: &[&[f64]]) -> Result<Rec
         ));
     }
     let mut pos = 0;
-    let mut rec = Recorder::new(job.all);
-    rec.expect_input(len as u64);
-    run_into(
-        mgr,
-        job,
-        channels.len(),
-        |frames, out| {
-            let end = pos + frames.min(len - pos);
-            for (o, c) in out.iter_mut().zip(channels) {
-                o.clear();
-                o.extend_from_slice(&c[pos..end]);
-            }
-            let got = end - pos;
-            pos = end;
-            Ok(got)
-        },
-        &mut rec,
-    )?;
-    Ok(rec)
+    record_known_length(mgr, job, channels.len(), len as u64, |frames, out| {
+        let end = pos + frames.min(len - pos);
+        for (o, c) in out.iter_mut().zip(channels) {
+            o.clear();
+            o.extend_from_slice(&c[pos..end]);
+        }
+        let got = end - pos;
+        pos = end;
+        Ok(got)
+    })
 }
 
 /// Computes `job` on the WAV file `wav` with `mgr` (made for its rate and channels),
 /// decoding it block by block where the graph allows, into outputs sized up front for
 /// the file's length (each written once).
 pub fn run_wav(mgr: &mut Manager, job: &Job, wav: &mut WavBlocks) -> Result<Recorder> {
+    let (ears, frames) = (wav.channels(), wav.frames());
+    record_known_length(mgr, job, ears, frames, |n, out| {
+        wav.read(n, out)
+            .map_err(|e| Error::InvalidInput(e.to_string()))
+    })
+}
+
+/// As [`run_source`] for an input of `samples` samples in all, recorded into outputs sized
+/// for it up front.
+fn record_known_length(
+    mgr: &mut Manager,
+    job: &Job,
+    ears: usize,
+    samples: u64,
+    next: impl FnMut(usize, &mut [Vec<f64>]) -> Result<usize>,
+) -> Result<Recorder> {
     let mut rec = Recorder::new(job.all);
-    rec.expect_input(wav.frames());
-    run_into(
-        mgr,
-        job,
-        wav.channels(),
-        |frames, out| {
-            wav.read(frames, out)
-                .map_err(|e| Error::InvalidInput(e.to_string()))
-        },
-        &mut rec,
-    )?;
+    rec.expect_input(samples);
+    run_into(mgr, job, ears, next, &mut rec)?;
     Ok(rec)
 }
 

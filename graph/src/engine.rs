@@ -575,28 +575,35 @@ impl Engine {
                 inputs.push(graph.nodes[*i].parents.clone());
             }
         }
+        // each entry's distinct parent entries: its inputs' nodes and, for a split node,
+        // its parts
+        let parents: Vec<Vec<usize>> = inputs
+            .iter()
+            .enumerate()
+            .map(|(i, own)| {
+                let own_parts = part_entries.get(i).into_iter().flatten().copied();
+                let mut p: Vec<usize> = own.iter().map(|r| r.node).chain(own_parts).collect();
+                p.sort_unstable();
+                p.dedup();
+                p
+            })
+            .collect();
         let mut children: Vec<Vec<usize>> = vec![Vec::new(); total];
-        let mut feedback_to: Vec<Vec<usize>> = vec![Vec::new(); total];
-        for (i, own) in inputs.iter().enumerate() {
-            let parents = own.iter().map(|p| p.node);
-            for p in parents.chain(part_entries.get(i).into_iter().flatten().copied()) {
-                if !children[p].contains(&i) {
-                    children[p].push(i);
-                }
+        for (i, ps) in parents.iter().enumerate() {
+            for &p in ps {
+                children[p].push(i);
             }
         }
+        let mut feedback_to: Vec<Vec<usize>> = vec![Vec::new(); total];
         for (i, node) in graph.nodes.iter().enumerate() {
             if let Some(f) = node.feedback_from {
                 feedback_to[f.node].push(i);
             }
         }
-        let links: Vec<Links> = (0..total)
-            .map(|i| {
-                let own_parts = part_entries.get(i).into_iter().flatten().copied();
-                let mut parents: Vec<usize> =
-                    inputs[i].iter().map(|p| p.node).chain(own_parts).collect();
-                parents.sort_unstable();
-                parents.dedup();
+        let links: Vec<Links> = parents
+            .into_iter()
+            .enumerate()
+            .map(|(i, parents)| {
                 // the caller collects the graph's nodes, not the input or the parts
                 let sink = u32::from(i != 0 && i < n);
                 let feedback_from = graph.nodes.get(i).and_then(|n| n.feedback_from);

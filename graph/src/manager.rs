@@ -317,11 +317,20 @@ impl Manager {
     fn is_read(&self, r: OutputRef) -> bool {
         (self.keep_all && r.node > 0)
             || self.graph.nodes[r.node].infos[r.output].feedback
-            || self
-                .requests
-                .iter()
-                .flatten()
-                .any(|q| q.outputs.contains(&r))
+            || self.is_requested(r)
+    }
+
+    /// Whether output `r` is an output of a placed request.
+    fn is_requested(&self, r: OutputRef) -> bool {
+        self.requests
+            .iter()
+            .flatten()
+            .any(|q| q.outputs.contains(&r))
+    }
+
+    /// Bytes of `len` input samples' worth of the signal `info` describes.
+    fn signal_bytes(&self, info: &SignalInfo, len: usize) -> f64 {
+        len as f64 * info.fs_hz / self.fs * info.width() as f64 * 8.0
     }
 
     /// Tells the concurrent executor which outputs to copy after each chunk: those read.
@@ -419,7 +428,6 @@ impl Manager {
             Some(prefix) => self.first_block_bytes(prefix.min(len)),
             None => self.one_call_bytes(len),
         };
-        let fs = self.graph.nodes[0].infos[0].fs_hz;
         let limit_mb = std::env::var("AFE_WHOLE_SIGNAL_LIMIT_MB")
             .ok()
             .and_then(|v| v.trim().parse().ok())
@@ -429,7 +437,7 @@ impl Manager {
             return Ok(());
         }
         Err(Error::WholeSignalTooLarge {
-            seconds: len as f64 / fs,
+            seconds: len as f64 / self.fs,
             need_mb,
             limit_mb,
             what: what.join(", "),
@@ -439,7 +447,6 @@ impl Manager {
     /// Bytes of the blocks every node writes over a first block of `len` samples (a
     /// seeding time longer than the usual block), and the nodes that ask for it.
     fn first_block_bytes(&self, len: usize) -> (f64, Vec<&'static str>) {
-        let fs = self.graph.nodes[0].infos[0].fs_hz;
         let invariant = self.graph.invariant_nodes();
         let mut bytes = 0.0;
         let mut what = Vec::new();
@@ -448,7 +455,7 @@ impl Manager {
                 what.push(node.name);
             }
             for info in &node.infos {
-                bytes += len as f64 * info.fs_hz / fs * info.width() as f64 * 8.0;
+                bytes += self.signal_bytes(info, len);
             }
         }
         (bytes, what)
@@ -460,13 +467,6 @@ impl Manager {
         let invariant = self.graph.invariant_nodes();
         let kept = self.kept_outputs(&invariant);
         let absorbing = self.graph.absorbing_nodes(&invariant);
-        let requested = |r: OutputRef| {
-            self.requests
-                .iter()
-                .flatten()
-                .any(|q| q.outputs.contains(&r))
-        };
-        let fs = self.graph.nodes[0].infos[0].fs_hz;
         let mut bytes = 0.0;
         let mut what: Vec<&'static str> = Vec::new();
         for (i, node) in self.graph.nodes.iter().enumerate() {
@@ -475,9 +475,9 @@ impl Manager {
                 what.push(node.name);
             }
             for (o, info) in node.infos.iter().enumerate() {
-                let held = (kept[i][o] || one_call) && !requested(OutputRef { node: i, output: o });
-                if held {
-                    bytes += len as f64 * info.fs_hz / fs * info.width() as f64 * 8.0;
+                let r = OutputRef { node: i, output: o };
+                if (kept[i][o] || one_call) && !self.is_requested(r) {
+                    bytes += self.signal_bytes(info, len);
                 }
             }
         }
@@ -754,8 +754,8 @@ impl Manager {
             return Err(Error::InvalidInput("the signal is empty".into()));
         }
         self.reset()?;
+        self.check_whole_signal(len)?;
         let Some(prefix) = self.graph.one_call_prefix() else {
-            self.check_whole_signal(len)?;
             // The nodes that depend on chunk boundaries must see the signal in one call:
             // the graph runs on this thread, its invariant part in blocks (and the
             // processors are in the graph, which tells which nodes absorb blocks).
@@ -775,7 +775,6 @@ impl Manager {
             self.whole_shown = true;
             return Ok(());
         };
-        self.check_whole_signal(len)?;
         self.run_blocks(signal, prefix)?;
         // the whole output is shown: its first frame is the first since the reset
         for c in self.clocks.iter_mut().flatten() {

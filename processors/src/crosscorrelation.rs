@@ -241,11 +241,19 @@ impl Direct {
             "no dot-product kernel for {lag_block} lags per pass"
         );
         assert!(win.len() % 2 == 0, "the AFE's windows have an even length");
+        let starts = (0..nc.div_ceil(LANES))
+            .map(|g| vector_start(g, LANES, nc))
+            .collect();
+        Self::for_groups(win, max_lag, lag_block, starts)
+    }
+
+    /// The buffers for the groups whose first channels are `starts`.
+    fn for_groups(win: Vec<f64>, max_lag: usize, lag_block: usize, starts: Vec<usize>) -> Self {
         let half_lags = (max_lag + 1).next_multiple_of(lag_block);
         let half = win.len() / 2;
-        let groups = nc.div_ceil(LANES);
+        let groups = starts.len();
         Direct {
-            starts: (0..groups).map(|g| vector_start(g, LANES, nc)).collect(),
+            starts,
             left: vec![Lanes::default(); groups * 3 * (half + half_lags)],
             right: vec![Lanes::default(); groups * 3 * half],
             acc: vec![Lanes::default(); 3 * half_lags],
@@ -260,17 +268,8 @@ impl Direct {
     /// The same computation for groups `groups` only (their lanes compute what they
     /// compute here, so a part's channels get the same values bit for bit).
     fn part(&self, groups: Range<usize>) -> Direct {
-        let half = self.win.len() / 2;
-        let n = groups.len();
-        Direct {
-            starts: self.starts[groups].to_vec(),
-            left: vec![Lanes::default(); n * 3 * (half + self.half_lags)],
-            right: vec![Lanes::default(); n * 3 * half],
-            acc: vec![Lanes::default(); 3 * self.half_lags],
-            energy: vec![([0.0; LANES], [0.0; LANES]); n],
-            win: self.win.clone(),
-            ..*self
-        }
+        let starts = self.starts[groups].to_vec();
+        Self::for_groups(self.win.clone(), self.max_lag, self.lag_block, starts)
     }
 
     /// Correlates the channels of its groups of one frame pair (`[time][channel]`, `nc`
