@@ -33,6 +33,8 @@ pub mod output;
 pub mod plot;
 pub mod realtime;
 mod recorder;
+#[cfg(feature = "remote")]
+pub mod remote;
 pub mod rss;
 pub mod stream;
 #[cfg(feature = "view")]

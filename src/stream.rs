@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 use std::str::FromStr;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant};
+use std::time::{Duration, Instant, SystemTime};
 
 use afe_bass_source::{Feeder, Pacing, Reader, Sample, Source, SynthSpec, WavSource};
 use afe_core::ParamMap;
@@ -27,12 +27,20 @@ pub enum SourceSpec {
     Synth(SynthSpec),
     /// `alsa:DEVICE`: ALSA capture from a device such as `hw:1,0`.
     Alsa(String),
+    /// `zenoh:ENDPOINT[@NAME]`: the raw audio an `afe serve` server publishes, e.g.
+    /// `zenoh:tcp/192.168.1.20:7447` (NAME picks a server when several answer).
+    Zenoh {
+        /// Zenoh endpoint of the server.
+        endpoint: String,
+        /// The server's name, if given.
+        name: Option<String>,
+    },
 }
 
 impl FromStr for SourceSpec {
     type Err = StreamError;
 
-    /// Parses `wav:FILE`, `synth:SPEC` or `alsa:DEVICE`.
+    /// Parses `wav:FILE`, `synth:SPEC`, `alsa:DEVICE` or `zenoh:ENDPOINT[@NAME]`.
     ///
     /// ```
     /// use afe::stream::SourceSpec;
@@ -44,7 +52,7 @@ impl FromStr for SourceSpec {
     fn from_str(text: &str) -> Result<Self, StreamError> {
         let bad = || {
             StreamError::Spec(format!(
-                "unknown source '{text}': expected wav:FILE, synth:SPEC or alsa:DEVICE"
+                "unknown source '{text}': expected wav:FILE, synth:SPEC, alsa:DEVICE or zenoh:ENDPOINT"
             ))
         };
         let (kind, rest) = text.split_once(':').ok_or_else(bad)?;
@@ -54,6 +62,7 @@ impl FromStr for SourceSpec {
                 match kind {
                     "wav" => "file",
                     "alsa" => "device",
+                    "zenoh" => "endpoint",
                     _ => "signal",
                 }
             )));
@@ -62,6 +71,16 @@ impl FromStr for SourceSpec {
             "wav" => Ok(SourceSpec::Wav(PathBuf::from(rest))),
             "synth" => Ok(SourceSpec::Synth(rest.parse()?)),
             "alsa" => Ok(SourceSpec::Alsa(rest.to_string())),
+            "zenoh" => {
+                let (endpoint, name) = match rest.rsplit_once('@') {
+                    Some((e, n)) => (e, Some(n.to_string())),
+                    None => (rest, None),
+                };
+                Ok(SourceSpec::Zenoh {
+                    endpoint: endpoint.to_string(),
+                    name,
+                })
+            }
             _ => Err(bad()),
         }
     }
@@ -73,7 +92,9 @@ impl SourceSpec {
     pub fn default_pacing(&self) -> Pacing {
         match self {
             SourceSpec::Wav(_) => Pacing::Fast,
-            SourceSpec::Synth(_) | SourceSpec::Alsa(_) => Pacing::Realtime,
+            SourceSpec::Synth(_) | SourceSpec::Alsa(_) | SourceSpec::Zenoh { .. } => {
+                Pacing::Realtime
+            }
         }
     }
 }
@@ -203,6 +224,11 @@ pub struct Timing {
     lost: u64,
     last_compute_s: f64,
     rss: RssTrack,
+    /// When the feeder of a source paced at real time started (before its first frame),
+    /// and the frames it publishes at once.
+    paced_from: Option<(SystemTime, u64)>,
+    /// When the last block was complete on the reader's side.
+    ready: SystemTime,
 }
 
 /// Resident memory sampled once per second of audio.
@@ -225,6 +251,8 @@ impl Timing {
             lost: 0,
             last_compute_s: 0.0,
             rss: RssTrack::default(),
+            paced_from: None,
+            ready: SystemTime::UNIX_EPOCH,
         }
     }
 
@@ -259,6 +287,37 @@ impl Timing {
     /// Frames lost so far (the reader fell behind the port).
     pub fn lost_frames(&self) -> u64 {
         self.lost
+    }
+
+    /// Sampling rate of the stream, Hz.
+    pub fn fs(&self) -> f64 {
+        self.fs
+    }
+
+    /// Frames per full block.
+    pub fn block_frames(&self) -> usize {
+        self.block_frames
+    }
+
+    /// Index on the port of the frame after the last block (frames processed plus lost).
+    pub fn input_end(&self) -> u64 {
+        self.frames + self.lost
+    }
+
+    /// Unix time in ns at which the last block's last frame was published on the port, or
+    /// a bound below it: for a source paced at real time, when the port chunk holding that
+    /// frame was due, counted from just before the feeder started (so never after the true
+    /// time); otherwise when the reader had the whole block.
+    pub fn block_end_unix_ns(&self) -> u64 {
+        let at = match self.paced_from {
+            Some((t0, chunk)) => {
+                let published = self.input_end().div_ceil(chunk.max(1)) * chunk.max(1);
+                t0 + Duration::from_secs_f64(published as f64 / self.fs)
+            }
+            None => self.ready,
+        };
+        at.duration_since(SystemTime::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos() as u64)
     }
 
     /// Compute time of the last block in ms, and its budget (the block's duration) in ms.
@@ -338,7 +397,32 @@ pub fn run_spec(
         },
         SourceSpec::Synth(s) => run(afe_bass_source::Synth::new(s.clone()), job, on_block),
         SourceSpec::Alsa(device) => alsa(device, job, on_block),
+        SourceSpec::Zenoh { endpoint, name } => zenoh(endpoint, name.as_deref(), job, on_block),
     }
+}
+
+#[cfg(feature = "remote")]
+fn zenoh(
+    endpoint: &str,
+    name: Option<&str>,
+    job: &StreamJob,
+    on_block: impl Observer,
+) -> Result<Streamed, StreamError> {
+    let source = crate::remote::RemoteSource::connect(endpoint, name)
+        .map_err(|e| afe_bass_source::Error::Remote(e.to_string()))?;
+    run(source, job, on_block)
+}
+
+#[cfg(not(feature = "remote"))]
+fn zenoh(
+    _endpoint: &str,
+    _name: Option<&str>,
+    _job: &StreamJob,
+    _on_block: impl Observer,
+) -> Result<Streamed, StreamError> {
+    Err(StreamError::Spec(
+        "this afe was built without Zenoh: rebuild it with the `remote` feature".into(),
+    ))
 }
 
 #[cfg(feature = "alsa")]
@@ -452,6 +536,10 @@ pub fn run<Src: Source>(
             }
         },
         Pacing::Realtime => {
+            if feeder.source().clock() == afe_bass_source::Clock::OnDemand {
+                consumer.timing.paced_from =
+                    Some((SystemTime::now(), format.frames_per_chunk as u64));
+            }
             let stop = AtomicBool::new(false);
             std::thread::scope(|s| {
                 let writer = s.spawn(|| feeder.run_realtime(&stop));
@@ -539,6 +627,7 @@ impl<S: Sample, F: Observer> Consumer<S, F> {
     }
 
     fn process(&mut self) -> Result<(), StreamError> {
+        self.timing.ready = SystemTime::now();
         let n = self.filled;
         for (input, raw) in self.input.iter_mut().zip(&self.raw) {
             input.clear();

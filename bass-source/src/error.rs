@@ -82,6 +82,10 @@ pub enum Error {
         /// What failed.
         reason: String,
     },
+    /// A remote source (a server's published audio) that fails: a malformed block, a
+    /// channel count that changed, a lost session.
+    #[error("remote source: {0}")]
+    Remote(String),
 }
 
 /// Shorthand for results carrying [`enum@Error`].

@@ -1006,6 +1006,13 @@ impl Manager {
         Ok(req.outputs.iter().filter_map(|r| self.signal(*r)).collect())
     }
 
+    /// Output `k` of request `handle`, as [`Manager::request_signals`] lists them, without
+    /// allocating (for the audio path); `None` past the last one or for an unknown handle.
+    pub fn request_signal(&self, handle: RequestHandle, k: usize) -> Option<Signal<'_>> {
+        let req = self.requests.get(handle.0)?.as_ref()?;
+        self.signal(*req.outputs.get(k)?)
+    }
+
     /// The parameters every processor of request `handle`'s chain runs with, defaults
     /// included (the AFE's `getParameterSummary`): e.g. for `ild`, the `ild_*`, `ihc_*`,
     /// `fb_*` and `pp_*` values.

@@ -183,11 +183,25 @@ enum Command {
         #[arg(long, value_name = "wav:FILE|synth:SPEC|alsa:DEVICE")]
         source: String,
         #[command(flatten)]
-        requests: Requests,
-        /// Address of the live web view (loopback by default: the page can edit the
-        /// graph, and it has no authentication).
-        #[arg(long, value_name = "ADDR", default_value = "127.0.0.1:8080")]
-        http: std::net::SocketAddr,
+        requests: ServeRequests,
+        /// Serve the live web view on this address, e.g. 127.0.0.1:8080 (keep it on
+        /// loopback: the page can edit the graph, and it has no authentication).
+        #[arg(long, value_name = "ADDR")]
+        http: Option<std::net::SocketAddr>,
+        /// Zenoh endpoint the server listens on for remote clients (repeatable); loopback
+        /// unless told otherwise.
+        #[cfg(feature = "remote")]
+        #[arg(long, value_name = "ENDPOINT", default_value = afe::remote::DEFAULT_LISTEN)]
+        listen: Vec<String>,
+        /// The server's name: its Zenoh keys are afe/NAME/...
+        #[cfg(feature = "remote")]
+        #[arg(long, value_name = "NAME", default_value = afe::remote::DEFAULT_NAME)]
+        name: String,
+        /// A Zenoh configuration file (JSON5) to start from, e.g. with user-password
+        /// authentication (transport/auth/usrpwd); --listen overrides its endpoints.
+        #[cfg(feature = "remote")]
+        #[arg(long, value_name = "FILE.json5")]
+        zenoh_config: Option<PathBuf>,
         /// Block fed to the graph per step, in ms.
         #[arg(long, value_name = "M", default_value_t = 10.0)]
         block_ms: f64,
@@ -227,6 +241,9 @@ enum CliError {
     #[cfg(feature = "plot")]
     #[error(transparent)]
     Plot(#[from] afe::plot::PlotError),
+    #[cfg(feature = "remote")]
+    #[error(transparent)]
+    Remote(#[from] afe::remote::RemoteError),
     #[error("{0}")]
     Message(String),
 }
@@ -274,6 +291,35 @@ struct Requests {
     /// A JSON object of AFE parameter names to values (-p entries override it).
     #[arg(long = "params", value_name = "FILE.json")]
     params_file: Option<PathBuf>,
+}
+
+/// `afe serve`'s requests: optional, since remote clients subscribe to their own.
+#[cfg(feature = "view")]
+#[derive(clap::Args)]
+struct ServeRequests {
+    /// Requests computed from the start, comma-separated (clients add their own).
+    #[arg(
+        short = 'r',
+        long = "requests",
+        value_name = "REQ,...",
+        value_delimiter = ','
+    )]
+    names: Vec<String>,
+    /// An AFE parameter of those requests, NAME=VALUE (VALUE is JSON, or a bare string).
+    #[arg(short = 'p', long = "param", value_name = "NAME=VALUE")]
+    params: Vec<String>,
+    /// A JSON object of AFE parameter names to values (-p entries override it).
+    #[arg(long = "params", value_name = "FILE.json")]
+    params_file: Option<PathBuf>,
+}
+
+#[cfg(feature = "view")]
+impl ServeRequests {
+    /// The request names (possibly none) and the merged parameters.
+    fn load(self) -> Result<(Vec<String>, ParamMap), CliError> {
+        let params = load_params(self.params_file.as_deref(), &self.params)?;
+        Ok((clean(self.names), params))
+    }
 }
 
 impl Requests {
@@ -438,6 +484,8 @@ fn main() -> ExitCode {
                 output: output.as_deref(),
                 #[cfg(feature = "view")]
                 view,
+                #[cfg(feature = "remote")]
+                serve: None,
                 endless: false,
             };
             stream(job, &run)
@@ -447,6 +495,12 @@ fn main() -> ExitCode {
             source,
             requests,
             http,
+            #[cfg(feature = "remote")]
+            listen,
+            #[cfg(feature = "remote")]
+            name,
+            #[cfg(feature = "remote")]
+            zenoh_config,
             block_ms,
             duration,
             rate,
@@ -470,7 +524,13 @@ fn main() -> ExitCode {
                 rate_given: rate.is_some(),
                 as_json: json,
                 output: None,
-                view: Some(http),
+                view: http,
+                #[cfg(feature = "remote")]
+                serve: Some(afe::remote::ServeOptions {
+                    listen,
+                    name,
+                    config_file: zenoh_config,
+                }),
                 endless: true,
             };
             stream(job, &run)
@@ -938,6 +998,9 @@ struct StreamRun<'a> {
     /// Serve the live view on this address.
     #[cfg(feature = "view")]
     view: Option<std::net::SocketAddr>,
+    /// Serve the stream to remote clients over Zenoh.
+    #[cfg(feature = "remote")]
+    serve: Option<afe::remote::ServeOptions>,
     /// Runs until stopped (`afe serve`): no `--for` needed.
     endless: bool,
 }
@@ -947,6 +1010,8 @@ struct CliObserver<'a> {
     status: &'a mut Status,
     #[cfg(feature = "view")]
     tap: Option<afe::view::Tap>,
+    #[cfg(feature = "remote")]
+    remote: Option<afe::remote::ServeTap>,
 }
 
 impl afe::stream::Observer for CliObserver<'_> {
@@ -954,6 +1019,10 @@ impl afe::stream::Observer for CliObserver<'_> {
         self.status.update(timing);
         #[cfg(feature = "view")]
         if let Some(tap) = &mut self.tap {
+            tap.block(timing, mgr, input);
+        }
+        #[cfg(feature = "remote")]
+        if let Some(tap) = &mut self.remote {
             tap.block(timing, mgr, input);
         }
         #[cfg(not(feature = "view"))]
@@ -973,12 +1042,12 @@ fn stream(mut job: StreamJob, run: &StreamRun<'_>) -> Result<(), CliError> {
         SourceSpec::Synth(_) | SourceSpec::Alsa(_) if job.duration_s.is_none() && !run.endless => {
             return Err(format!("'{source}' never ends: give --for SECONDS").into())
         }
-        SourceSpec::Synth(_) | SourceSpec::Alsa(_) if job.looping => {
+        SourceSpec::Synth(_) | SourceSpec::Alsa(_) | SourceSpec::Zenoh { .. } if job.looping => {
             return Err("--loop replays wav files only".into())
         }
-        SourceSpec::Wav(_) | SourceSpec::Synth(_) if rate_given => {
+        SourceSpec::Wav(_) | SourceSpec::Synth(_) | SourceSpec::Zenoh { .. } if rate_given => {
             return Err(
-                "--rate sets the ALSA capture rate (synth: fs= in the spec; wav: the file's rate)"
+                "--rate sets the ALSA capture rate (synth: fs= in the spec; wav: the file's rate; zenoh: the server's)"
                     .into(),
             )
         }
@@ -1005,17 +1074,47 @@ fn stream(mut job: StreamJob, run: &StreamRun<'_>) -> Result<(), CliError> {
         }
         None => (None, None),
     };
+    #[cfg(feature = "remote")]
+    let (server, remote) = match &run.serve {
+        Some(options) => {
+            let (server, tap) = afe::remote::Server::start(options)?;
+            for endpoint in options
+                .listen
+                .iter()
+                .filter(|e| !afe::remote::is_loopback(e))
+            {
+                if !server.authenticated() {
+                    eprintln!(
+                        "warning: Zenoh listens on {endpoint}, open to the network, without \
+                         authentication: anyone reaching it can subscribe (give --zenoh-config \
+                         with transport/auth/usrpwd)"
+                    );
+                }
+            }
+            eprintln!(
+                "zenoh: '{}' on {}",
+                server.name(),
+                options.listen.join(", ")
+            );
+            (Some(server), Some(tap))
+        }
+        None => (None, None),
+    };
     let mut status = Status::new(!as_json && std::io::stderr().is_terminal());
     let observer = CliObserver {
         status: &mut status,
         #[cfg(feature = "view")]
         tap,
+        #[cfg(feature = "remote")]
+        remote,
     };
     // the tap goes with the observer at the end of the stream: pages are told
     let out = afe::stream::run_spec(&spec, &job, observer)?;
     status.finish();
     #[cfg(feature = "view")]
     drop(view);
+    #[cfg(feature = "remote")]
+    drop(server);
     if let Some(path) = &output {
         save(&out.recorded, path)?;
     }
