@@ -183,7 +183,14 @@ fn afe_serve_runs_for_its_time_and_names_a_busy_address() {
                 "-r",
                 "ratemap",
             ])
-            .args(["--http", addr, "--for", "0.5"])
+            .args([
+                "--http",
+                addr,
+                "--listen",
+                "tcp/127.0.0.1:0",
+                "--for",
+                "0.5",
+            ])
             .output()
             .expect("run afe serve")
     };

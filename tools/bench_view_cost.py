@@ -56,7 +56,7 @@ def run(afe, seconds, with_page, threads):
     port = free_port()
     server = subprocess.Popen(
         [afe, "serve", "--source", SOURCE, "-r", "ratemap,ild,itd,ic", "--threads", str(threads),
-         "--http", f"127.0.0.1:{port}", "--for", str(seconds), "--json"],
+         "--http", f"127.0.0.1:{port}", "--listen", "tcp/127.0.0.1:0", "--for", str(seconds), "--json"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )
     wait_for_port(port, server)

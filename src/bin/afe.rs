@@ -174,9 +174,30 @@ enum Command {
         #[arg(long, value_name = "ADDR")]
         view: Option<std::net::SocketAddr>,
     },
-    /// Serve a live source at real time until stopped (Ctrl-C) or --for: the live web
-    /// view on --http shows the representations as they are computed; pages can add and
-    /// remove requests, change parameters and listen.
+    /// Subscribe to requests on an `afe serve` server over Zenoh and report what arrives:
+    /// blocks, frames lost, and the latency from the server's port.
+    #[cfg(feature = "remote")]
+    Subscribe {
+        /// Zenoh endpoint of the server.
+        #[arg(long, value_name = "ENDPOINT", default_value = afe::remote::DEFAULT_LISTEN)]
+        connect: String,
+        /// The server's name, when several answer at the endpoint.
+        #[arg(long, value_name = "NAME")]
+        name: Option<String>,
+        #[command(flatten)]
+        requests: Requests,
+        /// Stop after SECONDS of the server's audio (default: until the server goes or
+        /// Ctrl-C).
+        #[arg(long = "for", value_name = "SECONDS")]
+        duration: Option<f64>,
+        /// Print the report as one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Serve a live source at real time until stopped (Ctrl-C) or --for, to remote
+    /// clients over Zenoh (--listen) and to the live web view on --http, which shows the
+    /// representations as they are computed; pages can add and remove requests, change
+    /// parameters and listen.
     #[cfg(feature = "view")]
     Serve {
         /// wav:FILE (replayed in a loop), synth:SPEC or alsa:DEVICE, as for `afe stream`.
@@ -489,6 +510,23 @@ fn main() -> ExitCode {
                 endless: false,
             };
             stream(job, &run)
+        }),
+        #[cfg(feature = "remote")]
+        Command::Subscribe {
+            connect,
+            name,
+            requests,
+            duration,
+            json,
+        } => requests.load().and_then(|(requests, params)| {
+            subscribe(
+                &connect,
+                name.as_deref(),
+                &requests,
+                &params,
+                duration,
+                json,
+            )
         }),
         #[cfg(feature = "view")]
         Command::Serve {
@@ -985,6 +1023,57 @@ fn devices() -> Result<(), CliError> {
 #[cfg(not(feature = "alsa"))]
 fn devices() -> Result<(), CliError> {
     Err(afe::stream::ALSA_OFF.into())
+}
+
+/// `afe subscribe`: receives a subscription's blocks until `duration_s` of audio, the
+/// server's departure or Ctrl-C, and prints the tally.
+#[cfg(feature = "remote")]
+fn subscribe(
+    endpoint: &str,
+    name: Option<&str>,
+    requests: &[String],
+    params: &ParamMap,
+    duration_s: Option<f64>,
+    as_json: bool,
+) -> Result<(), CliError> {
+    let client = afe::remote::Client::connect(endpoint, name)?;
+    let list: Vec<(&str, ParamMap)> = requests
+        .iter()
+        .map(|r| (r.as_str(), params.clone()))
+        .collect();
+    let mut sub = client.subscribe(&list)?;
+    if !as_json {
+        eprintln!(
+            "subscribed to '{}': {}",
+            client.name(),
+            sub.keys().join(", ")
+        );
+    }
+    let limit = duration_s.map(|d| (d * client.fs()).round() as u64);
+    let mut tally = afe::remote::Tally::default();
+    while !afe::interrupt::requested() && limit.is_none_or(|l| tally.input_frames() < l) {
+        match sub.recv(std::time::Duration::from_millis(200)) {
+            Ok(Some(frames)) => tally.add(&frames),
+            Ok(None) => {}
+            Err(afe::remote::RemoteError::ServerGone(_)) => break,
+            Err(e) => return Err(e.into()),
+        }
+    }
+    let report = tally.report(&sub);
+    if as_json {
+        outln!("{report}");
+    } else {
+        outln!(
+            "{} blocks ({:.2} s), {} lost; latency from the server's port p50 {:.3} ms, p99 {:.3} ms, max {:.3} ms",
+            report["messages"],
+            tally.input_frames() as f64 / client.fs(),
+            report["lost_messages"],
+            report["latency_ms_p50"].as_f64().unwrap_or(0.0),
+            report["latency_ms_p99"].as_f64().unwrap_or(0.0),
+            report["latency_ms_max"].as_f64().unwrap_or(0.0),
+        );
+    }
+    Ok(())
 }
 
 /// How `afe stream` and `afe serve` run a stream, beyond its job.

@@ -35,7 +35,7 @@ impl Client {
     /// Connects (as a Zenoh client, multicast scouting off) to the server listening on
     /// `endpoint`, e.g. `tcp/127.0.0.1:7447`; `name` picks a server when several answer.
     pub fn connect(endpoint: &str, name: Option<&str>) -> Result<Client, RemoteError> {
-        let session = zenoh::open(config(None, "client", &[], &[endpoint.to_string()])?)
+        let session = zenoh::open(config(None, "peer", &[], &[endpoint.to_string()])?)
             .wait()
             .map_err(|e| RemoteError::NoServer(format!("cannot reach {endpoint}: {e}")))?;
         let name = match name {

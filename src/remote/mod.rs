@@ -18,6 +18,7 @@
 mod client;
 mod server;
 mod source;
+mod tally;
 pub mod wire;
 
 use thiserror::Error;
@@ -25,6 +26,7 @@ use thiserror::Error;
 pub use client::{Client, FrameBlock, Frames, Subscription};
 pub use server::{ServeOptions, ServeTap, Server};
 pub use source::RemoteSource;
+pub use tally::Tally;
 
 /// Where `afe serve` listens unless told otherwise: loopback only.
 pub const DEFAULT_LISTEN: &str = "tcp/127.0.0.1:7447";

@@ -59,6 +59,17 @@ impl Default for ServeOptions {
     }
 }
 
+/// Queries waiting for the query thread before the next are turned away.
+const QUERY_BACKLOG: usize = 64;
+
+/// The server's queryables.
+#[derive(Debug, Clone, Copy)]
+enum Op {
+    Catalogue,
+    Subscribe,
+    Unsubscribe,
+}
+
 /// A query's outcome, sent back from the audio thread.
 type Outcome = Result<Value, String>;
 
@@ -135,7 +146,15 @@ impl Server {
             })?),
             None => None,
         };
-        let config = config(base, "peer", &options.listen, &[])?;
+        let mut config = config(base, "peer", &options.listen, &[])?;
+        // room for bursts on every link (16 batches, not 2), and a wait for a busy link
+        // long enough that a client which keeps up never loses a message to a scheduling
+        // hiccup; the wait is on the subscription's own publishing thread
+        config.insert_json5("transport/link/tx/queue/size/data_high", "16")?;
+        config.insert_json5(
+            "transport/link/tx/queue/congestion_control/drop/wait_before_drop",
+            "20000",
+        )?;
         let authenticated = config
             .get_json("transport/auth/usrpwd/user")
             .is_ok_and(|u| u != "null");
@@ -164,28 +183,51 @@ impl Server {
                 }
             })
             .wait()?;
+        // queries are answered on a thread of their own: one that waits (for a client's
+        // token, for the audio thread) must not hold up Zenoh's reception on its link
+        let (queries, pending) = mpsc::sync_channel::<(Op, Query)>(QUERY_BACKLOG);
+        let worker = shared.clone();
+        let catalogue_key = key(&name, "catalogue");
+        std::thread::Builder::new()
+            .name("afe-zenoh-queries".into())
+            .spawn(move || {
+                for (op, q) in pending {
+                    let outcome = match op {
+                        Op::Catalogue => catalogue(&worker),
+                        Op::Subscribe => subscribe(&worker, &q),
+                        Op::Unsubscribe => unsubscribe(&worker, &q),
+                    };
+                    // on the queryable's own key: a query for afe/*/catalogue learns the name
+                    let on = match op {
+                        Op::Catalogue => catalogue_key.as_str(),
+                        _ => q.key_expr().as_str(),
+                    };
+                    answer(&q, on, outcome);
+                }
+            })
+            .map_err(|e| RemoteError::Zenoh(format!("cannot start the query thread: {e}")))?;
         let mut queryables = Vec::new();
-        let s = shared.clone();
-        queryables.push(
-            session
-                .declare_queryable(key(&name, "catalogue"))
-                .callback(move |q| answer(&q, catalogue(&s)))
-                .wait()?,
-        );
-        let s = shared.clone();
-        queryables.push(
-            session
-                .declare_queryable(key(&name, "subscribe"))
-                .callback(move |q| answer(&q, subscribe(&s, &q)))
-                .wait()?,
-        );
-        let s = shared.clone();
-        queryables.push(
-            session
-                .declare_queryable(key(&name, "unsubscribe"))
-                .callback(move |q| answer(&q, unsubscribe(&s, &q)))
-                .wait()?,
-        );
+        for (op, what) in [
+            (Op::Catalogue, "catalogue"),
+            (Op::Subscribe, "subscribe"),
+            (Op::Unsubscribe, "unsubscribe"),
+        ] {
+            let queries = queries.clone();
+            queryables.push(
+                session
+                    .declare_queryable(key(&name, what))
+                    .callback(move |q| {
+                        if let Err(mpsc::TrySendError::Full((_, q))) = queries.try_send((op, q)) {
+                            answer(
+                                &q,
+                                q.key_expr().as_str(),
+                                Err("the server is busy: try again".into()),
+                            );
+                        }
+                    })
+                    .wait()?,
+            );
+        }
         let token = session
             .liveliness()
             .declare_token(key(&name, "server"))
@@ -236,10 +278,11 @@ impl Drop for Server {
     }
 }
 
-/// Replies to `q` with the JSON of `outcome`, or an error reply `{"error": message}`.
-fn answer(q: &Query, outcome: Outcome) {
+/// Replies to `q` on key `on` with the JSON of `outcome`, or an error reply
+/// `{"error": message}`.
+fn answer(q: &Query, on: &str, outcome: Outcome) {
     let _ = match outcome {
-        Ok(v) => q.reply(q.key_expr().clone(), v.to_string()).wait(),
+        Ok(v) => q.reply(on.to_string(), v.to_string()).wait(),
         Err(message) => q.reply_err(json!({ "error": message }).to_string()).wait(),
     };
 }
@@ -333,7 +376,6 @@ impl Outlet {
             .declare_publisher(key.clone())
             .congestion_control(CongestionControl::Drop)
             .priority(Priority::DataHigh)
-            .express(true)
             .wait()?;
         let (to, from) = mpsc::sync_channel::<Vec<u8>>(depth);
         let (back, pool) = mpsc::channel();
@@ -451,7 +493,7 @@ impl ServeTap {
     }
 
     /// The report, once per second of audio.
-    fn publish_report(&mut self, timing: &Timing) {
+    fn publish_report(&mut self, timing: &Timing, mgr: &Manager) {
         if timing.input_end() < self.next_report {
             return;
         }
@@ -474,6 +516,7 @@ impl ServeTap {
             .collect();
         let report = json!({
             "stream": timing.report(),
+            "processors": mgr.processor_count(),
             "audio_dropped_messages": self.audio_dropped,
             "subscriptions": subs,
         });
@@ -548,10 +591,6 @@ impl ServeTap {
                 }
             }
         }
-        if let Err(e) = mgr.prepare(timing.block_frames()) {
-            release(mgr, &handles);
-            return Err(e.to_string());
-        }
         let id = self.next_sid;
         let frames_key = key(&self.name, &format!("frames/{id}"));
         let outlet = match Outlet::spawn(&self.session, frames_key.clone(), SUB_QUEUE) {
@@ -622,7 +661,7 @@ impl Observer for ServeTap {
         let n = input.first().map_or(0, Vec::len);
         self.publish_audio(timing, input);
         self.publish_frames(timing, mgr, n);
-        self.publish_report(timing);
+        self.publish_report(timing, mgr);
         self.apply_edits(timing, mgr);
     }
 }
