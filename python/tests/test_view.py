@@ -55,7 +55,7 @@ def test_the_live_page_shows_the_stream_and_edits_the_graph(cli):
     port = _free_port()
     server = subprocess.Popen(
         [cli, "serve", "--source", SOURCE, "-r", "ratemap,ild", "-p", "fb_nChannels=16",
-         "--http", f"127.0.0.1:{port}", "--for", "30", "--json"],
+         "--http", f"127.0.0.1:{port}", "--listen", "tcp/127.0.0.1:0", "--for", "30", "--json"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )
     opts = webdriver.ChromeOptions()
