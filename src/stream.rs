@@ -537,8 +537,10 @@ pub fn run<Src: Source>(
         },
         Pacing::Realtime => {
             if feeder.source().clock() == afe_bass_source::Clock::OnDemand {
-                consumer.timing.paced_from =
-                    Some((SystemTime::now(), format.frames_per_chunk as u64));
+                // a block is published as soon as it is due, not with its port chunk
+                feeder.set_pace(block);
+                let pace = block.min(format.frames_per_chunk) as u64;
+                consumer.timing.paced_from = Some((SystemTime::now(), pace));
             }
             let stop = AtomicBool::new(false);
             std::thread::scope(|s| {

@@ -27,6 +27,8 @@ pub struct Feeder<Src: Source> {
     chunk: Vec<Vec<Src::Sample>>,
     limit: Option<u64>,
     fed: u64,
+    /// Frames published at once at real time (at most `nFramesPerChunk`).
+    pace: usize,
 }
 
 impl<Src: Source> Feeder<Src> {
@@ -58,6 +60,7 @@ impl<Src: Source> Feeder<Src> {
             chunk,
             limit,
             fed: 0,
+            pace: format.frames_per_chunk,
         })
     }
 
@@ -76,14 +79,27 @@ impl<Src: Source> Feeder<Src> {
         self.fed
     }
 
+    /// Has [`Feeder::run_realtime`] publish an on-demand source `frames` at a time (at
+    /// most `nFramesPerChunk`, at least 1) instead of whole chunks: a reader taking blocks
+    /// of that length gets each one as soon as its last frame is due, not with the
+    /// chunk's last block.
+    pub fn set_pace(&mut self, frames: usize) {
+        self.pace = frames.clamp(1, self.port.n_frames_per_chunk());
+    }
+
     /// Publishes the source's next chunk and returns `true`; returns `false` (and closes
     /// the port) at the end of the source or of the limit. An error closes the port too.
     pub fn pump(&mut self) -> Result<bool> {
+        self.pump_at_most(self.port.n_frames_per_chunk())
+    }
+
+    /// [`Feeder::pump`] with chunks of at most `frames` frames.
+    fn pump_at_most(&mut self, frames: usize) -> Result<bool> {
         let Some(writer) = self.writer.as_mut() else {
             return Ok(false);
         };
         let room = self.limit.map_or(u64::MAX, |l| l - self.fed);
-        let max = (self.port.n_frames_per_chunk() as u64).min(room) as usize;
+        let max = (frames as u64).min(room) as usize;
         let n = if max == 0 {
             Ok(0)
         } else {
@@ -117,15 +133,18 @@ impl<Src: Source> Feeder<Src> {
         let paced = self.source.clock() == Clock::OnDemand;
         while !stop.load(Ordering::Relaxed) {
             let before = self.fed;
-            if paced {
+            let frames = if paced {
                 let room = self.limit.map_or(u64::MAX, |l| l - before);
-                let k = (self.port.n_frames_per_chunk() as u64).min(room);
+                let k = (self.pace as u64).min(room);
                 let due = start + Duration::from_secs_f64((before + k) as f64 / fs);
                 if let Some(wait) = due.checked_duration_since(Instant::now()) {
                     std::thread::sleep(wait);
                 }
-            }
-            if !self.pump()? {
+                self.pace
+            } else {
+                self.port.n_frames_per_chunk()
+            };
+            if !self.pump_at_most(frames)? {
                 return Ok(());
             }
         }
@@ -159,6 +178,27 @@ mod tests {
         assert!(!port.is_closed());
         assert!(!f.pump().expect("pump"));
         assert!(port.is_closed());
+        assert_eq!(f.frames_fed(), 250);
+    }
+
+    #[test]
+    fn a_paced_feeder_publishes_its_pace_at_a_time() {
+        let mut f = Feeder::new(ramp(250), None).expect("feeder");
+        f.set_pace(30);
+        let port = f.port();
+        let stop = AtomicBool::new(false);
+        std::thread::scope(|s| {
+            s.spawn(|| f.run_realtime(&stop).expect("run"));
+            // 30 frames at 8 kHz are due every 3.75 ms: the first ones come alone
+            let t = Instant::now();
+            while port.frames_published() == 0 {
+                assert!(t.elapsed() < Duration::from_secs(5), "nothing published");
+                std::thread::sleep(Duration::from_micros(200));
+            }
+            // whole chunks (100 frames) would come first without the pace
+            let first = port.frames_published();
+            assert!(first % 30 == 0 && first < 100, "{first}");
+        });
         assert_eq!(f.frames_fed(), 250);
     }
 

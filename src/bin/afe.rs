@@ -306,12 +306,26 @@ struct Requests {
         required = true
     )]
     names: Vec<String>,
+    #[command(flatten)]
+    params: Params,
+}
+
+/// The parameters of the requests: `-p NAME=VALUE` and `--params FILE.json`.
+#[derive(clap::Args)]
+struct Params {
     /// An AFE parameter, NAME=VALUE (VALUE is JSON, or a bare string). Repeatable.
     #[arg(short = 'p', long = "param", value_name = "NAME=VALUE")]
     params: Vec<String>,
     /// A JSON object of AFE parameter names to values (-p entries override it).
     #[arg(long = "params", value_name = "FILE.json")]
     params_file: Option<PathBuf>,
+}
+
+impl Params {
+    /// The file's parameters, overridden by the `-p` entries.
+    fn load(&self) -> Result<ParamMap, CliError> {
+        load_params(self.params_file.as_deref(), &self.params)
+    }
 }
 
 /// `afe serve`'s requests: optional, since remote clients subscribe to their own.
@@ -326,27 +340,22 @@ struct ServeRequests {
         value_delimiter = ','
     )]
     names: Vec<String>,
-    /// An AFE parameter of those requests, NAME=VALUE (VALUE is JSON, or a bare string).
-    #[arg(short = 'p', long = "param", value_name = "NAME=VALUE")]
-    params: Vec<String>,
-    /// A JSON object of AFE parameter names to values (-p entries override it).
-    #[arg(long = "params", value_name = "FILE.json")]
-    params_file: Option<PathBuf>,
+    #[command(flatten)]
+    params: Params,
 }
 
 #[cfg(feature = "view")]
 impl ServeRequests {
     /// The request names (possibly none) and the merged parameters.
     fn load(self) -> Result<(Vec<String>, ParamMap), CliError> {
-        let params = load_params(self.params_file.as_deref(), &self.params)?;
-        Ok((clean(self.names), params))
+        Ok((clean(self.names), self.params.load()?))
     }
 }
 
 impl Requests {
     /// The request names (trimmed, empty ones dropped) and the merged parameters.
     fn load(self) -> Result<(Vec<String>, ParamMap), CliError> {
-        let params = load_params(self.params_file.as_deref(), &self.params)?;
+        let params = self.params.load()?;
         let names = clean(self.names);
         if names.is_empty() {
             return Err("no request given: -r takes request names, e.g. -r ratemap,ild".into());
@@ -551,7 +560,9 @@ fn main() -> ExitCode {
                 block_ms,
                 duration_s: duration,
                 pacing: Pacing::Realtime,
-                threads: threads.count(),
+                // the sequential executor unless --threads says otherwise: at 10-ms blocks it
+                // gives remote clients the lowest latency (no hand-offs between threads)
+                threads: threads.threads.unwrap_or(0),
                 looping: source.starts_with("wav:"),
                 alsa_rate: rate.unwrap_or(44_100),
                 ..StreamJob::default()
