@@ -25,6 +25,7 @@ pub mod batch;
 pub mod block_times;
 pub mod catalog;
 pub mod extract;
+pub mod frames;
 pub mod interrupt;
 pub mod metadata;
 pub mod npy;

@@ -223,6 +223,7 @@ pub struct Timing {
     frames: u64,
     lost: u64,
     last_compute_s: f64,
+    last_frames: usize,
     rss: RssTrack,
     /// When the feeder of a source paced at real time started (before its first frame),
     /// and the frames it publishes at once.
@@ -250,6 +251,7 @@ impl Timing {
             frames: 0,
             lost: 0,
             last_compute_s: 0.0,
+            last_frames: 0,
             rss: RssTrack::default(),
             paced_from: None,
             ready: SystemTime::UNIX_EPOCH,
@@ -258,6 +260,7 @@ impl Timing {
 
     fn block(&mut self, frames: usize, compute_s: f64) {
         self.frames += frames as u64;
+        self.last_frames = frames;
         self.last_compute_s = compute_s;
         self.times.record(compute_s, frames as f64 / self.fs);
         let audio = self.frames + self.lost;
@@ -297,6 +300,11 @@ impl Timing {
     /// Frames per full block.
     pub fn block_frames(&self) -> usize {
         self.block_frames
+    }
+
+    /// Frames in the last block (a finite source's last one may be short).
+    pub fn last_block_frames(&self) -> usize {
+        self.last_frames
     }
 
     /// Index on the port of the frame after the last block (frames processed plus lost).
@@ -372,6 +380,16 @@ pub trait Observer {
 impl<F: FnMut(&Timing)> Observer for F {
     fn block(&mut self, timing: &Timing, _mgr: &mut Manager, _input: &[Vec<f64>]) {
         self(timing);
+    }
+}
+
+/// An [`Observer`] made of a closure that sees the whole block: the timing, the graph and
+/// the block's input.
+pub struct Blocks<F>(pub F);
+
+impl<F: FnMut(&Timing, &mut Manager, &[Vec<f64>])> Observer for Blocks<F> {
+    fn block(&mut self, timing: &Timing, mgr: &mut Manager, input: &[Vec<f64>]) {
+        (self.0)(timing, mgr, input);
     }
 }
 

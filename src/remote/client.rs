@@ -16,6 +16,7 @@ use zenoh::{Session, Wait};
 
 use super::wire::{self, SignalPart};
 use super::{check_name, config, key, RemoteError};
+use crate::frames::{FrameBlock, Frames};
 
 /// How long a query waits for the server's reply.
 const QUERY_WAIT: Duration = Duration::from_secs(10);
@@ -216,40 +217,6 @@ impl SignalMeta {
             complex: d["dtype"] == "complex128",
         })
     }
-}
-
-/// One signal's new frames in a block.
-#[derive(Debug, Clone, PartialEq)]
-pub struct FrameBlock {
-    /// Output name, as `afe extract` names it (e.g. `ratemap_left`).
-    pub key: String,
-    /// Index of the first new frame among all the frames of the signal.
-    pub first_frame: u64,
-    /// Shape of one frame (e.g. `[channels]`, `[channels, lags]`).
-    pub frame_shape: Vec<usize>,
-    /// Whether values are complex (pairs of real, imaginary in `values`).
-    pub complex: bool,
-    /// New frames.
-    pub rows: usize,
-    /// The values, time-major.
-    pub values: Vec<f64>,
-}
-
-/// The new frames of one block of the server's stream.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Frames {
-    /// Message number of the subscription, from 0.
-    pub seq: u64,
-    /// Index of the block's first frame on the server's port.
-    pub first_input_frame: u64,
-    /// Frames in the block.
-    pub input_frames: usize,
-    /// Unix time in ns at which the block's last frame was on the server's port.
-    pub t_ns: u64,
-    /// Messages lost just before this one.
-    pub lost_messages: u64,
-    /// Each signal's new frames, in the subscription's order.
-    pub signals: Vec<FrameBlock>,
 }
 
 /// A subscription: its blocks in order, with what was lost counted; it is released on the

@@ -23,7 +23,8 @@ pub mod wire;
 
 use thiserror::Error;
 
-pub use client::{Client, FrameBlock, Frames, Subscription};
+pub use crate::frames::{FrameBlock, Frames};
+pub use client::{Client, Subscription};
 pub use server::{ServeOptions, ServeTap, Server};
 pub use source::RemoteSource;
 pub use tally::Tally;
