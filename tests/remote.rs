@@ -129,6 +129,7 @@ fn a_remote_subscription_is_what_extract_gives_in_blocks_bit_for_bit() {
     let port = 17611;
     let (path, signal) = tiled_example(5);
     let names = ["ratemap", "ild", "itd", "ic"];
+    let want = extract_in_blocks(&signal, &names, &ParamMap::new());
     let server = serve(port, SourceSpec::Wav(path), &names, 4.0);
     let client = connect(port);
     // equal requests share the server's processors, with their history
@@ -138,18 +139,24 @@ fn a_remote_subscription_is_what_extract_gives_in_blocks_bit_for_bit() {
     let mut own = subscribe(&client, &requests(&["ratemap"], &eight));
     let start = own.reply()["start_frame"].as_u64().expect("start") as usize;
     assert_eq!(start % BLOCK, 0, "subscriptions start at a block boundary");
+    let mut received = (Vec::new(), Vec::new());
+    for _ in 0..100 {
+        for (sub, got) in [(&mut shared, &mut received.0), (&mut own, &mut received.1)] {
+            got.push(
+                sub.recv(Duration::from_secs(5))
+                    .expect("recv")
+                    .expect("a block"),
+            );
+        }
+    }
+    assert_eq!((shared.lost_messages(), own.lost_messages()), (0, 0));
+    assert_eq!(own.lost_frames(), [0, 0]);
 
-    let want = extract_in_blocks(&signal, &names, &ParamMap::new());
     let tail: Vec<Vec<f64>> = signal.iter().map(|c| c[start..].to_vec()).collect();
     let want_own = extract_in_blocks(&tail, &["ratemap"], &eight);
     let mut compared = BTreeMap::<String, usize>::new();
-    for (sub, want) in [(&mut shared, &want), (&mut own, &want_own)] {
-        for _ in 0..100 {
-            let frames = sub
-                .recv(Duration::from_secs(5))
-                .expect("recv")
-                .expect("a block");
-            assert_eq!(frames.lost_messages, 0);
+    for (blocks, want) in [(&received.0, &want), (&received.1, &want_own)] {
+        for frames in blocks {
             for s in &frames.signals {
                 let key = s.key.replace("_2_", "_");
                 let width = s.values.len() / s.rows.max(1);

@@ -8,6 +8,10 @@ AFE: ``[time]``, ``[frame, channel]`` or ``[frame, channel, lag]``, float64. Eac
 :class:`afe.Signal`, an ``ndarray`` that carries its description (rates, time of each
 row, centre frequencies, lags, window and hop, the parameters it was computed with).
 
+Streams come in blocks, each an :class:`afe.Frames` of every output's new frames:
+:func:`afe.stream` computes them from a recording here; :func:`afe.connect` subscribes
+to those ``afe serve`` computes from its live audio, over Zenoh.
+
 >>> import afe, numpy as np
 >>> fs = 16000
 >>> t = np.arange(fs) / fs
@@ -31,16 +35,22 @@ from . import _afe
 from .signal import Signal, signals as _signals
 
 __all__ = [
+    "Frames",
     "Manager",
+    "Remote",
+    "RemoteError",
     "Signal",
     "Store",
+    "Subscription",
     "batch",
+    "connect",
     "open_store",
     "parameters",
     "plot",
     "process",
     "read_wav",
     "requests",
+    "stream",
     "__version__",
 ]
 
@@ -373,3 +383,5 @@ def process(
 
 from .corpus import Store, batch, open_store  # noqa: E402  (uses _params_json above)
 from .plot import plot  # noqa: E402  (calls process above)
+from .frames import Frames, stream  # noqa: E402  (uses Manager and read_wav above)
+from .remote import Remote, RemoteError, Subscription, connect  # noqa: E402  (uses _params_json)

@@ -174,7 +174,8 @@ pub fn store_read<'py>(
     let values = PyDict::new(py);
     let infos = PyDict::new(py);
     for a in arrays {
-        values.set_item(&a.key, array(py, &a.shape, &a.data)?)?;
+        let complex = a.info["dtype"] == "complex128";
+        values.set_item(&a.key, array(py, &a.shape, &a.data, complex)?)?;
         infos.set_item(&a.key, a.info.to_string())?;
     }
     Ok((values, infos))

@@ -50,10 +50,16 @@ fn columns(x: &PyReadonlyArray2<'_, f64>) -> Vec<Vec<f64>> {
         .collect()
 }
 
-/// A numpy array of `shape` from row-major `data`: float64, or complex128 when `data`
-/// holds `(real, imaginary)` pairs (twice as many values as the shape, see `afe::npy`).
-fn array<'py>(py: Python<'py>, shape: &[usize], data: &[f64]) -> PyResult<Bound<'py, PyAny>> {
-    if afe::npy::is_complex(shape, data) {
+/// A numpy array of `shape` from row-major `data`: float64, or complex128 when the
+/// signal is `complex` (`data` then holds `(real, imaginary)` pairs; with no rows the
+/// array is still complex128).
+fn array<'py>(
+    py: Python<'py>,
+    shape: &[usize],
+    data: &[f64],
+    complex: bool,
+) -> PyResult<Bound<'py, PyAny>> {
+    if complex {
         let values: Vec<Complex64> = data
             .chunks_exact(2)
             .map(|c| Complex64::new(c[0], c[1]))
@@ -70,9 +76,10 @@ fn owned_array<'py>(
     py: Python<'py>,
     shape: &[usize],
     data: Vec<f64>,
+    complex: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
-    if afe::npy::is_complex(shape, &data) {
-        return array(py, shape, &data);
+    if complex {
+        return array(py, shape, &data, true);
     }
     Ok(PyArray1::from_vec(py, data)
         .reshape(shape.to_vec())?
@@ -84,19 +91,22 @@ fn recorded<'py>(py: Python<'py>, rec: afe::Recorder) -> PyResult<(Bound<'py, Py
     let meta = rec.metadata().to_string();
     let d = PyDict::new(py);
     for r in rec.into_signals() {
-        let shape = r.shape();
-        d.set_item(r.key, owned_array(py, &shape, r.data.into_vec())?)?;
+        let (shape, complex) = (r.shape(), r.info.is_complex());
+        d.set_item(r.key, owned_array(py, &shape, r.data.into_vec(), complex)?)?;
     }
     Ok((d, meta))
 }
 
+/// One output as handed to Python: its key, array shape, values and whether complex.
+type Output = (String, Vec<usize>, Vec<f64>, bool);
+
 fn signals_dict<'py, 'a>(
     py: Python<'py>,
-    items: impl Iterator<Item = (String, Vec<usize>, &'a [f64])>,
+    items: impl Iterator<Item = &'a Output>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
-    for (key, shape, data) in items {
-        d.set_item(key, array(py, &shape, data)?)?;
+    for (key, shape, data, complex) in items {
+        d.set_item(key, array(py, shape, data, *complex)?)?;
     }
     Ok(d)
 }
@@ -111,14 +121,19 @@ struct State {
 
 impl State {
     /// The new output of the requested signals after the last chunk, as owned arrays.
-    fn new_output(&self) -> Vec<(String, Vec<usize>, Vec<f64>)> {
+    fn new_output(&self) -> Vec<Output> {
         self.manager
             .signals(false)
             .iter()
             .map(|s| {
                 let mut shape = vec![s.new.frames()];
                 shape.extend(s.info.frame_shape());
-                (s.key(), shape, s.new.as_slice().to_vec())
+                (
+                    s.key(),
+                    shape,
+                    s.new.as_slice().to_vec(),
+                    s.info.is_complex(),
+                )
             })
             .collect()
     }
@@ -169,11 +184,7 @@ impl PyManager {
             }
             Ok(st.new_output())
         })?;
-        signals_dict(
-            py,
-            out.iter()
-                .map(|(k, s, d)| (k.clone(), s.clone(), d.as_slice())),
-        )
+        signals_dict(py, out.iter())
     }
 }
 
@@ -322,16 +333,15 @@ impl PyManager {
                 st.history
                     .signals()
                     .iter()
-                    .map(|s| (s.key.clone(), s.shape(), s.data.as_slice().to_vec()))
+                    .map(|s| {
+                        let data = s.data.as_slice().to_vec();
+                        (s.key.clone(), s.shape(), data, s.info.is_complex())
+                    })
                     .collect::<Vec<_>>(),
                 st.history.metadata().to_string(),
             ))
         })?;
-        let arrays = signals_dict(
-            py,
-            all.iter()
-                .map(|(k, s, d)| (k.clone(), s.clone(), d.as_slice())),
-        )?;
+        let arrays = signals_dict(py, all.iter())?;
         Ok((arrays, meta))
     }
 
@@ -479,7 +489,7 @@ fn read_wav<'py>(py: Python<'py>, path: PathBuf) -> PyResult<(Bound<'py, PyAny>,
     for t in 0..n {
         interleaved.extend(audio.channels.iter().map(|c| c[t]));
     }
-    Ok((array(py, &[n, ch], &interleaved)?, audio.fs))
+    Ok((array(py, &[n, ch], &interleaved, false)?, audio.fs))
 }
 
 /// The compiled core of the `afe` package.

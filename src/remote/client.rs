@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use afe_core::ParamMap;
 use serde_json::{json, Value};
-use zenoh::handlers::FifoChannelHandler;
+use zenoh::handlers::{RingChannel, RingChannelHandler};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Subscriber;
 use zenoh::sample::{Sample, SampleKind};
@@ -18,6 +18,8 @@ use super::wire::{self, SignalPart};
 use super::{check_name, config, key, RemoteError};
 use crate::frames::{FrameBlock, Frames};
 
+/// Blocks a subscription keeps for a reader that has not taken them (0.64 s at 10 ms).
+const RECEIVE_QUEUE: usize = 64;
 /// How long a query waits for the server's reply.
 const QUERY_WAIT: Duration = Duration::from_secs(10);
 
@@ -123,17 +125,26 @@ impl Client {
             .iter()
             .map(SignalMeta::from_description)
             .collect::<Result<_, _>>()?;
-        let subscriber = self.session.declare_subscriber(frames_key).wait()?;
+        // a ring: a reader that stalls loses its oldest blocks (counted from the message
+        // numbers) instead of holding up the session's reception
+        let subscriber = self
+            .session
+            .declare_subscriber(frames_key)
+            .with(RingChannel::new(RECEIVE_QUEUE))
+            .wait()?;
         Ok(Subscription {
             session: self.session.clone(),
             name: self.name.clone(),
             client: self.id.clone(),
             id,
-            next_frame: vec![None; signals.len()],
+            next_frame: reply["signals"]
+                .as_array()
+                .map(|v| v.iter().map(|d| d["first_frame"].as_u64()).collect())
+                .unwrap_or_default(),
             lost_frames: vec![0; signals.len()],
             signals,
             subscriber,
-            next_seq: None,
+            next_seq: 0,
             lost_messages: 0,
             reply,
             gone: self.gone.clone(),
@@ -187,10 +198,17 @@ pub(super) fn query(session: &Session, k: &str, body: Option<Value>) -> Result<V
     match reply.result() {
         Ok(sample) => parse(&sample.payload().to_bytes()),
         Err(e) => {
-            let v = parse(&e.payload().to_bytes())?;
-            Err(RemoteError::Refused(
-                v["error"].as_str().unwrap_or("no reason given").to_string(),
-            ))
+            let bytes = e.payload().to_bytes();
+            match parse(&bytes) {
+                Ok(v) => Err(RemoteError::Refused(
+                    v["error"].as_str().unwrap_or("no reason given").to_string(),
+                )),
+                // Zenoh's own error replies (e.g. "Timeout") are plain text
+                Err(_) => Err(RemoteError::NoServer(format!(
+                    "no answer on {k}: {}",
+                    String::from_utf8_lossy(&bytes)
+                ))),
+            }
         }
     }
 }
@@ -227,8 +245,8 @@ pub struct Subscription {
     client: String,
     id: u64,
     signals: Vec<SignalMeta>,
-    subscriber: Subscriber<FifoChannelHandler<Sample>>,
-    next_seq: Option<u64>,
+    subscriber: Subscriber<RingChannelHandler<Sample>>,
+    next_seq: u64,
     lost_messages: u64,
     next_frame: Vec<Option<u64>>,
     lost_frames: Vec<u64>,
@@ -283,9 +301,10 @@ impl Subscription {
                 self.signals.len()
             )));
         }
-        let lost_messages = self.next_seq.map_or(0, |n| h.seq.saturating_sub(n));
+        // every subscription's messages are numbered from 0
+        let lost_messages = h.seq.saturating_sub(self.next_seq);
         self.lost_messages += lost_messages;
-        self.next_seq = Some(h.seq + 1);
+        self.next_seq = h.seq + 1;
         let mut signals = Vec::with_capacity(parts.len());
         for (i, (meta, part)) in self.signals.iter().zip(parts).enumerate() {
             let SignalPart {
@@ -294,10 +313,12 @@ impl Subscription {
                 values,
                 ..
             } = part;
-            if let Some(expected) = self.next_frame[i] {
+            if let Some(expected) = self.next_frame.get(i).copied().flatten() {
                 self.lost_frames[i] += first_frame.saturating_sub(expected);
             }
-            self.next_frame[i] = Some(first_frame + rows as u64);
+            if let Some(next) = self.next_frame.get_mut(i) {
+                *next = Some(first_frame + rows as u64);
+            }
             signals.push(FrameBlock {
                 key: meta.key.clone(),
                 first_frame,

@@ -33,6 +33,8 @@ use crate::stream::{Observer, Timing};
 const SUB_QUEUE: usize = 32;
 /// Audio blocks on their way to the network before the next are dropped.
 const AUDIO_QUEUE: usize = 32;
+/// How long a new subscription's messages wait for its client's subscriber.
+const MATCH_WAIT: Duration = Duration::from_secs(2);
 /// How long a query waits for the audio thread to act on it.
 const EDIT_WAIT: Duration = Duration::from_secs(5);
 /// How long a subscription waits for its client's liveliness token to be seen.
@@ -232,8 +234,8 @@ impl Server {
             .liveliness()
             .declare_token(key(&name, "server"))
             .wait()?;
-        let audio = Outlet::spawn(&session, key(&name, "audio"), AUDIO_QUEUE)?;
-        let report = Outlet::spawn(&session, key(&name, "report"), 2)?;
+        let audio = Outlet::spawn(&session, key(&name, "audio"), AUDIO_QUEUE, false)?;
+        let report = Outlet::spawn(&session, key(&name, "report"), 2, false)?;
         let tap = ServeTap {
             session: session.clone(),
             name: name.clone(),
@@ -370,8 +372,16 @@ struct Outlet {
 
 impl Outlet {
     /// Declares a publisher on `key` (dropping messages for congested links, never
-    /// blocking) and starts its thread with `depth` buffers.
-    fn spawn(session: &Session, key: String, depth: usize) -> Result<Outlet, RemoteError> {
+    /// blocking) and starts its thread with `depth` buffers. With `await_subscriber`, the
+    /// thread holds its first messages until a subscriber matches (at most
+    /// [`MATCH_WAIT`]): a client declares its subscriber once it has the key, and must
+    /// not lose the blocks computed in between.
+    fn spawn(
+        session: &Session,
+        key: String,
+        depth: usize,
+        await_subscriber: bool,
+    ) -> Result<Outlet, RemoteError> {
         let publisher = session
             .declare_publisher(key.clone())
             .congestion_control(CongestionControl::Drop)
@@ -385,6 +395,13 @@ impl Outlet {
         let thread = std::thread::Builder::new()
             .name(format!("afe-zenoh-{key}"))
             .spawn(move || {
+                let start = Instant::now();
+                while await_subscriber && start.elapsed() < MATCH_WAIT {
+                    match publisher.matching_status().wait() {
+                        Ok(m) if !m.matching() => std::thread::sleep(Duration::from_millis(1)),
+                        _ => break,
+                    }
+                }
                 for message in from {
                     let _ = publisher.put(message.as_slice()).wait();
                     if back.send(message).is_err() {
@@ -593,7 +610,7 @@ impl ServeTap {
         }
         let id = self.next_sid;
         let frames_key = key(&self.name, &format!("frames/{id}"));
-        let outlet = match Outlet::spawn(&self.session, frames_key.clone(), SUB_QUEUE) {
+        let outlet = match Outlet::spawn(&self.session, frames_key.clone(), SUB_QUEUE, true) {
             Ok(o) => o,
             Err(e) => {
                 release(mgr, &handles);
@@ -607,7 +624,11 @@ impl ServeTap {
             .map(|s| {
                 let mut d = describe(mgr, &s);
                 if let Some(o) = d.as_object_mut() {
-                    o.insert("first_frame".into(), json!(s.first_frame));
+                    // the index and time of the first frame the subscription will get
+                    let rows = s.new.frames();
+                    let next_s = s.first_time_s + rows as f64 / s.info.fs_hz;
+                    o.insert("first_frame".into(), json!(s.first_frame + rows as u64));
+                    o.insert("first_time_s".into(), json!(next_s));
                 }
                 d
             })

@@ -1,0 +1,402 @@
+"""Remote clients of `afe serve` over Zenoh (afe.connect) and the local block iterator
+(afe.stream): the same afe.Frames, bit for bit what a local manager computes; errors;
+subscriptions released when their client closes or is killed."""
+import contextlib
+import itertools
+import json
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import time
+import wave
+
+import numpy as np
+import pytest
+
+import afe
+from afe.frames import request_list
+from afe.remote import RemoteError, _Meta, _read_frames
+
+zenoh = pytest.importorskip("zenoh")
+
+REQUESTS = ["ratemap", "ild", "itd", "ic"]
+BLOCK = 441  # 10 ms at 44.1 kHz, the server's block
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def tiled_wav(tmp_path_factory, example_wav):
+    """The example (1 s) tiled 10 times: a first pass long enough to subscribe in."""
+    path = str(tmp_path_factory.mktemp("remote") / "tiled10.wav")
+    with wave.open(example_wav) as w:
+        params, pcm = w.getparams(), w.readframes(w.getnframes())
+    with wave.open(path, "wb") as w:
+        w.setparams(params)
+        w.writeframes(pcm * 10)
+    return path
+
+
+@pytest.fixture
+def serve(cli):
+    """Starts `afe serve` over a WAV file on a free loopback port; returns its endpoint.
+    Every server started is killed at the end of the test."""
+    started = []
+
+    def start(wav, requests=None, seconds=20):
+        endpoint = f"tcp/127.0.0.1:{free_port()}"
+        cmd = [cli, "serve", "--source", f"wav:{wav}", "--listen", endpoint,
+               "--block-ms", "10", "--for", str(seconds), "--json"]
+        if requests:
+            cmd += ["-r", ",".join(requests)]
+        started.append(subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE))
+        return endpoint
+
+    start.processes = started
+    yield start
+    for p in started:
+        p.kill()
+        p.wait()
+
+
+def connect(endpoint, deadline_s=15.0):
+    """afe.connect, retried until the server answers."""
+    start = time.monotonic()
+    while True:
+        try:
+            return afe.connect(endpoint, timeout=5.0)
+        except (ConnectionError, RemoteError):
+            if time.monotonic() - start > deadline_s:
+                raise
+            time.sleep(0.05)
+
+
+@contextlib.contextmanager
+def reports(endpoint, name="robot"):
+    """A plain Zenoh subscriber to the server's report; yields a function that returns
+    the next report (JSON) within a timeout."""
+    config = zenoh.Config()
+    config.insert_json5("mode", '"peer"')
+    config.insert_json5("listen/endpoints", "[]")
+    config.insert_json5("connect/endpoints", json.dumps([endpoint]))
+    config.insert_json5("scouting/multicast/enabled", "false")
+    session = zenoh.open(config)
+    sub = session.declare_subscriber(f"afe/{name}/report", zenoh.handlers.RingChannel(16))
+
+    def next_report(timeout=5.0):
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            sample = sub.handler.try_recv()
+            if sample is not None:
+                return json.loads(sample.payload.to_bytes())
+            time.sleep(0.01)
+        raise AssertionError(f"no report from the server within {timeout} s")
+
+    try:
+        yield next_report
+    finally:
+        session.close()
+
+
+def wait_for(next_report, predicate, timeout):
+    """The first report satisfying ``predicate`` within ``timeout`` seconds."""
+    end = time.monotonic() + timeout
+    last = None
+    while time.monotonic() < end:
+        last = next_report(timeout=max(0.5, end - time.monotonic()))
+        if predicate(last):
+            return last
+    raise AssertionError(f"no report as expected within {timeout} s; last: {last}")
+
+
+def clients(report):
+    return {s["client"] for s in report["subscriptions"]}
+
+
+def reference(wav, requests, params=None):
+    """Each output of `requests` over the file, fed in the server's 441-frame blocks."""
+    x, fs = afe.read_wav(wav)
+    mgr = afe.Manager(fs, 2, keep_history=False)
+    for r in requests:
+        mgr.add_request(r, params)
+    rows = {}
+    for start in range(0, x.shape[0], BLOCK):
+        for k, v in mgr.process_chunk(x[start:start + BLOCK]).items():
+            rows.setdefault(k, []).append(np.asarray(v))
+    return {k: np.concatenate(v) for k, v in rows.items()}, x.shape[0]
+
+
+def test_remote_frames_are_the_local_managers_bit_for_bit(serve, tiled_wav):
+    endpoint = serve(tiled_wav, REQUESTS)
+    with connect(endpoint) as robot:
+        assert robot.name == "robot" and robot.fs_hz == 44100.0 and robot.ears == 2
+        assert robot.block_frames == BLOCK and robot.catalogue["wire_version"] == 1
+        with robot.subscribe(REQUESTS) as sub:
+            blocks = []
+            while len(blocks) < 50:
+                frames = sub.recv(timeout=5.0)
+                assert frames is not None, "no block within 5 s"
+                blocks.append(frames)
+            assert sub.lost_messages == 0
+            assert set(sub.lost_frames.values()) == {0}
+    ref, length = reference(tiled_wav, REQUESTS)
+    assert sub.keys == list(blocks[0].keys()) and set(sub.keys) == set(ref)
+    assert blocks[-1].first_input_frame + blocks[-1].input_frames <= length, "subscribed too late"
+    assert [b.seq for b in blocks] == list(range(blocks[0].seq, blocks[0].seq + 50))
+    assert blocks[0].first_input_frame == sub.reply["start_frame"]
+    assert all(b.lost_messages == 0 and b.input_frames == BLOCK for b in blocks)
+    assert all(b.first_input_frame % BLOCK == 0 for b in blocks)
+    rows = 0
+    for b in blocks:
+        assert isinstance(b, afe.Frames)
+        assert abs(b.t_ns * 1e-9 - time.time()) < 60  # a Unix time, in ns
+        for k, s in b.items():
+            assert isinstance(s, afe.Signal) and s.dtype == np.float64 and s.key == k
+            f = s.first_frame
+            assert f + s.shape[0] <= ref[k].shape[0]
+            assert np.array_equal(np.asarray(s), ref[k][f:f + s.shape[0]]), (k, b.seq)
+            assert s.first_time_s == pytest.approx(f / s.fs_hz)
+            rows += s.shape[0]
+    assert rows > 0
+    # consecutive blocks continue each other
+    for a, b in zip(blocks, blocks[1:]):
+        for k in a:
+            assert b[k].first_frame == a[k].first_frame + a[k].shape[0]
+    # the descriptions are the local ones
+    local = afe.process(tiled_wav, None, ["ratemap"])["ratemap_left"]
+    assert np.array_equal(blocks[0]["ratemap_left"].cf_hz, local.cf_hz)
+    assert blocks[0]["ratemap_left"].parameters == local.parameters
+    # the local iterator gives the same blocks: same class, keys, indices and values
+    first = blocks[0].first_input_frame // BLOCK
+    local = list(itertools.islice(afe.stream(tiled_wav, REQUESTS), first, first + len(blocks)))
+    assert len(local) == len(blocks)
+    for lb, rb in zip(local, blocks):
+        assert type(lb) is type(rb) and list(lb.keys()) == list(rb.keys())
+        assert (lb.first_input_frame, lb.input_frames) == (rb.first_input_frame, rb.input_frames)
+        for k in lb:
+            assert lb[k].first_frame == rb[k].first_frame
+            assert np.array_equal(np.asarray(lb[k]), np.asarray(rb[k]))
+
+
+def test_stream_gives_what_process_gives(example_wav):
+    want = afe.process(example_wav, None, REQUESTS)
+    blocks = list(afe.stream(example_wav, REQUESTS))
+    x, fs = afe.read_wav(example_wav)
+    assert len(blocks) == -(-x.shape[0] // BLOCK)
+    assert [b.first_input_frame for b in blocks] == list(range(0, x.shape[0], BLOCK))
+    assert all(isinstance(b, afe.Frames) and b.lost_messages == 0 for b in blocks)
+    assert list(blocks[0].keys()) == ["ratemap_left", "ratemap_right", "ild_mono", "itd_mono", "ic_mono"]
+    for k, v in want.items():
+        got = np.concatenate([np.asarray(b[k]) for b in blocks])
+        assert np.array_equal(got, np.asarray(v)), k
+        # each block's rows are indexed and timed in the stream
+        n = 0
+        for b in blocks:
+            assert b[k].first_frame == n
+            n += b[k].shape[0]
+        b = next(b for b in blocks if b[k].shape[0])
+        assert np.allclose(b[k].t_s, v.t_s[b[k].first_frame:b[k].first_frame + b[k].shape[0]])
+    # an array in either orientation, with its rate; other blocks; one's own parameters
+    a = list(afe.stream(x, "ratemap", {"fb_nChannels": 8}, block_ms=25, fs_hz=fs))
+    b = list(afe.stream(x.T, [("ratemap", {"fb_nChannels": 8})], block_ms=25, fs_hz=fs))
+    assert a[1].input_frames == round(0.025 * fs) and a[1]["ratemap_left"].shape[1] == 8
+    for k in ("ratemap_left", "ratemap_right"):
+        assert np.array_equal(np.concatenate([f[k] for f in a]), np.concatenate([f[k] for f in b]))
+    assert "ratemap_left" in repr(a[0]) and len(a[0]) == 2 and "ild_mono" not in a[0]
+    with pytest.raises(KeyError, match="ratemap_left"):
+        a[0]["ild_mono"]
+    # complex spectra stay complex, rows or not
+    spectra = list(afe.stream(x[:4410], ["stft"], fs_hz=fs))
+    assert all(np.iscomplexobj(f["stft_left"]) for f in spectra)
+    with pytest.raises(ValueError, match="fs_hz is required"):
+        afe.stream(x, ["ratemap"])
+    with pytest.raises(ValueError, match="nosuch"):
+        afe.stream(x, ["nosuch"], fs_hz=fs)
+    with pytest.raises(ValueError, match="no request"):
+        afe.stream(x, [], fs_hz=fs)
+
+
+def test_refusals_and_unreachable_servers(serve, example_wav):
+    endpoint = serve(example_wav, ["ratemap"])
+    with connect(endpoint) as robot:
+        with pytest.raises(RemoteError, match="nosuch") as e:
+            robot.subscribe(["nosuch"])
+        assert isinstance(e.value, RuntimeError) and "unknown request" in e.value.message
+        with pytest.raises(RemoteError, match="fb_nChannels"):
+            robot.subscribe(["ratemap"], {"fb_nChannels": "many"})
+        with pytest.raises(RemoteError, match="fb_nchannels"):
+            robot.subscribe(["ratemap"], {"fb_nchannels": 8})
+        with pytest.raises(ValueError, match="finite"):
+            robot.subscribe(["ratemap"], {"fb_lowFreqHz": float("nan")})
+        # a refusal leaves the connection usable; requests with their own parameters
+        # start with the subscription; spectra come complex
+        with robot.subscribe([("stft", None), ("ratemap", {"fb_nChannels": 8})]) as sub:
+            assert sub.keys == ["stft_left", "stft_right", "ratemap_2_left", "ratemap_2_right"]
+            first = sub.recv(timeout=5.0)
+            assert first.first_input_frame == sub.reply["start_frame"]
+            for k, s in first.items():
+                assert s.first_frame == 0 and s.first_time_s == first.first_input_frame / 44100
+                assert s.shape[1:] == tuple(sub.descriptions[k]["frame_shape"])
+            assert first["ratemap_2_left"].shape[1] == 8 and first["ratemap_2_left"].n_channels == 8
+            while not first["stft_left"].shape[0]:
+                first = sub.recv(timeout=5.0)
+            assert first["stft_left"].dtype == np.complex128 and first["stft_left"].kind == "spectrum"
+        with pytest.raises(ConnectionError):
+            afe.connect(endpoint, name="another", timeout=1.0)
+    start = time.monotonic()
+    with pytest.raises(ConnectionError, match="cannot reach"):
+        afe.connect(f"tcp/127.0.0.1:{free_port()}")
+    assert time.monotonic() - start < 15
+    with pytest.raises(ValueError, match="server name"):
+        afe.connect(endpoint, name="a/b")
+
+
+CLIENT = """
+import sys, time, afe
+robot = afe.connect(sys.argv[1])
+sub = robot.subscribe(["ratemap"], {"fb_nChannels": 8})
+assert sub.recv(timeout=5.0) is not None
+print(robot.id, flush=True)
+time.sleep(60)
+"""
+
+
+def test_a_killed_clients_subscription_is_released(serve, example_wav):
+    endpoint = serve(example_wav, ["ratemap"])
+    connect(endpoint).close()  # the server is up
+    with reports(endpoint) as next_report:
+        baseline = next_report()
+        client = subprocess.Popen([sys.executable, "-c", CLIENT, endpoint],
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            client_id = client.stdout.readline().strip()
+            assert client_id, client.stderr.read()
+            held = wait_for(next_report, lambda r: client_id in clients(r), 10)
+            if "processors" in held:
+                assert held["processors"] > baseline["processors"]
+            client.send_signal(signal.SIGKILL)
+            client.wait()
+            released = wait_for(next_report, lambda r: client_id not in clients(r), 15)
+            if "processors" in released:
+                # its 8-channel processors go with it
+                assert released["processors"] == baseline["processors"]
+        finally:
+            client.kill()
+            client.wait()
+
+
+def test_leaving_with_closes_the_subscription(serve, example_wav):
+    endpoint = serve(example_wav, ["ratemap"])
+    with reports(endpoint) as next_report:
+        with connect(endpoint) as robot, robot.subscribe(["ild"]) as sub:
+            blocks = [f for _, f in zip(range(3), sub)]
+            client_id = robot.id
+            wait_for(next_report, lambda r: client_id in clients(r), 10)
+        assert [f.seq for f in blocks] == [blocks[0].seq + i for i in range(3)]
+        assert sub.ended and robot.closed and "ended" in repr(sub)
+        assert sub.recv(timeout=0.1) is None and list(sub) == []
+        sub.close()
+        robot.close()  # closing again does nothing
+        with pytest.raises(ConnectionError, match="closed"):
+            robot.subscribe(["ild"])
+        wait_for(next_report, lambda r: client_id not in clients(r), 10)
+
+
+def test_a_dropped_subscription_is_released(serve, example_wav):
+    endpoint = serve(example_wav, ["ratemap"])
+    with reports(endpoint) as next_report, connect(endpoint) as robot:
+        kept = robot.subscribe(["ratemap"])
+        dropped = robot.subscribe(["ild"])
+        held = wait_for(next_report, lambda r: len(r["subscriptions"]) == 2, 10)
+        assert {s["client"] for s in held["subscriptions"]} == {robot.id}
+        del dropped
+        left = wait_for(next_report, lambda r: len(r["subscriptions"]) == 1, 10)
+        assert left["subscriptions"][0]["subscription"] == kept.id
+        assert left["subscriptions"][0]["requests"] == ["ratemap"]
+
+
+def test_a_reader_that_lags_loses_blocks_counted(serve, example_wav):
+    endpoint = serve(example_wav, ["ratemap"])
+    with connect(endpoint) as robot, robot.subscribe(["ratemap"], capacity=4) as sub:
+        first = sub.recv(timeout=5.0)
+        time.sleep(0.5)  # 50 blocks come; 4 are kept
+        # the connection is not held up meanwhile
+        with robot.subscribe(["ild"]) as other:
+            assert other.recv(timeout=5.0) is not None
+        kept = [sub.recv(timeout=5.0) for _ in range(4)]
+        assert kept[0].seq > first.seq + 40 and kept[0].lost_messages == kept[0].seq - first.seq - 1
+        assert [f.seq for f in kept] == list(range(kept[0].seq, kept[0].seq + 4))
+        assert sub.lost_messages == kept[0].lost_messages
+        gap = kept[0]["ratemap_left"].first_frame - first["ratemap_left"].first_frame - 1
+        assert sub.lost_frames == {"ratemap_left": gap, "ratemap_right": gap} and gap > 30
+
+
+def test_iteration_ends_when_the_server_goes(serve, example_wav):
+    endpoint = serve(example_wav)
+    server = serve.processes[-1]
+    with connect(endpoint) as robot:
+        sub = robot.subscribe(["ratemap"], {"fb_nChannels": 8})
+        n = 0
+        for _ in sub:
+            n += 1
+            if n == 5:
+                server.kill()
+                killed = time.monotonic()
+        assert time.monotonic() - killed < 10
+        assert sub.ended and robot.server_gone
+        with pytest.raises(ConnectionError, match="has gone"):
+            robot.subscribe(["ratemap"])
+
+
+def message(seq, parts, count=None, magic=b"AFEZ", version=1, kind=2):
+    body = b"".join(struct.pack("<QII", f, rows, width) + np.asarray(v, "<f8").tobytes()
+                    for f, rows, width, v in parts)
+    head = struct.pack("<4sHHQQIIQ", magic, version, kind, seq, 882, 441,
+                       len(parts) if count is None else count, 1_700_000_000_000_000_000)
+    return head + body
+
+
+def test_the_wire_format_is_read_and_checked():
+    metas = [
+        _Meta({"key": "ratemap_left", "frame_shape": [3], "dtype": "float64", "fs_hz": 100.0,
+               "first_frame": 4, "first_time_s": 0.04}),
+        _Meta({"key": "stft_left", "frame_shape": [2], "dtype": "complex128", "fs_hz": 100.0}),
+        _Meta({"key": "time_left", "frame_shape": [], "dtype": "float64", "fs_hz": 44100.0}),
+    ]
+    good = [(7, 2, 3, np.arange(6.0)), (3, 1, 4, [1.0, -2.0, 0.5, 0.25]), (0, 0, 1, [])]
+    (seq, first, n, t_ns), parts = _read_frames(message(9, good), metas)
+    assert (seq, first, n, t_ns) == (9, 882, 441, 1_700_000_000_000_000_000)
+    assert parts[0][0] == 7 and np.array_equal(parts[0][1], np.arange(6.0).reshape(2, 3))
+    assert parts[1][1].dtype == np.complex128 and parts[1][1].tolist() == [[1 - 2j, 0.5 + 0.25j]]
+    assert parts[2][1].shape == (0,)
+    parts[0][1][0, 0] = 1.0  # writable
+    bad = {
+        "cut short": message(9, good)[:-8],
+        "after the end": message(9, good) + b"\0",
+        "not an afe frames message": message(9, good, magic=b"XXXX"),
+        "wire version": message(9, good, version=2),
+        "signals in a message": message(9, good[:2], count=2),
+        "values per frame": message(9, [(7, 2, 2, np.arange(4.0))] + good[1:]),
+    }
+    for what, data in bad.items():
+        with pytest.raises(RemoteError, match=what):
+            _read_frames(data, metas)
+    with pytest.raises(RemoteError, match="cut short"):
+        _read_frames(b"AFEZ", metas)
+
+
+def test_requests_are_names_or_pairs():
+    assert request_list("ratemap, ild", {"fb_nChannels": 8}) == [
+        ("ratemap", {"fb_nChannels": 8}), ("ild", {"fb_nChannels": 8})]
+    assert request_list([("ratemap", {"fb_nChannels": 16}), "ild"], {"fb_nChannels": 8}) == [
+        ("ratemap", {"fb_nChannels": 16}), ("ild", {"fb_nChannels": 8})]
+    with pytest.raises(ValueError, match="no request"):
+        request_list(" , ")
+    with pytest.raises(ValueError, match="name or a"):
+        request_list([3])
