@@ -233,15 +233,21 @@ fn a_remote_source_gives_the_servers_samples_to_a_local_graph() {
     server.join().expect("server");
 }
 
-/// The server's reports on `afe/robot/report` as they come, until `done` says so.
-fn watch_reports(port: u16, deadline: Duration, mut done: impl FnMut(&Value) -> bool) -> bool {
+/// A plain Zenoh session connected to the server on `port`, as a client in another
+/// language would open it.
+fn raw_session(port: u16) -> zenoh::Session {
     let mut c = zenoh::Config::default();
     c.insert_json5("mode", "\"client\"").expect("mode");
     c.insert_json5("scouting/multicast/enabled", "false")
         .expect("scouting");
     c.insert_json5("connect/endpoints", &format!("[\"{}\"]", endpoint(port)))
         .expect("connect");
-    let session = zenoh::open(c).wait().expect("session");
+    zenoh::open(c).wait().expect("session")
+}
+
+/// The server's reports on `afe/robot/report` as they come, until `done` says so.
+fn watch_reports(port: u16, deadline: Duration, mut done: impl FnMut(&Value) -> bool) -> bool {
+    let session = raw_session(port);
     let reports = session
         .declare_subscriber("afe/robot/report")
         .wait()
@@ -375,4 +381,92 @@ fn eight_clients_lose_nothing_in_thirty_seconds_while_a_stalled_one_loses_counte
     let report = server.join().expect("server");
     assert_eq!(report.deadline_misses, 0, "{report:?}");
     assert_eq!(report.lost_frames, 0);
+}
+
+#[test]
+fn hostile_subscriptions_get_error_replies_and_change_nothing_for_the_others() {
+    let port = 17615;
+    let server = serve(
+        port,
+        SourceSpec::Synth("fs=44100,tone=700,noise=0.1,seed=9".parse().expect("synth")),
+        &[],
+        6.0,
+    );
+    // a good client reads throughout
+    let good = std::thread::spawn(move || {
+        let client = connect(port);
+        let mut sub = subscribe(&client, &requests(&["ild"], &ParamMap::new()));
+        for _ in 0..300 {
+            let f = sub
+                .recv(Duration::from_secs(5))
+                .expect("recv")
+                .expect("a block");
+            assert_eq!(f.signals.len(), 1);
+        }
+        sub.lost_messages()
+    });
+    let raw = raw_session(port);
+    let token = raw
+        .liveliness()
+        .declare_token("afe/robot/client/raw")
+        .wait()
+        .expect("token");
+    let ask = |payload: String| -> String {
+        let replies = raw
+            .get("afe/robot/subscribe")
+            .payload(payload)
+            .timeout(Duration::from_secs(10))
+            .wait()
+            .expect("get");
+        let reply = replies.recv().expect("a reply");
+        match reply.result() {
+            Ok(ok) => panic!(
+                "accepted: {}",
+                String::from_utf8_lossy(&ok.payload().to_bytes())
+            ),
+            Err(e) => {
+                let v: Value = serde_json::from_slice(&e.payload().to_bytes()).expect("json error");
+                v["error"].as_str().expect("a message").to_string()
+            }
+        }
+    };
+    let many: Vec<Value> = (0..65)
+        .map(|_| serde_json::json!({ "name": "ild" }))
+        .collect();
+    let cases = [
+        ("not json".to_string(), "invalid query JSON"),
+        (r#"{"client": "raw", "requests": []}"#.to_string(), "1 to 64 requests"),
+        (serde_json::json!({ "client": "raw", "requests": many }).to_string(), "1 to 64 requests"),
+        (r#"{"client": "raw", "requests": [{"name": "ild"}], "x": 1}"#.to_string(), "unknown field"),
+        (r#"{"client": "raw", "requests": [{"name": "nosuch"}]}"#.to_string(), "unknown request 'nosuch'"),
+        (
+            r#"{"client": "raw", "requests": [{"name": "ild"}, {"name": "ratemap", "params": {"fb_nChannels": -3}}]}"#.to_string(),
+            "fb_nChannels",
+        ),
+        (r#"{"client": "ghost", "requests": [{"name": "ild"}]}"#.to_string(), "no liveliness token"),
+        (format!(r#"{{"client": "raw", "pad": "{}"}}"#, "x".repeat(70_000)), "at most 65536"),
+    ];
+    for (payload, expected) in cases {
+        let message = ask(payload);
+        assert!(
+            message.contains(expected),
+            "{expected:?} not in {message:?}"
+        );
+    }
+    drop(token);
+    // the refused subscriptions placed nothing, and the good client lost nothing
+    let mut processors = None;
+    assert!(watch_reports(port, Duration::from_secs(5), |r| {
+        processors = r["processors"].as_u64();
+        true
+    }));
+    let mut alone = Manager::new(44100.0, 2).expect("manager");
+    alone.add_request("ild", &ParamMap::new()).expect("ild");
+    assert_eq!(
+        processors,
+        Some(alone.processor_count() as u64),
+        "only the good client's chain"
+    );
+    assert_eq!(good.join().expect("good client"), 0);
+    server.join().expect("server");
 }
