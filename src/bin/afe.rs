@@ -306,26 +306,12 @@ struct Requests {
         required = true
     )]
     names: Vec<String>,
-    #[command(flatten)]
-    params: Params,
-}
-
-/// The parameters of the requests: `-p NAME=VALUE` and `--params FILE.json`.
-#[derive(clap::Args)]
-struct Params {
     /// An AFE parameter, NAME=VALUE (VALUE is JSON, or a bare string). Repeatable.
     #[arg(short = 'p', long = "param", value_name = "NAME=VALUE")]
     params: Vec<String>,
     /// A JSON object of AFE parameter names to values (-p entries override it).
     #[arg(long = "params", value_name = "FILE.json")]
     params_file: Option<PathBuf>,
-}
-
-impl Params {
-    /// The file's parameters, overridden by the `-p` entries.
-    fn load(&self) -> Result<ParamMap, CliError> {
-        load_params(self.params_file.as_deref(), &self.params)
-    }
 }
 
 /// `afe serve`'s requests: optional, since remote clients subscribe to their own.
@@ -340,22 +326,27 @@ struct ServeRequests {
         value_delimiter = ','
     )]
     names: Vec<String>,
-    #[command(flatten)]
-    params: Params,
+    /// An AFE parameter, NAME=VALUE (VALUE is JSON, or a bare string). Repeatable.
+    #[arg(short = 'p', long = "param", value_name = "NAME=VALUE")]
+    params: Vec<String>,
+    /// A JSON object of AFE parameter names to values (-p entries override it).
+    #[arg(long = "params", value_name = "FILE.json")]
+    params_file: Option<PathBuf>,
 }
 
 #[cfg(feature = "view")]
 impl ServeRequests {
     /// The request names (possibly none) and the merged parameters.
     fn load(self) -> Result<(Vec<String>, ParamMap), CliError> {
-        Ok((clean(self.names), self.params.load()?))
+        let params = load_params(self.params_file.as_deref(), &self.params)?;
+        Ok((clean(self.names), params))
     }
 }
 
 impl Requests {
     /// The request names (trimmed, empty ones dropped) and the merged parameters.
     fn load(self) -> Result<(Vec<String>, ParamMap), CliError> {
-        let params = self.params.load()?;
+        let params = load_params(self.params_file.as_deref(), &self.params)?;
         let names = clean(self.names);
         if names.is_empty() {
             return Err("no request given: -r takes request names, e.g. -r ratemap,ild".into());
