@@ -71,5 +71,32 @@ mod tests {
     fn colon_range_includes_end_within_tolerance() {
         assert_eq!(colon_range(0.0, 0.1, 0.3).len(), 4);
         assert_eq!(colon_range(1.0, 1.0, 3.5), vec![1.0, 2.0, 3.0]);
+        assert_eq!(colon_range(0.0, 0.5, 2.0), vec![0.0, 0.5, 1.0, 1.5, 2.0]);
+        assert_eq!(colon_range(1.0, 0.5, 1.0), vec![1.0]);
+    }
+
+    #[test]
+    fn an_empty_colon_range_needs_no_step_or_a_reversed_span() {
+        for (a, d, b) in [
+            (0.0, f64::NAN, 1.0),
+            (0.0, 0.0, 1.0),
+            (0.0, -0.5, 1.0),
+            (1.0, 0.5, 0.0),
+        ] {
+            assert!(colon_range(a, d, b).is_empty(), "{a}:{d}:{b}");
+        }
+    }
+
+    #[test]
+    fn bandwidth_is_glasberg_and_moores() {
+        assert_eq!(erb_bandwidth(0.0), 24.7);
+        assert!((erb_bandwidth(1000.0) - 132.7).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_constant_linspace_keeps_its_middle() {
+        assert_eq!(linspace(2.0, 2.0, 3), vec![2.0; 3]);
+        assert_eq!(linspace(-1.0, 1.0, 3), vec![-1.0, 0.0, 1.0]);
+        assert!(linspace(0.0, 1.0, 0).is_empty());
     }
 }
