@@ -479,8 +479,8 @@ impl ServeTap {
             self.audio_dropped += 1;
             return;
         };
-        let n = input.first().map_or(0, Vec::len);
-        header(Kind::Audio, self.audio_seq, timing, n, input.len()).write(&mut buf);
+        let n = timing.last_block_frames();
+        header(Kind::Audio, self.audio_seq, timing, input.len()).write(&mut buf);
         for t in 0..n {
             wire::put_values(&mut buf, input.iter().map(|ear| ear[t]));
         }
@@ -488,7 +488,7 @@ impl ServeTap {
         self.audio.send(buf);
     }
 
-    fn publish_frames(&mut self, timing: &Timing, mgr: &Manager, n: usize) {
+    fn publish_frames(&mut self, timing: &Timing, mgr: &Manager) {
         for sub in &mut self.subs {
             let seq = sub.seq;
             sub.seq += 1;
@@ -496,7 +496,7 @@ impl ServeTap {
                 sub.dropped += 1;
                 continue;
             };
-            header(Kind::Frames, seq, timing, n, 0).write(&mut buf);
+            header(Kind::Frames, seq, timing, 0).write(&mut buf);
             let mut count: u32 = 0;
             for &h in &sub.handles {
                 for s in (0..).map_while(|k| mgr.request_signal(h, k)) {
@@ -662,8 +662,9 @@ fn release(mgr: &mut Manager, handles: &[RequestHandle]) {
     }
 }
 
-/// The header of a block's message.
-fn header(kind: Kind, seq: u64, timing: &Timing, frames: usize, count: usize) -> Header {
+/// The header of the last block's message.
+fn header(kind: Kind, seq: u64, timing: &Timing, count: usize) -> Header {
+    let frames = timing.last_block_frames();
     Header {
         kind,
         seq,
@@ -679,9 +680,8 @@ impl Observer for ServeTap {
         if !self.started {
             self.start(timing, mgr);
         }
-        let n = input.first().map_or(0, Vec::len);
         self.publish_audio(timing, input);
-        self.publish_frames(timing, mgr, n);
+        self.publish_frames(timing, mgr);
         self.publish_report(timing, mgr);
         self.apply_edits(timing, mgr);
     }
