@@ -416,7 +416,8 @@ class Subscription:
         # were lost too
         self._next_seq = 0
         self._lost_messages = 0
-        self._next_frame: List[Optional[int]] = [None] * len(self._meta)
+        # from the reply: the index of the first frame the subscription will get, as in Rust
+        self._next_frame: List[Optional[int]] = [m.first_frame for m in self._meta]
         self._lost_frames = [0] * len(self._meta)
         # a bounded queue that drops its oldest block when full (counted by the gap in
         # `seq`): a FIFO that blocks when full would hold up the session's reception, and
