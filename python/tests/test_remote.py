@@ -9,6 +9,7 @@ import socket
 import struct
 import subprocess
 import sys
+import threading
 import time
 import wave
 
@@ -49,13 +50,16 @@ def serve(cli):
     Every server started is killed at the end of the test."""
     started = []
 
-    def start(wav, requests=None, seconds=20):
+    def start(wav, requests=None, seconds=20, stdout=subprocess.DEVNULL):
+        """``wav``: a file's path, or a ``synth:`` source; ``stdout``: where the server's
+        final report (JSON) goes."""
         endpoint = f"tcp/127.0.0.1:{free_port()}"
-        cmd = [cli, "serve", "--source", f"wav:{wav}", "--listen", endpoint,
+        source = wav if wav.startswith("synth:") else f"wav:{wav}"
+        cmd = [cli, "serve", "--source", source, "--listen", endpoint,
                "--block-ms", "10", "--for", str(seconds), "--json"]
         if requests:
             cmd += ["-r", ",".join(requests)]
-        started.append(subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE))
+        started.append(subprocess.Popen(cmd, stdout=stdout, stderr=subprocess.PIPE))
         return endpoint
 
     start.processes = started
@@ -335,6 +339,79 @@ def test_a_reader_that_lags_loses_blocks_counted(serve, example_wav):
         assert sub.lost_messages == kept[0].lost_messages
         gap = kept[0]["ratemap_left"].first_frame - first["ratemap_left"].first_frame - 1
         assert sub.lost_frames == {"ratemap_left": gap, "ratemap_right": gap} and gap > 30
+
+
+LOAD_SETS = [
+    ["ratemap", "ild", "itd", "ic"],
+    ["ratemap"],
+    ["ild"],
+    ["itd", "ic"],
+    ["onsetMap"],
+    ["crosscorrelation"],
+    ["onsetStrength"],
+    ["spectralFeatures"],
+]
+
+
+def test_eight_clients_lose_nothing_for_30_s_while_a_stalled_one_loses_counted_frames(
+        serve, tmp_path):
+    seconds = 30
+    blocks = seconds * 100
+    with open(tmp_path / "report.json", "wb") as out:
+        endpoint = serve("synth:fs=44100,tone=500,noise=0.1,itd_ms=0.3,seed=5",
+                         seconds=seconds + 30, stdout=out)
+    server = serve.processes[-1]
+    connect(endpoint).close()  # the server is up
+    results = [None] * len(LOAD_SETS)
+    failures = []
+
+    def keep_up(i):
+        try:
+            with connect(endpoint) as robot, robot.subscribe(LOAD_SETS[i]) as sub:
+                first = None
+                for n, frames in enumerate(sub):
+                    first = first or frames
+                    if n + 1 == blocks:
+                        break
+                results[i] = (n + 1, first, frames, sub.lost_messages, sub.lost_frames,
+                              sub.reply)
+        except BaseException as e:  # reported by the main thread
+            failures.append((LOAD_SETS[i], e))
+
+    threads = [threading.Thread(target=keep_up, args=(i,)) for i in range(len(LOAD_SETS))]
+    for t in threads:
+        t.start()
+    # a client that reads nothing for 4 s of full-rate frames, keeping 16 blocks: it loses
+    # the rest, here or on the server's side, and counts them from its first block on
+    with connect(endpoint) as robot, robot.subscribe(["innerhaircell"], capacity=16) as slow:
+        time.sleep(4.0)
+        got = []
+        resumed = time.monotonic()
+        while time.monotonic() - resumed < 2.0:
+            frames = slow.recv(timeout=0.1)
+            if frames is not None:
+                got.append(frames)
+        assert got, "the stalled client got nothing after it resumed"
+        lost = slow.lost_messages
+        assert lost > 0 and got[0].seq >= lost, (lost, [f.seq for f in got[:3]])
+        assert lost == got[-1].seq + 1 - len(got), "each block not received is counted once"
+        assert slow.lost_frames == {"innerhaircell_left": lost * BLOCK,
+                                    "innerhaircell_right": lost * BLOCK}, \
+            "441 frames per 10-ms block: every lost block counts its frames"
+    for t in threads:
+        t.join(timeout=seconds + 60)
+    assert not failures, failures
+    for requests, (n, first, last, lost_messages, lost_frames, reply) in zip(LOAD_SETS, results):
+        assert n == blocks and lost_messages == 0, (requests, lost_messages)
+        assert set(lost_frames.values()) == {0}, (requests, lost_frames)
+        assert (first.seq, last.seq) == (0, blocks - 1), requests
+        assert first.first_input_frame == reply["start_frame"], requests
+        assert last.first_input_frame == reply["start_frame"] + (blocks - 1) * BLOCK, requests
+    server.send_signal(signal.SIGINT)
+    server.wait(timeout=30)
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert report["deadline_misses"] == 0 and report["lost_frames"] == 0, report["missed_blocks"]
+    assert report["blocks"] >= blocks
 
 
 def test_iteration_ends_when_the_server_goes(serve, example_wav):
