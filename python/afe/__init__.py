@@ -35,6 +35,8 @@ from . import _afe
 from .signal import Signal, signals as _signals
 
 __all__ = [
+    "Audio",
+    "AudioBlock",
     "Frames",
     "Manager",
     "Remote",
@@ -384,4 +386,4 @@ def process(
 from .corpus import Store, batch, open_store  # noqa: E402  (uses _params_json above)
 from .plot import plot  # noqa: E402  (calls process above)
 from .frames import Frames, stream  # noqa: E402  (uses Manager and read_wav above)
-from .remote import Remote, RemoteError, Subscription, connect  # noqa: E402  (uses _params_json)
+from .remote import Audio, AudioBlock, Remote, RemoteError, Subscription, connect  # noqa: E402  (uses _params_json)

@@ -170,20 +170,23 @@ def _as_ears(source: Any) -> np.ndarray:
 
 
 def stream(
-    source: Union[str, os.PathLike[str], np.ndarray, Sequence[Any]],
+    source: Any,
     requests: Requests,
     params: Optional[Mapping[str, Any]] = None,
     block_ms: float = 10.0,
     fs_hz: Optional[float] = None,
 ) -> Iterator[Frames]:
-    """Streams a recording block by block through a local :class:`afe.Manager`, yielding
+    """Streams audio block by block through a local :class:`afe.Manager`, yielding
     one :class:`Frames` per block: the same blocks a subscription to ``afe serve``
     gives, computed here.
 
-    ``source``: a WAV file's path, or an array ``[time]``, ``[time, ears]`` or
-    ``[ears, time]`` (then ``fs_hz`` is required; for a file it is checked if given).
-    ``requests``: request names (a list or a comma-separated string), all with
-    ``params``, or ``(name, params)`` pairs. ``block_ms``: the block, in ms
+    ``source``: a WAV file's path; an array ``[time]``, ``[time, ears]`` or
+    ``[ears, time]`` (then ``fs_hz`` is required; for a file it is checked if given);
+    or a server's raw audio, :meth:`afe.Remote.audio` (its blocks are the server's,
+    ``block_ms`` is not used, and each :class:`Frames` counts the audio messages lost
+    before it; the front-end runs on the samples received, as a device's would after an
+    overrun). ``requests``: request names (a list or a comma-separated string), all
+    with ``params``, or ``(name, params)`` pairs. ``block_ms``: the block, in ms
     (``round(block_ms * fs / 1000)`` frames; the last block holds what is left).
 
     The outputs are computed chunk by chunk with :meth:`afe.Manager.process_chunk`, so
@@ -192,34 +195,44 @@ def stream(
     parameter, a bad source or block.
     """
     from . import Manager, read_wav
+    from .remote import Audio
 
-    if isinstance(source, (str, os.PathLike)):
-        x, fs = read_wav(source)
-        if fs_hz is not None and float(fs_hz) != fs:
-            raise ValueError(f"fs_hz = {fs_hz} Hz, but the file is at {fs:g} Hz")
-        x = _as_ears(x)
+    if isinstance(source, Audio):
+        if fs_hz is not None and float(fs_hz) != source.fs_hz:
+            raise ValueError(f"fs_hz = {fs_hz} Hz, but the server streams at {source.fs_hz:g} Hz")
+        fs, ears = source.fs_hz, source.ears
+        blocks: Iterator[Tuple[int, np.ndarray, int]] = (
+            (b.first_frame, b.samples, b.lost_messages) for b in source
+        )
     else:
-        if fs_hz is None:
-            raise ValueError("fs_hz is required when the source is an array")
-        fs = float(fs_hz)
-        x = _as_ears(source)
-    block = int(round(float(block_ms) * fs / 1000.0))
-    if block < 1:
-        raise ValueError(f"block_ms = {block_ms}: a block of {block} frames at {fs:g} Hz")
-    mgr = Manager(fs, x.shape[1], keep_history=False)
+        if isinstance(source, (str, os.PathLike)):
+            x, fs = read_wav(source)
+            if fs_hz is not None and float(fs_hz) != fs:
+                raise ValueError(f"fs_hz = {fs_hz} Hz, but the file is at {fs:g} Hz")
+            x = _as_ears(x)
+        else:
+            if fs_hz is None:
+                raise ValueError("fs_hz is required when the source is an array")
+            fs = float(fs_hz)
+            x = _as_ears(source)
+        block = int(round(float(block_ms) * fs / 1000.0))
+        if block < 1:
+            raise ValueError(f"block_ms = {block_ms}: a block of {block} frames at {fs:g} Hz")
+        ears = x.shape[1]
+        blocks = ((start, x[start : start + block], 0) for start in range(0, x.shape[0], block))
+    mgr = Manager(fs, ears, keep_history=False)
     keys: List[str] = []
     for name, p in request_list(requests, params):
         for k in mgr.request_outputs(mgr.add_request(name, p)):
             if k not in keys:
                 keys.append(k)
     # the requests are placed (and their errors raised) here, not at the first block
-    return _run(mgr, x, block, keys)
+    return _run(mgr, blocks, keys)
 
 
-def _run(mgr: Any, x: np.ndarray, block: int, keys: List[str]) -> Iterator[Frames]:
-    """The blocks of :func:`stream`."""
-    for seq, start in enumerate(range(0, x.shape[0], block)):
-        chunk = x[start : start + block]
+def _run(mgr: Any, blocks: Iterator[Tuple[int, np.ndarray, int]], keys: List[str]) -> Iterator[Frames]:
+    """The blocks of :func:`stream`, from ``(first frame, samples, messages lost before)``."""
+    for seq, (start, chunk, lost) in enumerate(blocks):
         t_ns = time.time_ns()
         out = mgr.process_chunk(chunk)
         signals: Dict[str, Signal] = {}
@@ -229,4 +242,4 @@ def _run(mgr: Any, x: np.ndarray, block: int, keys: List[str]) -> Iterator[Frame
                 # a block without rows of a spectrum comes as float64: keep its dtype
                 s = Signal(np.asarray(s).astype(np.complex128), s.meta)
             signals[k] = s
-        yield Frames(seq, start, chunk.shape[0], t_ns, 0, signals)
+        yield Frames(seq, start, chunk.shape[0], t_ns, lost, signals)

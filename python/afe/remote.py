@@ -25,7 +25,7 @@ import struct
 import threading
 import time
 import weakref
-from typing import Any, Dict, List, Mapping, Optional, Tuple
+from typing import Any, Dict, Generic, List, Mapping, Optional, Tuple, TypeVar
 
 import numpy as np
 
@@ -40,7 +40,10 @@ WIRE_VERSION = 1
 _MAGIC = b"AFEZ"
 _HEADER = struct.Struct("<4sHHQQIIQ")  # 40 bytes
 _SIGNAL = struct.Struct("<QII")  # 16 bytes
+_KIND_AUDIO = 1
 _KIND_FRAMES = 2
+_Block = TypeVar("_Block")
+_Self = TypeVar("_Self", bound="_Receiver[Any]")
 _NAME = re.compile(r"[A-Za-z0-9_-]+\Z")
 # how often a waiting recv looks for a block (zenoh's Python handlers have no timed recv)
 _POLL_S = 0.001
@@ -110,7 +113,7 @@ class Remote:
         self._timeout = float(timeout)
         self._closed = False
         self._lock = threading.Lock()
-        self._subscriptions: weakref.WeakSet[Subscription] = weakref.WeakSet()
+        self._receivers: weakref.WeakSet[_Receiver[Any]] = weakref.WeakSet()
         self._gone = False
         self.endpoint: str = endpoint
         # a peer that listens nowhere, as the Rust client: a Zenoh *client* is not told
@@ -279,8 +282,21 @@ class Remote:
                 self._unsubscribe(reply["subscription"])
             raise
         with self._lock:
-            self._subscriptions.add(sub)
+            self._receivers.add(sub)
         return sub
+
+    def audio(self, capacity: int = 64) -> Audio:
+        """Subscribes to the server's raw audio and returns the :class:`Audio`, an
+        iterator of its blocks from the next one on. ``capacity``: blocks kept for a
+        reader that lags (the oldest is dropped for the newest, and counted). Give it
+        to :func:`afe.stream` to run a local front-end on the server's audio."""
+        self._check_open()
+        if int(capacity) < 1:
+            raise ValueError(f"capacity = {capacity}: keep at least one block")
+        audio = Audio(self, int(capacity))
+        with self._lock:
+            self._receivers.add(audio)
+        return audio
 
     def _unsubscribe(self, subscription: int, wait: bool = True) -> None:
         """Releases a subscription on the server (quietly: it may have gone); without
@@ -303,14 +319,14 @@ class Remote:
             raise ConnectionError(f"the server '{self.name}' has gone")
 
     def close(self) -> None:
-        """Closes every subscription (releasing it on the server), then the Zenoh
+        """Closes every subscription (releasing it on the server) and audio, then the Zenoh
         session. Closing again does nothing."""
         if self._closed:
             return
         with self._lock:
-            subs = list(self._subscriptions)
-        for s in subs:
-            s.close()
+            receivers = list(self._receivers)
+        for r in receivers:
+            r.close()
         self._closed = True
         for entity in (self._watch, self._token):
             try:
@@ -355,19 +371,42 @@ class _Meta:
         self.description = dict(d)
 
 
+def _read_header(data: bytes, expected: int) -> Tuple[int, int, int, int, int]:
+    """A message's header (see ``afe::remote::wire``): ``(seq, first_input_frame,
+    input_frames, count, t_ns)``, checked to be of kind ``expected`` and of this wire
+    version. Raises :class:`RemoteError` otherwise."""
+    what = "frames" if expected == _KIND_FRAMES else "audio"
+    if len(data) < _HEADER.size:
+        raise RemoteError(f"an {what} message of {len(data)} bytes is cut short")
+    magic, version, kind, seq, first_input, n_input, count, t_ns = _HEADER.unpack_from(data)
+    if magic != _MAGIC or version != WIRE_VERSION or kind != expected:
+        raise RemoteError(
+            f"not an afe {what} message of wire version {WIRE_VERSION} "
+            f"(magic {magic!r}, version {version}, kind {kind})"
+        )
+    return seq, first_input, n_input, count, t_ns
+
+
+def _read_audio(data: bytes, ears: int) -> Tuple[Tuple[int, int, int, int], np.ndarray]:
+    """Decodes an audio message of a server with ``ears`` channels: ``(seq,
+    first_frame, frames, t_ns)`` and the samples ``[frames, ears]``. Raises
+    :class:`RemoteError` for a message that does not follow the wire format."""
+    seq, first, frames, count, t_ns = _read_header(data, _KIND_AUDIO)
+    if count != ears:
+        raise RemoteError(f"an audio block of {count} channels from a server of {ears}")
+    body = len(data) - _HEADER.size
+    if body != 8 * frames * count:
+        raise RemoteError(f"an audio message of {frames} frames of {count} channels with {body} bytes of samples")
+    samples = np.frombuffer(bytearray(data), dtype="<f8", offset=_HEADER.size).astype(np.float64, copy=False)
+    return (seq, first, frames, t_ns), samples.reshape(frames, count)
+
+
 def _read_frames(data: bytes, metas: List[_Meta]) -> Tuple[Tuple[int, int, int, int], List[Tuple[int, np.ndarray]]]:
     """Decodes a frames message (see ``afe::remote::wire``) of a subscription to the
     signals ``metas``: ``(seq, first_input_frame, input_frames, t_ns)`` and, per signal,
     ``(first_frame, array [rows, *frame_shape])``. Raises :class:`RemoteError` for a
     message that does not follow the wire format."""
-    if len(data) < _HEADER.size:
-        raise RemoteError(f"a frames message of {len(data)} bytes is cut short")
-    magic, version, kind, seq, first_input, n_input, count, t_ns = _HEADER.unpack_from(data)
-    if magic != _MAGIC or version != WIRE_VERSION or kind != _KIND_FRAMES:
-        raise RemoteError(
-            f"not an afe frames message of wire version {WIRE_VERSION} "
-            f"(magic {magic!r}, version {version}, kind {kind})"
-        )
+    seq, first_input, n_input, count, t_ns = _read_header(data, _KIND_FRAMES)
     if count != len(metas):
         raise RemoteError(f"{count} signals in a message of a subscription to {len(metas)}")
     buf = bytearray(data)  # writable arrays that share the message's memory
@@ -392,67 +431,29 @@ def _read_frames(data: bytes, metas: List[_Meta]) -> Tuple[Tuple[int, int, int, 
     return (seq, first_input, n_input, t_ns), parts
 
 
-class Subscription:
-    """A subscription to requests on an ``afe serve`` server (see
-    :meth:`Remote.subscribe`): an iterator of :class:`afe.Frames`, one per block of the
-    server's stream, in order; it ends when the server goes or the subscription is
-    closed. A context manager: ``with robot.subscribe(...) as sub:`` closes it on
-    leaving (and then the server releases it).
-    """
+class _Receiver(Generic[_Block]):
+    """What a subscription to a key of the server has: a bounded queue of its messages
+    (a ring that drops its oldest when full: a FIFO that blocks when full would hold up
+    the session's reception, and a reader that pauses for long would lose its query
+    replies and then its link), the count of messages lost, iteration, and closing."""
 
-    def __init__(self, remote: Remote, reply: Any, capacity: int) -> None:
-        if not isinstance(reply, dict):
-            raise RemoteError(f"malformed subscription reply: {reply!r}")
-        try:
-            self.id: int = int(reply["subscription"])
-            self.key: str = str(reply["key"])
-            self._meta = [_Meta(d) for d in reply["signals"]]
-        except (KeyError, TypeError, ValueError):
-            raise RemoteError(f"malformed subscription reply: {reply!r}") from None
+    def __init__(self, remote: Remote, key: str, capacity: int) -> None:
         self._remote = remote
-        self._reply = reply
         self._closed = False
-        # a subscription's messages are numbered from 0: any before the first received
-        # were lost too
-        self._next_seq = 0
         self._lost_messages = 0
-        # from the reply: the index of the first frame the subscription will get, as in Rust
-        self._next_frame: List[Optional[int]] = [m.first_frame for m in self._meta]
-        self._lost_frames = [0] * len(self._meta)
-        # a bounded queue that drops its oldest block when full (counted by the gap in
-        # `seq`): a FIFO that blocks when full would hold up the session's reception, and
-        # a reader that pauses for long would lose its query replies and then its link
-        zenoh = remote._zenoh
-        self._sub = remote._session.declare_subscriber(self.key, zenoh.handlers.RingChannel(capacity))
+        self._sub = remote._session.declare_subscriber(key, remote._zenoh.handlers.RingChannel(capacity))
 
-    @property
-    def reply(self) -> Dict[str, Any]:
-        """The server's reply: ``subscription``, ``key``, ``signals`` (each signal's
-        description, as :attr:`afe.Signal.meta`), ``fs_hz``, ``ears``, ``block_frames``,
-        ``start_frame`` and ``wire_version``."""
-        return dict(self._reply)
+    def _decode(self, data: bytes) -> _Block:
+        raise NotImplementedError
 
-    @property
-    def keys(self) -> List[str]:
-        """The output names of the subscription (``ratemap_left``, ...), in order."""
-        return [m.key for m in self._meta]
-
-    @property
-    def descriptions(self) -> Dict[str, Dict[str, Any]]:
-        """Each output's description, by name (as :attr:`afe.Signal.meta`)."""
-        return {m.key: dict(m.description) for m in self._meta}
+    def _release(self, wait: bool) -> None:
+        """Tells the server that this receiver has gone, where it needs to know."""
 
     @property
     def lost_messages(self) -> int:
-        """Blocks lost so far, from the subscription's first: dropped for a reader that
-        lagged (by its queue, or by the server for a congested link)."""
+        """Blocks lost so far: dropped for a reader that lagged (by its queue, or by the
+        server for a congested link)."""
         return self._lost_messages
-
-    @property
-    def lost_frames(self) -> Dict[str, int]:
-        """Frames lost so far per output: gaps between the frames of consecutive blocks
-        received."""
-        return {m.key: n for m, n in zip(self._meta, self._lost_frames)}
 
     @property
     def ended(self) -> bool:
@@ -460,11 +461,11 @@ class Subscription:
         gone."""
         return self._closed or self._remote._closed or self._remote._server_gone()
 
-    def recv(self, timeout: Optional[float] = None) -> Optional[Frames]:
+    def recv(self, timeout: Optional[float] = None) -> Optional[_Block]:
         """The next block; waits up to ``timeout`` seconds for it (``None``: until it
-        comes). Returns ``None`` when none came in time, and at once when the
-        subscription has ended (:attr:`ended` tells which). Raises :class:`RemoteError`
-        for a message that does not follow the wire format."""
+        comes). Returns ``None`` when none came in time, and at once when this has
+        ended (:attr:`ended` tells which). Raises :class:`RemoteError` for a message that
+        does not follow the wire format."""
         deadline = None if timeout is None else time.monotonic() + max(0.0, float(timeout))
         while True:
             sample = self._try_recv()
@@ -487,6 +488,93 @@ class Subscription:
         except self._remote._zenoh.ZError:
             return None  # the subscriber was undeclared
 
+    def __iter__(self) -> _Receiver[_Block]:
+        return self
+
+    def __next__(self) -> _Block:
+        block = self.recv()
+        if block is None:
+            raise StopIteration
+        return block
+
+    def close(self) -> None:
+        """Stops receiving (and lets the server know). Closing again does nothing."""
+        self._close(wait=True)
+
+    def _close(self, wait: bool) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._sub.undeclare()
+        except Exception:
+            pass
+        self._release(wait)
+
+    def __enter__(self: _Self) -> _Self:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def __del__(self) -> None:
+        # dropped unclosed: let the server know (quietly; the interpreter may be ending)
+        try:
+            self._close(wait=False)
+        except Exception:
+            pass
+
+
+class Subscription(_Receiver[Frames]):
+    """A subscription to requests on an ``afe serve`` server (see
+    :meth:`Remote.subscribe`): an iterator of :class:`afe.Frames`, one per block of the
+    server's stream, in order; it ends when the server goes or the subscription is
+    closed. A context manager: ``with robot.subscribe(...) as sub:`` closes it on
+    leaving (and then the server releases it, and its requests' processors go when no
+    one else uses them).
+    """
+
+    def __init__(self, remote: Remote, reply: Any, capacity: int) -> None:
+        if not isinstance(reply, dict):
+            raise RemoteError(f"malformed subscription reply: {reply!r}")
+        try:
+            self.id: int = int(reply["subscription"])
+            self.key: str = str(reply["key"])
+            self._meta = [_Meta(d) for d in reply["signals"]]
+        except (KeyError, TypeError, ValueError):
+            raise RemoteError(f"malformed subscription reply: {reply!r}") from None
+        self._reply = reply
+        # a subscription's messages are numbered from 0: any before the first received
+        # were lost too
+        self._next_seq = 0
+        # from the reply: the index of the first frame the subscription will get, as in Rust
+        self._next_frame: List[Optional[int]] = [m.first_frame for m in self._meta]
+        self._lost_frames = [0] * len(self._meta)
+        super().__init__(remote, self.key, capacity)
+
+    @property
+    def reply(self) -> Dict[str, Any]:
+        """The server's reply: ``subscription``, ``key``, ``signals`` (each signal's
+        description, as :attr:`afe.Signal.meta`), ``fs_hz``, ``ears``, ``block_frames``,
+        ``start_frame`` and ``wire_version``."""
+        return dict(self._reply)
+
+    @property
+    def keys(self) -> List[str]:
+        """The output names of the subscription (``ratemap_left``, ...), in order."""
+        return [m.key for m in self._meta]
+
+    @property
+    def descriptions(self) -> Dict[str, Dict[str, Any]]:
+        """Each output's description, by name (as :attr:`afe.Signal.meta`)."""
+        return {m.key: dict(m.description) for m in self._meta}
+
+    @property
+    def lost_frames(self) -> Dict[str, int]:
+        """Frames lost so far per output, from the first the subscription was to get
+        (the reply's ``first_frame``)."""
+        return {m.key: n for m, n in zip(self._meta, self._lost_frames)}
+
     def _decode(self, data: bytes) -> Frames:
         """One frames message as :class:`Frames`, counting what was lost before it."""
         (seq, first_input, n_input, t_ns), parts = _read_frames(data, self._meta)
@@ -507,46 +595,78 @@ class Subscription:
             signals[m.key] = Signal(array, meta)
         return Frames(seq, first_input, n_input, t_ns, lost, signals)
 
-    def __iter__(self) -> Subscription:
-        return self
-
-    def __next__(self) -> Frames:
-        frames = self.recv()
-        if frames is None:
-            raise StopIteration
-        return frames
-
-    def close(self) -> None:
-        """Stops receiving and releases the subscription on the server (its requests'
-        processors go when no one else uses them). Closing again does nothing."""
-        self._close(wait=True)
-
-    def _close(self, wait: bool) -> None:
-        if self._closed:
-            return
-        self._closed = True
-        try:
-            self._sub.undeclare()
-        except Exception:
-            pass
+    def _release(self, wait: bool) -> None:
         self._remote._unsubscribe(self.id, wait)
-
-    def __enter__(self) -> Subscription:
-        return self
-
-    def __exit__(self, *exc: Any) -> None:
-        self.close()
-
-    def __del__(self) -> None:
-        # dropped unclosed: let the server know (quietly; the interpreter may be ending)
-        try:
-            self._close(wait=False)
-        except Exception:
-            pass
 
     def __repr__(self) -> str:
         state = "ended" if self.ended else "active"
         return (
             f"afe.Subscription({self.id} on '{self._remote.name}': {', '.join(self.keys)}; "
             f"{self._lost_messages} lost; {state})"
+        )
+
+
+class AudioBlock:
+    """One block of a server's raw audio, as its port had it.
+
+    Attributes:
+        seq: the block's message number on the server's audio key.
+        first_frame: index on the server's port of the block's first frame.
+        samples: the samples, ``[frames, ears]`` float64, the server's bit for bit.
+        t_ns: Unix time in ns at which the block's last frame was due on the port.
+        lost_messages: blocks lost just before this one.
+        lost_frames: frames lost just before this block (a gap on the port's index).
+    """
+
+    __slots__ = ("seq", "first_frame", "samples", "t_ns", "lost_messages", "lost_frames")
+
+    def __init__(
+        self, seq: int, first_frame: int, samples: np.ndarray, t_ns: int, lost_messages: int, lost_frames: int
+    ) -> None:
+        self.seq = int(seq)
+        self.first_frame = int(first_frame)
+        self.samples = samples
+        self.t_ns = int(t_ns)
+        self.lost_messages = int(lost_messages)
+        self.lost_frames = int(lost_frames)
+
+    def __repr__(self) -> str:
+        return f"afe.AudioBlock({self.seq}: frames {self.first_frame}.. x{self.samples.shape[0]}, {self.lost_frames} lost before)"
+
+
+class Audio(_Receiver[AudioBlock]):
+    """The raw audio a server publishes (see :meth:`Remote.audio`): an iterator of
+    :class:`AudioBlock`, from the server's next block on, in order. Give it to
+    :func:`afe.stream` to run a local front-end on the server's audio. Losses are
+    counted from the first block received; it ends when the server goes or it is
+    closed. A context manager."""
+
+    def __init__(self, remote: Remote, capacity: int) -> None:
+        self.fs_hz: float = remote.fs_hz
+        self.ears: int = remote.ears
+        self.block_frames: int = remote.block_frames
+        self._next_seq: Optional[int] = None
+        self._next_frame: Optional[int] = None
+        self._lost_frames = 0
+        super().__init__(remote, remote._key("audio"), capacity)
+
+    @property
+    def lost_frames(self) -> int:
+        """Frames lost so far, after the first block received."""
+        return self._lost_frames
+
+    def _decode(self, data: bytes) -> AudioBlock:
+        (seq, first, _frames, t_ns), samples = _read_audio(data, self.ears)
+        messages = 0 if self._next_seq is None else max(0, seq - self._next_seq)
+        frames = 0 if self._next_frame is None else max(0, first - self._next_frame)
+        self._lost_messages += messages
+        self._lost_frames += frames
+        self._next_seq, self._next_frame = seq + 1, first + samples.shape[0]
+        return AudioBlock(seq, first, samples, t_ns, messages, frames)
+
+    def __repr__(self) -> str:
+        state = "ended" if self.ended else "active"
+        return (
+            f"afe.Audio('{self._remote.name}': {self.fs_hz:g} Hz, {self.ears} ears; "
+            f"{self._lost_frames} frames lost; {state})"
         )

@@ -46,7 +46,7 @@ def test_catalogue_matches_the_afe_names():
 
 def test_dir_shows_the_public_api_only():
     assert dir(afe) == sorted(
-        ["Frames", "Manager", "Remote", "RemoteError", "Signal", "Store", "Subscription", "batch", "connect",
+        ["Audio", "AudioBlock", "Frames", "Manager", "Remote", "RemoteError", "Signal", "Store", "Subscription", "batch", "connect",
          "open_store", "parameters", "plot", "process", "read_wav", "requests", "stream", "__version__"]
     )
 

@@ -18,7 +18,7 @@ import pytest
 
 import afe
 from afe.frames import request_list
-from afe.remote import RemoteError, _Meta, _read_frames
+from afe.remote import RemoteError, _Meta, _read_audio, _read_frames
 
 zenoh = pytest.importorskip("zenoh")
 
@@ -186,6 +186,38 @@ def test_remote_frames_are_the_local_managers_bit_for_bit(serve, tiled_wav):
         for k in lb:
             assert lb[k].first_frame == rb[k].first_frame
             assert np.array_equal(np.asarray(lb[k]), np.asarray(rb[k]))
+
+
+def test_the_servers_audio_feeds_a_local_front_end(serve, tiled_wav):
+    endpoint = serve(tiled_wav)
+    x, fs = afe.read_wav(tiled_wav)
+    with connect(endpoint) as robot:
+        with robot.audio() as audio:
+            assert (audio.fs_hz, audio.ears, audio.block_frames) == (fs, 2, BLOCK)
+            blocks = [audio.recv(timeout=5.0) for _ in range(100)]
+            assert all(isinstance(b, afe.AudioBlock) for b in blocks), "no block within 5 s"
+            assert (audio.lost_messages, audio.lost_frames) == (0, 0)
+        assert audio.ended and audio.recv(timeout=0.1) is None
+        first = blocks[0].first_frame
+        assert [b.first_frame for b in blocks] == list(range(first, first + 100 * BLOCK, BLOCK))
+        assert [b.seq for b in blocks] == list(range(blocks[0].seq, blocks[0].seq + 100))
+        got = np.concatenate([b.samples for b in blocks])
+        # the server's port replays the file in a loop: its samples, bit for bit
+        assert np.array_equal(got, x[np.arange(first, first + got.shape[0]) % x.shape[0]])
+        # a local front-end on the server's audio gives what it gives on the file
+        remote = list(itertools.islice(afe.stream(robot.audio(), REQUESTS), 50))
+    start = remote[0].first_input_frame
+    assert [b.first_input_frame for b in remote] == list(range(start, start + 50 * BLOCK, BLOCK))
+    assert all(b.lost_messages == 0 for b in remote)
+    local = list(afe.stream(x[np.arange(start, start + 50 * BLOCK) % x.shape[0]], REQUESTS, fs_hz=fs))
+    assert len(local) == len(remote)
+    for lb, rb in zip(local, remote):
+        assert list(lb.keys()) == list(rb.keys())
+        for k in lb:
+            assert lb[k].first_frame == rb[k].first_frame
+            assert np.array_equal(np.asarray(lb[k]), np.asarray(rb[k])), (k, rb.seq)
+    with pytest.raises(ConnectionError, match="closed"):
+        robot.audio()
 
 
 def test_stream_gives_what_process_gives(example_wav):
@@ -466,6 +498,23 @@ def test_the_wire_format_is_read_and_checked():
             _read_frames(data, metas)
     with pytest.raises(RemoteError, match="cut short"):
         _read_frames(b"AFEZ", metas)
+
+
+def test_audio_messages_are_read_and_checked():
+    samples = np.arange(441 * 2.0).reshape(441, 2) / 1000
+    head = struct.pack("<4sHHQQIIQ", b"AFEZ", 1, 1, 5, 882, 441, 2, 1_700_000_000_000_000_000)
+    (seq, first, n, t_ns), got = _read_audio(head + samples.astype("<f8").tobytes(), 2)
+    assert (seq, first, n, t_ns) == (5, 882, 441, 1_700_000_000_000_000_000)
+    assert got.dtype == np.float64 and np.array_equal(got, samples)
+    bad = {
+        "of 2 channels from a server of 1": (head + samples.tobytes(), 1),
+        "with 7048 bytes of samples": (head + samples.tobytes()[:-8], 2),
+        "not an afe audio message": (message(9, [(0, 0, 1, [])]), 2),
+        "cut short": (head[:20], 2),
+    }
+    for what, (data, ears) in bad.items():
+        with pytest.raises(RemoteError, match=what):
+            _read_audio(data, ears)
 
 
 def test_requests_are_names_or_pairs():
