@@ -198,8 +198,9 @@ impl Graph {
         Some(prefix)
     }
 
-    /// Processes a whole signal (one slice per ear) as one call would, appending every
-    /// node's output to `whole` (per node and output) where it has a block, which it
+    /// Processes a whole signal (one slice per ear) as one call would, putting every
+    /// node's output into `whole` (per node and output; empty blocks, those of invariant
+    /// nodes sized for the signal) where it has a block, which it
     /// must for every input of a node that is not chunk-invariant and does not absorb
     /// (see [`Graph::absorbing_nodes`]; those take the blocks as they come and finish
     /// once): the nodes whose whole chain is
@@ -241,9 +242,10 @@ impl Graph {
                 (Some(proc_), Some(inputs)) => proc_.process(&inputs, &mut node.outputs),
                 _ => {}
             }
-            for (acc, out) in whole[i].iter_mut().zip(&node.outputs) {
+            // the whole output moves into its empty buffer rather than being copied
+            for (acc, out) in whole[i].iter_mut().zip(&mut node.outputs) {
                 if let Some(acc) = acc {
-                    acc.extend_from(out);
+                    std::mem::swap(acc, out);
                 }
             }
         }

@@ -761,7 +761,7 @@ impl Manager {
             // processors are in the graph, which tells which nodes absorb blocks).
             let invariant = self.graph.invariant_nodes();
             self.edit(|m| {
-                let mut whole = m.whole_buffers(&invariant);
+                let mut whole = m.whole_buffers(&invariant, len);
                 m.graph.run_whole(signal, WHOLE_SIGNAL_BLOCK, &mut whole);
                 m.whole = whole;
                 Ok(())
@@ -788,8 +788,8 @@ impl Manager {
     /// first holding at least `prefix`), pipelined, and shows the joined outputs (the
     /// requested ones, or all with [`Manager::set_keep_all`]).
     fn run_blocks(&mut self, signal: &[&[f64]], prefix: usize) -> Result<()> {
-        let mut whole = self.whole_buffers(&vec![true; self.graph.nodes.len()]);
         let len = signal[0].len();
+        let mut whole = self.whole_buffers(&vec![true; self.graph.nodes.len()], len);
         let mut start = 0;
         while start < len {
             let end = len.min(start + WHOLE_SIGNAL_BLOCK.max(prefix.saturating_sub(start)));
@@ -811,18 +811,31 @@ impl Manager {
     }
 
     /// Empty buffers for the outputs that `process_signal` joins, per node and output,
-    /// `None` for the others (reusing the last call's allocations).
-    fn whole_buffers(&mut self, invariant: &[bool]) -> Vec<Vec<Option<Block>>> {
+    /// `None` for the others (reusing the last call's allocations). Those joined block by
+    /// block (the `invariant` nodes') are sized for a signal of `samples` samples, so
+    /// that each value is written once; the others are moved in whole (see
+    /// [`Graph::run_whole`]).
+    fn whole_buffers(&mut self, invariant: &[bool], samples: usize) -> Vec<Vec<Option<Block>>> {
         let kept = self.kept_outputs(invariant);
+        let fs = self.fs;
         let mut whole = std::mem::take(&mut self.whole);
         whole.resize_with(kept.len(), Vec::new);
-        for ((acc, keep), node) in whole.iter_mut().zip(&kept).zip(&self.graph.nodes) {
+        for (((acc, keep), node), &blocks) in whole
+            .iter_mut()
+            .zip(&kept)
+            .zip(&self.graph.nodes)
+            .zip(invariant)
+        {
             acc.resize_with(keep.len(), || None);
             for ((slot, &k), info) in acc.iter_mut().zip(keep).zip(&node.infos) {
                 match (k, slot.as_mut()) {
                     (false, _) => *slot = None,
                     (true, Some(b)) if b.width() == info.width() => b.clear(),
                     (true, _) => *slot = Some(Block::new(info.width())),
+                }
+                if let (true, Some(b)) = (blocks, slot.as_mut()) {
+                    // the frames at this output's rate, and one for rounding
+                    b.reserve_frames((samples as f64 * info.fs_hz / fs).ceil() as usize + 1);
                 }
             }
         }
