@@ -262,8 +262,17 @@ impl<const W: usize> LaneGt<W> {
         self.na2[lane] = -s.a[1];
     }
 
-    /// The section over `buf` (rows of `W` channels) in place, state `z` carried: DF2T in
-    /// the reference's order, `y = z0 + b0·x`, `z0 = (z1 − a1·y) + b1·x`, `z1 = −a2·y`.
+    /// One sample `x` of lane `l`: DF2T in the reference's order, `y = z0 + b0·x`,
+    /// `z0 = (z1 − a1·y) + b1·x`, `z1 = −a2·y`; returns `y`.
+    #[inline(always)]
+    fn step(&self, z: &mut [[f64; W]; 2], l: usize, x: f64) -> f64 {
+        let y = z[0][l] + self.b0[l] * x;
+        z[0][l] = (z[1][l] + self.na1[l] * y) + self.b1[l] * x;
+        z[1][l] = self.na2[l] * y;
+        y
+    }
+
+    /// The section over `buf` (rows of `W` channels) in place, state `z` carried.
     #[inline(always)]
     fn run(&self, z: &mut [[f64; W]; 2], buf: &mut [[f64; W]]) {
         self.run_then(z, buf, |_| ());
@@ -278,18 +287,49 @@ impl<const W: usize> LaneGt<W> {
         buf: &mut [[f64; W]],
         mut then: impl FnMut(&mut [f64; W]),
     ) {
-        let [mut z0, mut z1] = *z;
+        let mut zs = *z;
         for v in buf.iter_mut() {
-            for l in 0..W {
-                let x = v[l];
-                let y = z0[l] + self.b0[l] * x;
-                z0[l] = (z1[l] + self.na1[l] * y) + self.b1[l] * x;
-                z1[l] = self.na2[l] * y;
-                v[l] = y;
+            for (l, x) in v.iter_mut().enumerate() {
+                *x = self.step(&mut zs, l, *x);
             }
             then(v);
         }
-        *z = [z0, z1];
+        *z = zs;
+    }
+
+    /// The section on `gain·x` (each lane's gain times the one input sample of a row),
+    /// written to `buf`: the paths' input scaling in the first section's pass.
+    #[inline(always)]
+    fn run_from(&self, z: &mut [[f64; W]; 2], x: &[f64], gain: &[f64; W], buf: &mut [[f64; W]]) {
+        let mut zs = *z;
+        for (v, &xt) in buf.iter_mut().zip(x) {
+            for l in 0..W {
+                v[l] = self.step(&mut zs, l, gain[l] * xt);
+            }
+        }
+        *z = zs;
+    }
+
+    /// The section over `buf`, writing `other + y` to `W` values at every `stride` of
+    /// `out` instead of `y` to `buf`: the paths' sum in the last
+    /// section's pass.
+    #[inline(always)]
+    fn run_into(
+        &self,
+        z: &mut [[f64; W]; 2],
+        buf: &[[f64; W]],
+        other: &[[f64; W]],
+        out: &mut [f64],
+        stride: usize,
+    ) {
+        let mut zs = *z;
+        for (t, (v, o)) in buf.iter().zip(other).enumerate() {
+            let row = &mut out[t * stride..t * stride + W];
+            for l in 0..W {
+                row[l] = o[l] + self.step(&mut zs, l, v[l]);
+            }
+        }
+        *z = zs;
     }
 }
 
@@ -316,21 +356,47 @@ impl<const W: usize> LaneLp<W> {
         self.na2[lane] = -s.a[1];
     }
 
-    /// The section over `buf` in place (see [`LaneGt::run`]): `y = z0 + C·x`,
-    /// `z0 = (z1 − a1·y) + 2C·x`, `z1 = C·x − a2·y`.
+    /// One sample `x` of lane `l` (see [`LaneGt::step`]): `y = z0 + C·x`,
+    /// `z0 = (z1 − a1·y) + 2C·x`, `z1 = C·x − a2·y`; returns `y`.
+    #[inline(always)]
+    fn step(&self, z: &mut [[f64; W]; 2], l: usize, x: f64) -> f64 {
+        let cx = self.c[l] * x;
+        let y = z[0][l] + cx;
+        z[0][l] = (z[1][l] + self.na1[l] * y) + (cx + cx);
+        z[1][l] = cx + self.na2[l] * y;
+        y
+    }
+
+    /// The section over `buf` in place, state `z` carried.
     #[inline(always)]
     fn run(&self, z: &mut [[f64; W]; 2], buf: &mut [[f64; W]]) {
-        let [mut z0, mut z1] = *z;
+        let mut zs = *z;
         for v in buf.iter_mut() {
-            for l in 0..W {
-                let cx = self.c[l] * v[l];
-                let y = z0[l] + cx;
-                z0[l] = (z1[l] + self.na1[l] * y) + (cx + cx);
-                z1[l] = cx + self.na2[l] * y;
-                v[l] = y;
+            for (l, x) in v.iter_mut().enumerate() {
+                *x = self.step(&mut zs, l, *x);
             }
         }
-        *z = [z0, z1];
+        *z = zs;
+    }
+
+    /// The section over `buf` into `out` with `other` added (see [`LaneGt::run_into`]).
+    #[inline(always)]
+    fn run_into(
+        &self,
+        z: &mut [[f64; W]; 2],
+        buf: &[[f64; W]],
+        other: &[[f64; W]],
+        out: &mut [f64],
+        stride: usize,
+    ) {
+        let mut zs = *z;
+        for (t, (v, o)) in buf.iter().zip(other).enumerate() {
+            let row = &mut out[t * stride..t * stride + W];
+            for l in 0..W {
+                row[l] = o[l] + self.step(&mut zs, l, v[l]);
+            }
+        }
+        *z = zs;
     }
 }
 
@@ -355,28 +421,6 @@ struct Group<const W: usize> {
 struct Paths<const W: usize> {
     lin: Vec<[f64; W]>,
     nl: Vec<[f64; W]>,
-}
-
-/// Fills the paths' first `x.len()` rows with `g·x` (linear) and `moc·x` (non-linear).
-#[inline(always)]
-fn inputs<const W: usize>(g: &Group<W>, x: &[f64], lin: &mut [[f64; W]], nl: &mut [[f64; W]]) {
-    for ((li, ni), &xv) in lin.iter_mut().zip(nl.iter_mut()).zip(x) {
-        for l in 0..W {
-            li[l] = g.lin_gain[l] * xv;
-            ni[l] = g.moc[l] * xv;
-        }
-    }
-}
-
-/// Writes `lin + nlin` row by row, `W` values at every `stride`.
-#[inline(always)]
-fn sum_out<const W: usize>(lin: &[[f64; W]], nl: &[[f64; W]], out: &mut [f64], stride: usize) {
-    for (t, (li, ni)) in lin.iter().zip(nl).enumerate() {
-        let row = &mut out[t * stride..t * stride + W];
-        for l in 0..W {
-            row[l] = li[l] + ni[l];
-        }
-    }
 }
 
 /// CASP: `lin = LP⁴(GT²(g·x))`, `nlin = LP(GT²(compress(GT²(moc·x))))`, out `lin + nlin`,
@@ -404,15 +448,13 @@ fn run_casp<const W: usize>(
 ) {
     let lin = &mut paths.lin[..x.len()];
     let nl = &mut paths.nl[..x.len()];
-    inputs(g, x, lin, nl);
     let z = &mut g.z;
-    for zs in &mut z[0..2] {
-        g.gt_lin.run(zs, lin);
-    }
+    g.gt_lin.run_from(&mut z[0], x, &g.lin_gain, lin);
+    g.gt_lin.run(&mut z[1], lin);
     for zs in &mut z[2..6] {
         g.lp_lin.run(zs, lin);
     }
-    g.gt_nl.run(&mut z[6], nl);
+    g.gt_nl.run_from(&mut z[6], x, &g.moc, nl);
     let [ca, cb] = g.comp;
     g.gt_nl.run_then(&mut z[7], nl, |v| {
         for l in 0..W {
@@ -422,8 +464,7 @@ fn run_casp<const W: usize>(
     for zs in &mut z[8..10] {
         g.gt_nl.run(zs, nl);
     }
-    g.lp_nl.run(&mut z[10], nl);
-    sum_out(lin, nl, out, stride);
+    g.lp_nl.run_into(&mut z[10], nl, lin, out, stride);
 }
 
 /// MAP: `lin = GT³(500·x)`, `nlin = GT³(compress(GT³(moc·x)))`, out `lin + nlin`, for
@@ -446,24 +487,23 @@ fn run_map<const W: usize>(
 ) {
     let lin = &mut paths.lin[..x.len()];
     let nl = &mut paths.nl[..x.len()];
-    inputs(g, x, lin, nl);
     let z = &mut g.z;
-    for zs in &mut z[0..3] {
+    g.gt_lin.run_from(&mut z[0], x, &g.lin_gain, lin);
+    for zs in &mut z[1..3] {
         g.gt_lin.run(zs, lin);
     }
-    for zs in &mut z[3..6] {
-        g.gt_nl.run(zs, nl);
-    }
+    g.gt_nl.run_from(&mut z[3], x, &g.moc, nl);
+    g.gt_nl.run(&mut z[4], nl);
     let [ca, cts] = g.comp;
-    for v in nl.iter_mut() {
+    g.gt_nl.run_then(&mut z[5], nl, |v| {
         for l in 0..W {
             v[l] = map_compress(v[l], ca[l], cts[l], ct_bm);
         }
-    }
-    for zs in &mut z[6..9] {
+    });
+    for zs in &mut z[6..8] {
         g.gt_nl.run(zs, nl);
     }
-    sum_out(lin, nl, out, stride);
+    g.gt_nl.run_into(&mut z[8], nl, lin, out, stride);
 }
 
 /// MAP's middle-ear stage shared by all channels: `x1 = 20e−5·10^5·x`, tympanic-membrane
