@@ -12,11 +12,39 @@ use rustfft::FftPlanner;
 /// non-decreasing; `m` the magnitudes at them.
 pub fn fir2(n: usize, f: &[f64], m: &[f64]) -> Vec<f64> {
     let nn = n + 1;
-    let npt: usize = if nn < 1024 {
+    let npt = grid_points(nn);
+    let h = grid(npt, f, m);
+    let p = h.len();
+    let dt = 0.5 * (nn as f64 - 1.0);
+    let mut full = vec![Complex64::new(0.0, 0.0); 2 * npt];
+    for (j, hv) in h.iter().enumerate() {
+        let phase = -PI * dt * j as f64 / (p as f64 - 1.0);
+        full[j] = Complex64::new(0.0, phase).exp() * hv;
+    }
+    for j in 1..npt {
+        full[2 * npt - j] = full[j].conj();
+    }
+    let ifft = FftPlanner::new().plan_fft_inverse(2 * npt);
+    ifft.process(&mut full);
+    let scale = 1.0 / (2 * npt) as f64;
+    let win = crate::window::window("hamming", nn, "fir2").unwrap_or_default();
+    (0..nn).map(|k| full[k].re * scale * win[k]).collect()
+}
+
+/// Frequency grid intervals for a filter of `nn` taps: 512 below 1024 taps, else the
+/// next power of two.
+fn grid_points(nn: usize) -> usize {
+    if nn < 1024 {
         512
     } else {
         nn.next_power_of_two()
-    };
+    }
+}
+
+/// The magnitudes at the `npt + 1` grid points `0..=npt` (0 to Nyquist): each segment of
+/// the breakpoints interpolated between its end indices, and a repeated breakpoint (a
+/// jump) a ramp of `npt / 25` points centred on it.
+fn grid(npt: usize, f: &[f64], m: &[f64]) -> Vec<f64> {
     let lap = npt / 25;
     let p = npt + 1;
     // 1-based grid H[1..=P] stored 0-based.
@@ -43,25 +71,73 @@ pub fn fir2(n: usize, f: &[f64], m: &[f64]) -> Vec<f64> {
         }
         nb = ne + 1;
     }
-    let dt = 0.5 * (nn as f64 - 1.0);
-    let mut full = vec![Complex64::new(0.0, 0.0); 2 * npt];
-    for (j, hv) in h.iter().enumerate() {
-        let phase = -PI * dt * j as f64 / (p as f64 - 1.0);
-        full[j] = Complex64::new(0.0, phase).exp() * hv;
-    }
-    for j in 1..npt {
-        full[2 * npt - j] = full[j].conj();
-    }
-    let ifft = FftPlanner::new().plan_fft_inverse(2 * npt);
-    ifft.process(&mut full);
-    let scale = 1.0 / (2 * npt) as f64;
-    let win = crate::window::window("hamming", nn, "fir2").unwrap_or_default();
-    (0..nn).map(|k| full[k].re * scale * win[k]).collect()
+    h
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_grid_has_512_intervals_below_1024_taps_then_the_next_power_of_two() {
+        assert_eq!(grid_points(65), 512);
+        assert_eq!(grid_points(1023), 512);
+        assert_eq!(grid_points(1024), 1024);
+        assert_eq!(grid_points(1025), 2048);
+    }
+
+    #[test]
+    fn a_jump_becomes_a_ramp_of_npt_over_25_points_centred_on_it() {
+        // spec 01-P14 by hand, npt = 512 (P = 513, lap = 20): the first segment ends at
+        // fix(0.5·513) = 256, so the jump's ramp starts at ceil(257 − 10) = 247 and ends
+        // at 267 (1-based), falling linearly from 1 to 0
+        let h = grid(512, &[0.0, 0.5, 0.5, 1.0], &[1.0, 1.0, 0.0, 0.0]);
+        assert_eq!(h.len(), 513);
+        for (g, v) in h.iter().enumerate() {
+            let j = g as f64 + 1.0;
+            let want = if j < 247.0 {
+                1.0
+            } else if j <= 267.0 {
+                1.0 - (j - 247.0) / 20.0
+            } else {
+                0.0
+            };
+            assert!((v - want).abs() < 1e-15, "H[{j}] = {v}, want {want}");
+        }
+    }
+
+    #[test]
+    fn a_ramp_beyond_either_end_of_the_grid_is_cut_there() {
+        // a jump at 0: the ramp from ceil(1 − 10) = −9 to 11 keeps its points 1..=11,
+        // (j + 9)/20; the next segment ends at fix(1·513) = 513, all at 1
+        let h = grid(512, &[0.0, 0.0, 1.0], &[0.0, 1.0, 1.0]);
+        let want = |j: f64| if j <= 11.0 { (j + 9.0) / 20.0 } else { 1.0 };
+        for (g, v) in h.iter().enumerate() {
+            assert!(
+                (v - want(g as f64 + 1.0)).abs() < 1e-15,
+                "H[{}] = {v}",
+                g + 1
+            );
+        }
+        // a jump at Nyquist: the first segment fills 1..=513 with 1, then the ramp from
+        // ceil(514 − 10) = 504 to 524 overwrites 504..=513 with 1 − (j − 504)/20
+        let h = grid(512, &[0.0, 1.0, 1.0], &[1.0, 1.0, 0.0]);
+        assert_eq!(h.len(), 513);
+        let want = |j: f64| {
+            if j < 504.0 {
+                1.0
+            } else {
+                1.0 - (j - 504.0) / 20.0
+            }
+        };
+        for (g, v) in h.iter().enumerate() {
+            assert!(
+                (v - want(g as f64 + 1.0)).abs() < 1e-15,
+                "H[{}] = {v}",
+                g + 1
+            );
+        }
+    }
 
     #[test]
     fn lowpass_design_is_linear_phase_with_the_asked_gain() {
