@@ -12,9 +12,10 @@ use afe_core::framing::FrameBuffer;
 use afe_core::window::{window, WINDOW_NAMES};
 use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use realfft::num_complex::Complex64;
-use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
+use realfft::{RealFftPlanner, RealToComplex};
 use serde::{Deserialize, Serialize};
 
+use crate::even_inverse::EvenInverse;
 use crate::framed::check_framing;
 
 use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
@@ -124,12 +125,16 @@ pub struct Autocorrelation {
     /// `(W − 1)/(W − 1 − j)` per lag `j`: the AFE's unbiased scaling over that of lag 0.
     scale: Vec<f64>,
     fft: Arc<dyn RealToComplex<f64>>,
-    ifft: Arc<dyn ComplexToReal<f64>>,
+    /// The inverse of the (real, even) power spectrum, at half a full transform's cost.
+    inverse: EvenInverse,
     /// Windowed frame, `[channel][time]`.
     columns: Vec<f64>,
     time: Vec<f64>,
     spectrum: Vec<Complex64>,
     scratch: Vec<Complex64>,
+    /// The power spectrum's first half, and the unnormalised ACF at lags `0..W − 1`.
+    power: Vec<f64>,
+    acf: Vec<f64>,
 }
 
 impl std::fmt::Debug for Autocorrelation {
@@ -171,8 +176,6 @@ impl Autocorrelation {
         let nfft = (2 * w - 1).next_power_of_two();
         let mut planner = RealFftPlanner::<f64>::new();
         let fft = planner.plan_fft_forward(nfft);
-        let ifft = planner.plan_fft_inverse(nfft);
-        let scratch_len = fft.get_scratch_len().max(ifft.get_scratch_len());
         let top = (w - 1) as f64;
         let ac = Autocorrelation {
             params: params.clone(),
@@ -181,9 +184,11 @@ impl Autocorrelation {
             columns: vec![0.0; nc * w],
             time: fft.make_input_vec(),
             spectrum: fft.make_output_vec(),
-            scratch: vec![Complex64::new(0.0, 0.0); scratch_len],
+            scratch: fft.make_scratch_vec(),
+            power: vec![0.0; nfft / 2 + 1],
+            acf: vec![0.0; w - 1],
+            inverse: EvenInverse::new(nfft),
             fft,
-            ifft,
             win,
         };
         let lags_s = (0..w - 1).map(|k| k as f64 / fs).collect();
@@ -209,21 +214,19 @@ impl Autocorrelation {
             self.fft
                 .process_with_scratch(&mut self.time, &mut self.spectrum, &mut self.scratch);
         let k = self.params.spectral_exponent;
+        let power = self.power.iter_mut().zip(&self.spectrum);
         if k == 2.0 {
-            for x in &mut self.spectrum {
-                *x = Complex64::new(x.norm_sqr(), 0.0);
-            }
+            power.for_each(|(p, x)| *p = x.norm_sqr());
         } else {
-            for x in &mut self.spectrum {
-                *x = Complex64::new(x.norm().powf(k), 0.0);
-            }
+            power.for_each(|(p, x)| *p = x.norm().powf(k));
         }
-        let _ =
-            self.ifft
-                .process_with_scratch(&mut self.spectrum, &mut self.time, &mut self.scratch);
+        self.inverse.run(&self.power, &mut self.acf);
         // An all-zero frame gives 0/0 = NaN at every lag, as in the AFE.
-        let inv = 1.0 / self.time[0];
-        for ((o, v), s) in out.iter_mut().zip(&self.time).zip(&self.scale) {
+        let Some(&lag0) = self.acf.first() else {
+            return; // a one-sample window has no lag to give
+        };
+        let inv = 1.0 / lag0;
+        for ((o, v), s) in out.iter_mut().zip(&self.acf).zip(&self.scale) {
             *o = v * s * inv;
         }
     }

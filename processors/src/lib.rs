@@ -14,6 +14,7 @@ mod cpu;
 pub mod crosscorrelation;
 pub mod drnl;
 pub mod duet;
+mod even_inverse;
 pub mod filterbank;
 mod framed;
 pub mod gabor;

@@ -1,0 +1,174 @@
+//! The inverse DFT of a real, even spectrum (a type-I cosine transform) by a real FFT of
+//! half the length: the autocorrelation's second transform at half the cost of a full
+//! complex-to-real one.
+//!
+//! For a spectrum `P[k] = P[N − k]` of even length `N = 2M`, the unnormalised inverse
+//! `S[m] = Σₖ P[k]·e^{2πikm/N}` is real and equals `2·C[m]`, with
+//! `C[m] = ½P[0] + ½(−1)^m P[M] + Σ_{j=1}^{M−1} P[j]·cos(πjm/M)`. With
+//! `v[j] = P[j] + P[M − j]`, `w[j] = P[j] − P[M − j]` and `u[j] = ½v[j] + sin(πj/M)·w[j]`
+//! (`j < M`), the `M`-point DFT `U` of `u` gives the even terms, `C[2k] = Re U[k]`, and the
+//! differences of the odd ones, `C[2k + 1] − C[2k − 1] = Im U[k]`, from
+//! `C[1] = ½·Σ_{j<M} w[j]·cos(πj/M)`: `v` is symmetric about `M/2` and `sin(πj/M)·w[j]`
+//! antisymmetric, so each lands in one part of `U`.
+
+use std::f64::consts::PI;
+use std::sync::Arc;
+
+use realfft::num_complex::Complex64;
+use realfft::{RealFftPlanner, RealToComplex};
+
+/// A planned inverse of length `N` for real, even spectra, with its buffers.
+pub struct EvenInverse {
+    fft: Arc<dyn RealToComplex<f64>>,
+    /// `sin(πj/M)` and `½·cos(πj/M)`, `j < M`.
+    sin: Vec<f64>,
+    half_cos: Vec<f64>,
+    u: Vec<f64>,
+    spectrum: Vec<Complex64>,
+    scratch: Vec<Complex64>,
+}
+
+impl std::fmt::Debug for EvenInverse {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("EvenInverse")
+            .field("len", &(2 * self.u.len()))
+            .finish_non_exhaustive()
+    }
+}
+
+impl EvenInverse {
+    /// Plans the inverse of length `n` (even, at least 2).
+    ///
+    /// # Panics
+    /// If `n` is odd or below 2.
+    pub fn new(n: usize) -> Self {
+        assert!(
+            n >= 2 && n % 2 == 0,
+            "an even length of at least 2, not {n}"
+        );
+        let m = n / 2;
+        let fft = RealFftPlanner::<f64>::new().plan_fft_forward(m);
+        let angle = |j: usize| PI * j as f64 / m as f64;
+        EvenInverse {
+            sin: (0..m).map(|j| angle(j).sin()).collect(),
+            half_cos: (0..m).map(|j| 0.5 * angle(j).cos()).collect(),
+            u: fft.make_input_vec(),
+            spectrum: fft.make_output_vec(),
+            scratch: fft.make_scratch_vec(),
+            fft,
+        }
+    }
+
+    /// From `p`, the spectrum's first half `P[0..=M]` (`M = N/2`; the rest is its mirror
+    /// image), writes `S[m] = Σₖ P[k]·e^{2πikm/N}` for `m < out.len()` (at most `M + 1`),
+    /// unnormalised as a complex-to-real FFT's output.
+    ///
+    /// # Panics
+    /// If `p` does not hold `M + 1` values or `out` more than `M + 1`.
+    pub fn run(&mut self, p: &[f64], out: &mut [f64]) {
+        let m = self.u.len();
+        assert_eq!(p.len(), m + 1, "the spectrum's first half, M + 1 values");
+        assert!(out.len() <= m + 1, "at most M + 1 values of the inverse");
+        let mut c1 = 0.0;
+        for (j, u) in self.u.iter_mut().enumerate() {
+            let (a, b) = (p[j], p[m - j]);
+            let w = a - b;
+            *u = 0.5 * (a + b) + self.sin[j] * w;
+            c1 += self.half_cos[j] * w;
+        }
+        // Lengths match by construction, so the FFT cannot fail.
+        let _ = self
+            .fft
+            .process_with_scratch(&mut self.u, &mut self.spectrum, &mut self.scratch);
+        let mut odd = c1;
+        for (k, pair) in out.chunks_mut(2).enumerate() {
+            let u = self.spectrum[k];
+            if k > 0 {
+                odd += u.im;
+            }
+            pair[0] = 2.0 * u.re;
+            if let Some(o) = pair.get_mut(1) {
+                *o = 2.0 * odd;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `S[m]` by its definition, summed over the whole mirrored spectrum.
+    fn direct(p: &[f64], count: usize) -> Vec<f64> {
+        let n = 2 * (p.len() - 1);
+        let full: Vec<f64> = (0..n).map(|k| p[k.min(n - k)]).collect();
+        (0..count)
+            .map(|m| {
+                full.iter()
+                    .enumerate()
+                    .map(|(k, v)| v * (2.0 * PI * ((k * m) % n) as f64 / n as f64).cos())
+                    .sum()
+            })
+            .collect()
+    }
+
+    fn spectrum(len: usize, seed: u64) -> Vec<f64> {
+        let mut s = seed;
+        (0..len)
+            .map(|_| {
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (s >> 11) as f64 / (1u64 << 53) as f64
+            })
+            .collect()
+    }
+
+    #[test]
+    fn gives_the_inverse_dft_of_the_mirrored_spectrum() {
+        for (n, count) in [
+            (2048, 1025),
+            (2048, 881),
+            (64, 33),
+            (64, 32),
+            (12, 7),
+            (2, 2),
+        ] {
+            let p = spectrum(n / 2 + 1, n as u64);
+            let mut out = vec![f64::NAN; count];
+            EvenInverse::new(n).run(&p, &mut out);
+            let want = direct(&p, count);
+            let scale = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            for (m, (g, w)) in out.iter().zip(&want).enumerate() {
+                assert!(
+                    (g - w).abs() <= 1e-13 * scale,
+                    "N = {n}, m = {m}: {g} vs {w}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn agrees_with_a_complex_to_real_fft() {
+        let n = 2048;
+        let p = spectrum(n / 2 + 1, 7);
+        let ifft = RealFftPlanner::<f64>::new().plan_fft_inverse(n);
+        let mut full: Vec<Complex64> = p.iter().map(|&v| Complex64::new(v, 0.0)).collect();
+        let mut want = ifft.make_output_vec();
+        ifft.process(&mut full, &mut want).expect("lengths match");
+        let mut out = vec![0.0; n / 2 + 1];
+        EvenInverse::new(n).run(&p, &mut out);
+        for (m, (g, w)) in out.iter().zip(&want).enumerate() {
+            assert!(
+                (g - w).abs() <= 1e-12 * want[0].abs(),
+                "m = {m}: {g} vs {w}"
+            );
+        }
+    }
+
+    #[test]
+    #[should_panic(expected = "an even length")]
+    fn an_odd_length_is_refused() {
+        EvenInverse::new(7);
+    }
+}
