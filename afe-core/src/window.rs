@@ -96,6 +96,25 @@ mod tests {
         assert_eq!(window("hamming", 1, "x").unwrap_or_default(), vec![1.0]);
     }
 
+    /// MATLAB's values, from the definitions (spec 01-P3) evaluated by hand.
+    #[test]
+    fn blackman_hamming_and_even_lengths_have_matlabs_values() {
+        let cases: [(&str, usize, &[f64]); 5] = [
+            ("blackman", 5, &[0.0, 0.34, 1.0, 0.34, 0.0]),
+            ("hamming", 5, &[0.08, 0.54, 1.0, 0.54, 0.08]),
+            ("triang", 4, &[0.25, 0.75, 0.75, 0.25]),
+            ("bartlett", 4, &[0.0, 2.0 / 3.0, 2.0 / 3.0, 0.0]),
+            ("rectwin", 3, &[1.0, 1.0, 1.0]),
+        ];
+        for (name, n, want) in cases {
+            let w = window(name, n, "x").unwrap_or_default();
+            assert_eq!(w.len(), n, "{name}");
+            for (k, (v, x)) in w.iter().zip(want).enumerate() {
+                assert!((v - x).abs() < 1e-15, "{name}({n})[{k}] = {v}, want {x}");
+            }
+        }
+    }
+
     #[test]
     fn periodic_hamming_is_the_symmetric_one_of_length_n_plus_1_truncated() {
         for n in [1, 2, 7, 882] {
