@@ -254,6 +254,34 @@ mod tests {
     }
 
     #[test]
+    fn columns_use_the_first_last_or_centred_frame_by_row() {
+        let sg = SavitzkyGolay::new(3, 5).expect("valid");
+        assert_eq!(sg.frame(), 5);
+        // an impulse at row 4 of 9 (and twice it in a second column): row t sees it at
+        // position 4 − start of its frame, through the frame row p it is evaluated at;
+        // rows 0-1 use the first frame (start 0), 7-8 the last (start 4), the others
+        // the frame centred on them (p = 2)
+        let mut x = vec![0.0; 18];
+        x[8] = 1.0;
+        x[9] = 2.0;
+        let mut out = vec![f64::NAN; 18];
+        sg.smooth_columns(&x, 2, &mut out);
+        let g = sg.coefficients();
+        let want = [4, 9, 14, 13, 12, 11, 10, 15, 20].map(|i| g[i]);
+        for (t, w) in want.iter().enumerate() {
+            assert!(
+                (out[2 * t] - w).abs() < 1e-15,
+                "row {t}: {} vs {w}",
+                out[2 * t]
+            );
+            assert!(
+                (out[2 * t + 1] - 2.0 * w).abs() < 1e-15,
+                "row {t}, column 1"
+            );
+        }
+    }
+
+    #[test]
     fn bad_frames_are_errors() {
         assert!(SavitzkyGolay::new(3, 4).is_err());
         assert!(SavitzkyGolay::new(5, 5).is_err());
