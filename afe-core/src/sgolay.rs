@@ -254,7 +254,7 @@ mod tests {
     }
 
     #[test]
-    fn columns_use_the_first_last_or_centred_frame_by_row() {
+    fn each_value_uses_the_first_last_or_centred_frame() {
         let sg = SavitzkyGolay::new(3, 5).expect("valid");
         assert_eq!(sg.frame(), 5);
         // an impulse at row 4 of 9 (and twice it in a second column): row t sees it at
@@ -278,6 +278,14 @@ mod tests {
                 (out[2 * t + 1] - 2.0 * w).abs() < 1e-15,
                 "row {t}, column 1"
             );
+        }
+        // the same along a row of 9
+        let mut row = [0.0; 9];
+        row[4] = 1.0;
+        let mut out = [f64::NAN; 9];
+        sg.smooth_rows(&row, 9, &mut out);
+        for (t, w) in want.iter().enumerate() {
+            assert!((out[t] - w).abs() < 1e-15, "column {t}: {} vs {w}", out[t]);
         }
     }
 
