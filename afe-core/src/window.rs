@@ -100,7 +100,7 @@ mod tests {
     #[test]
     fn blackman_hamming_and_even_lengths_have_matlabs_values() {
         let cases: [(&str, usize, &[f64]); 5] = [
-            ("blackman", 5, &[0.0, 0.34, 1.0, 0.34, 0.0]),
+            ("blackman", 7, &[0.0, 0.13, 0.63, 1.0, 0.63, 0.13, 0.0]),
             ("hamming", 5, &[0.08, 0.54, 1.0, 0.54, 0.08]),
             ("triang", 4, &[0.25, 0.75, 0.75, 0.25]),
             ("bartlett", 4, &[0.0, 2.0 / 3.0, 2.0 / 3.0, 0.0]),
