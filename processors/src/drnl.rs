@@ -322,15 +322,29 @@ impl<const W: usize> LaneGt<W> {
         out: &mut [f64],
         stride: usize,
     ) {
-        let mut zs = *z;
-        for (t, (v, o)) in buf.iter().zip(other).enumerate() {
-            let row = &mut out[t * stride..t * stride + W];
-            for l in 0..W {
-                row[l] = o[l] + self.step(&mut zs, l, v[l]);
-            }
-        }
-        *z = zs;
+        sum_into(z, buf, other, out, stride, |zs, l, x| self.step(zs, l, x));
     }
+}
+
+/// A section given by its one-sample `step` over `buf`, writing `other + y` to `W` values
+/// at every `stride` of `out` (see [`LaneGt::run_into`]), state `z` carried.
+#[inline(always)]
+fn sum_into<const W: usize>(
+    z: &mut [[f64; W]; 2],
+    buf: &[[f64; W]],
+    other: &[[f64; W]],
+    out: &mut [f64],
+    stride: usize,
+    step: impl Fn(&mut [[f64; W]; 2], usize, f64) -> f64,
+) {
+    let mut zs = *z;
+    for (t, (v, o)) in buf.iter().zip(other).enumerate() {
+        let row = &mut out[t * stride..t * stride + W];
+        for l in 0..W {
+            row[l] = o[l] + step(&mut zs, l, v[l]);
+        }
+    }
+    *z = zs;
 }
 
 /// An [`lp_section`] across `W` channels. Its numerator is `[C, 2C, C]`, and `(2C)·x` is
@@ -389,14 +403,7 @@ impl<const W: usize> LaneLp<W> {
         out: &mut [f64],
         stride: usize,
     ) {
-        let mut zs = *z;
-        for (t, (v, o)) in buf.iter().zip(other).enumerate() {
-            let row = &mut out[t * stride..t * stride + W];
-            for l in 0..W {
-                row[l] = o[l] + self.step(&mut zs, l, v[l]);
-            }
-        }
-        *z = zs;
+        sum_into(z, buf, other, out, stride, |zs, l, x| self.step(zs, l, x));
     }
 }
 
