@@ -309,25 +309,11 @@ impl<const W: usize> LaneGt<W> {
         }
         *z = zs;
     }
-
-    /// The section over `buf`, writing `other + y` to `W` values at every `stride` of
-    /// `out` instead of `y` to `buf`: the paths' sum in the last
-    /// section's pass.
-    #[inline(always)]
-    fn run_into(
-        &self,
-        z: &mut [[f64; W]; 2],
-        buf: &[[f64; W]],
-        other: &[[f64; W]],
-        out: &mut [f64],
-        stride: usize,
-    ) {
-        sum_into(z, buf, other, out, stride, |zs, l, x| self.step(zs, l, x));
-    }
 }
 
-/// A section given by its one-sample `step` over `buf`, writing `other + y` to `W` values
-/// at every `stride` of `out` (see [`LaneGt::run_into`]), state `z` carried.
+/// A section given by its one-sample `step` (e.g. [`LaneGt::step`]) over `buf`, writing
+/// `other + y` to `W` values at every `stride` of `out` instead of `y` to `buf`: the
+/// paths' sum in the last section's pass. State `z` carried.
 #[inline(always)]
 fn sum_into<const W: usize>(
     z: &mut [[f64; W]; 2],
@@ -391,19 +377,6 @@ impl<const W: usize> LaneLp<W> {
             }
         }
         *z = zs;
-    }
-
-    /// The section over `buf` into `out` with `other` added (see [`LaneGt::run_into`]).
-    #[inline(always)]
-    fn run_into(
-        &self,
-        z: &mut [[f64; W]; 2],
-        buf: &[[f64; W]],
-        other: &[[f64; W]],
-        out: &mut [f64],
-        stride: usize,
-    ) {
-        sum_into(z, buf, other, out, stride, |zs, l, x| self.step(zs, l, x));
     }
 }
 
@@ -471,7 +444,10 @@ fn run_casp<const W: usize>(
     for zs in &mut z[8..10] {
         g.gt_nl.run(zs, nl);
     }
-    g.lp_nl.run_into(&mut z[10], nl, lin, out, stride);
+    let lp = &g.lp_nl;
+    sum_into(&mut z[10], nl, lin, out, stride, |zs, l, x| {
+        lp.step(zs, l, x)
+    });
 }
 
 /// MAP: `lin = GT³(500·x)`, `nlin = GT³(compress(GT³(moc·x)))`, out `lin + nlin`, for
@@ -510,7 +486,10 @@ fn run_map<const W: usize>(
     for zs in &mut z[6..8] {
         g.gt_nl.run(zs, nl);
     }
-    g.gt_nl.run_into(&mut z[8], nl, lin, out, stride);
+    let gt = &g.gt_nl;
+    sum_into(&mut z[8], nl, lin, out, stride, |zs, l, x| {
+        gt.step(zs, l, x)
+    });
 }
 
 /// MAP's middle-ear stage shared by all channels: `x1 = 20e−5·10^5·x`, tympanic-membrane
