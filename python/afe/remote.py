@@ -69,6 +69,13 @@ def _zenoh() -> Any:
     return zenoh
 
 
+def _capacity(capacity: int) -> int:
+    """A receiver's queue length, checked: at least one block."""
+    if int(capacity) < 1:
+        raise ValueError(f"capacity = {capacity}: keep at least one block")
+    return int(capacity)
+
+
 def _json_body(payload: Any, what: str) -> Any:
     try:
         return json.loads(payload.to_bytes())
@@ -269,21 +276,18 @@ class Remote:
         from . import _params_json
 
         self._check_open()
-        if int(capacity) < 1:
-            raise ValueError(f"capacity = {capacity}: keep at least one block")
+        capacity = _capacity(capacity)
         specs = [
             {"name": n, "params": json.loads(_params_json(p))} for n, p in request_list(requests, params)
         ]
         reply = self._query("subscribe", {"client": self.id, "requests": specs})
         try:
-            sub = Subscription(self, reply, int(capacity))
+            sub = Subscription(self, reply, capacity)
         except BaseException:
             if isinstance(reply, dict) and isinstance(reply.get("subscription"), int):
                 self._unsubscribe(reply["subscription"])
             raise
-        with self._lock:
-            self._receivers.add(sub)
-        return sub
+        return self._track(sub)
 
     def audio(self, capacity: int = 64) -> Audio:
         """Subscribes to the server's raw audio and returns the :class:`Audio`, an
@@ -291,12 +295,13 @@ class Remote:
         reader that lags (the oldest is dropped for the newest, and counted). Give it
         to :func:`afe.stream` to run a local front-end on the server's audio."""
         self._check_open()
-        if int(capacity) < 1:
-            raise ValueError(f"capacity = {capacity}: keep at least one block")
-        audio = Audio(self, int(capacity))
+        return self._track(Audio(self, _capacity(capacity)))
+
+    def _track(self, receiver: _Self) -> _Self:
+        """Registers ``receiver`` to be closed with the connection; returns it."""
         with self._lock:
-            self._receivers.add(audio)
-        return audio
+            self._receivers.add(receiver)
+        return receiver
 
     def _unsubscribe(self, subscription: int, wait: bool = True) -> None:
         """Releases a subscription on the server (quietly: it may have gone); without
