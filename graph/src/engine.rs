@@ -1,11 +1,15 @@
-//! The concurrent executor: a fixed pool of worker threads runs the graph's nodes through
-//! the token protocol of [`crate::protocol`] (Ready → Process → Wait → Release), with
-//! vertical concurrency (a parent computes chunk k+1 while its children read chunk k) and
-//! horizontal concurrency (siblings run at once).
+//! The concurrent executor: `threads` computing threads, the caller and a fixed pool of
+//! `threads − 1` workers, run the graph's nodes through the token protocol of
+//! [`crate::protocol`] (Ready → Process → Wait → Release), with vertical concurrency (a
+//! parent computes chunk k+1 while its children read chunk k) and horizontal concurrency
+//! (siblings run at once). Each worker takes first the nodes whose home it is (see
+//! [`crate::placement`]), so that a chain of nodes stays in one core's cache.
 //!
-//! The calling thread plays two roles outside the pool: it is the source (it publishes
+//! The calling thread also plays two roles of its own: it is the source (it publishes
 //! each input chunk into node 0) and the sink (it copies every other node's output of a
-//! chunk into blocks of its own, then returns its reader tokens). Workers never lock,
+//! chunk into blocks of its own, then returns its reader tokens). While it waits for a
+//! chunk or a free input slot it runs ready nodes like a worker, so that `threads`
+//! threads share `threads` cores without a third thread to wake per chunk. Workers never lock,
 //! allocate (beyond what a processor's first chunks of a new size need) or free: the node
 //! table is built and dropped by the caller, and swapped only while the pool is idle.
 
@@ -19,14 +23,15 @@ use std::time::{Duration, Instant};
 use afe_core::{Block, Error, Part, Processor, Result};
 
 use crate::graph::{Graph, OutputRef, MAX_INPUTS};
+use crate::placement;
 use crate::protocol::{consumed, is_ready, next_chunk, release, Links, NodeSync};
 use crate::sync::{AtomicBool, AtomicU64, Ordering};
 use crate::trace::{TraceEvent, Tracer};
 use crate::wakeup::{ReadySet, Wakeup, WAIT_CHUNK, WAIT_IDLE, WAIT_SOURCE};
 
-/// How long an idle worker spins before parking: long enough to bridge the gaps between
-/// the nodes of a chunk without a futex round trip. (The caller never spins: it would
-/// take a core from the workers.)
+/// How long an idle worker (or the waiting caller, itself a computing thread) spins before
+/// parking: long enough to bridge the gaps between the nodes of a chunk without a futex
+/// round trip.
 const SPIN: Duration = Duration::from_micros(50);
 /// Safety net for a missed unpark: parked threads re-check this often.
 const PARK_TIMEOUT: Duration = Duration::from_millis(2);
@@ -69,6 +74,8 @@ struct Table {
     links: Vec<Links>,
     rt: Vec<NodeRt>,
     ready: ReadySet,
+    /// Per worker, the entries it takes first (see [`crate::placement`]).
+    homes: Vec<Box<[u64]>>,
 }
 
 struct Shared {
@@ -150,7 +157,7 @@ impl Shared {
             let table = unsafe { &*self.table.get() };
             let mut idle_since: Option<Instant> = None;
             loop {
-                if let Some(n) = table.ready.pop() {
+                if let Some(n) = table.ready.pop(table.homes.get(id).map_or(&[], |m| m)) {
                     self.run(table, n, id);
                     idle_since = None;
                 } else if idle_since.get_or_insert_with(Instant::now).elapsed() < SPIN {
@@ -264,7 +271,7 @@ pub struct Engine {
 impl std::fmt::Debug for Engine {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Engine")
-            .field("threads", &self.handles.len())
+            .field("threads", &self.threads())
             .field("submitted", &self.submitted)
             .field("collected", &self.collected)
             .finish()
@@ -277,12 +284,14 @@ fn empty_table() -> Table {
         links: Vec::new(),
         rt: Vec::new(),
         ready: ReadySet::new(0),
+        homes: Vec::new(),
     }
 }
 
 impl Engine {
-    /// Starts `threads` workers (1..=64) with an empty graph; `trace_capacity` events per
-    /// worker are preallocated for tracing (0 = no tracing).
+    /// Starts `threads − 1` workers, the caller being the last of `threads` (1..=64)
+    /// computing threads, with an empty graph; `trace_capacity` events per computing
+    /// thread are preallocated for tracing (0 = no tracing).
     pub fn new(threads: usize, trace_capacity: usize) -> Result<Self> {
         if !(1..=MAX_THREADS).contains(&threads) {
             return Err(Error::InvalidInput(format!(
@@ -311,7 +320,7 @@ impl Engine {
             frames: Vec::new(),
             stall_timeout: Duration::from_secs(30),
         };
-        for id in 0..threads {
+        for id in 0..threads - 1 {
             let s = Arc::clone(&engine.shared);
             // On failure `engine` is dropped, which stops and joins the workers started.
             let h = thread::Builder::new()
@@ -326,9 +335,9 @@ impl Engine {
         Ok(engine)
     }
 
-    /// Number of worker threads.
+    /// Number of computing threads: the workers and the caller.
     pub fn threads(&self) -> usize {
-        self.handles.len()
+        self.handles.len() + 1
     }
 
     /// Fails with a dump of every node's state instead of waiting longer than this.
@@ -354,6 +363,7 @@ impl Engine {
         mut done: impl FnMut(&Table) -> bool,
     ) -> Result<()> {
         let began = Instant::now();
+        let mut idle_since: Option<Instant> = None;
         loop {
             if self.shared.poisoned.load(Ordering::SeqCst) {
                 return Err(Error::WorkerPanicked);
@@ -367,6 +377,17 @@ impl Engine {
                     self.dump()
                 )));
             }
+            if self.help() {
+                idle_since = None;
+                continue;
+            }
+            if idle_since.get_or_insert_with(Instant::now).elapsed() < SPIN {
+                for _ in 0..64 {
+                    std::hint::spin_loop();
+                }
+                continue;
+            }
+            idle_since = None;
             if self.shared.wakeup.park_unless(
                 code,
                 || done(self.table()),
@@ -375,6 +396,20 @@ impl Engine {
                 return Ok(());
             }
         }
+    }
+
+    /// Runs one ready node on the calling thread, the pool's last computing thread;
+    /// returns whether there was one.
+    fn help(&self) -> bool {
+        let table = self.table();
+        let me = self.handles.len();
+        let Some(n) = table.ready.pop(table.homes.get(me).map_or(&[], |m| m)) else {
+            return false;
+        };
+        let was_worker = IS_WORKER.with(|w| w.replace(true));
+        self.shared.run(table, n, me);
+        IS_WORKER.with(|w| w.set(was_worker));
+        true
     }
 
     /// Every node's protocol state, for stall reports.
@@ -588,6 +623,12 @@ impl Engine {
                 p
             })
             .collect();
+        let split_parts: Vec<&[usize]> = part_entries
+            .iter()
+            .filter(|p| !p.is_empty())
+            .map(Vec::as_slice)
+            .collect();
+        let home = placement::homes(&parents, &split_parts, self.threads());
         let mut children: Vec<Vec<usize>> = vec![Vec::new(); total];
         for (i, ps) in parents.iter().enumerate() {
             for &p in ps {
@@ -680,6 +721,7 @@ impl Engine {
             links,
             rt,
             ready: ReadySet::new(total),
+            homes: placement::masks(&home, self.threads()),
         };
         let old = self.with_table_swapped(|shared| {
             // SAFETY: no worker is active and the pool is quiescent.

@@ -5,6 +5,7 @@
 mod engine;
 mod graph;
 mod manager;
+mod placement;
 mod protocol;
 mod resolve;
 #[cfg(test)]

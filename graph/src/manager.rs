@@ -245,9 +245,9 @@ impl Manager {
         })
     }
 
-    /// A manager that runs its graph on a pool of `threads` workers (the concurrent
-    /// scheduler); `threads = 0` selects the sequential executor. Outputs are the same,
-    /// bit for bit, whatever the choice.
+    /// A manager that runs its graph on `threads` threads, the calling one and a pool of
+    /// `threads − 1` workers (the concurrent scheduler); `threads = 0` selects the
+    /// sequential executor. Outputs are the same, bit for bit, whatever the choice.
     pub fn with_threads(fs: f64, ears: usize, threads: usize) -> Result<Self> {
         Self::with_engine(fs, ears, threads, 0)
     }
@@ -288,7 +288,8 @@ impl Manager {
         Ok(Some(crate::trace::chrome_trace(&labels, &events, dropped)))
     }
 
-    /// Worker threads of the concurrent scheduler (0: sequential executor).
+    /// Computing threads of the concurrent scheduler, the caller among them (0: sequential
+    /// executor).
     pub fn threads(&self) -> usize {
         self.engine.as_ref().map_or(0, Engine::threads)
     }

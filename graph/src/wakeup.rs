@@ -47,18 +47,26 @@ impl ReadySet {
         self.words[n / 64].fetch_or(1 << (n % 64), Ordering::AcqRel);
     }
 
-    /// Takes the deepest ready node (highest index: children before parents drains the
+    /// Takes the deepest ready node among those marked in `home` (one bit per node, see
+    /// [`crate::placement`]), else the deepest of all (children before parents drains the
     /// pipeline and frees slots first).
-    pub(crate) fn pop(&self) -> Option<usize> {
+    pub(crate) fn pop(&self, home: &[u64]) -> Option<usize> {
+        self.pop_masked(|w| home.get(w).copied().unwrap_or(0))
+            .or_else(|| self.pop_masked(|_| u64::MAX))
+    }
+
+    /// Takes the highest ready node whose bit is set in `mask(word)`.
+    fn pop_masked(&self, mask: impl Fn(usize) -> u64) -> Option<usize> {
         for (w, word) in self.words.iter().enumerate().rev() {
-            let mut bits = word.load(Ordering::Acquire);
+            let m = mask(w);
+            let mut bits = word.load(Ordering::Acquire) & m;
             while bits != 0 {
                 let b = 63 - bits.leading_zeros() as usize;
                 let prev = word.fetch_and(!(1 << b), Ordering::AcqRel);
                 if prev & (1 << b) != 0 {
                     return Some(w * 64 + b);
                 }
-                bits = prev & !(1 << b);
+                bits = prev & m & !(1 << b);
             }
         }
         None

@@ -7,7 +7,8 @@
 //! The caller plays the engine's caller: it submits each chunk into the source (waiting
 //! for the source's slot), keeps at most two chunks in flight, collects each chunk
 //! (waiting for it to complete, then returning its reader tokens), waits for the pool to
-//! go idle, and shuts the pool down. Workers take nodes from the ready set, run them,
+//! go idle, and shuts the pool down. While it waits it runs ready nodes itself, as the
+//! engine's caller does, and parks only when none is ready. Workers take nodes from the ready set, run them,
 //! release them (offering the nodes that may have become ready, waking idle workers for
 //! the extra ones and the caller when its chunk is complete), and when the ready set is
 //! empty go idle and park. Both park with loom's plain `park` (the engine's
@@ -59,12 +60,14 @@ struct Model {
     /// Set once the workers are spawned, as in the engine.
     workers: OnceLock<Box<[Thread]>>,
     caller: Thread,
+    /// Whether the caller runs ready nodes while it waits, as the engine's does.
+    helps: bool,
 }
 
 impl Model {
     /// The graph of `parents` (node 0 is the source), as `Engine::install` links it: every
     /// node but the source has the caller as an extra reader.
-    fn new(parents: &[&[usize]]) -> Self {
+    fn new(parents: &[&[usize]], helps: bool) -> Self {
         let n = parents.len();
         Model {
             sync: (0..n).map(|_| NodeSync::new()).collect(),
@@ -77,6 +80,7 @@ impl Model {
             shutdown: AtomicBool::new(false),
             workers: OnceLock::new(),
             caller: loom::thread::current(),
+            helps,
         }
     }
 
@@ -107,7 +111,7 @@ impl Model {
     /// `Shared::worker_loop`, without the spinning.
     fn worker_loop(&self, id: usize) {
         while !self.shutdown.load(Ordering::Acquire) {
-            while let Some(n) = self.ready.pop() {
+            while let Some(n) = self.ready.pop(&[1 << (id + 1)]) {
                 self.run(n);
             }
             let nothing = self.wakeup.going_idle(id, &self.ready);
@@ -142,11 +146,16 @@ impl Model {
             .chunk_published(&self.sync, &self.links, n, k, || &self.caller);
     }
 
-    /// `Engine::wait_until`, without the stall watchdog.
+    /// `Engine::wait_until`, without the stall watchdog and the spinning: a helping caller
+    /// runs ready nodes while it waits (`Engine::help`); it parks when there are none.
     fn wait_until(&self, code: u64, mut done: impl FnMut() -> bool) {
         loop {
             if done() {
                 return;
+            }
+            if let Some(n) = self.helps.then(|| self.ready.pop(&[])).flatten() {
+                self.run(n);
+                continue;
             }
             if self.wakeup.park_unless(code, &mut done, loom::thread::park) {
                 return;
@@ -197,13 +206,13 @@ impl Model {
     }
 }
 
-fn check(parents: &'static [&'static [usize]]) {
+fn check(parents: &'static [&'static [usize]], helps: bool) {
     let mut builder = loom::model::Builder::new();
     // One preemption besides the switches at parks and joins: ~10 s; two take over ten
     // minutes with three threads.
     builder.preemption_bound = Some(1);
     builder.check(move || {
-        let m = Arc::new(Model::new(parents));
+        let m = Arc::new(Model::new(parents, helps));
         let handles: Vec<_> = (0..WORKERS)
             .map(|id| {
                 let m = Arc::clone(&m);
@@ -240,5 +249,13 @@ fn check(parents: &'static [&'static [usize]]) {
 /// source → {a, b}: releasing the source queues two nodes, so a worker wakes the other.
 #[test]
 fn source_with_two_children() {
-    check(&[&[], &[0], &[0]]);
+    check(&[&[], &[0], &[0]], true);
+}
+
+/// The same with a caller that only waits (as it does once parked): the workers alone
+/// must hand the nodes to each other (without the caller's help, a worker that misses
+/// the other's wake-up leaves it parked for ever).
+#[test]
+fn source_with_two_children_caller_only_waits() {
+    check(&[&[], &[0], &[0]], false);
 }

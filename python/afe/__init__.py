@@ -180,9 +180,9 @@ class Manager:
     """A streaming front-end, as the AFE's ``manager``: place requests, feed chunks.
 
     ``fs``: input sampling rate in Hz. ``channels``: 1 (mono) or 2 (left, right).
-    ``threads``: worker threads of the concurrent scheduler (``None`` or 0: sequential;
-    the numbers are the same either way). ``keep_history``: keep every output for
-    :meth:`outputs` (turn off for endless streams).
+    ``threads``: threads of the concurrent scheduler, the calling one among them
+    (``None`` or 0: sequential; the numbers are the same either way). ``keep_history``:
+    keep every output for :meth:`outputs` (turn off for endless streams).
 
     Processing releases the GIL, so managers in several Python threads run in parallel.
     """
@@ -347,7 +347,8 @@ def process(
     file (then ``fs`` may be ``None``; if given it must match the file's). ``params``:
     AFE parameter names to values, shared by every request. ``chunk``: feed the signal in
     chunks of this many samples, as a stream would (same result wherever the AFE is
-    chunk-invariant). ``threads``: worker threads (``None``/0: sequential).
+    chunk-invariant). ``threads``: scheduler threads, the caller among them
+    (``None``/0: sequential).
     ``keep="all"`` also returns every intermediate signal the requests were computed
     through (``time_left``, ``filterbank_left``, ``innerhaircell_left``, ...), as the
     AFE's data object holds them and as ``afe extract --all`` saves them.

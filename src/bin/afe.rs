@@ -358,8 +358,8 @@ impl Requests {
 /// The executor choice shared by `extract`, `bench` and `stream`.
 #[derive(clap::Args)]
 struct Threads {
-    /// Worker threads of the concurrent scheduler (default: the number of cores;
-    /// 0 = the sequential executor). Every choice gives the same numbers.
+    /// Threads of the concurrent scheduler, the calling one among them (default: the
+    /// number of cores; 0 = the sequential executor). Every choice gives the same numbers.
     #[arg(long, value_name = "N")]
     threads: Option<usize>,
 }
