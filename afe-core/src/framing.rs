@@ -6,26 +6,35 @@
 //! covers `[j·H, j·H + W)`. (The MATLAB AFE forgets such a gap at a chunk boundary, so
 //! its chunked output there depends on the chunking; its one-call output is this one.)
 
+use std::ops::Range;
+
 /// The rows of a time-major signal still needed by coming frames.
 ///
 /// Frame `j` of the stream always covers stream rows `[j·H, j·H + W)`, whatever the
 /// chunking, which makes every framed processor chunk-invariant. Frames are read over
 /// the kept rows followed by the new chunk, which is borrowed, not copied: only the rows
 /// that later frames still need are kept, at [`FrameBuffer::advance`].
+///
+/// A buffer may frame a range of the input's columns only (see [`FrameBuffer::columns`]):
+/// a part of a split processor then keeps and copies its own channels alone.
 #[derive(Debug, PartialEq)]
 pub struct FrameBuffer {
+    /// Values per input row.
     width: usize,
+    /// The columns framed and kept.
+    columns: Range<usize>,
     window: usize,
     hop: usize,
-    /// Rows from the start of the next frame on.
+    /// Rows from the start of the next frame on, `columns.len()` values each.
     kept: Vec<f64>,
     /// Rows of coming input to drop before the next frame starts (a gap between frames
     /// when the hop is longer than the window; `kept` is empty while it is non-zero).
     skip: usize,
 }
 
-/// One frame: rows kept from earlier chunks (`head`), then rows of the new chunk
-/// (`tail`), each `width` values long.
+/// One frame: rows kept from earlier chunks (`head`, `width` values each), then rows of
+/// the new chunk (`tail`, whole input rows of `stride` values, whose columns `offset..`
+/// `offset + width` are the frame's). Over all columns, `stride == width` and `offset == 0`.
 #[derive(Debug, Clone, Copy)]
 pub struct Frame<'a> {
     /// The frame's first rows, from earlier chunks.
@@ -33,14 +42,38 @@ pub struct Frame<'a> {
     /// The frame's remaining rows, from the new chunk.
     pub tail: &'a [f64],
     width: usize,
+    stride: usize,
+    offset: usize,
 }
 
 impl<'a> Frame<'a> {
-    /// The frame's rows in time order.
+    /// The frame's rows in time order, `width` values each.
     pub fn rows(&self) -> impl Iterator<Item = &'a [f64]> {
         let (head, tail) = (self.head, self.tail);
-        head.chunks_exact(self.width)
-            .chain(tail.chunks_exact(self.width))
+        let (width, offset) = (self.width, self.offset);
+        head.chunks_exact(width).chain(
+            tail.chunks_exact(self.stride)
+                .map(move |r| &r[offset..offset + width]),
+        )
+    }
+
+    /// `head` and `tail`, each with its row length and the index in its rows of the
+    /// frame's first column (for loops that read whole rows without slicing each).
+    pub fn segments(&self) -> [(&'a [f64], usize, usize); 2] {
+        [
+            (self.head, self.width, 0),
+            (self.tail, self.stride, self.offset),
+        ]
+    }
+
+    /// Values per row of the frame.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// The input column of the frame's first column.
+    pub fn first_column(&self) -> usize {
+        self.offset
     }
 }
 
@@ -50,7 +83,11 @@ impl Clone for FrameBuffer {
     fn clone(&self) -> Self {
         let mut kept = Vec::with_capacity(self.kept.capacity());
         kept.extend_from_slice(&self.kept);
-        FrameBuffer { kept, ..*self }
+        FrameBuffer {
+            kept,
+            columns: self.columns.clone(),
+            ..*self
+        }
     }
 }
 
@@ -63,11 +100,57 @@ impl FrameBuffer {
         assert!(hop > 0, "invalid framing {window}/{hop}");
         FrameBuffer {
             width,
+            columns: 0..width,
             window,
             hop,
             kept: Vec::with_capacity(window * width),
             skip: 0,
         }
+    }
+
+    /// A copy that frames and keeps only `columns` (a non-empty range within this
+    /// buffer's), with its kept rows narrowed and as much room per column.
+    ///
+    /// # Panics
+    /// If `columns` is empty or not within this buffer's columns.
+    pub fn columns(&self, columns: Range<usize>) -> Self {
+        assert!(
+            !columns.is_empty()
+                && self.columns.start <= columns.start
+                && columns.end <= self.columns.end,
+            "columns {columns:?} not within {:?}",
+            self.columns
+        );
+        let old = self.columns.len();
+        let (from, to) = (
+            columns.start - self.columns.start,
+            columns.end - self.columns.start,
+        );
+        let mut kept = Vec::with_capacity(self.kept.capacity() / old * columns.len());
+        for row in self.kept.chunks_exact(old) {
+            kept.extend_from_slice(&row[from..to]);
+        }
+        FrameBuffer {
+            kept,
+            columns,
+            ..*self
+        }
+    }
+
+    /// Appends the framed columns of whole input rows to the kept rows.
+    fn keep(&mut self, rows: &[f64]) {
+        if self.columns.len() == self.width {
+            self.kept.extend_from_slice(rows);
+        } else {
+            for row in rows.chunks_exact(self.width) {
+                self.kept.extend_from_slice(&row[self.columns.clone()]);
+            }
+        }
+    }
+
+    /// Rows kept.
+    fn kept_rows(&self) -> usize {
+        self.kept.len() / self.columns.len().max(1)
     }
 
     /// `input` after the rows still to be skipped.
@@ -78,7 +161,7 @@ impl FrameBuffer {
     /// Number of complete frames over the kept rows followed by `input`.
     pub fn available(&self, input: &[f64]) -> usize {
         let input = self.fresh(input);
-        let n = (self.kept.len() + input.len()) / self.width.max(1);
+        let n = self.kept_rows() + input.len() / self.width.max(1);
         if n < self.window {
             0
         } else {
@@ -90,13 +173,15 @@ impl FrameBuffer {
     /// `k` must be below [`FrameBuffer::available`].
     pub fn frame<'a>(&'a self, input: &'a [f64], k: usize) -> Frame<'a> {
         let input = self.fresh(input);
-        let kept = self.kept.len();
-        let start = k * self.hop * self.width;
-        let end = start + self.window * self.width;
+        let (kept, width, cw) = (self.kept_rows(), self.width, self.columns.len());
+        let start = k * self.hop;
+        let end = start + self.window;
         Frame {
-            head: &self.kept[start.min(kept)..end.min(kept)],
-            tail: &input[start.saturating_sub(kept)..end - kept.min(end)],
-            width: self.width,
+            head: &self.kept[start.min(kept) * cw..end.min(kept) * cw],
+            tail: &input[start.saturating_sub(kept) * width..(end - kept.min(end)) * width],
+            width: cw,
+            stride: width,
+            offset: self.columns.start,
         }
     }
 
@@ -104,18 +189,19 @@ impl FrameBuffer {
     /// is the chunk just framed.
     pub fn advance(&mut self, input: &[f64], frames: usize) {
         let fresh = self.fresh(input);
-        self.skip -= (input.len() - fresh.len()) / self.width.max(1);
-        let next = frames * self.hop * self.width;
-        let kept = self.kept.len();
+        let width = self.width.max(1);
+        self.skip -= (input.len() - fresh.len()) / width;
+        let next = frames * self.hop;
+        let kept = self.kept_rows();
         if next <= kept {
-            self.kept.drain(..next);
-            self.kept.extend_from_slice(fresh);
+            self.kept.drain(..next * self.columns.len());
+            self.keep(fresh);
         } else {
             self.kept.clear();
-            let drop = next - kept;
+            let drop = (next - kept) * width;
             match fresh.get(drop..) {
-                Some(rest) => self.kept.extend_from_slice(rest),
-                None => self.skip = (drop - fresh.len()) / self.width.max(1),
+                Some(rest) => self.keep(rest),
+                None => self.skip = (drop - fresh.len()) / width,
             }
         }
     }
@@ -173,6 +259,44 @@ mod tests {
             assert_eq!(whole, chunked, "chunks of {chunk} rows");
         }
         assert_eq!(whole[1], (8..20).map(f64::from).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn a_column_range_frames_those_columns_of_the_full_frames() {
+        // 5 columns; frames of 6 rows every 4 (overlapping) and of 3 every 7 (gaps)
+        let x: Vec<f64> = (0..5 * 61).map(|i| i as f64).collect();
+        for (window, hop) in [(6, 4), (3, 7)] {
+            for cols in [1..4, 0..5, 4..5] {
+                for chunk in [1, 2, 5, 13, 30] {
+                    let mut full = FrameBuffer::new(5, window, hop);
+                    let mut narrow: Option<FrameBuffer> = None;
+                    for (k, part) in x.chunks(5 * chunk).enumerate() {
+                        // narrowed after the first chunk, from the rows it kept
+                        if k == 1 {
+                            narrow = Some(full.columns(cols.clone()));
+                        }
+                        let m = full.available(part);
+                        if let Some(fb) = narrow.as_mut() {
+                            assert_eq!(fb.available(part), m);
+                            for j in 0..m {
+                                let want: Vec<f64> = full
+                                    .frame(part, j)
+                                    .rows()
+                                    .flat_map(|r| r[cols.clone()].to_vec())
+                                    .collect();
+                                let frame = fb.frame(part, j);
+                                assert_eq!(frame.width(), cols.len());
+                                assert_eq!(frame.first_column(), cols.start);
+                                assert_eq!(collect(frame), want, "{cols:?}, chunk {chunk}");
+                            }
+                            fb.advance(part, m);
+                        }
+                        full.advance(part, m);
+                    }
+                    assert!(narrow.is_some());
+                }
+            }
+        }
     }
 
     #[test]

@@ -272,15 +272,10 @@ impl Direct {
         Self::for_groups(self.win.clone(), self.max_lag, self.lag_block, starts)
     }
 
-    /// Correlates the channels of its groups of one frame pair (`[time][channel]`, `nc`
-    /// wide) into `out` (`[channel][lag]`, from channel `first` on).
-    fn correlate(
-        &mut self,
-        frame_l: Frame<'_>,
-        frame_r: Frame<'_>,
-        (nc, first): (usize, usize),
-        out: &mut [f64],
-    ) {
+    /// Correlates the channels of its groups of one frame pair (`[time][channel]`, over
+    /// the frames' columns) into `out` (`[channel][lag]`, from their first column on).
+    fn correlate(&mut self, frame_l: Frame<'_>, frame_r: Frame<'_>, out: &mut [f64]) {
+        let (nc, first) = (frame_l.width(), frame_l.first_column());
         let half = self.win.len() / 2;
         let (rows_l, k) = (half + self.half_lags, self.half_lags);
         let groups = self.starts.len();
@@ -290,7 +285,7 @@ impl Direct {
             let right = &mut self.right[3 * half * g..3 * half * (g + batch)];
             let frames = (frame_l, frame_r);
             let energy = &mut self.energy[g..g + batch];
-            let (starts, shape) = (&self.starts[g..g + batch], (nc, self.max_lag));
+            let starts = &self.starts[g..g + batch];
             let window = match batch {
                 _ if nc < LANES => window_frames::<1, false>,
                 1 => window_frames::<1, true>,
@@ -298,7 +293,7 @@ impl Direct {
                 3 => window_frames::<3, true>,
                 _ => window_frames::<4, true>,
             };
-            window(&self.win, frames, shape, starts, left, right, energy);
+            window(&self.win, frames, self.max_lag, starts, left, right, energy);
         }
         let dot = match self.lag_block {
             5 => dot_lags::<5>,
@@ -345,13 +340,13 @@ const BATCH: usize = 4;
 /// Per-group energies `Σ (win·x)²` of the left and right frames.
 type Energy = ([f64; LANES], [f64; LANES]);
 
-/// Windows the frame pair (`[time][channel]`, `nc` wide) into the polyphase rows of `G`
-/// groups (first channels `starts`; `left` and `right` laid out as in [`Direct`]), with
+/// Windows the frame pair (`[time][channel]`) into the polyphase rows of `G` groups
+/// (first input channels `starts`; `left` and `right` laid out as in [`Direct`]), with
 /// the frames' energies into `energy`, summed in time order in registers. Row `n` of the
 /// left frame is row `p = n + maxLag` of `L`: row `p / 2` of `L_even` or `L_odd`, and of
 /// the differences with its neighbour (`L[p−1] − L[p]` at row `p/2 − 1` for an even `p`,
 /// `r[n−1] − r[n]` at row `n / 2` for an odd `n`). `WIDE`: at least `LANES` channels
-/// (else the first `nc` lanes are filled, the others stay zero).
+/// (else the frame's channels fill the first lanes, the others stay zero).
 #[cfg_attr(
     not(feature = "no-avx512"),
     multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
@@ -363,7 +358,7 @@ type Energy = ([f64; LANES], [f64; LANES]);
 fn window_frames<'a, const G: usize, const WIDE: bool>(
     win: &[f64],
     (frame_l, frame_r): (Frame<'a>, Frame<'a>),
-    (nc, max_lag): (usize, usize),
+    max_lag: usize,
     starts: &[usize],
     left: &mut [Lanes],
     right: &mut [Lanes],
@@ -375,9 +370,11 @@ fn window_frames<'a, const G: usize, const WIDE: bool>(
     // the previous row of each group (zero before the frame)
     let mut prev_l = [[0.0; LANES]; G];
     let mut prev_r = [[0.0; LANES]; G];
+    let (nc, first) = (frame_l.width(), frame_l.first_column());
     let mut n = 0;
-    for (part_l, part_r) in [(frame_l.head, frame_r.head), (frame_l.tail, frame_r.tail)] {
-        let rows = part_l.chunks_exact(nc).zip(part_r.chunks_exact(nc));
+    let segments = frame_l.segments().into_iter().zip(frame_r.segments());
+    for ((part_l, stride, at), (part_r, _, _)) in segments {
+        let rows = part_l.chunks_exact(stride).zip(part_r.chunks_exact(stride));
         for ((row_l, row_r), &w) in rows.zip(&win[n..]) {
             let p = n + max_lag;
             let at_l = (p % 2) * rows_l + p / 2;
@@ -385,12 +382,12 @@ fn window_frames<'a, const G: usize, const WIDE: bool>(
             for g in 0..G {
                 let (mut xl, mut xr) = ([0.0; LANES], [0.0; LANES]);
                 if WIDE {
-                    let c0 = starts[g];
+                    let c0 = at + starts[g] - first;
                     xl.copy_from_slice(&row_l[c0..c0 + LANES]);
                     xr.copy_from_slice(&row_r[c0..c0 + LANES]);
                 } else {
-                    xl[..nc].copy_from_slice(row_l);
-                    xr[..nc].copy_from_slice(row_r);
+                    xl[..nc].copy_from_slice(&row_l[at..at + nc]);
+                    xr[..nc].copy_from_slice(&row_r[at..at + nc]);
                 }
                 for l in 0..LANES {
                     xl[l] *= w;
@@ -493,7 +490,7 @@ impl FftEngine {
         }
     }
 
-    /// Correlates channel `c` of the current frames into `out` (one value per lag).
+    /// Correlates column `c` of the current frames into `out` (one value per lag).
     fn correlate(&mut self, frame_l: Frame<'_>, frame_r: Frame<'_>, c: usize, out: &mut [f64]) {
         let w = self.win.len();
         let nfft = self.time_l.len();
@@ -591,9 +588,9 @@ impl Processor for Crosscorrelation {
         for (k, out) in out.chunks_exact_mut(channels.len() * nl).enumerate() {
             let (fl, fr) = self.frames.frame(ears, k);
             match &mut self.engine {
-                Engine::Direct(d) => d.correlate(fl, fr, (nc, channels.start), out),
+                Engine::Direct(d) => d.correlate(fl, fr, out),
                 Engine::Fft(f) => {
-                    for (c, o) in channels.clone().zip(out.chunks_exact_mut(nl)) {
+                    for (c, o) in (0..channels.len()).zip(out.chunks_exact_mut(nl)) {
                         f.correlate(fl, fr, c, o);
                     }
                 }
@@ -622,7 +619,7 @@ impl Processor for Crosscorrelation {
             Part {
                 widths: vec![channels.len() * nl],
                 processor: Box::new(Crosscorrelation {
-                    frames: self.frames.clone(),
+                    frames: self.frames.columns(channels.clone()),
                     engine,
                     part: Some(channels),
                 }),
@@ -824,7 +821,7 @@ mod tests {
                 for lag_block in [4, 5, 8, 9, 10, 11, 12] {
                     let mut direct = Direct::with_lag_block(win.clone(), max_lag, nc, lag_block);
                     let mut a = vec![0.0; nc * nl];
-                    direct.correlate(fl, fr, (nc, 0), &mut a);
+                    direct.correlate(fl, fr, &mut a);
                     for (i, (u, v)) in a.iter().zip(&b).enumerate() {
                         let (c, lag) = (i / nl, i % nl);
                         assert!(

@@ -117,6 +117,15 @@ impl EarFrames {
         self.left.width()
     }
 
+    /// A copy that frames and keeps only `columns` of both ears (see
+    /// [`FrameBuffer::columns`]).
+    pub fn columns(&self, columns: std::ops::Range<usize>) -> Self {
+        EarFrames {
+            left: self.left.columns(columns.clone()),
+            right: self.right.columns(columns),
+        }
+    }
+
     /// Forgets the kept rows of both ears.
     pub fn reset(&mut self) {
         self.left.reset();
