@@ -250,6 +250,38 @@ fn adding_and_removing_requests_mid_stream() {
     }
 }
 
+/// A split cross-correlation goes on across edits: at every edit its parts are dropped
+/// and their state taken back, and the next table splits it again. Its cues must be those
+/// of an undisturbed sequential run, whatever the thread count.
+#[test]
+fn a_split_node_keeps_its_state_across_edits() {
+    let (left, right) = signal(8000);
+    let mut want = manager(0);
+    want.add_request("itd", &ParamMap::new()).expect("ok");
+    let mut rec_want = Recorder::new(false);
+    feed(&mut want, &mut rec_want, &left, &right, &[441, 97]);
+    let want = rec_want.get("itd_mono").expect("itd").data.clone();
+    assert!(want.frames() > 40);
+    for threads in [2, 3, 4] {
+        let mut m = manager(threads);
+        m.add_request("itd", &ParamMap::new()).expect("ok");
+        let mut got = afe::Block::new(want.width());
+        let mut ratemap = None;
+        // an edit after each slice: a request added, then removed
+        for bounds in [0, 1313, 2900, 5003, 8000].windows(2) {
+            let mut rec = Recorder::new(false);
+            let (a, b) = (bounds[0], bounds[1]);
+            feed(&mut m, &mut rec, &left[a..b], &right[a..b], &[441, 97]);
+            got.extend_from(&rec.get("itd_mono").expect("itd").data);
+            match ratemap.take() {
+                None => ratemap = Some(m.add_request("ratemap", &ParamMap::new()).expect("ok")),
+                Some(rm) => m.remove_request(rm).expect("remove"),
+            }
+        }
+        assert_eq!(got, want, "threads {threads}");
+    }
+}
+
 /// Modifying a parameter rebuilds and resets that processor and everything above it; the
 /// rest keeps its state.
 #[test]

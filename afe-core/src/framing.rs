@@ -16,7 +16,8 @@ use std::ops::Range;
 /// that later frames still need are kept, at [`FrameBuffer::advance`].
 ///
 /// A buffer may frame a range of the input's columns only (see [`FrameBuffer::columns`]):
-/// a part of a split processor then keeps and copies its own channels alone.
+/// a part of a split processor then keeps and copies its own channels alone, and its join
+/// only counts rows (see [`FrameBuffer::count_only`], [`FrameBuffer::joined`]).
 #[derive(Debug, PartialEq)]
 pub struct FrameBuffer {
     /// Values per input row.
@@ -27,6 +28,8 @@ pub struct FrameBuffer {
     hop: usize,
     /// Rows from the start of the next frame on, `columns.len()` values each.
     kept: Vec<f64>,
+    /// Number of rows kept (held in `kept` unless the buffer only counts).
+    rows: usize,
     /// Rows of coming input to drop before the next frame starts (a gap between frames
     /// when the hop is longer than the window; `kept` is empty while it is non-zero).
     skip: usize,
@@ -104,6 +107,7 @@ impl FrameBuffer {
             window,
             hop,
             kept: Vec::with_capacity(window * width),
+            rows: 0,
             skip: 0,
         }
     }
@@ -137,11 +141,52 @@ impl FrameBuffer {
         }
     }
 
+    /// Stops keeping values, counting rows only (what the join of a split processor needs
+    /// to know how many frames each chunk completes). Allocates and frees nothing.
+    pub fn count_only(&mut self) {
+        self.kept.clear();
+        self.columns = self.columns.start..self.columns.start;
+    }
+
+    /// The buffer over all columns that `parts` (consecutive column ranges of one
+    /// buffer, in order, at the same point of the stream) make together, with the room
+    /// of them all.
+    ///
+    /// # Panics
+    /// If the parts are not consecutive ranges of one stream's buffer at one point.
+    pub fn joined(parts: &[&FrameBuffer]) -> Self {
+        let first = parts.first().expect("at least one part");
+        let mut columns = first.columns.start..first.columns.start;
+        for p in parts {
+            assert!(
+                p.columns.start == columns.end
+                    && (p.width, p.window, p.hop, p.rows, p.skip)
+                        == (first.width, first.window, first.hop, first.rows, first.skip),
+                "parts of different buffers"
+            );
+            columns.end = p.columns.end;
+        }
+        let room = parts.iter().map(|p| p.kept.capacity()).sum();
+        let mut kept = Vec::with_capacity(room);
+        for r in 0..first.rows {
+            for p in parts {
+                let w = p.columns.len();
+                kept.extend_from_slice(&p.kept[r * w..(r + 1) * w]);
+            }
+        }
+        FrameBuffer {
+            kept,
+            columns,
+            ..**first
+        }
+    }
+
     /// Appends the framed columns of whole input rows to the kept rows.
     fn keep(&mut self, rows: &[f64]) {
+        self.rows += rows.len() / self.width.max(1);
         if self.columns.len() == self.width {
             self.kept.extend_from_slice(rows);
-        } else {
+        } else if !self.columns.is_empty() {
             for row in rows.chunks_exact(self.width) {
                 self.kept.extend_from_slice(&row[self.columns.clone()]);
             }
@@ -150,7 +195,7 @@ impl FrameBuffer {
 
     /// Rows kept.
     fn kept_rows(&self) -> usize {
-        self.kept.len() / self.columns.len().max(1)
+        self.rows
     }
 
     /// `input` after the rows still to be skipped.
@@ -195,9 +240,11 @@ impl FrameBuffer {
         let kept = self.kept_rows();
         if next <= kept {
             self.kept.drain(..next * self.columns.len());
+            self.rows -= next;
             self.keep(fresh);
         } else {
             self.kept.clear();
+            self.rows = 0;
             let drop = (next - kept) * width;
             match fresh.get(drop..) {
                 Some(rest) => self.keep(rest),
@@ -209,6 +256,7 @@ impl FrameBuffer {
     /// Forgets the kept rows (a new stream starts).
     pub fn reset(&mut self) {
         self.kept.clear();
+        self.rows = 0;
         self.skip = 0;
     }
 
@@ -262,7 +310,7 @@ mod tests {
     }
 
     #[test]
-    fn a_column_range_frames_those_columns_of_the_full_frames() {
+    fn column_ranges_frame_their_columns_and_join_back_and_a_counter_keeps_count() {
         // 5 columns; frames of 6 rows every 4 (overlapping) and of 3 every 7 (gaps)
         let x: Vec<f64> = (0..5 * 61).map(|i| i as f64).collect();
         for (window, hop) in [(6, 4), (3, 7)] {
@@ -270,12 +318,22 @@ mod tests {
                 for chunk in [1, 2, 5, 13, 30] {
                     let mut full = FrameBuffer::new(5, window, hop);
                     let mut narrow: Option<FrameBuffer> = None;
+                    let mut counter: Option<FrameBuffer> = None;
                     for (k, part) in x.chunks(5 * chunk).enumerate() {
-                        // narrowed after the first chunk, from the rows it kept
+                        // narrowed after the first chunk, from the rows it kept; a copy
+                        // that only counts from then on
                         if k == 1 {
                             narrow = Some(full.columns(cols.clone()));
+                            let mut c = full.clone();
+                            c.count_only();
+                            counter = Some(c);
                         }
                         let m = full.available(part);
+                        if let Some(c) = counter.as_mut() {
+                            assert_eq!(c.available(part), m);
+                            c.advance(part, m);
+                            assert!(c.kept.is_empty());
+                        }
                         if let Some(fb) = narrow.as_mut() {
                             assert_eq!(fb.available(part), m);
                             for j in 0..m {
@@ -293,7 +351,19 @@ mod tests {
                         }
                         full.advance(part, m);
                     }
-                    assert!(narrow.is_some());
+                    // with buffers over the other columns, the whole buffer again
+                    let rest: Vec<Range<usize>> = [0..cols.start, cols.end..5]
+                        .into_iter()
+                        .filter(|r| !r.is_empty())
+                        .collect();
+                    if let Some(narrow) = narrow {
+                        let mut parts: Vec<FrameBuffer> =
+                            rest.iter().map(|r| full.columns(r.clone())).collect();
+                        parts.push(narrow);
+                        parts.sort_by_key(|p| p.columns.start);
+                        let refs: Vec<&FrameBuffer> = parts.iter().collect();
+                        assert_eq!(FrameBuffer::joined(&refs), full, "{cols:?}, chunk {chunk}");
+                    }
                 }
             }
         }

@@ -51,15 +51,26 @@ pub trait Processor: Send {
     /// reading the same inputs and writing its channels' share of each output row (in
     /// order, the shares make the row). `None` where the processor does not split.
     /// While its parts run, this processor runs as their [`Processor::join`] instead of
-    /// [`Processor::process`], which keeps its own state current, so the parts can be
-    /// dropped at any chunk boundary.
+    /// [`Processor::process`]; when the parts are dropped (at any chunk boundary), it takes
+    /// back what they hold of its state in [`Processor::rejoin`].
     fn split(&self, _parts: usize) -> Option<Vec<Part>> {
         None
     }
 
+    /// What a part holds of its processor's state, for [`Processor::rejoin`] (`None`:
+    /// nothing).
+    fn part_state(&self) -> Option<&dyn std::any::Any> {
+        None
+    }
+
+    /// Takes back the state its parts (in order) held while they ran, before they are
+    /// dropped: afterwards it processes as if it had never been split. By default nothing:
+    /// a join that keeps the whole state current needs nothing back.
+    fn rejoin(&mut self, _parts: &[&dyn Processor]) {}
+
     /// With the new input of a chunk and its parts' outputs of that chunk (`parts[p]`:
-    /// part `p`'s output blocks), writes the whole outputs and moves its state on as
-    /// [`Processor::process`] would. Called only on a processor whose
-    /// [`Processor::split`] gave parts.
+    /// part `p`'s output blocks), writes the whole outputs and moves on what its parts do
+    /// not hold of its state. Called only on a processor whose [`Processor::split`] gave
+    /// parts.
     fn join(&mut self, _inputs: &[&Block], _parts: &[&[Block]], _outputs: &mut [Block]) {}
 }

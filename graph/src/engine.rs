@@ -756,8 +756,21 @@ impl Engine {
             }
         });
         let sources: Vec<OutputRef> = graph.nodes.iter().filter_map(|n| n.feedback_from).collect();
-        for (node, rt) in graph.nodes.iter_mut().zip(old.rt) {
-            node.processor = rt.processor.into_inner();
+        let mut rt = old.rt;
+        let n = graph.nodes.len().min(rt.len());
+        let parts: Vec<Option<Box<dyn Processor>>> =
+            rt.drain(n..).map(|r| r.processor.into_inner()).collect();
+        for (node, rt) in graph.nodes.iter_mut().zip(rt) {
+            let mut processor = rt.processor.into_inner();
+            if let Some(p) = processor.as_mut().filter(|_| !rt.parts.is_empty()) {
+                let shares: Vec<&dyn Processor> = rt
+                    .parts
+                    .iter()
+                    .filter_map(|&e| parts.get(e - n)?.as_deref())
+                    .collect();
+                p.rejoin(&shares);
+            }
+            node.processor = processor;
         }
         // the feedback of the last collected chunk is still to be taken: keep it in the
         // graph, where the next table finds it (without a chunk since `install`, the

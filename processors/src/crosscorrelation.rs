@@ -628,9 +628,10 @@ impl Processor for Crosscorrelation {
         Some(ranges.into_iter().map(part).collect())
     }
 
-    /// Each output row is the parts' rows side by side; the framing moves on as in
-    /// `process`.
+    /// Each output row is the parts' rows side by side. The parts keep the rows of their
+    /// channels, so the join only counts rows (what [`Processor::rejoin`] takes back).
     fn join(&mut self, inputs: &[&Block], parts: &[&[Block]], outputs: &mut [Block]) {
+        self.frames.count_only();
         let ears = (inputs[0].as_slice(), inputs[1].as_slice());
         let n = self.frames.available(ears.0, ears.1);
         let row_width = outputs[0].width();
@@ -644,6 +645,20 @@ impl Processor for Crosscorrelation {
             at += width;
         }
         self.frames.advance(ears.0, ears.1, n);
+    }
+
+    fn part_state(&self) -> Option<&dyn std::any::Any> {
+        Some(&self.frames)
+    }
+
+    fn rejoin(&mut self, parts: &[&dyn Processor]) {
+        let frames: Vec<&EarFrames> = parts
+            .iter()
+            .filter_map(|p| p.part_state()?.downcast_ref::<EarFrames>())
+            .collect();
+        if !frames.is_empty() && frames.len() == parts.len() {
+            self.frames = EarFrames::joined(&frames);
+        }
     }
 }
 
@@ -671,7 +686,8 @@ mod tests {
 
     /// Parts over channel ranges, joined, give the unsplit output bit for bit, for the
     /// direct method (groups cut where they do not overlap) and the FFT, over chunks
-    /// with and without complete frames; where no cut is possible there is no split.
+    /// with and without complete frames, and so does the processor after it took its
+    /// state back from the parts; where no cut is possible there is no split.
     #[test]
     fn split_parts_joined_equal_one_processor() {
         let direct = CrosscorrelationParams::default();
@@ -709,7 +725,8 @@ mod tests {
                 (state >> 11) as f64 / (1u64 << 53) as f64
             };
             let mut split: Option<Vec<Part>> = None;
-            for (k, len) in [100, 400, 7, 1000, 3333, 1].into_iter().enumerate() {
+            let mut made = 0;
+            for (k, len) in [100, 400, 7, 1000, 3333, 1, 900].into_iter().enumerate() {
                 let l = Block::from_vec((0..len * nc).map(|_| noise()).collect(), nc);
                 let r = Block::from_vec((0..len * nc).map(|_| noise()).collect(), nc);
                 let mut want = vec![Block::new(out_info.width())];
@@ -717,6 +734,15 @@ mod tests {
                 // split after the first chunk, so that the parts start from a state
                 if k == 1 {
                     split = joined.split(parts);
+                    made = split.as_ref().map_or(0, Vec::len);
+                }
+                // the parts dropped after four chunks, their state taken back
+                if k == 5 {
+                    if let Some(split) = split.take() {
+                        let shares: Vec<&dyn Processor> =
+                            split.iter().map(|p| p.processor.as_ref()).collect();
+                        joined.rejoin(&shares);
+                    }
                 }
                 let mut got = vec![Block::new(out_info.width())];
                 match split.as_mut() {
@@ -739,11 +765,7 @@ mod tests {
                 );
             }
             // 9 channels: groups at 0 and 1 overlap; 6: one group
-            assert_eq!(
-                split.as_ref().map_or(0, Vec::len),
-                expected,
-                "{nc} channels"
-            );
+            assert_eq!(made, expected, "{nc} channels");
         }
     }
 

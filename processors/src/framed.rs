@@ -117,6 +117,23 @@ impl EarFrames {
         self.left.width()
     }
 
+    /// Counts rows only, for both ears (see [`FrameBuffer::count_only`]).
+    pub fn count_only(&mut self) {
+        self.left.count_only();
+        self.right.count_only();
+    }
+
+    /// Both ears' buffers over the columns that `parts` make together (see
+    /// [`FrameBuffer::joined`]).
+    pub fn joined(parts: &[&EarFrames]) -> Self {
+        let left: Vec<&FrameBuffer> = parts.iter().map(|p| &p.left).collect();
+        let right: Vec<&FrameBuffer> = parts.iter().map(|p| &p.right).collect();
+        EarFrames {
+            left: FrameBuffer::joined(&left),
+            right: FrameBuffer::joined(&right),
+        }
+    }
+
     /// A copy that frames and keeps only `columns` of both ears (see
     /// [`FrameBuffer::columns`]).
     pub fn columns(&self, columns: std::ops::Range<usize>) -> Self {
