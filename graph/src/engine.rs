@@ -63,6 +63,9 @@ struct NodeRt {
     /// graph's nodes), whose outputs it joins (see [`Processor::split`]).
     parts: Box<[usize]>,
     claimed_at_ns: AtomicU64,
+    /// Whether a child's home is another thread: the node then claims its output's cache
+    /// lines before writing them (see [`claim_lines`]).
+    claims: bool,
 }
 
 /// Most parts a heavy node is split into (its join reads them beside its inputs).
@@ -210,6 +213,9 @@ impl Shared {
                 *dst = &*table.rt[p].slots[slot].get();
             }
             catch_unwind(AssertUnwindSafe(|| {
+                if rt.claims {
+                    claim_lines(outputs);
+                }
                 if let Some(p) = processor.as_mut() {
                     if let Some(f) = feedback.filter(|f| !f.is_empty()) {
                         p.receive_feedback(f);
@@ -248,6 +254,19 @@ impl Shared {
                 released_ns: self.now_ns(),
             },
         );
+    }
+}
+
+/// Writes a zero into each cache line of the outputs' previous content (chunk k − 2, read
+/// by every reader already), which the node then replaces. Readers on another core hold
+/// copies of those lines, and a node whose stores depend on each other (a recursive
+/// filter) would wait for the ownership of each line in turn: these independent stores
+/// take them all at once (on an AVX2 host, the hair cell's low-pass ran 4x slower without).
+fn claim_lines(outputs: &mut [Block]) {
+    for block in outputs {
+        for x in block.as_mut_slice().iter_mut().step_by(8) {
+            *x = 0.0;
+        }
     }
 }
 
@@ -683,6 +702,7 @@ impl Engine {
                 feedback: node.feedback_from,
                 parts: parts.clone().into(),
                 claimed_at_ns: AtomicU64::new(0),
+                claims: false,
             })
             .collect();
         for (i, parts) in split {
@@ -709,8 +729,12 @@ impl Engine {
                     feedback: None,
                     parts: Box::new([]),
                     claimed_at_ns: AtomicU64::new(0),
+                    claims: false,
                 });
             }
+        }
+        for (e, r) in rt.iter_mut().enumerate() {
+            r.claims = links[e].children.iter().any(|&c| home[c] != home[e]);
         }
         let sync: Vec<NodeSync> = (0..total).map(|_| NodeSync::new()).collect();
         for (s, targets) in sync.iter().zip(&feedback_to) {
