@@ -2,7 +2,8 @@
 //! binaural request sets ({ratemap, ild, itd, ic} at default parameters and with a
 //! 64-channel filterbank) on 1 s of the example signal, fed in chunks of 441 (10 ms) and
 //! 4410 (100 ms) samples, pipelined (`submit_chunk` / `collect_chunk`), with
-//! `threads` = 0 (sequential), 1 (scheduling overhead) and 2.
+//! `threads` = 0 (sequential), 1 (the token protocol's overhead: the calling thread
+//! alone runs every node through it) and 2 (the caller and one worker).
 //!
 //! Throughput is in audio samples per ear: divide by 44100 for the real-time factor.
 //!

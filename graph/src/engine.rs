@@ -9,9 +9,9 @@
 //! each input chunk into node 0) and the sink (it copies every other node's output of a
 //! chunk into blocks of its own, then returns its reader tokens). While it waits for a
 //! chunk or a free input slot it runs ready nodes like a worker, so that `threads`
-//! threads share `threads` cores without a third thread to wake per chunk. Workers never lock,
-//! allocate (beyond what a processor's first chunks of a new size need) or free: the node
-//! table is built and dropped by the caller, and swapped only while the pool is idle.
+//! threads share `threads` cores without a third thread to wake per chunk. Workers never
+//! lock, allocate (beyond what a processor's first chunks of a new size need) or free: the
+//! node table is built and dropped by the caller, and swapped only while the pool is idle.
 
 use std::cell::UnsafeCell;
 use std::panic::{catch_unwind, AssertUnwindSafe};
