@@ -413,6 +413,77 @@ mod tests {
         }
     }
 
+    /// The passes, worked by hand: whole passes of four vectors while more than a vector
+    /// remains after them; a last pass of under a vector's worth takes a vector from the
+    /// pass before, and a pass not a multiple of eight ends on a vector overlapping its
+    /// neighbour.
+    #[test]
+    fn passes_take_four_vectors_and_leave_the_last_a_whole_one() {
+        let starts = |channels| -> Vec<Vec<usize>> {
+            let (passes, lanes) = plan_passes(channels);
+            assert_eq!(
+                lanes.len(),
+                passes.iter().map(|p| 8 * p.starts.len()).sum::<usize>()
+            );
+            passes.into_iter().map(|p| p.starts).collect()
+        };
+        assert_eq!(starts(8), [vec![0]]);
+        assert_eq!(starts(31), [vec![0, 8, 16, 23]]);
+        assert_eq!(starts(32), [vec![0, 8, 16, 24]]);
+        // 8 left after a full pass: a pass of its own
+        assert_eq!(starts(40), [vec![0, 8, 16, 24], vec![32]]);
+        // 4 left: the first pass gives up a vector
+        assert_eq!(starts(36), [vec![0, 8, 16], vec![24, 28]]);
+        assert_eq!(starts(64), [vec![0, 8, 16, 24], vec![32, 40, 48, 56]]);
+        let (passes, lanes) = plan_passes(36);
+        assert_eq!(passes[1].first_lane, 24);
+        assert_eq!(
+            &lanes[24..40],
+            &[24, 25, 26, 27, 28, 29, 30, 31, 28, 29, 30, 31, 32, 33, 34, 35]
+        );
+    }
+
+    /// Seeding sets a channel's first state (in both lanes where vectors overlap) and
+    /// zeroes its others; the other channels keep their state. An order-0 filter has no
+    /// state to seed.
+    #[test]
+    fn set_first_state_seeds_one_channel() {
+        let (b, a) = ([0.2, 0.3, 0.1], [1.0, -0.5, 0.25]);
+        for nc in [3, 9] {
+            let mut f = Df2t::new(&b, &a, nc);
+            let mut warm: Vec<f64> = (0..4 * nc).map(|i| (i as f64 * 0.7).sin()).collect();
+            f.process(&mut warm);
+            let mut untouched = f.clone();
+            // of 9 channels, channel 7 lies in both vectors (channels 0–7 and 1–8)
+            let c = nc - 2;
+            f.set_first_state(c, 2.0);
+            let mut y = vec![0.0; 2 * nc];
+            let mut y0 = vec![0.0; 2 * nc];
+            f.process(&mut y);
+            untouched.process(&mut y0);
+            assert_eq!(y[c], 2.0, "{nc} channels");
+            // y1 = z1 − a1·y0 with z1 zeroed
+            assert_eq!(y[nc + c], 0.5 * 2.0, "{nc} channels");
+            for ch in (0..nc).filter(|&ch| ch != c) {
+                assert_eq!((y[ch], y[nc + ch]), (y0[ch], y0[nc + ch]), "{nc}: {ch}");
+            }
+        }
+        let mut gain = Df2t::new(&[2.0], &[1.0], 9);
+        gain.set_first_state(3, 1.0);
+        let mut x = vec![1.0; 9];
+        gain.process(&mut x);
+        assert_eq!(x, [2.0; 9]);
+    }
+
+    /// An order-0 filter is a gain, on the scalar path too.
+    #[test]
+    fn an_order_zero_filter_scales_by_b0_over_a0() {
+        let mut f = Df2t::new(&[3.0], &[2.0], 3);
+        let mut x = vec![1.0, -2.0, 4.0, 0.5, 0.0, -1.0];
+        f.process(&mut x);
+        assert_eq!(x, [1.5, -3.0, 6.0, 0.75, 0.0, -1.5]);
+    }
+
     #[test]
     fn reset_restores_zero_state() {
         let mut f = Df2t::new(&[1.0], &[1.0, -0.9], 1);

@@ -323,6 +323,12 @@ mod tests {
                         // narrowed after the first chunk, from the rows it kept; a copy
                         // that only counts from then on
                         if k == 1 {
+                            // narrowing twice is narrowing once
+                            let last = cols.end - 1..cols.end;
+                            assert_eq!(
+                                full.columns(cols.clone()).columns(last.clone()),
+                                full.columns(last)
+                            );
                             narrow = Some(full.columns(cols.clone()));
                             let mut c = full.clone();
                             c.count_only();
@@ -346,6 +352,13 @@ mod tests {
                                 assert_eq!(frame.width(), cols.len());
                                 assert_eq!(frame.first_column(), cols.start);
                                 assert_eq!(collect(frame), want, "{cols:?}, chunk {chunk}");
+                                let mut from_segments = Vec::new();
+                                for (values, stride, at) in frame.segments() {
+                                    for row in values.chunks_exact(stride) {
+                                        from_segments.extend_from_slice(&row[at..at + cols.len()]);
+                                    }
+                                }
+                                assert_eq!(from_segments, want);
                             }
                             fb.advance(part, m);
                         }
