@@ -340,6 +340,123 @@ mod tests {
     }
 
     #[test]
+    fn constructors_set_the_kind_the_rates_and_the_axes() {
+        let t = SignalInfo::time_domain(16000.0);
+        assert_eq!(
+            (t.kind, t.fs_hz, t.audio_fs_hz),
+            (SignalKind::TimeDomain, 16000.0, 16000.0)
+        );
+        assert_eq!((t.width(), t.channels(), t.frame_shape()), (1, 1, vec![]));
+        let tf = SignalInfo::time_frequency(16000.0, vec![100.0, 200.0, 400.0]);
+        assert_eq!(
+            (tf.kind, tf.fs_hz, tf.audio_fs_hz),
+            (SignalKind::TimeFrequency, 16000.0, 16000.0)
+        );
+        assert_eq!(
+            (tf.width(), tf.channels(), tf.frame_shape()),
+            (3, 3, vec![3])
+        );
+        let framed = tf.clone().named("x").framed(100.0);
+        assert_eq!(
+            (framed.fs_hz, framed.audio_fs_hz, framed.name),
+            (100.0, 16000.0, None)
+        );
+        assert_eq!(
+            (framed.kind, &framed.cf_hz),
+            (SignalKind::TimeFrequency, &tf.cf_hz)
+        );
+        let named = tf.named("precedence_itd");
+        assert_eq!((named.name, named.fs_hz), (Some("precedence_itd"), 16000.0));
+        let f = SignalInfo::feature(50.0, 44100.0, vec!["a".into()]);
+        assert_eq!(
+            (f.kind, f.fs_hz, f.audio_fs_hz),
+            (SignalKind::Feature, 50.0, 44100.0)
+        );
+        let mask = SignalInfo {
+            kind: SignalKind::BinaryMask,
+            ..framed.clone()
+        };
+        assert_eq!(
+            (mask.width(), mask.channels(), mask.frame_shape()),
+            (3, 3, vec![3])
+        );
+        assert!(!mask.is_complex());
+        let spectrum = SignalInfo {
+            kind: SignalKind::Spectrum,
+            ..framed.clone()
+        };
+        assert_eq!((spectrum.width(), spectrum.frame_shape()), (6, vec![3]));
+        let classes = [
+            (SignalKind::TimeDomain, "TimeDomainSignal", &["time"][..]),
+            (
+                SignalKind::TimeFrequency,
+                "TimeFrequencySignal",
+                &["time_or_frame", "channel"],
+            ),
+            (
+                SignalKind::Correlation,
+                "CorrelationSignal",
+                &["frame", "channel", "lag"],
+            ),
+            (
+                SignalKind::Modulation,
+                "ModulationSignal",
+                &["frame", "channel", "modulation"],
+            ),
+            (SignalKind::Feature, "FeatureSignal", &["frame", "feature"]),
+            (SignalKind::Spectrum, "STFTSignal", &["frame", "bin"]),
+            (SignalKind::BinaryMask, "BinaryMask", &["frame", "channel"]),
+            (
+                SignalKind::DuetHistogram,
+                "DuetHistogramSignal",
+                &["frame", "alpha", "delta"],
+            ),
+        ];
+        for (kind, class, axes) in classes {
+            assert_eq!((kind.afe_class(), kind.axes()), (class, axes));
+        }
+    }
+
+    #[test]
+    fn blocks_keep_their_room_and_width() {
+        let mut b = Block::with_room(4, 10);
+        assert_eq!((b.width(), b.frames(), b.room()), (4, 0, 10));
+        assert!(b.is_empty());
+        let like = b.empty_like();
+        assert_eq!((like.width(), like.room()), (4, 10));
+        b.reserve_frames(20);
+        assert!(b.room() >= 20);
+        assert_eq!(Block::new(0).room(), 0);
+        assert_eq!(Block::new(0).frames(), 0);
+        b.extend_from(&Block::from_vec(vec![1.0; 8], 4));
+        assert!(!b.is_empty());
+        b.as_mut_slice()[5] = 7.0;
+        assert_eq!(b.as_slice(), [1.0, 1.0, 1.0, 1.0, 1.0, 7.0, 1.0, 1.0]);
+        // resizing keeps the rows it held and zero-fills new ones
+        assert_eq!(
+            b.resize_to(3)[4..],
+            [1.0, 7.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0]
+        );
+        assert_eq!(b.rows().nth(1), Some(&[1.0, 7.0, 1.0, 1.0][..]));
+        let room = b.room();
+        b.clear();
+        assert_eq!((b.frames(), b.room()), (0, room));
+        assert_eq!(Block::from_vec(vec![2.0, 3.0], 1).into_vec(), [2.0, 3.0]);
+    }
+
+    #[test]
+    #[should_panic(expected = "not a multiple of its width")]
+    fn from_vec_refuses_a_partial_row() {
+        let _ = Block::from_vec(vec![1.0; 5], 2);
+    }
+
+    #[test]
+    #[should_panic(expected = "another width")]
+    fn extend_from_refuses_another_width() {
+        Block::new(2).extend_from(&Block::new(3));
+    }
+
+    #[test]
     fn widths_and_shapes_follow_the_kind() {
         let tf = SignalInfo::time_frequency(1000.0, vec![100.0, 200.0]);
         let cc = tf.correlation(100.0, vec![-1.0, 0.0, 1.0]);

@@ -255,6 +255,43 @@ mod tests {
         }
     }
 
+    /// The convention of `∏(1 − r·e^{−iw})`, worked by hand: one root 0.5 at a quarter
+    /// turn gives 1 + 0.5i (the designs only use conjugate-symmetric root sets, whose
+    /// gains cannot tell `e^{−iw}` from `e^{iw}`).
+    #[test]
+    fn response_from_roots_evaluates_at_e_to_the_minus_iw() {
+        let r = response_from_roots(&[Complex64::new(0.5, 0.0)], PI / 2.0);
+        assert!((r - Complex64::new(1.0, 0.5)).norm() < 1e-15, "{r}");
+        let two = [Complex64::new(0.0, 0.5), Complex64::new(2.0, 0.0)];
+        // (1 − 0.5i·(−i))·(1 − 2·(−i)) = 0.5·(1 + 2i)
+        let r = response_from_roots(&two, PI / 2.0);
+        assert!((r - Complex64::new(0.5, 1.0)).norm() < 1e-15, "{r}");
+    }
+
+    /// Pairs worked by hand: the complex root (positive imaginary part first) with its
+    /// conjugate, then the reals smallest with largest, a lone one last. "Real" allows
+    /// an imaginary part of 1e-12 relative to a norm above one.
+    #[test]
+    fn pairs_group_conjugates_then_reals_outside_in() {
+        let c = |re, im| Complex64::new(re, im);
+        let roots = vec![
+            c(0.3, -0.4),
+            c(0.9, 0.0),
+            c(3.0, 2e-12),
+            c(-0.5, 0.0),
+            c(0.3, 0.4),
+            c(0.2, 0.0),
+            c(0.1, 0.0),
+        ];
+        let want = vec![
+            vec![c(0.3, 0.4), c(0.3, -0.4)],
+            vec![c(-0.5, 0.0), c(3.0, 2e-12)],
+            vec![c(0.1, 0.0), c(0.9, 0.0)],
+            vec![c(0.2, 0.0)],
+        ];
+        assert_eq!(pairs(roots), want);
+    }
+
     #[test]
     fn lowpass_is_half_power_at_cutoff() {
         let (b, a) = butter(2, &[1000.0 / 22050.0], ButterType::Low);
