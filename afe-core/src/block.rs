@@ -386,6 +386,14 @@ mod tests {
             ..framed.clone()
         };
         assert_eq!((spectrum.width(), spectrum.frame_shape()), (6, vec![3]));
+        // features and histograms have no channels, whatever frequencies they carry
+        for kind in [SignalKind::Feature, SignalKind::DuetHistogram] {
+            let info = SignalInfo {
+                kind,
+                ..framed.clone()
+            };
+            assert_eq!(info.channels(), 0, "{kind:?}");
+        }
         let classes = [
             (SignalKind::TimeDomain, "TimeDomainSignal", &["time"][..]),
             (
