@@ -193,11 +193,6 @@ impl FrameBuffer {
         }
     }
 
-    /// Rows kept.
-    fn kept_rows(&self) -> usize {
-        self.rows
-    }
-
     /// `input` after the rows still to be skipped.
     fn fresh<'a>(&self, input: &'a [f64]) -> &'a [f64] {
         &input[(self.skip * self.width).min(input.len())..]
@@ -206,7 +201,7 @@ impl FrameBuffer {
     /// Number of complete frames over the kept rows followed by `input`.
     pub fn available(&self, input: &[f64]) -> usize {
         let input = self.fresh(input);
-        let n = self.kept_rows() + input.len() / self.width.max(1);
+        let n = self.rows + input.len() / self.width.max(1);
         if n < self.window {
             0
         } else {
@@ -218,7 +213,7 @@ impl FrameBuffer {
     /// `k` must be below [`FrameBuffer::available`].
     pub fn frame<'a>(&'a self, input: &'a [f64], k: usize) -> Frame<'a> {
         let input = self.fresh(input);
-        let (kept, width, cw) = (self.kept_rows(), self.width, self.columns.len());
+        let (kept, width, cw) = (self.rows, self.width, self.columns.len());
         let start = k * self.hop;
         let end = start + self.window;
         Frame {
@@ -237,7 +232,7 @@ impl FrameBuffer {
         let width = self.width.max(1);
         self.skip -= (input.len() - fresh.len()) / width;
         let next = frames * self.hop;
-        let kept = self.kept_rows();
+        let kept = self.rows;
         if next <= kept {
             self.kept.drain(..next * self.columns.len());
             self.rows -= next;

@@ -81,6 +81,13 @@ struct Table {
     homes: Vec<Box<[u64]>>,
 }
 
+impl Table {
+    /// A ready node for computing thread `id`: one whose home it is first, else any.
+    fn take(&self, id: usize) -> Option<usize> {
+        self.ready.pop(self.homes.get(id).map_or(&[], |m| m))
+    }
+}
+
 struct Shared {
     table: UnsafeCell<Table>,
     /// Set by the caller while it swaps the table; workers stay out.
@@ -160,7 +167,7 @@ impl Shared {
             let table = unsafe { &*self.table.get() };
             let mut idle_since: Option<Instant> = None;
             loop {
-                if let Some(n) = table.ready.pop(table.homes.get(id).map_or(&[], |m| m)) {
+                if let Some(n) = table.take(id) {
                     self.run(table, n, id);
                     idle_since = None;
                 } else if idle_since.get_or_insert_with(Instant::now).elapsed() < SPIN {
@@ -422,7 +429,7 @@ impl Engine {
     fn help(&self) -> bool {
         let table = self.table();
         let me = self.handles.len();
-        let Some(n) = table.ready.pop(table.homes.get(me).map_or(&[], |m| m)) else {
+        let Some(n) = table.take(me) else {
             return false;
         };
         let was_worker = IS_WORKER.with(|w| w.replace(true));
