@@ -312,6 +312,156 @@ mod tests {
     }
 
     #[test]
+    fn counts_take_the_whole_u32_range() {
+        let spec = ParamSpec {
+            name: "fb_nChannels",
+            kind: ParamKind::Count,
+            unit: "",
+            description: "",
+        };
+        let max = f64::from(u32::MAX);
+        assert_eq!(spec.normalize(&json!(1)).ok(), Some(Some(json!(1))));
+        assert_eq!(
+            spec.normalize(&json!(max)).ok(),
+            Some(Some(json!(u32::MAX)))
+        );
+        assert!(spec.normalize(&json!(max + 1.0)).is_err());
+    }
+
+    #[test]
+    fn flags_take_zero_as_false_and_choices_keep_the_choice() {
+        assert_eq!(FLAG.normalize(&json!(0)).ok(), Some(Some(json!(false))));
+        let spec = ParamSpec {
+            name: "ihc_method",
+            kind: ParamKind::Choice(&["dau", "none"]),
+            unit: "",
+            description: "",
+        };
+        assert_eq!(spec.normalize(&json!("dau")).ok(), Some(Some(json!("dau"))));
+    }
+
+    #[test]
+    fn kinds_name_their_type() {
+        let names: Vec<&str> = [
+            ParamKind::Number,
+            ParamKind::Count,
+            ParamKind::Flag,
+            ParamKind::Choice(&["a"]),
+            ParamKind::Choices(&["a"]),
+            ParamKind::Numbers,
+        ]
+        .iter()
+        .map(ParamKind::type_name)
+        .collect();
+        assert_eq!(
+            names,
+            ["number", "integer", "flag", "string", "strings", "numbers"]
+        );
+    }
+
+    #[test]
+    fn numbers_keep_every_entry_of_an_array() {
+        let spec = ParamSpec {
+            name: "fb_cfHz",
+            kind: ParamKind::Numbers,
+            unit: "Hz",
+            description: "",
+        };
+        assert_eq!(
+            spec.normalize(&json!([100, 2.5])).ok(),
+            Some(Some(json!([100.0, 2.5])))
+        );
+    }
+
+    /// A parameter struct as the processors declare theirs.
+    #[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
+    struct Demo {
+        #[serde(rename = "d_nTaps")]
+        taps: u32,
+        #[serde(rename = "d_bOn")]
+        on: bool,
+    }
+
+    impl Default for Demo {
+        fn default() -> Self {
+            Demo { taps: 4, on: false }
+        }
+    }
+
+    const TAPS: ParamSpec = ParamSpec {
+        name: "d_nTaps",
+        kind: ParamKind::Count,
+        unit: "",
+        description: "",
+    };
+
+    const ON: ParamSpec = ParamSpec {
+        name: "d_bOn",
+        kind: ParamKind::Flag,
+        unit: "",
+        description: "",
+    };
+
+    impl Params for Demo {
+        const SPECS: &'static [ParamSpec] = &[TAPS, ON];
+    }
+
+    #[test]
+    fn a_struct_takes_its_names_from_the_map_and_gives_them_back() {
+        let map: ParamMap = [
+            ("d_nTaps".to_string(), json!(7)),
+            ("d_bOn".to_string(), json!(1)),
+            ("other_name".to_string(), json!("ignored")),
+        ]
+        .into();
+        let demo = Demo::from_map(&map).unwrap();
+        assert_eq!(demo, Demo { taps: 7, on: true });
+        let back = demo.to_map();
+        assert_eq!(back.keys().collect::<Vec<_>>(), ["d_bOn", "d_nTaps"]);
+        assert_eq!(
+            (back["d_nTaps"].clone(), back["d_bOn"].clone()),
+            (json!(7), json!(true))
+        );
+        let err = Demo::from_map(&[("d_nTaps".to_string(), json!(0))].into()).unwrap_err();
+        assert!(err.to_string().contains("d_nTaps"), "{err}");
+        check_param_specs::<Demo>();
+    }
+
+    /// Declares one field of two.
+    #[derive(Debug, Clone, Default, PartialEq, Serialize, serde::Deserialize)]
+    struct Undeclared {
+        #[serde(rename = "d_nTaps")]
+        taps: u32,
+        #[serde(rename = "d_bOn")]
+        on: bool,
+    }
+
+    impl Params for Undeclared {
+        const SPECS: &'static [ParamSpec] = &[TAPS];
+    }
+
+    #[test]
+    #[should_panic(expected = "SPECS and struct fields differ")]
+    fn the_spec_check_finds_an_undeclared_field() {
+        check_param_specs::<Undeclared>();
+    }
+
+    #[test]
+    fn per_channel_repeats_one_value_or_takes_one_per_channel() {
+        assert_eq!(per_channel("x", &[2.0], 3).unwrap(), [2.0, 2.0, 2.0]);
+        assert_eq!(
+            per_channel("x", &[1.0, 2.0, 3.0], 3).unwrap(),
+            [1.0, 2.0, 3.0]
+        );
+        let err = per_channel("fb_mocIpsi", &[1.0, 2.0], 3).unwrap_err();
+        let text = err.to_string();
+        assert!(
+            text.contains("fb_mocIpsi") && text.contains("expected one value or 3"),
+            "{text}"
+        );
+    }
+
+    #[test]
     fn numbers_accept_scalars() {
         let spec = ParamSpec {
             name: "pp_refSPLdB",

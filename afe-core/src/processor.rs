@@ -74,3 +74,24 @@ pub trait Processor: Send {
     /// parts.
     fn join(&mut self, _inputs: &[&Block], _parts: &[&[Block]], _outputs: &mut [Block]) {}
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Implements only what every processor must.
+    struct Plain;
+
+    impl Processor for Plain {
+        fn process(&mut self, _inputs: &[&Block], _outputs: &mut [Block]) {}
+        fn reset(&mut self) {}
+    }
+
+    #[test]
+    fn a_processor_neither_absorbs_nor_splits_unless_it_says_so() {
+        let p = Plain;
+        assert!(!p.absorbs_whole_signal());
+        assert!(p.split(2).is_none());
+        assert!(p.part_state().is_none());
+    }
+}
