@@ -366,6 +366,55 @@ mod tests {
     }
 
     #[test]
+    fn aligned_impulse_response_matches_the_closed_form() {
+        // The pole sits at −cf and the numerator turns by φ = 2π·cf·τ, τ = 3/(2π·bw):
+        // h[t] = 2·g·C(t+n−1, n−1)·r^t·cos(2π·cf·t/fs − φ), here of order 3.
+        let (fs, cf, bw_erbs) = (16000.0, 1500.0, 1.5);
+        let p = FilterbankParams {
+            cf_hz: vec![cf],
+            n_gamma: 3,
+            bw_erbs,
+            align: true,
+            ..Default::default()
+        };
+        let (mut gt, _) = Gammatone::new(&p, fs).expect("valid");
+        let n = 300;
+        let mut x = vec![0.0; n];
+        x[0] = 1.0;
+        let mut y = vec![0.0; n];
+        gt.filter(&x, &mut y);
+        let bw = bw_erbs * (24.7 + 0.108 * cf);
+        let beta = 2.0 * PI * bw / fs;
+        let g = (1.0 - (-beta).exp()).powi(3);
+        let phi = 2.0 * PI * cf * 3.0 / (2.0 * PI * bw);
+        for (t, yt) in y.iter().enumerate() {
+            let tf = t as f64;
+            let binom = (tf + 1.0) * (tf + 2.0) / 2.0;
+            let carrier = (2.0 * PI * cf * tf / fs - phi).cos();
+            let want = 2.0 * g * binom * (-beta * tf).exp() * carrier;
+            assert!((yt - want).abs() < 1e-12, "t={t}: {yt} vs {want}");
+        }
+    }
+
+    #[test]
+    fn the_processor_filters_across_chunks_and_reset_starts_over() {
+        let (mut gt, _) = Gammatone::new(&FilterbankParams::default(), 16000.0).expect("valid");
+        let x: Vec<f64> = (0..1000)
+            .map(|t| ((t * 7919 % 1000) as f64) / 500.0 - 1.0)
+            .collect();
+        let mut whole = vec![0.0; 1000 * 31];
+        gt.filter(&x, &mut whole);
+        gt.reset();
+        let mut out = vec![Block::new(31)];
+        let mut chunked = Vec::new();
+        for part in x.chunks(300) {
+            gt.process(&[&Block::from_vec(part.to_vec(), 1)], &mut out);
+            chunked.extend_from_slice(out[0].as_slice());
+        }
+        assert_eq!(chunked, whole);
+    }
+
+    #[test]
     fn unit_gain_at_centre_frequency() {
         let fs = 44100.0;
         let p = FilterbankParams {

@@ -59,6 +59,23 @@ mod tests {
     use super::*;
 
     #[test]
+    fn one_value_per_frame_and_channel() {
+        let info = SignalInfo::time_frequency(1000.0, vec![100.0, 200.0, 300.0])
+            .correlation(100.0, vec![-1e-3, 0.0, 1e-3]);
+        let (mut ic, _) = Ic::new(&info).expect("valid");
+        // Two frames of three channels: the peak is the middle lag, value 0.1·(k + 1).
+        let ccf: Vec<f64> = (0..6)
+            .flat_map(|k| [0.0, 0.1 * (k + 1) as f64, 0.0])
+            .collect();
+        let mut out = vec![Block::new(3)];
+        ic.process(&[&Block::from_vec(ccf, 9)], &mut out);
+        assert_eq!(out[0].frames(), 2);
+        for (k, v) in out[0].as_slice().iter().enumerate() {
+            assert!((v - 0.1 * (k + 1) as f64).abs() < 1e-15, "{k}: {v}");
+        }
+    }
+
+    #[test]
     fn interior_peak_is_the_vertex_and_edge_is_the_sample() {
         let info = SignalInfo::time_frequency(1000.0, vec![500.0, 600.0])
             .correlation(100.0, vec![-1e-3, 0.0, 1e-3]);

@@ -242,6 +242,111 @@ mod tests {
         out[0].as_slice().to_vec()
     }
 
+    /// Two whole-cycle cosines (1 and 2 kHz at 16 kHz, amplitudes 1 and 3) in two
+    /// channels, time-major: their Hilbert envelopes are the amplitudes exactly.
+    fn two_tones(rows: usize) -> Vec<f64> {
+        let w = 2.0 * std::f64::consts::PI / 16.0;
+        (0..rows)
+            .flat_map(|t| [(w * t as f64).cos(), 3.0 * (2.0 * w * t as f64).cos()])
+            .collect()
+    }
+
+    fn run2(method: Method, x: &[f64]) -> Vec<f64> {
+        let info = SignalInfo::time_frequency(16000.0, vec![1000.0, 2000.0]);
+        let (mut ihc, _) = Ihc::new(&IhcParams { method }, &info).expect("valid");
+        let mut out = vec![Block::new(2)];
+        ihc.process(&[&Block::from_vec(x.to_vec(), 2)], &mut out);
+        out[0].as_slice().to_vec()
+    }
+
+    /// `data` through `count` order-`order` Butterworth low-passes at `fc` Hz (16 kHz).
+    fn lowpassed(mut data: Vec<f64>, order: usize, fc: f64, count: usize) -> Vec<f64> {
+        let (b, a) = butter(order, &[fc / 8000.0], ButterType::Low);
+        for _ in 0..count {
+            Df2t::new(&b, &a, 2).process(&mut data);
+        }
+        data
+    }
+
+    fn assert_close(got: &[f64], want: &[f64], tol: f64) {
+        assert_eq!(got.len(), want.len());
+        for (i, (g, w)) in got.iter().zip(want).enumerate() {
+            assert!((g - w).abs() <= tol, "value {i}: {g} vs {w}");
+        }
+    }
+
+    #[test]
+    fn hilbert_envelope_is_each_channels_amplitude() {
+        let env = run2(Method::Hilbert, &two_tones(256));
+        let want: Vec<f64> = (0..256).flat_map(|_| [1.0, 3.0]).collect();
+        assert_close(&env, &want, 1e-12);
+    }
+
+    #[test]
+    fn each_method_has_its_own_low_pass() {
+        let x = two_tones(256);
+        let amplitude: Vec<f64> = (0..256).flat_map(|_| [1.0, 3.0]).collect();
+        assert_close(
+            &run2(Method::Joergensen, &x),
+            &lowpassed(amplitude.clone(), 1, 150.0, 1),
+            1e-12,
+        );
+        let rectified: Vec<f64> = x.iter().map(|v| v.max(0.0)).collect();
+        assert_close(
+            &run2(Method::Breebart, &x),
+            &lowpassed(rectified, 1, 2000.0, 5),
+            1e-12,
+        );
+        // Bernstein: (max(env^−0.77·x, 0))² with the envelope the amplitude, then 425 Hz.
+        let compressed: Vec<f64> = x
+            .iter()
+            .zip(&amplitude)
+            .map(|(v, a)| (a.powf(-0.77) * v).max(0.0).powi(2))
+            .collect();
+        assert_close(
+            &run2(Method::Bernstein, &x),
+            &lowpassed(compressed, 2, 425.0, 1),
+            1e-12,
+        );
+    }
+
+    #[test]
+    fn only_the_hilbert_methods_depend_on_the_chunking() {
+        for (name, method) in [
+            ("none", Method::None),
+            ("halfwave", Method::Halfwave),
+            ("fullwave", Method::Fullwave),
+            ("square", Method::Square),
+            ("hilbert", Method::Hilbert),
+            ("joergensen", Method::Joergensen),
+            ("dau", Method::Dau),
+            ("breebart", Method::Breebart),
+            ("bernstein", Method::Bernstein),
+        ] {
+            let per_chunk = matches!(name, "hilbert" | "joergensen" | "bernstein");
+            assert_eq!(method.is_per_chunk(), per_chunk, "{name}");
+            assert_eq!(
+                <Ihc as Descriptor>::chunk_invariant(&IhcParams { method }),
+                !per_chunk,
+                "{name}"
+            );
+        }
+    }
+
+    #[test]
+    fn reset_forgets_the_low_pass_state() {
+        let info = SignalInfo::time_frequency(16000.0, vec![1000.0, 2000.0]);
+        let (mut ihc, _) = Ihc::new(&IhcParams::default(), &info).expect("valid");
+        let x = Block::from_vec(two_tones(64), 2);
+        let mut first = vec![Block::new(2)];
+        let mut again = vec![Block::new(2)];
+        ihc.process(&[&x], &mut first);
+        ihc.reset();
+        ihc.process(&[&x], &mut again);
+        assert_eq!(first[0].as_slice(), again[0].as_slice());
+        assert!(format!("{ihc:?}").contains("Dau"));
+    }
+
     #[test]
     fn specs_match_struct() {
         afe_core::params::check_param_specs::<IhcParams>();

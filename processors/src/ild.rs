@@ -208,7 +208,7 @@ mod tests {
     #[test]
     fn frame_power_lanes_match_the_scalar_sum() {
         use afe_core::framing::FrameBuffer;
-        for nc in [3, 8, 31, 45] {
+        for nc in [3, 8, 17, 24, 31, 40, 45, 61] {
             let x: Vec<f64> = (0..40 * nc)
                 .map(|i| ((i * 7919) % 1009) as f64 / 1009.0 - 0.3)
                 .collect();

@@ -101,6 +101,37 @@ mod tests {
     }
 
     #[test]
+    fn interpolated_lag_per_frame_and_channel() {
+        let info = SignalInfo::time_frequency(1000.0, vec![500.0, 600.0, 700.0])
+            .correlation(100.0, vec![-2e-3, -1e-3, 0.0, 1e-3, 2e-3]);
+        let (mut itd, _) = Itd::new(&info).expect("valid");
+        // Peak at lag index 2 or 3 (−0 or +1 ms) with a vertex 1/3 lag to the right.
+        let up = [0.0, 0.5, 1.0, 0.9, 0.0];
+        let shifted = [0.0, 0.0, 0.5, 1.0, 0.9];
+        let ccf: Vec<f64> = [up, shifted, up, shifted, up, shifted].concat();
+        let mut out = vec![Block::new(3)];
+        itd.process(&[&Block::from_vec(ccf, 15)], &mut out);
+        assert_eq!(out[0].frames(), 2);
+        for (k, v) in out[0].as_slice().iter().enumerate() {
+            let want = ((k % 2) as f64 + 1.0 / 3.0) * 1e-3;
+            assert!((v - want).abs() < 1e-15, "{k}: {v} vs {want}");
+        }
+    }
+
+    #[test]
+    fn only_a_cross_correlation_is_accepted() {
+        let tf = SignalInfo::time_frequency(1000.0, vec![500.0]);
+        for input in [tf.clone(), tf.correlation(100.0, Vec::new())] {
+            let e = Itd::new(&input).expect_err("not a cross-correlation");
+            assert!(
+                e.to_string()
+                    .contains("itd needs a cross-correlation input"),
+                "{e}"
+            );
+        }
+    }
+
+    #[test]
     fn silent_frame_gives_minus_max_lag() {
         let info = SignalInfo::time_frequency(1000.0, vec![500.0])
             .correlation(100.0, vec![-2e-3, -1e-3, 0.0, 1e-3, 2e-3]);

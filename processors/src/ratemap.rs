@@ -183,6 +183,30 @@ mod tests {
     }
 
     #[test]
+    fn magnitude_scaling_is_the_windowed_mean_and_reset_starts_over() {
+        let fs = 1000.0;
+        let info = SignalInfo::time_frequency(fs, vec![100.0, 200.0]);
+        let p = RatemapParams {
+            scaling: "magnitude".into(),
+            ..Default::default()
+        };
+        let (mut rm, _) = Ratemap::new(&p, &info).expect("valid");
+        let x = Block::from_vec([2.0, 3.0].repeat(1000), 2);
+        let mut out = vec![Block::new(2)];
+        rm.process(&[&x], &mut out);
+        // Once the integrator settles, each channel is its value times the window's mean.
+        let win = window("hann", 20, "").expect("hann");
+        let mean = win.iter().sum::<f64>() / 20.0;
+        let last = out[0].row(out[0].frames() - 1).to_vec();
+        assert!((last[0] - 2.0 * mean).abs() < 1e-9, "{last:?}");
+        assert!((last[1] - 3.0 * mean).abs() < 1e-9, "{last:?}");
+        let first = out[0].as_slice().to_vec();
+        rm.reset();
+        rm.process(&[&x], &mut out);
+        assert_eq!(out[0].as_slice(), first);
+    }
+
+    #[test]
     fn constant_input_gives_windowed_mean_power() {
         let fs = 1000.0;
         let info = SignalInfo::time_frequency(fs, vec![100.0]);
