@@ -48,6 +48,18 @@ pub fn is_worker_thread() -> bool {
     IS_WORKER.with(std::cell::Cell::get)
 }
 
+/// One short spin of an idle computing thread, idle since `idle_since` (set now if
+/// unset); false, without spinning, once it has been idle for [`SPIN`] and should park.
+fn spin_idle(idle_since: &mut Option<Instant>) -> bool {
+    if idle_since.get_or_insert_with(Instant::now).elapsed() >= SPIN {
+        return false;
+    }
+    for _ in 0..64 {
+        std::hint::spin_loop();
+    }
+    true
+}
+
 /// One node as the pool sees it.
 struct NodeRt {
     label: String,
@@ -170,11 +182,7 @@ impl Shared {
                 if let Some(n) = table.take(id) {
                     self.run(table, n, id);
                     idle_since = None;
-                } else if idle_since.get_or_insert_with(Instant::now).elapsed() < SPIN {
-                    for _ in 0..64 {
-                        std::hint::spin_loop();
-                    }
-                } else {
+                } else if !spin_idle(&mut idle_since) {
                     break;
                 }
             }
@@ -407,10 +415,7 @@ impl Engine {
                 idle_since = None;
                 continue;
             }
-            if idle_since.get_or_insert_with(Instant::now).elapsed() < SPIN {
-                for _ in 0..64 {
-                    std::hint::spin_loop();
-                }
+            if spin_idle(&mut idle_since) {
                 continue;
             }
             idle_since = None;

@@ -106,8 +106,8 @@ mod tests {
             .correlation(100.0, vec![-2e-3, -1e-3, 0.0, 1e-3, 2e-3]);
         let (mut itd, _) = Itd::new(&info).expect("valid");
         // Peak at lag index 2 or 3 (−0 or +1 ms) with a vertex 1/3 lag to the right.
-        let up = [0.0, 0.5, 1.0, 0.9, 0.0];
-        let shifted = [0.0, 0.0, 0.5, 1.0, 0.9];
+        let up = [0.0, 1.0, 2.0, 1.8, 0.0];
+        let shifted = [0.0, 0.0, 1.0, 2.0, 1.8];
         let ccf: Vec<f64> = [up, shifted, up, shifted, up, shifted].concat();
         let mut out = vec![Block::new(3)];
         itd.process(&[&Block::from_vec(ccf, 15)], &mut out);
