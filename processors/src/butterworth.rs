@@ -176,6 +176,59 @@ mod tests {
         afe_core::params::check_param_specs::<ButterworthParams>();
     }
 
+    fn params(kind: &str, order: u32, cutoff_hz: &[f64]) -> ButterworthParams {
+        ButterworthParams {
+            kind: kind.into(),
+            order,
+            cutoff_hz: cutoff_hz.to_vec(),
+        }
+    }
+
+    #[test]
+    fn each_type_is_its_butter_design_at_the_normalised_cut_offs() {
+        let fs = 16000.0;
+        for (kind, cutoffs, ty) in [
+            ("low", vec![1000.0], ButterType::Low),
+            ("high", vec![3000.0], ButterType::High),
+            ("bandpass", vec![500.0, 2000.0], ButterType::BandPass),
+            ("stop", vec![500.0, 2000.0], ButterType::BandStop),
+        ] {
+            let wn: Vec<f64> = cutoffs.iter().map(|f| f / 8000.0).collect();
+            let got = params(kind, 3, &cutoffs).design(fs).expect("valid");
+            assert_eq!(got, butter(3, &wn, ty), "{kind}");
+        }
+    }
+
+    #[test]
+    fn cut_offs_lie_strictly_inside_the_band_and_orders_stop_at_32() {
+        let fs = 16000.0;
+        for ok in [
+            params("low", 1, &[1.0]),
+            params("low", 32, &[7999.0]),
+            params("bandpass", 2, &[1000.0, 1001.0]),
+        ] {
+            assert!(ok.design(fs).is_ok(), "{ok:?}");
+        }
+        for bad in [
+            params("low", 2, &[0.0]),
+            params("low", 2, &[8000.0]),
+            params("high", 2, &[-100.0]),
+            params("stop", 2, &[1000.0, 1000.0]),
+            params("bandpass", 2, &[2000.0, 1000.0]),
+            params("bandpass", 2, &[1000.0, 8000.0]),
+        ] {
+            let e = bad.design(fs).expect_err("out of range");
+            assert!(
+                e.to_string().contains("strictly between 0 and"),
+                "{bad:?}: {e}"
+            );
+        }
+        let e = params("low", 33, &[1000.0])
+            .design(fs)
+            .expect_err("order 33");
+        assert!(e.to_string().contains("bw_order"), "{e}");
+    }
+
     #[test]
     fn cutoff_count_and_range_are_checked() {
         let p = ButterworthParams {

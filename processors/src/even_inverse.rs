@@ -167,6 +167,14 @@ mod tests {
     }
 
     #[test]
+    fn debug_names_the_transform_length() {
+        assert_eq!(
+            format!("{:?}", EvenInverse::new(12)),
+            "EvenInverse { len: 12, .. }"
+        );
+    }
+
+    #[test]
     #[should_panic(expected = "an even length")]
     fn an_odd_length_is_refused() {
         EvenInverse::new(7);

@@ -495,6 +495,75 @@ mod tests {
         assert!(e.to_string().contains("at least 1"), "{e}");
     }
 
+    #[test]
+    fn every_limit_is_itself_accepted() {
+        let grid = |p: FilterbankParams| p.grid();
+        let cf_list = |n: usize| FilterbankParams {
+            cf_hz: vec![1000.0; n],
+            ..Default::default()
+        };
+        assert!(grid(cf_list(MAX_CHANNELS)).is_ok());
+        assert!(grid(cf_list(MAX_CHANNELS + 1)).is_err());
+        let counted = FilterbankParams {
+            n_channels: Some(MAX_CHANNELS as u32),
+            ..Default::default()
+        };
+        assert_eq!(
+            grid(counted).expect("the largest count").cf_hz.len(),
+            MAX_CHANNELS
+        );
+        let top = FilterbankParams {
+            high_freq_hz: MAX_HIGH_FREQ_HZ,
+            n_channels: Some(4),
+            ..Default::default()
+        };
+        assert!(grid(top).is_ok());
+        let flat = FilterbankParams {
+            low_freq_hz: 500.0,
+            high_freq_hz: 500.0,
+            n_channels: Some(3),
+            ..Default::default()
+        };
+        let flat = grid(flat).expect("equal ends");
+        assert!(
+            flat.cf_hz.iter().all(|f| (f - 500.0).abs() < 1e-9),
+            "{flat:?}"
+        );
+        // The Nyquist allowance for the ERB round trip, exactly.
+        let at = FilterbankParams {
+            cf_hz: vec![1000.0, 22050.0 * (1.0 + 1e-12)],
+            ..Default::default()
+        };
+        let at_grid = grid(at.clone()).expect("valid");
+        assert!(at_grid.check_below_nyquist(&at, 44100.0).is_ok());
+    }
+
+    #[test]
+    fn spacing_mode_counts_its_channels_before_making_them() {
+        let span = freq2erb(8000.0) - freq2erb(80.0);
+        let spaced = |n_erbs: f64| FilterbankParams {
+            n_erbs,
+            ..Default::default()
+        };
+        // 1023.5 spacings: 1024 channels, the most accepted.
+        let grid = spaced(span / 1023.5).grid().expect("1024 channels");
+        assert_eq!(grid.cf_hz.len(), MAX_CHANNELS);
+        let e = spaced(span / 1100.0).grid().expect_err("1101 channels");
+        assert!(e.to_string().contains("at most 1024 channels"), "{e}");
+    }
+
+    #[test]
+    fn channel_count_mode_reports_the_spacing_over_n() {
+        let p = FilterbankParams {
+            n_channels: Some(31),
+            ..Default::default()
+        };
+        let grid = p.grid().expect("valid");
+        let want = (freq2erb(8000.0) - freq2erb(80.0)) / 31.0;
+        let got = grid.n_erbs.expect("a spacing");
+        assert!((got - want).abs() < 1e-12, "{got} vs {want}");
+    }
+
     fn map(pairs: &[(&str, Value)]) -> ParamMap {
         pairs
             .iter()
