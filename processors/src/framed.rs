@@ -155,6 +155,36 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_window_under_two_samples_is_refused_and_the_memory_limit_is_inclusive() {
+        let h = ("rm_hSizeSec", 0.01);
+        let e = check_framing(("rm_wSizeSec", 1e-6), h, 44100.0, 1)
+            .expect_err("no sample")
+            .to_string();
+        assert!(e.contains("between 2 and"), "{e}");
+        // 1024 samples over 2^14 channels is exactly MAX_FRAME_VALUES.
+        let w = ("rm_wSizeSec", 1.0);
+        assert_eq!(
+            check_framing(w, h, 1024.0, MAX_FRAME_VALUES / 1024).expect("at the limit"),
+            (1024, 10)
+        );
+        assert!(check_framing(w, h, 1024.0, MAX_FRAME_VALUES / 1024 + 1).is_err());
+    }
+
+    #[test]
+    fn counting_only_counts_the_same_frames_from_no_values() {
+        let full = EarFrames::new(3, 4, 2);
+        let mut counter = full.clone();
+        counter.count_only();
+        let x: Vec<f64> = (0..30).map(f64::from).collect();
+        assert_eq!(counter.available(&x, &x), 4);
+        assert_eq!(full.available(&x, &x), 4);
+        let (l, r) = counter.frame((&x, &x), 1);
+        assert_eq!((l.width(), r.width()), (0, 0));
+        let (l, r) = full.frame((&x, &x), 1);
+        assert_eq!((l.width(), r.width()), (3, 3));
+    }
+
+    #[test]
     fn a_window_too_long_for_memory_is_refused_by_name() {
         let w = ("rm_wSizeSec", 0.02);
         let h = ("rm_hSizeSec", 0.01);

@@ -183,6 +183,18 @@ mod tests {
     }
 
     #[test]
+    fn at_20_khz_jepsen_drops_the_row_at_nyquist() {
+        // Up to 20 kHz only rows below Nyquist are kept, so at exactly 20 kHz the 10-kHz
+        // row goes: the design is then the limit of the designs just below 20 kHz.
+        let at = jepsen(20000.0);
+        let below = jepsen(20000.0 * (1.0 - 1e-12));
+        let peak = at.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for (a, b) in at.iter().zip(&below) {
+            assert!((a - b).abs() <= 1e-8 * peak, "{a} vs {b}");
+        }
+    }
+
+    #[test]
     fn jepsen_peaks_near_minus_56_db_and_is_linear_phase() {
         for fs in [16000.0, 44100.0] {
             let b = jepsen(fs);

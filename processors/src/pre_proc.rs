@@ -479,6 +479,26 @@ mod tests {
         assert!((rms - 1.0).abs() < 0.02, "{rms}");
     }
 
+    #[test]
+    fn agc_seeds_once_from_the_first_samples_whatever_the_chunking() {
+        let fs = 8000.0;
+        let x: Vec<f64> = (0..16000).map(|t| 0.01 * (0.3 * t as f64).sin()).collect();
+        let p = PreProcParams {
+            normalize_rms: true,
+            ..Default::default()
+        };
+        let whole = run(&p, std::slice::from_ref(&x), fs);
+        // An empty first chunk seeds nothing; the first real chunk covers the seed.
+        let (mut pre, _) = PreProc::new(&p, fs, 1).expect("valid");
+        let mut chunked = Vec::new();
+        let mut out = vec![Block::new(1)];
+        for part in [&x[..0], &x[..5000], &x[5000..]] {
+            pre.process(&[&Block::from_vec(part.to_vec(), 1)], &mut out);
+            chunked.extend_from_slice(out[0].as_slice());
+        }
+        assert_eq!(chunked, whole[0]);
+    }
+
     /// The whole middle-ear stage (design, filtering, unity compensation of spec
     /// 10-preProc step 5) against a direct convolution with the taps of an independent
     /// reading of the spec (`data/middle_ear_fir2.json`) times `10^(peak/20)`.
