@@ -479,6 +479,70 @@ mod tests {
         assert!((rms - 1.0).abs() < 0.02, "{rms}");
     }
 
+    /// RMS of the second half.
+    fn tail_rms(y: &[f64]) -> f64 {
+        let tail = &y[y.len() / 2..];
+        (tail.iter().map(|v| v * v).sum::<f64>() / tail.len() as f64).sqrt()
+    }
+
+    #[test]
+    fn agc_floor_and_binaural_link() {
+        let fs = 8000.0;
+        let tone =
+            |a: f64| -> Vec<f64> { (0..16000).map(|t| a * (0.3 * t as f64).sin()).collect() };
+        let agc = |binaural_rms: bool| PreProcParams {
+            normalize_rms: true,
+            binaural_rms,
+            ..Default::default()
+        };
+        // The normaliser is RMS + 1e-8: a tone of RMS 1e-8 comes out at RMS 1/2.
+        let y = run(&agc(false), &[tone(2f64.sqrt() * 1e-8)], fs);
+        assert!((tail_rms(&y[0]) - 0.5).abs() < 0.01, "{}", tail_rms(&y[0]));
+        // Linked, both ears share the louder ear's normaliser; unlinked, each its own.
+        let ears = [tone(0.01), tone(0.02)];
+        let linked = run(&agc(true), &ears, fs);
+        let (l, r) = (tail_rms(&linked[0]), tail_rms(&linked[1]));
+        assert!((l - 0.5).abs() < 0.02 && (r - 1.0).abs() < 0.02, "{l} {r}");
+        let apart = run(&agc(false), &ears, fs);
+        let (l, r) = (tail_rms(&apart[0]), tail_rms(&apart[1]));
+        assert!((l - 1.0).abs() < 0.02 && (r - 1.0).abs() < 0.02, "{l} {r}");
+    }
+
+    #[test]
+    fn only_the_agc_seed_depends_on_the_chunking() {
+        assert!(<PreProc as Descriptor>::chunk_invariant(
+            &PreProcParams::default()
+        ));
+        let agc = PreProcParams {
+            normalize_rms: true,
+            int_time_sec_rms: 0.3,
+            ..Default::default()
+        };
+        assert!(!<PreProc as Descriptor>::chunk_invariant(&agc));
+        assert_eq!(<PreProc as Descriptor>::one_call_prefix_s(&agc), Some(0.3));
+    }
+
+    #[test]
+    fn reset_starts_every_filter_over() {
+        let p = PreProcParams {
+            remove_dc: true,
+            pre_emphasis: true,
+            normalize_rms: true,
+            ..Default::default()
+        };
+        let x: Vec<f64> = (0..3000)
+            .map(|t| 0.1 + 0.01 * (0.3 * t as f64).sin())
+            .collect();
+        let (mut pre, _) = PreProc::new(&p, 8000.0, 1).expect("valid");
+        let input = Block::from_vec(x, 1);
+        let mut first = vec![Block::new(1)];
+        let mut again = vec![Block::new(1)];
+        pre.process(&[&input], &mut first);
+        pre.reset();
+        pre.process(&[&input], &mut again);
+        assert_eq!(first[0].as_slice(), again[0].as_slice());
+    }
+
     #[test]
     fn agc_seeds_once_from_the_first_samples_whatever_the_chunking() {
         let fs = 8000.0;
