@@ -170,6 +170,7 @@ pub static REQUEST: RequestDef = request_def::<Butterworth>();
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::chunked::feed;
 
     #[test]
     fn specs_match_struct() {
@@ -241,19 +242,13 @@ mod tests {
         let mut want = x.clone();
         Df2t::new(&b, &a, 1).process(&mut want);
         let (mut bw, _) = Butterworth::new(&p, 16000.0).expect("valid");
-        let mut out = vec![Block::new(1)];
-        let mut got = Vec::new();
-        for part in x.chunks(300) {
-            bw.process(&[&Block::from_vec(part.to_vec(), 1)], &mut out);
-            got.extend_from_slice(out[0].as_slice());
-        }
+        let got = feed(&mut bw, &x, 1, 1, std::iter::repeat(300));
         assert_eq!(got.len(), want.len());
         for (t, (g, w)) in got.iter().zip(&want).enumerate() {
             assert!((g - w).abs() < 1e-12, "t={t}: {g} vs {w}");
         }
         bw.reset();
-        bw.process(&[&Block::from_vec(x[..300].to_vec(), 1)], &mut out);
-        assert_eq!(out[0].as_slice(), &got[..300]);
+        assert_eq!(feed(&mut bw, &x, 1, 1, [300]), &got[..300]);
     }
 
     #[test]

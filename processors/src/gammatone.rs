@@ -405,12 +405,7 @@ mod tests {
         let mut whole = vec![0.0; 1000 * 31];
         gt.filter(&x, &mut whole);
         gt.reset();
-        let mut out = vec![Block::new(31)];
-        let mut chunked = Vec::new();
-        for part in x.chunks(300) {
-            gt.process(&[&Block::from_vec(part.to_vec(), 1)], &mut out);
-            chunked.extend_from_slice(out[0].as_slice());
-        }
+        let chunked = crate::chunked::feed(&mut gt, &x, 1, 31, std::iter::repeat(300));
         assert_eq!(chunked, whole);
     }
 

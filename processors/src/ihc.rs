@@ -337,13 +337,10 @@ mod tests {
     fn reset_forgets_the_low_pass_state() {
         let info = SignalInfo::time_frequency(16000.0, vec![1000.0, 2000.0]);
         let (mut ihc, _) = Ihc::new(&IhcParams::default(), &info).expect("valid");
-        let x = Block::from_vec(two_tones(64), 2);
-        let mut first = vec![Block::new(2)];
-        let mut again = vec![Block::new(2)];
-        ihc.process(&[&x], &mut first);
+        let x = two_tones(64);
+        let first = crate::chunked::feed(&mut ihc, &x, 2, 2, [64]);
         ihc.reset();
-        ihc.process(&[&x], &mut again);
-        assert_eq!(first[0].as_slice(), again[0].as_slice());
+        assert_eq!(crate::chunked::feed(&mut ihc, &x, 2, 2, [64]), first);
         assert!(format!("{ihc:?}").contains("Dau"));
     }
 

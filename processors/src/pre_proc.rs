@@ -534,13 +534,9 @@ mod tests {
             .map(|t| 0.1 + 0.01 * (0.3 * t as f64).sin())
             .collect();
         let (mut pre, _) = PreProc::new(&p, 8000.0, 1).expect("valid");
-        let input = Block::from_vec(x, 1);
-        let mut first = vec![Block::new(1)];
-        let mut again = vec![Block::new(1)];
-        pre.process(&[&input], &mut first);
+        let first = crate::chunked::feed(&mut pre, &x, 1, 1, [3000]);
         pre.reset();
-        pre.process(&[&input], &mut again);
-        assert_eq!(first[0].as_slice(), again[0].as_slice());
+        assert_eq!(crate::chunked::feed(&mut pre, &x, 1, 1, [3000]), first);
     }
 
     #[test]
@@ -554,12 +550,7 @@ mod tests {
         let whole = run(&p, std::slice::from_ref(&x), fs);
         // An empty first chunk seeds nothing; the first real chunk covers the seed.
         let (mut pre, _) = PreProc::new(&p, fs, 1).expect("valid");
-        let mut chunked = Vec::new();
-        let mut out = vec![Block::new(1)];
-        for part in [&x[..0], &x[..5000], &x[5000..]] {
-            pre.process(&[&Block::from_vec(part.to_vec(), 1)], &mut out);
-            chunked.extend_from_slice(out[0].as_slice());
-        }
+        let chunked = crate::chunked::feed(&mut pre, &x, 1, 1, [0, 5000, 11000]);
         assert_eq!(chunked, whole[0]);
     }
 
