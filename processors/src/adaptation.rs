@@ -374,6 +374,92 @@ mod tests {
         assert!((last - want).abs() < 1e-6 * want, "{last} vs {want}");
     }
 
+    /// The spec's loops written out one channel and one sample at a time, with the
+    /// floor `floor_db` (dB SPL) per channel: the reference for the vectorised [`adapt`].
+    fn spec_loops(p: &AdaptationParams, floor_db: &[f64], fs: f64, x: &[f64]) -> Vec<f64> {
+        let p = p.with_preset();
+        let nc = floor_db.len();
+        let mut y = vec![0.0; x.len()];
+        for (c, db) in floor_db.iter().enumerate() {
+            let min_level = 10f64.powf((db - 100.0) / 20.0);
+            let loops = p.tau_sec.len() as i32;
+            let s0: Vec<f64> = (1..=loops)
+                .map(|j| min_level.powf(0.5f64.powi(j)))
+                .collect();
+            let mut s = s0.clone();
+            let corr = min_level.powf(0.5f64.powi(loops));
+            for n in 0..x.len() / nc {
+                let mut v = x[n * nc + c].max(min_level);
+                for (j, tau) in p.tau_sec.iter().enumerate() {
+                    let a1 = (-1.0 / (tau * fs)).exp();
+                    v /= s[j];
+                    if p.lim > 1.0 && v > 1.0 {
+                        let m = (1.0 - s0[j] * s0[j]) * p.lim - 1.0;
+                        v = 2.0 * m / (1.0 + (-2.0 / m * (v - 1.0)).exp()) - (m - 1.0);
+                    }
+                    s[j] = a1 * s[j] + (1.0 - a1) * v;
+                }
+                y[n * nc + c] = (v - corr) * 100.0 / (1.0 - corr);
+            }
+        }
+        y
+    }
+
+    #[test]
+    fn every_preset_and_parameter_set_follows_the_spec_loops() {
+        let fs = 16000.0;
+        let cf = [250.0, 1000.0, 4000.0];
+        // Terhardt's threshold at the three centre frequencies, worked separately.
+        let vds_floor = [11.009935589514262, 3.369066525895342, -3.3875449955780423];
+        for (f, db) in cf.iter().zip(vds_floor) {
+            assert!((threshold_of_hearing_db(*f) - db).abs() < 1e-12, "{f} Hz");
+        }
+        // Silences (the floor), rises above 1 (the limitation) and slow decays.
+        let x: Vec<f64> = (0..2400 * 3)
+            .map(|i| {
+                let n = i / 3;
+                let u = ((i * 7919) % 1009) as f64 / 1009.0;
+                if n % 600 < 150 {
+                    0.0
+                } else {
+                    3.0 * u * u * (1.0 + (i % 3) as f64)
+                }
+            })
+            .collect();
+        let model = |model| AdaptationParams {
+            model,
+            ..Default::default()
+        };
+        let cases = [
+            (AdaptationParams::default(), [0.0; 3]),
+            (model(AdaptationModel::Puschel), [0.0; 3]),
+            (model(AdaptationModel::Breebaart), [0.0; 3]),
+            (model(AdaptationModel::VanDorpSchuitman), vds_floor),
+            (
+                AdaptationParams {
+                    lim: 5.0,
+                    min_db_spl: 20.0,
+                    tau_sec: vec![0.01, 0.2],
+                    model: AdaptationModel::None,
+                },
+                [20.0; 3],
+            ),
+        ];
+        for (p, floor) in cases {
+            let info = SignalInfo::time_frequency(fs, cf.to_vec());
+            let (mut a, _) = Adaptation::new(&p, &info).expect("valid");
+            let got = crate::chunked::feed(&mut a, &x, 3, 3, [700, 1700]);
+            let want = spec_loops(&p, &floor, fs, &x);
+            assert_eq!(got.len(), want.len());
+            for (n, (g, w)) in got.iter().zip(&want).enumerate() {
+                assert!(
+                    (g - w).abs() <= 1e-12 * w.abs().max(1.0),
+                    "{p:?} at {n}: {g} vs {w}"
+                );
+            }
+        }
+    }
+
     #[test]
     fn limitation_bounds_the_onset_overshoot() {
         let x: Vec<f64> = (0..4000).map(|n| if n < 100 { 0.0 } else { 1.0 }).collect();
@@ -403,6 +489,7 @@ mod tests {
         .with_preset();
         assert_eq!((p.lim, p.min_db_spl), (0.0, 0.0));
         let want = [0.005, 0.12875, 0.2525, 0.37625, 0.5];
+        assert_eq!(p.tau_sec.len(), want.len());
         assert!(p
             .tau_sec
             .iter()
