@@ -393,33 +393,53 @@ mod tests {
         assert_eq!(g[..3], [0.0; 3]);
     }
 
+    /// Windows of 20 and 22 samples: whole groups of four rows, and a remainder of two.
     #[test]
     fn matches_the_direct_sum() {
         let nc = 2;
         let x = signal(60 * nc, 7);
-        for method in [ClipMethod::Keep, ClipMethod::Compress, ClipMethod::Sign] {
+        let methods = [ClipMethod::Keep, ClipMethod::Compress, ClipMethod::Sign];
+        for (method, w) in methods.into_iter().flat_map(|m| [(m, 20), (m, 22)]) {
+            let h = w / 2;
             let p = AutocorrelationParams {
                 clip_method: method,
+                w_size_sec: w as f64 / 1000.0,
+                h_size_sec: h as f64 / 1000.0,
                 ..Default::default()
             };
             let (nl, out) = run(&p, nc, &x, &[60]);
-            // W = 20, H = 10: 5 frames of 19 lags
-            assert_eq!((nl, out.len()), (19, 5 * nc * 19));
-            let win = window("hann", 20, "").expect("hann");
-            for t in 0..5 {
+            let frames = (60 - w) / h + 1;
+            assert_eq!((nl, out.len()), (w - 1, frames * nc * nl));
+            let win = window("hann", w, "").expect("hann");
+            for t in 0..frames {
                 for c in 0..nc {
-                    let f: Vec<f64> = (0..20).map(|n| win[n] * x[(t * 10 + n) * nc + c]).collect();
-                    let mut g = vec![0.0; 20];
+                    let f: Vec<f64> = (0..w).map(|n| win[n] * x[(t * h + n) * nc + c]).collect();
+                    let mut g = vec![0.0; w];
                     clip(&f, method, 0.6, &mut g);
-                    let acf = |j: usize| (0..20 - j).map(|n| g[n] * g[n + j]).sum::<f64>();
-                    for j in 0..19 {
-                        let want = acf(j) / (19 - j) as f64 / (acf(0) / 19.0);
-                        let got = out[(t * nc + c) * 19 + j];
-                        assert!((got - want).abs() < 1e-12, "{method:?} {t} {c} {j}");
+                    let acf = |j: usize| (0..w - j).map(|n| g[n] * g[n + j]).sum::<f64>();
+                    for j in 0..nl {
+                        let want = acf(j) / (nl - j) as f64 / (acf(0) / nl as f64);
+                        let got = out[(t * nc + c) * nl + j];
+                        assert!((got - want).abs() < 1e-12, "{method:?} W {w}: {t} {c} {j}");
                     }
                 }
             }
         }
+    }
+
+    #[test]
+    fn reset_starts_the_framing_over() {
+        let nc = 2;
+        let x = signal(50 * nc, 5);
+        let (mut ac, info) =
+            Autocorrelation::new(&AutocorrelationParams::default(), &ihc(1000.0, nc))
+                .expect("valid");
+        assert!(format!("{ac:?}").contains("fft_len: 64"));
+        let first = crate::chunked::feed(&mut ac, &x, nc, info.width(), [50]);
+        ac.reset();
+        let again = crate::chunked::feed(&mut ac, &x, nc, info.width(), [50]);
+        assert!(!first.is_empty());
+        assert_eq!(first, again);
     }
 
     /// `real(ifft(|fft(g, L)|^K))` by direct DFTs, independent of the FFT library.

@@ -265,12 +265,9 @@ impl Processor for Pitch {
         let voiced = self.conf.iter().zip(&self.raw);
         self.voiced
             .extend(voiced.map(|(c, r)| if *c >= thr { *r } else { 0.0 }));
-        let order = self.median_order;
-        let before = if order % 2 == 1 {
-            (order - 1) / 2
-        } else {
-            order / 2
-        };
+        // Frames before the centre: (n − 1)/2 for an odd order n, n/2 for an even one
+        // (spec 01-P10), both ⌊n/2⌋.
+        let before = self.median_order / 2;
         let out = outputs[0].resize_to(frames);
         for (t, o) in out.chunks_exact_mut(PITCH_FEATURES.len()).enumerate() {
             for (i, w) in self.window.iter_mut().enumerate() {
@@ -336,6 +333,7 @@ mod tests {
         // end points are never peaks; a rise into the end is not a peak
         assert_eq!(largest_peak(&[3.0, 1.0, 2.0]), None);
         assert_eq!(largest_peak(&[1.0, 1.0, 1.0]), None);
+        assert_eq!(largest_peak(&[1.0, 1.0, 1.0, 0.0]), None);
         // plateaus: centre, left of centre for an even length
         assert_eq!(largest_peak(&[0.0, 2.0, 2.0, 2.0, 0.0]), Some((2.0, 2)));
         assert_eq!(
@@ -357,6 +355,10 @@ mod tests {
         assert_eq!(median(&mut w), 2.0);
         let mut w = [4.0, 1.0, 0.0, 2.0];
         assert_eq!(median(&mut w), 1.5);
+        let mut w = [3.0, 1.0, 2.0, 5.0, 4.0];
+        assert_eq!(median(&mut w), 3.0);
+        let mut w = [7.0, 1.0];
+        assert_eq!(median(&mut w), 4.0);
     }
 
     /// An autocorrelation input of `nc` channels over lags `k/fs`, k < `nl`.
@@ -433,6 +435,46 @@ mod tests {
         louder[5] = frame(nc, nl, 5, 2.0);
         let out = run(&p, &[louder], nc, nl);
         assert!(out[1][0].is_nan() && out[1][1] == 200.0);
+        // and the registry knows that the output depends on the chunking
+        assert!(!<Pitch as Descriptor>::chunk_invariant(&p));
+    }
+
+    /// Even orders take one frame more before the centre than after (spec 01-P10).
+    #[test]
+    fn even_median_orders_centre_left() {
+        let (nc, nl) = (1, 20);
+        // Raw pitch 200, 250, 200, 250, 200 Hz, all voiced.
+        let frames: Vec<Vec<f64>> = (0..5).map(|t| frame(nc, nl, 5 - t % 2, 0.9)).collect();
+        let smoothed = |order: f64| -> Vec<f64> {
+            let p = PitchParams {
+                median_order: order,
+                ..Default::default()
+            };
+            let out = run(&p, std::slice::from_ref(&frames), nc, nl);
+            out.iter().map(|o| o[0]).collect()
+        };
+        // n = 2: the mean of frames k − 1 and k, with a zero before the first.
+        assert_eq!(smoothed(2.0), [100.0, 225.0, 225.0, 225.0, 225.0]);
+        // n = 4: frames k − 2 ..= k + 1.
+        assert_eq!(smoothed(4.0), [100.0, 200.0, 225.0, 225.0, 200.0]);
+    }
+
+    /// A peak of height 0 has no pitch (and no confidence), as in the AFE.
+    #[test]
+    fn a_peak_of_zero_is_unvoiced() {
+        let (nc, nl) = (1, 20);
+        let acf: Vec<f64> = (0..nl)
+            .map(|k| match k {
+                0 => 1.0,
+                5 => 0.0,
+                _ => -1.0,
+            })
+            .collect();
+        let out = run(&PitchParams::default(), &[vec![acf]], nc, nl);
+        assert!(
+            out[0][0].is_nan() && out[0][1] == 0.0 && out[0][2] == 0.0,
+            "{out:?}"
+        );
     }
 
     /// Absorbing blocks and finishing once gives one call's output, whatever the blocks.

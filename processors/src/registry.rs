@@ -279,6 +279,8 @@ mod tests {
 
     #[test]
     fn unknown_request_lists_the_known_ones() {
+        let found = find_request("ratemap").expect("known");
+        assert!(format!("{found:?}").contains("\"ratemap\""));
         let e = find_request("ratemapp").unwrap_err().to_string();
         assert!(
             e.contains("'ratemapp'") && e.contains("ratemap, moc, ild"),
