@@ -277,6 +277,49 @@ mod tests {
         }
     }
 
+    fn map(pairs: &[(&str, serde_json::Value)]) -> ParamMap {
+        pairs
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.clone()))
+            .collect()
+    }
+
+    /// The AFE's 23 representations, each with its chunking contract (spec 00-overview
+    /// §11; `duet` buffers each ear from its own input, so it is invariant here) and the
+    /// ratemap read beside a map's strength when `trm_minValuedB` is set.
+    #[test]
+    fn entries_carry_each_requests_chunking_and_inputs() {
+        assert_eq!(requests().len(), 23);
+        let per_chunk = ["pitch", "onsetMap", "offsetMap", "gabor"];
+        for r in requests() {
+            let defaults = (r.defaults)();
+            let names: Vec<&str> = r.params.iter().map(|p| p.name).collect();
+            assert_eq!(defaults.len(), names.len(), "{}", r.name);
+            assert!(
+                names.iter().all(|n| defaults.contains_key(*n)),
+                "{}",
+                r.name
+            );
+            assert_eq!(
+                (r.chunk_invariant)(&defaults),
+                !per_chunk.contains(&r.name),
+                "{}",
+                r.name
+            );
+            let prefix = (r.one_call_prefix_s)(&defaults);
+            assert_eq!(prefix, (r.name == "time").then_some(0.5), "{}", r.name);
+            assert!((r.extra_inputs)(&defaults).is_empty(), "{}", r.name);
+        }
+        let agc = map(&[("pp_bNormalizeRMS", serde_json::json!(true))]);
+        assert!(!(find_request("time").expect("time").chunk_invariant)(&agc));
+        let hilbert = map(&[("ihc_method", serde_json::json!("hilbert"))]);
+        let ihc = find_request("innerhaircell").expect("ihc");
+        assert!(!(ihc.chunk_invariant)(&hilbert));
+        let floor = map(&[("trm_minValuedB", serde_json::json!(-80.0))]);
+        let onset_map = find_request("onsetMap").expect("onsetMap");
+        assert_eq!((onset_map.extra_inputs)(&floor), ["ratemap"]);
+    }
+
     #[test]
     fn unknown_request_lists_the_known_ones() {
         let found = find_request("ratemap").expect("known");

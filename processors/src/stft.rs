@@ -246,6 +246,17 @@ mod tests {
     }
 
     #[test]
+    fn reset_starts_the_framing_over() {
+        let info = SignalInfo::time_domain(8000.0);
+        let (mut stft, _) = Stft::new(&StftParams::default(), &info).expect("valid");
+        assert!(format!("{stft:?}").contains("window: 160"));
+        let x = signal(500);
+        let first = run(&mut stft, &x, &[]);
+        stft.reset();
+        assert_eq!(run(&mut stft, &x, &[]), first);
+    }
+
+    #[test]
     fn unpruned_bins_are_conjugate_symmetric() {
         let p = StftParams {
             is_pruned: false,

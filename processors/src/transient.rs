@@ -226,6 +226,7 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("ons_maxOnsetdB"), "{e}");
+        assert!(TransientStrength::onset(&OnsetParams { max_onset_db: 0.0 }, &info).is_ok());
         let p = OffsetParams {
             max_offset_db: f64::NAN,
         };
