@@ -495,6 +495,20 @@ mod tests {
             .iter()
             .zip(want)
             .all(|(t, w)| (t - w).abs() < 1e-15));
+        // The node is keyed by the values after the preset: the preset and the same
+        // values written out share it.
+        let written_out = AdaptationParams {
+            lim: 0.0,
+            min_db_spl: 0.0,
+            tau_sec: linspace(0.005, 0.5, 5),
+            model: AdaptationModel::Puschel,
+        };
+        let preset = AdaptationParams {
+            model: AdaptationModel::Puschel,
+            ..Default::default()
+        };
+        let key = <Adaptation as Descriptor>::canonical(&preset).expect("valid");
+        assert_eq!(key, written_out.to_map());
         let map: afe_core::ParamMap = [(
             "adpt_model".to_string(),
             serde_json::json!("adt_vandorpschuitman"),

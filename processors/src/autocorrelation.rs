@@ -393,16 +393,23 @@ mod tests {
         assert_eq!(g[..3], [0.0; 3]);
     }
 
-    /// Windows of 20 and 22 samples: whole groups of four rows, and a remainder of two.
+    /// Windows of 20 and 22 samples: whole groups of four rows, and a remainder of two
+    /// (whose small window values only survive the clipping at `α = 0`).
     #[test]
     fn matches_the_direct_sum() {
         let nc = 2;
         let x = signal(60 * nc, 7);
-        let methods = [ClipMethod::Keep, ClipMethod::Compress, ClipMethod::Sign];
-        for (method, w) in methods.into_iter().flat_map(|m| [(m, 20), (m, 22)]) {
+        let methods = [
+            (ClipMethod::Keep, 0.6),
+            (ClipMethod::Compress, 0.6),
+            (ClipMethod::Sign, 0.6),
+            (ClipMethod::Keep, 0.0),
+        ];
+        for ((method, alpha), w) in methods.into_iter().flat_map(|m| [(m, 20), (m, 22)]) {
             let h = w / 2;
             let p = AutocorrelationParams {
                 clip_method: method,
+                clip_alpha: alpha,
                 w_size_sec: w as f64 / 1000.0,
                 h_size_sec: h as f64 / 1000.0,
                 ..Default::default()
@@ -415,7 +422,7 @@ mod tests {
                 for c in 0..nc {
                     let f: Vec<f64> = (0..w).map(|n| win[n] * x[(t * h + n) * nc + c]).collect();
                     let mut g = vec![0.0; w];
-                    clip(&f, method, 0.6, &mut g);
+                    clip(&f, method, alpha, &mut g);
                     let acf = |j: usize| (0..w - j).map(|n| g[n] * g[n + j]).sum::<f64>();
                     for j in 0..nl {
                         let want = acf(j) / (nl - j) as f64 / (acf(0) / nl as f64);
