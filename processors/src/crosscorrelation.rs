@@ -774,6 +774,22 @@ mod tests {
         afe_core::params::check_param_specs::<CrosscorrelationParams>();
     }
 
+    /// The cost model's crossover at 44.1 kHz (882-sample window, a 2048-point FFT from
+    /// 143 lags on): dot products up to 407 lags each way (3·441·408/8 = 67,473 against
+    /// 3·2048·11 = 67,584), the FFT from 408; below 143 lags the FFT has 1024 points.
+    #[test]
+    fn the_engine_follows_the_cost_model() {
+        assert!(prefer_direct(882, 407) && !prefer_direct(882, 408));
+        assert!(prefer_direct(882, 49) && !prefer_direct(882, 882));
+        let info = SignalInfo::time_frequency(44100.0, vec![500.0; 2]);
+        let (cc, _) =
+            Crosscorrelation::new(&CrosscorrelationParams::default(), &info).expect("valid");
+        assert_eq!(
+            format!("{cc:?}"),
+            "Crosscorrelation { method: \"direct\", window: 882, max_lag: 49, .. }"
+        );
+    }
+
     /// Direct evaluation of `Σ_n l[n+ℓ]·r[n] / (eps + sqrt(Σl²Σr²))`.
     fn direct(l: &[f64], r: &[f64], lag: isize) -> f64 {
         let w = l.len() as isize;
