@@ -552,14 +552,15 @@ impl Crosscorrelation {
         match &self.engine {
             Engine::Direct(d) => {
                 let groups = d.starts.len();
-                let mut cuts = vec![0];
-                for p in 1..parts.min(groups) {
-                    let g = p * groups / parts;
-                    if g > *cuts.last().unwrap_or(&0) && d.starts[g] == g * LANES {
-                        cuts.push(g);
-                    }
-                }
-                cuts.push(groups);
+                let parts = parts.min(groups);
+                // `p·groups/parts` rises strictly with `p`, from 1 to below `groups`
+                let inner = (1..parts)
+                    .map(|p| p * groups / parts)
+                    .filter(|&g| d.starts[g] == g * LANES);
+                let cuts: Vec<usize> = std::iter::once(0)
+                    .chain(inner)
+                    .chain(std::iter::once(groups))
+                    .collect();
                 cuts.windows(2)
                     .map(|w| {
                         let end = if w[1] == groups { nc } else { d.starts[w[1]] };
@@ -702,6 +703,7 @@ mod tests {
             (31, &direct, 2, 2),
             (32, &direct, 3, 3),
             (16, &direct, 2, 2),
+            (16, &direct, 3, 2),
             (9, &direct, 2, 0),
             (6, &direct, 2, 0),
             (5, &fft, 2, 2),
@@ -832,10 +834,16 @@ mod tests {
 
     #[test]
     fn direct_and_fft_engines_agree() {
-        // Channel counts below one group, with a partial group, and over one batch of
-        // groups; half frames of even and odd length; lags up to and beyond the window;
-        // frames that start in rows kept from an earlier chunk.
-        for (w, nc) in [(40, 11), (42, 3), (42, 37)] {
+        // Channel counts below one group, with a partial group, in a batch of three
+        // groups and over one batch; half frames of even and odd length; lags up to and
+        // beyond the window, and lag counts that leave 1, 2 or 3 lags of a block of 5,
+        // 10 or 11 beyond a multiple of 4; frames that start in rows kept from an earlier
+        // chunk; a window that ends in 0 (hann) and one that does not (hamming).
+        let configs = [(40, 11), (42, 3), (42, 37), (40, 20)];
+        for ((w, nc), wname) in configs
+            .into_iter()
+            .flat_map(|c| [(c, "hann"), (c, "hamming")])
+        {
             let x = |seed: usize| -> Vec<f64> {
                 (0..w * nc)
                     .map(|i| ((i * 7919 + seed) % 1013) as f64 / 1013.0)
@@ -847,13 +855,18 @@ mod tests {
             framing.advance(&xl[..split], &xr[..split], 0);
             let (fl, fr) = framing.frame((&xl[split..], &xr[split..]), 0);
             assert_eq!(fl.head.len(), split);
-            for max_lag in [0, 3, 17, w - 1, w] {
-                let win = window("hann", w, "").expect("hann");
+            for max_lag in [0, 3, 4, 9, 10, 17, w - 1, w] {
+                let win = window(wname, w, "").expect(wname);
                 let nl = 2 * max_lag + 1;
                 let mut fft = FftEngine::new(win.clone(), max_lag);
                 let mut b = vec![0.0; nc * nl];
                 for (c, o) in b.chunks_exact_mut(nl).enumerate() {
                     fft.correlate(fl, fr, c, o);
+                    // lags of a window or more have no overlap: exactly 0
+                    assert!(o
+                        .iter()
+                        .enumerate()
+                        .all(|(i, v)| i.abs_diff(max_lag) < w || *v == 0.0));
                 }
                 assert!(b.iter().any(|v| *v > 0.1));
                 for lag_block in [4, 5, 8, 9, 10, 11, 12] {
@@ -864,12 +877,39 @@ mod tests {
                         let (c, lag) = (i / nl, i % nl);
                         assert!(
                             (u - v).abs() < 1e-13,
-                            "W {w}, {nc} channels, lag {lag}/{max_lag}, channel {c}: {u} vs {v}"
+                            "{wname} W {w}, {nc} channels, lag {lag}/{max_lag}, channel {c}: {u} vs {v}"
                         );
                     }
                 }
             }
         }
+    }
+
+    /// `reset` starts the framing over; taking back the state of no parts keeps it.
+    #[test]
+    fn reset_and_an_empty_rejoin() {
+        let info = SignalInfo::time_frequency(1000.0, vec![100.0, 200.0]);
+        let (mut cc, out_info) =
+            Crosscorrelation::new(&CrosscorrelationParams::default(), &info).expect("valid");
+        let x = |seed: usize| -> Block {
+            Block::from_vec((0..70).map(|i| ((i * 31 + seed) % 17) as f64).collect(), 2)
+        };
+        let (l, r) = (x(1), x(4));
+        let mut run = |cc: &mut Crosscorrelation| {
+            let mut out = vec![Block::new(out_info.width())];
+            cc.process(&[&l, &r], &mut out);
+            out.remove(0)
+        };
+        let first = run(&mut cc);
+        assert_eq!(first.frames(), 2);
+        cc.rejoin(&[]);
+        let second = run(&mut cc);
+        assert_ne!(
+            second, first,
+            "the kept samples shift the second chunk's frames"
+        );
+        cc.reset();
+        assert_eq!(run(&mut cc), first);
     }
 
     #[test]
