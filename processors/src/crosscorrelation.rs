@@ -895,7 +895,7 @@ mod tests {
             Block::from_vec((0..70).map(|i| ((i * 31 + seed) % 17) as f64).collect(), 2)
         };
         let (l, r) = (x(1), x(4));
-        let mut run = |cc: &mut Crosscorrelation| {
+        let run = |cc: &mut Crosscorrelation| {
             let mut out = vec![Block::new(out_info.width())];
             cc.process(&[&l, &r], &mut out);
             out.remove(0)
