@@ -277,13 +277,6 @@ mod tests {
         }
     }
 
-    fn map(pairs: &[(&str, serde_json::Value)]) -> ParamMap {
-        pairs
-            .iter()
-            .map(|(k, v)| (k.to_string(), v.clone()))
-            .collect()
-    }
-
     /// The AFE's 23 representations, each with its chunking contract (spec 00-overview
     /// §11; `duet` buffers each ear from its own input, so it is invariant here) and the
     /// ratemap read beside a map's strength when `trm_minValuedB` is set.
@@ -310,12 +303,12 @@ mod tests {
             assert_eq!(prefix, (r.name == "time").then_some(0.5), "{}", r.name);
             assert!((r.extra_inputs)(&defaults).is_empty(), "{}", r.name);
         }
-        let agc = map(&[("pp_bNormalizeRMS", serde_json::json!(true))]);
+        let agc = ParamMap::from([("pp_bNormalizeRMS".into(), serde_json::json!(true))]);
         assert!(!(find_request("time").expect("time").chunk_invariant)(&agc));
-        let hilbert = map(&[("ihc_method", serde_json::json!("hilbert"))]);
+        let hilbert = ParamMap::from([("ihc_method".into(), serde_json::json!("hilbert"))]);
         let ihc = find_request("innerhaircell").expect("ihc");
         assert!(!(ihc.chunk_invariant)(&hilbert));
-        let floor = map(&[("trm_minValuedB", serde_json::json!(-80.0))]);
+        let floor = ParamMap::from([("trm_minValuedB".into(), serde_json::json!(-80.0))]);
         let onset_map = find_request("onsetMap").expect("onsetMap");
         assert_eq!((onset_map.extra_inputs)(&floor), ["ratemap"]);
     }
