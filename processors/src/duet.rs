@@ -125,9 +125,6 @@ const MAX_CELLS: usize = 1 << 22;
 /// The `ε = 2^−52` the AFE adds (as a real number) to both spectra before dividing.
 const EPS: f64 = f64::EPSILON;
 
-/// Bin index stored for an STFT cell outside the histogram's range.
-const OUTSIDE: f64 = -1.0;
-
 /// The DUET histogram: left and right time signals `[time][1]` in, one
 /// `[alpha bin][delta bin]` histogram per block out.
 pub struct Duet {
@@ -141,8 +138,9 @@ pub struct Duet {
     /// `ω_k = k·2π/NFFT` for the bins `k = 1..=NFFT/2`.
     omega: Vec<f64>,
     /// One row per STFT frame: per bin `k = 1..=NFFT/2`, its histogram cell
-    /// (`alpha·binsDelta + delta`, or [`OUTSIDE`]) and its weight, doubled below
-    /// Nyquist for the conjugate bin `NFFT − k`, which falls in the same cell.
+    /// (`alpha·binsDelta + delta`) and its weight, doubled below Nyquist for the
+    /// conjugate bin `NFFT − k`, which falls in the same cell; a bin outside the
+    /// histogram's range has cell 0 and weight 0.
     cells: FrameBuffer,
     /// The rows of the STFT frames completed in this chunk.
     new_cells: Vec<f64>,
@@ -317,7 +315,7 @@ impl Duet {
             let rho = divide(r + EPS, l + EPS);
             let a = rho.re.hypot(rho.im);
             let alpha = a - 1.0 / a;
-            pair[0] = OUTSIDE;
+            pair[0] = 0.0;
             pair[1] = 0.0;
             // The bin decisions use |ρ| and arg ρ as the AFE computes them (hypot, atan2);
             // the weight `(|L|·|R|)²`, which decides nothing, is taken from the squared
@@ -388,9 +386,7 @@ impl Processor for Duet {
             self.hist.fill(0.0);
             for row in self.cells.frame(&new_cells, j).rows() {
                 for pair in row.chunks_exact(2) {
-                    if pair[0] >= 0.0 {
-                        self.hist[pair[0] as usize] += pair[1];
-                    }
+                    self.hist[pair[0] as usize] += pair[1];
                 }
             }
             let cols = self.bins_delta;
@@ -551,6 +547,180 @@ mod tests {
         let out = run(&mut duet, &zeros, &zeros, &[]);
         assert!(out.len() >= info.width());
         assert!(out.iter().all(|v| v.is_nan()));
+    }
+
+    /// The spec's histogram written out: a plain DFT of every frame, all `NFFT − 1`
+    /// columns with their signed `ω`, and the spec's bins and weights; smoothed, clipped
+    /// and normalised per block. The division is Smith's, checked on its own below.
+    fn reference(p: &DuetParams, fs: f64, left: &[f64], right: &[f64]) -> Vec<f64> {
+        let ws = 2 * (p.w_stft_sec * fs / 2.0).round() as usize;
+        let hs = ws / 2;
+        let win: Vec<f64> = (0..ws)
+            .map(|n| 0.54 - 0.46 * (2.0 * PI * n as f64 / ws as f64).cos())
+            .collect();
+        let nfft = (2 * ws - 1).next_power_of_two();
+        let twiddle: Vec<Complex64> = (0..nfft)
+            .map(|m| Complex64::from_polar(1.0, -2.0 * PI * m as f64 / nfft as f64))
+            .collect();
+        // A real signal's spectrum is real at Nyquist, exactly so from a real FFT (and the
+        // sign of that zero decides whether arg ρ is π or −π there).
+        let dft = |x: &[f64], start: usize| -> Vec<Complex64> {
+            let mut spectrum: Vec<Complex64> = (0..nfft)
+                .map(|k| {
+                    (0..ws)
+                        .map(|n| twiddle[(k * n) % nfft] * (win[n] * x[start + n]))
+                        .sum()
+                })
+                .collect();
+            spectrum[nfft / 2].im = 0.0;
+            spectrum
+        };
+        let frames = (left.len() - hs) / hs;
+        let stft: Vec<(Vec<Complex64>, Vec<Complex64>)> = (0..frames)
+            .map(|f| (dft(left, f * hs), dft(right, f * hs)))
+            .collect();
+        let wd = (p.w_duet_sec * 2.0 / p.w_stft_sec).floor() as usize;
+        let hd = (p.h_duet_sec * 2.0 / p.w_stft_sec).floor() as usize;
+        let (na, nd) = (p.bins_alpha, p.bins_delta);
+        let (ma, md) = (p.max_alpha, p.max_delta);
+        let sgolay = SavitzkyGolay::new(3, 5).expect("valid");
+        let mut out = Vec::new();
+        let mut start = 0;
+        while start + wd <= frames {
+            let mut hist = vec![0.0; na * nd];
+            for (tl, tr) in &stft[start..start + wd] {
+                for k in 1..nfft {
+                    let signed = if k <= nfft / 2 {
+                        k as f64
+                    } else {
+                        k as f64 - nfft as f64
+                    };
+                    let omega = signed * 2.0 * PI / nfft as f64;
+                    let rho = divide(tr[k] + EPS, tl[k] + EPS);
+                    let alpha = rho.norm() - 1.0 / rho.norm();
+                    let delta = -rho.arg() / omega;
+                    if alpha.abs() < ma && delta.abs() < md {
+                        let ia = (1.0 + (na - 1) as f64 * (alpha + ma) / (2.0 * ma)).round();
+                        let id = (1.0 + (nd - 1) as f64 * (delta + md) / (2.0 * md)).round();
+                        let w = (tl[k].norm() * tr[k].norm()).powi(2) * omega * omega;
+                        hist[(ia as usize - 1) * nd + id as usize - 1] += w;
+                    }
+                }
+            }
+            let mut along_alpha = vec![0.0; na * nd];
+            let mut both = vec![0.0; na * nd];
+            sgolay.smooth_columns(&hist, nd, &mut along_alpha);
+            sgolay.smooth_rows(&along_alpha, nd, &mut both);
+            let max = both.iter().fold(0.0f64, |m, &v| m.max(v));
+            out.extend(both.iter().map(|&v| v.max(0.0) / max));
+            start += hd;
+        }
+        out
+    }
+
+    /// Noise in the left ear and, in the right, 0.9 times it one sample later plus some
+    /// independent noise: cells spread over many bins around α = −0.2, δ = 1.
+    #[test]
+    fn matches_the_spec_written_out_with_a_plain_dft() {
+        let fs = 16000.0;
+        let p = DuetParams {
+            bins_alpha: 21,
+            bins_delta: 25,
+            ..small()
+        };
+        let x = noise(2401, 5);
+        let extra = noise(2400, 9);
+        let left = x[1..].to_vec();
+        let right: Vec<f64> = x[..2400]
+            .iter()
+            .zip(&extra)
+            .map(|(v, e)| 0.9 * v + 0.3 * e)
+            .collect();
+        // At 1e-13 the spectra are a few hundred times ε = 2^−52, which then moves ρ.
+        for scale in [1.0, 1e-13] {
+            let l: Vec<f64> = left.iter().map(|v| v * scale).collect();
+            let r: Vec<f64> = right.iter().map(|v| v * scale).collect();
+            let want = reference(&p, fs, &l, &r);
+            let (mut duet, info) = Duet::new(&p, &SignalInfo::time_domain(fs)).expect("valid");
+            let got = run(&mut duet, &l, &r, &[700]);
+            assert_eq!(got.len(), want.len());
+            assert_eq!(
+                got.len(),
+                5 * info.width(),
+                "blocks of 10 frames every 4 of 29"
+            );
+            let worst = got
+                .iter()
+                .zip(&want)
+                .map(|(g, w)| (g - w).abs())
+                .fold(0.0, f64::max);
+            assert!(worst < 1e-13, "scale {scale}: off by {worst}");
+            let zeros = got.iter().filter(|&&v| v == 0.0).count();
+            assert!(zeros > 0 && zeros < got.len() / 2, "{zeros} clipped cells");
+        }
+    }
+
+    /// `|α| < maxAlpha` and `|δ| < maxDelta` are strict: a cell exactly at a limit is out.
+    #[test]
+    fn range_limits_are_exclusive() {
+        let info = SignalInfo::time_domain(16000.0);
+        let (probe, _) = Duet::new(&small(), &info).expect("valid");
+        let delta = PI / probe.omega[0];
+        // Bin 1 with `L + ε` and `R + ε` as given (both exact in binary).
+        let cell_of = |l: f64, r: f64, max_alpha: f64, max_delta: f64| {
+            let p = DuetParams {
+                max_alpha,
+                max_delta,
+                ..small()
+            };
+            let (mut duet, _) = Duet::new(&p, &info).expect("valid");
+            duet.spec_l[1] = Complex64::new(l - EPS, 0.0);
+            duet.spec_r[1] = Complex64::new(r - EPS, 0.0);
+            assert_eq!((duet.spec_l[1].re + EPS, duet.spec_r[1].re + EPS), (l, r));
+            let mut row = vec![f64::NAN; 2 * duet.omega.len()];
+            duet.frame_cells(&mut row);
+            (row[0], row[1])
+        };
+        let above = 1.000001;
+        // ρ = 2: α = 2 − 1/2 = 1.5, δ = 0.
+        assert!(cell_of(1.0, 2.0, 1.5 * above, 1.0).1 > 0.0);
+        assert_eq!(cell_of(1.0, 2.0, 1.5, 1.0), (0.0, 0.0));
+        // ρ = −1: α = 0, δ = −π/ω₁.
+        assert!(cell_of(1.0, -1.0, 1.0, delta * above).1 > 0.0);
+        assert_eq!(cell_of(1.0, -1.0, 1.0, delta), (0.0, 0.0));
+    }
+
+    #[test]
+    fn reset_starts_a_new_stream_and_debug_names_the_sizes() {
+        let info = SignalInfo::time_domain(16000.0);
+        let (mut duet, _) = Duet::new(&small(), &info).expect("valid");
+        let (x, y) = (noise(2000, 4), noise(2000, 8));
+        let fresh = run(&mut duet, &x, &y, &[]);
+        run(&mut duet, &y, &x, &[]);
+        duet.reset();
+        let again = run(&mut duet, &x, &y, &[]);
+        assert!(!fresh.is_empty());
+        assert!(fresh
+            .iter()
+            .zip(&again)
+            .all(|(a, b)| a.to_bits() == b.to_bits()));
+        assert_eq!(fresh.len(), again.len());
+        let shown = format!("{duet:?}");
+        assert!(
+            shown.contains("nfft: 512") && shown.contains("(35, 51)"),
+            "{shown}"
+        );
+    }
+
+    /// Smith's division agrees with the textbook one to rounding, on both branches.
+    #[test]
+    fn smith_division_matches_complex_division() {
+        let v = noise(400, 21);
+        for q in v.chunks_exact(4) {
+            let (a, b) = (Complex64::new(q[0], q[1]), Complex64::new(q[2], q[3]));
+            let (got, want) = (divide(a, b), a / b);
+            assert!((got - want).norm() <= 1e-13 * want.norm(), "{a} / {b}");
+        }
     }
 
     #[test]

@@ -583,4 +583,93 @@ mod tests {
         let below = 3.0 - 1e-12;
         assert!(marked(&run(&mut map, &[&cells(6, nc, &column, below)])).is_empty());
     }
+    /// `frames` rows of `nc` channels, each row one value across the channels.
+    fn rows(values: &[f64], nc: usize) -> Block {
+        Block::from_vec(values.iter().flat_map(|&v| vec![v; nc]).collect(), nc)
+    }
+
+    #[test]
+    fn a_peak_at_a_chunk_start_rises_from_the_buffered_rows() {
+        // Only the last three frames of the first call (20, 20, 5) show the rise into the
+        // 10 that starts the second call; its earlier frames are all 20.
+        let nc = 5;
+        let column: Vec<(usize, usize)> = (0..nc).map(|c| (0, c)).collect();
+        let (mut map, _) =
+            TransientMap::new(&TransientMapParams::default(), &strength_info(nc), None)
+                .expect("valid");
+        let first = run(&mut map, &[&rows(&[20.0, 20.0, 20.0, 20.0, 20.0, 5.0], nc)]);
+        assert!(marked(&first).is_empty());
+        let second = run(&mut map, &[&rows(&[10.0, 0.0, 0.0, 0.0], nc)]);
+        assert_eq!(second.frames(), 4);
+        assert_eq!(marked(&second), column);
+    }
+
+    #[test]
+    fn min_value_masks_the_new_rows_of_a_later_call_and_keeps_its_threshold() {
+        // The transient of the test above, with the ratemap of channel 4 at its first new
+        // frame at or below −20 dB. At −20 dB exactly the cell stays.
+        assert_eq!(10.0 * 0.01f64.log10(), -20.0);
+        let nc = 5;
+        let p = TransientMapParams {
+            min_value_db: Some(-20.0),
+            ..Default::default()
+        };
+        let info = strength_info(nc);
+        for (level, kept) in [(0.01, nc), (0.0099, 0)] {
+            let (mut map, _) = TransientMap::new(&p, &info, Some(&info)).expect("valid");
+            let loud = rows(&[1.0; 6], nc);
+            run(
+                &mut map,
+                &[&rows(&[20.0, 20.0, 20.0, 20.0, 20.0, 5.0], nc), &loud],
+            );
+            let mut rm = vec![1.0; 4 * nc];
+            rm[4] = level;
+            let ratemap = Block::from_vec(rm, nc);
+            let out = run(&mut map, &[&rows(&[10.0, 0.0, 0.0, 0.0], nc), &ratemap]);
+            assert_eq!(marked(&out).len(), kept, "ratemap level {level}");
+        }
+    }
+
+    #[test]
+    fn reset_forgets_the_buffered_frames() {
+        let nc = 2;
+        let (mut map, _) =
+            TransientMap::new(&TransientMapParams::default(), &strength_info(nc), None)
+                .expect("valid");
+        assert_eq!(run(&mut map, &[&rows(&[1.0, 2.0], nc)]).frames(), 0);
+        map.reset();
+        assert_eq!(run(&mut map, &[&rows(&[1.0, 2.0], nc)]).frames(), 0);
+        assert_eq!(run(&mut map, &[&rows(&[1.0, 2.0], nc)]).frames(), 2);
+    }
+
+    #[test]
+    fn a_weaker_peak_as_far_as_the_fusion_distance_before_is_kept() {
+        // Fusion over 3 frames: the 4 dB peak three frames before the 6 dB one stays.
+        let x = [0.0, 0.0, 0.0, 4.0, 0.0, 0.0, 6.0, 0.0, 0.0];
+        let p = TransientMapParams {
+            min_spread: 1,
+            ..Default::default()
+        };
+        let (mut map, _) = TransientMap::new(&p, &strength_info(1), None).expect("valid");
+        let out = run(&mut map, &[&Block::from_vec(x.to_vec(), 1)]);
+        assert_eq!(marked(&out), [(3, 0), (6, 0)]);
+    }
+
+    #[test]
+    fn without_fusion_every_peak_of_every_channel_is_marked() {
+        // A fusion distance of one frame (at most two is no fusion): peaks two frames
+        // apart in five channels are two components of five cells.
+        let nc = 5;
+        let p = TransientMapParams {
+            fuse_within_sec: 0.01,
+            ..Default::default()
+        };
+        let (mut map, _) = TransientMap::new(&p, &strength_info(nc), None).expect("valid");
+        let out = run(&mut map, &[&rows(&[0.0, 0.0, 10.0, 0.0, 9.0, 0.0], nc)]);
+        let want: Vec<(usize, usize)> = [2, 4]
+            .iter()
+            .flat_map(|&t| (0..nc).map(move |c| (t, c)))
+            .collect();
+        assert_eq!(marked(&out), want);
+    }
 }
