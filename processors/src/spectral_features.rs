@@ -523,6 +523,123 @@ mod tests {
         assert!(got[13].abs() < 1e-12);
     }
 
+    /// Every feature of three uneven frames (one with a zero channel) against its
+    /// definition in spec 26, written out with plain loops over six unevenly spaced CFs.
+    #[test]
+    fn every_feature_matches_its_definition_on_uneven_frames() {
+        let cf = [200.0, 350.0, 600.0, 1100.0, 1900.0, 3300.0];
+        let info = SignalInfo::time_frequency(16000.0, cf.to_vec()).framed(100.0);
+        let p = SpectralFeaturesParams {
+            brightness_cf_hz: 1100.0,
+            rolloff_fraction: 0.7,
+            ..Default::default()
+        };
+        let (mut sf, _) = SpectralFeatures::new(&p, &info).expect("valid");
+        let frames = [
+            [0.3, 2.0, 0.7, 5.0, 0.1, 1.2],
+            [1.5, 0.2, 0.0, 0.9, 3.0, 0.4],
+            [0.05, 0.6, 2.5, 0.3, 0.8, 7.0],
+        ];
+        let got = run(&mut sf, frames.as_flattened(), 6);
+        let eps = 1e-15;
+        let n = 6.0;
+        let db = |x: &[f64; 6]| x.map(|v| 10.0 * (v + eps).log10());
+        for (f, x) in frames.iter().enumerate() {
+            let prev = &frames[f.saturating_sub(1)];
+            let sum: f64 = x.iter().sum();
+            let mean = sum / n;
+            let mut mu = 0.0;
+            let (mut cross, mut norm, mut norm_prev) = (0.0, 0.0, 0.0);
+            for k in 0..6 {
+                mu += cf[k] * x[k];
+                cross += x[k] * prev[k];
+                norm += x[k] * x[k];
+                norm_prev += prev[k] * prev[k];
+            }
+            mu /= sum + eps;
+            let (mut spread, mut entropy, mut bright, mut hfc, mut logs) =
+                (0.0, 0.0, 0.0, 0.0, 0.0);
+            let (mut flux, mut dev2, mut dev3, mut dev4) = (0.0, 0.0, 0.0, 0.0);
+            let (p_db, prev_db) = (db(x), db(prev));
+            for k in 0..6 {
+                spread += (cf[k] - mu).powi(2) * x[k];
+                let pk = x[k] / (sum + eps);
+                entropy -= pk * (pk + eps).ln();
+                if cf[k] > 1100.0 {
+                    bright += x[k];
+                }
+                hfc += cf[k] * cf[k] * x[k];
+                logs += x[k].ln();
+                flux += (p_db[k] - prev_db[k]).powi(2);
+                dev2 += (x[k] - mean).powi(2);
+            }
+            let sigma = (dev2 / (n - 1.0)).sqrt() + eps;
+            for v in x {
+                dev3 += ((v - mean) / sigma).powi(3);
+                dev4 += ((v - mean) / sigma).powi(4);
+            }
+            let (mut decrease, mut rest) = (0.0, 0.0);
+            for k in 1..6 {
+                decrease += (x[k] - x[0]) / k as f64;
+                rest += x[k];
+            }
+            let irregularity: f64 = (0..5).map(|k| (p_db[k + 1] - p_db[k]).powi(2)).sum();
+            // interp1 on the cumulative sums, extrapolating the first segment below C_0.
+            let target = 0.7 * sum;
+            let mut c = [0.0; 6];
+            let mut acc = 0.0;
+            for k in 0..6 {
+                acc += x[k] + 1e-10;
+                c[k] = acc;
+            }
+            let seg = (0..5).find(|&k| target <= c[k + 1]).expect("inside");
+            let rolloff =
+                cf[seg] + (target - c[seg]) * (cf[seg + 1] - cf[seg]) / (c[seg + 1] - c[seg]);
+            let max = x.iter().copied().fold(0.0, f64::max);
+            let want = [
+                mu / 3300.0,
+                max / (mean + eps),
+                (spread / (sum + eps)).sqrt() / 3300.0,
+                entropy / n.ln(),
+                bright / (sum + eps),
+                hfc / (sum + eps),
+                decrease / (rest + eps),
+                (logs / n).exp() / (mean + eps),
+                (flux / n).sqrt(),
+                dev4 / n - 3.0,
+                dev3 / n,
+                (irregularity / (n - 1.0)).sqrt(),
+                rolloff / 3300.0,
+                1.0 - cross / (norm.sqrt() * norm_prev.sqrt() + eps),
+            ];
+            for (i, w) in want.iter().enumerate() {
+                let g = got[f * 14 + i];
+                assert!(
+                    (g - w).abs() <= 1e-12 * w.abs().max(1e-3),
+                    "frame {f}, {}: {g} vs {w}",
+                    EVERY_FEATURE[i].name()
+                );
+            }
+        }
+        // The second frame has a zero channel: no flatness.
+        assert_eq!(got[14 + 7], 0.0);
+    }
+
+    #[test]
+    fn requested_features_come_in_the_given_order_and_reset_clears_the_history() {
+        let p = SpectralFeaturesParams {
+            requests: vec![SpectralFeature::Variation, SpectralFeature::Flux],
+            ..Default::default()
+        };
+        let (mut sf, info) = SpectralFeatures::new(&p, &ratemap_info(3)).expect("valid");
+        assert_eq!(info.features, ["variation", "flux"]);
+        run(&mut sf, &[1.0, 5.0, 2.0], 3);
+        sf.reset();
+        // After a reset the first frame is compared with itself again.
+        let got = run(&mut sf, &[4.0, 0.5, 3.0], 3);
+        assert!(got[0].abs() < 1e-15 && got[1] == 0.0, "{got:?}");
+    }
+
     #[test]
     fn silent_frame() {
         let (mut sf, _) =
