@@ -766,6 +766,129 @@ mod tests {
         assert!(e.contains("ams_fbType"), "{e}");
     }
 
+    /// Spec 15 written out for both banks: decimation by 3 (4800 → 1600 Hz), frames of
+    /// 64 samples every 32 with a Hann window; `log`: five filters from 4 to 200 Hz run
+    /// as difference equations on the Butterworth designs, mean |w·v| per frame; `lin`:
+    /// six triangles from 20 to 500 Hz on a plain DFT of 128 points, over `nfft`.
+    #[test]
+    fn both_banks_match_the_spec_written_out() {
+        use std::f64::consts::PI;
+        let (fs, ratio, nc) = (4800.0, 3, 2);
+        let x = envelope(3000, nc);
+        let decimated: Vec<&[f64]> = x.chunks_exact(nc).step_by(ratio).collect();
+        let (w, hop) = (64, 32);
+        let hann: Vec<f64> = (0..w)
+            .map(|k| 0.5 * (1.0 - (2.0 * PI * k as f64 / (w - 1) as f64).cos()))
+            .collect();
+        let frames = (decimated.len() - (w - hop)) / hop;
+        let base = AmsParams {
+            ds_ratio: ratio,
+            w_size_sec: 0.04,
+            h_size_sec: 0.02,
+            wname: "hann".into(),
+            ..AmsParams::default()
+        };
+        let compare = |p: &AmsParams, want: &[f64]| {
+            let (mut ams, info) = AmsFeatures::new(p, &ihc(fs, nc)).expect("valid");
+            assert_eq!(info.fs_hz, 50.0);
+            let got = run(&mut ams, &x, nc, &[777]);
+            assert_eq!(got.len(), want.len());
+            let top = want.iter().fold(0.0, |m: f64, v| m.max(v.abs()));
+            let worst = got
+                .iter()
+                .zip(want)
+                .map(|(g, v)| (g - v).abs())
+                .fold(0.0, f64::max);
+            assert!(
+                worst <= 1e-12 * top,
+                "{:?}: off by {worst} of {top}",
+                p.fb_type
+            );
+        };
+
+        // log: band j of channel c at out[t][c·5 + j].
+        let (lo, hi, nb) = (4.0f64, 200.0f64, 5);
+        let nyq = 800.0;
+        let mut want = vec![0.0; frames * nc * nb];
+        for j in 0..nb {
+            let mf = lo * (hi / lo).powf(j as f64 / (nb - 1) as f64);
+            let (b, a) = if j == 0 {
+                butter(1, &[mf / nyq], ButterType::Low)
+            } else {
+                let edge = |s: f64| mf * (1.25f64.sqrt() + s * 0.5) / nyq;
+                butter(1, &[edge(-1.0), edge(1.0)], ButterType::BandPass)
+            };
+            for c in 0..nc {
+                let mut y = vec![0.0; decimated.len()];
+                for n in 0..y.len() {
+                    let mut acc = 0.0;
+                    for m in 0..b.len().min(n + 1) {
+                        acc += b[m] * decimated[n - m][c];
+                        if m > 0 {
+                            acc -= a[m] * y[n - m];
+                        }
+                    }
+                    y[n] = acc / a[0];
+                }
+                for t in 0..frames {
+                    let s: f64 = (0..w).map(|m| (hann[m] * y[t * hop + m]).abs()).sum();
+                    want[(t * nc + c) * nb + j] = s / w as f64;
+                }
+            }
+        }
+        compare(
+            &AmsParams {
+                n_filters: nb,
+                high_freq_hz: hi,
+                ..base.clone()
+            },
+            &want,
+        );
+
+        // lin: triangles of Δ = 480/7 Hz on bins of 12.5 Hz.
+        let (fl, fh, nb, nfft) = (20.0, 500.0, 6, 128);
+        let delta = (fh - fl) / 7.0;
+        let mut want = vec![0.0; frames * nc * nb];
+        for c in 0..nc {
+            for t in 0..frames {
+                let magnitude: Vec<f64> = (0..=nfft / 2)
+                    .map(|k| {
+                        let s: Complex64 = (0..w)
+                            .map(|m| {
+                                let phase = -2.0 * PI * ((k * m) % nfft) as f64 / nfft as f64;
+                                Complex64::from_polar(hann[m] * decimated[t * hop + m][c], phase)
+                            })
+                            .sum();
+                        s.norm() / nfft as f64
+                    })
+                    .collect();
+                for j in 0..nb {
+                    want[(t * nc + c) * nb + j] = (0..=nfft / 2)
+                        .map(|k| {
+                            let f = k as f64 * 1600.0 / nfft as f64;
+                            let tri = 1.0 - ((f - fl) / delta - (j + 1) as f64).abs();
+                            if f > fl && f < fh && tri > 0.0 {
+                                tri * magnitude[k]
+                            } else {
+                                0.0
+                            }
+                        })
+                        .sum();
+                }
+            }
+        }
+        compare(
+            &AmsParams {
+                fb_type: AmsFbType::Lin,
+                n_filters: nb,
+                low_freq_hz: fl,
+                high_freq_hz: fh,
+                ..base
+            },
+            &want,
+        );
+    }
+
     #[test]
     fn reset_restarts_the_stream() {
         let x = envelope(3000, 2);
