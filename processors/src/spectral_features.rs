@@ -523,8 +523,10 @@ mod tests {
         assert!(got[13].abs() < 1e-12);
     }
 
-    /// Every feature of three uneven frames (one with a zero channel) against its
-    /// definition in spec 26, written out with plain loops over six unevenly spaced CFs.
+    /// Every feature of uneven frames (one with a zero channel) against its definition
+    /// in spec 26, written out with plain loops over six unevenly spaced CFs; also at
+    /// 1e-15 and 3e-8 times the level, where the guards `ε` of the sums and of `σ`
+    /// (near 1e-15) and of the norms' product (near 1e-15 at 3e-8) change the values.
     #[test]
     fn every_feature_matches_its_definition_on_uneven_frames() {
         let cf = [200.0, 350.0, 600.0, 1100.0, 1900.0, 3300.0];
@@ -535,11 +537,15 @@ mod tests {
             ..Default::default()
         };
         let (mut sf, _) = SpectralFeatures::new(&p, &info).expect("valid");
-        let frames = [
+        let uneven = [
             [0.3, 2.0, 0.7, 5.0, 0.1, 1.2],
             [1.5, 0.2, 0.0, 0.9, 3.0, 0.4],
             [0.05, 0.6, 2.5, 0.3, 0.8, 7.0],
         ];
+        let frames: Vec<[f64; 6]> = [1.0, 1e-15, 3e-8]
+            .iter()
+            .flat_map(|&scale| uneven.map(|x| x.map(|v| v * scale)))
+            .collect();
         let got = run(&mut sf, frames.as_flattened(), 6);
         let eps = 1e-15;
         let n = 6.0;
@@ -615,7 +621,7 @@ mod tests {
             for (i, w) in want.iter().enumerate() {
                 let g = got[f * 14 + i];
                 assert!(
-                    (g - w).abs() <= 1e-12 * w.abs().max(1e-3),
+                    (g - w).abs() <= 1e-12 * w.abs().max(1e-6),
                     "frame {f}, {}: {g} vs {w}",
                     EVERY_FEATURE[i].name()
                 );
