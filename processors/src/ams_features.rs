@@ -246,8 +246,8 @@ fn log_bank(p: &AmsParams, fs_ds: f64, channels: usize) -> Result<(Vec<f64>, Vec
         p.cf_hz.clone()
     };
     let nyq = fs_ds / 2.0;
-    let q = 1.0f64;
-    let root = (1.0 + 1.0 / (4.0 * q * q)).sqrt();
+    // Band edges of quality factor Q = 1: f·(√(1 + 1/(4Q²)) ∓ 1/(2Q)).
+    let root = 1.25f64.sqrt();
     let too_high = |f: f64| {
         let name = if p.cf_hz.is_empty() {
             "ams_highFreqHz"
@@ -272,8 +272,8 @@ fn log_bank(p: &AmsParams, fs_ds: f64, channels: usize) -> Result<(Vec<f64>, Vec
         let (b, a) = if j == 0 {
             butter(1, &[w0], ButterType::Low)
         } else {
-            let f1 = f * (root - 1.0 / (2.0 * q));
-            let f2 = f * (root + 1.0 / (2.0 * q));
+            let f1 = f * (root - 0.5);
+            let f2 = f * (root + 0.5);
             if f2 / nyq >= 1.0 {
                 return Err(too_high(f));
             }
@@ -886,6 +886,24 @@ mod tests {
                 ..base
             },
             &want,
+        );
+    }
+
+    #[test]
+    fn explicit_centre_frequencies_are_kept_and_debug_names_the_sizes() {
+        let p = AmsParams {
+            cf_hz: vec![5.0, 12.0, 40.0],
+            ..AmsParams::default()
+        };
+        let (ams, info) = AmsFeatures::new(&p, &ihc(16000.0, 2)).expect("valid");
+        assert_eq!(info.mod_cf_hz, [5.0, 12.0, 40.0]);
+        assert_eq!(info.width(), 6);
+        let shown = format!("{ams:?}");
+        assert!(
+            shown.contains("channels: 2")
+                && shown.contains("bands: 3")
+                && shown.contains("window: 128"),
+            "{shown}"
         );
     }
 
