@@ -606,8 +606,9 @@ mod tests {
 
     #[test]
     fn min_value_masks_the_new_rows_of_a_later_call_and_keeps_its_threshold() {
-        // The transient of the test above, with the ratemap of channel 4 at its first new
-        // frame at or below −20 dB. At −20 dB exactly the cell stays.
+        // A rise from the buffered 5s into the 10 that starts the second call, with the
+        // ratemap of channel 4 at that frame at or below −20 dB. At −20 dB exactly the
+        // cell stays. (Masking a buffered frame instead would leave the peak.)
         assert_eq!(10.0 * 0.01f64.log10(), -20.0);
         let nc = 5;
         let p = TransientMapParams {
@@ -620,7 +621,7 @@ mod tests {
             let loud = rows(&[1.0; 6], nc);
             run(
                 &mut map,
-                &[&rows(&[20.0, 20.0, 20.0, 20.0, 20.0, 5.0], nc), &loud],
+                &[&rows(&[20.0, 20.0, 20.0, 5.0, 5.0, 5.0], nc), &loud],
             );
             let mut rm = vec![1.0; 4 * nc];
             rm[4] = level;
