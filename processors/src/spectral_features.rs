@@ -638,6 +638,20 @@ mod tests {
         assert_eq!(got[14 + 7], 0.0);
     }
 
+    /// `'all'` and the fourteen names spelt out are one node: both canonical maps list
+    /// the names.
+    #[test]
+    fn all_and_its_names_share_a_node() {
+        let all = SpectralFeatures::canonical(&SpectralFeaturesParams::default()).expect("valid");
+        let spelt = SpectralFeaturesParams {
+            requests: EVERY_FEATURE.to_vec(),
+            ..Default::default()
+        };
+        assert_eq!(all, spelt.to_map());
+        assert_eq!(all["sf_requests"][13], "variation");
+        assert_eq!(all["sf_roPerc"], 0.8);
+    }
+
     #[test]
     fn requested_features_come_in_the_given_order_and_reset_clears_the_history() {
         let p = SpectralFeaturesParams {

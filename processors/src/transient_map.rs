@@ -384,6 +384,17 @@ mod tests {
         .framed(100.0)
     }
 
+    /// The map with default parameters over `channels` channels.
+    fn default_map(channels: usize) -> TransientMap {
+        TransientMap::new(
+            &TransientMapParams::default(),
+            &strength_info(channels),
+            None,
+        )
+        .expect("valid")
+        .0
+    }
+
     fn peaks_of(x: &[f64]) -> Vec<usize> {
         let mut p = Vec::new();
         find_peaks(x, 1, 0, &mut p);
@@ -465,9 +476,12 @@ mod tests {
         let (mut map, _) = TransientMap::new(&p, &strength_info(1), None).expect("valid");
         let out = run(&mut map, &[&Block::from_vec(x.to_vec(), 1)]);
         assert_eq!(marked(&out), [(4, 0), (7, 0)]);
-        let (mut map, _) =
-            TransientMap::new(&TransientMapParams::default(), &strength_info(1), None)
-                .expect("valid");
+        // A weaker peak exactly the fusion distance before the stronger one stays too.
+        map.reset();
+        let before = [0.0, 0.0, 0.0, 4.0, 0.0, 0.0, 6.0, 0.0, 0.0];
+        let out = run(&mut map, &[&Block::from_vec(before.to_vec(), 1)]);
+        assert_eq!(marked(&out), [(3, 0), (6, 0)]);
+        let mut map = default_map(1);
         let out = run(&mut map, &[&Block::from_vec(x.to_vec(), 1)]);
         assert!(marked(&out).is_empty());
     }
@@ -478,9 +492,7 @@ mod tests {
         // peaks in a row are removed.
         let nc = 6;
         let diagonal: Vec<(usize, usize)> = (0..5).map(|k| (k + 1, k)).collect();
-        let (mut map, _) =
-            TransientMap::new(&TransientMapParams::default(), &strength_info(nc), None)
-                .expect("valid");
+        let mut map = default_map(nc);
         let out = run(&mut map, &[&cells(8, nc, &diagonal, 10.0)]);
         assert_eq!(marked(&out), diagonal);
         map.reset();
@@ -492,9 +504,7 @@ mod tests {
     fn buffer_only_calls_are_never_emitted_and_buffered_rows_not_repeated() {
         let nc = 5;
         let column: Vec<(usize, usize)> = (0..nc).map(|c| (1, c)).collect();
-        let (mut map, _) =
-            TransientMap::new(&TransientMapParams::default(), &strength_info(nc), None)
-                .expect("valid");
+        let mut map = default_map(nc);
         // Three frames fit the buffer (ceil(0.03·100) = 3): nothing is emitted, ever.
         assert_eq!(run(&mut map, &[&cells(3, nc, &column, 10.0)]).frames(), 0);
         // The next call detects on buffer + chunk and emits only the chunk's rows; the
@@ -562,9 +572,7 @@ mod tests {
             assert!(marked(&second).is_empty());
         }
         // Without the threshold all five cells form a transient.
-        let (mut map, _) =
-            TransientMap::new(&TransientMapParams::default(), &strength_info(nc), None)
-                .expect("valid");
+        let mut map = default_map(nc);
         assert_eq!(marked(&run(&mut map, &[&strength])), column);
     }
 
@@ -572,9 +580,7 @@ mod tests {
     fn strength_at_the_threshold_counts() {
         let nc = 5;
         let column: Vec<(usize, usize)> = (0..nc).map(|c| (2, c)).collect();
-        let (mut map, _) =
-            TransientMap::new(&TransientMapParams::default(), &strength_info(nc), None)
-                .expect("valid");
+        let mut map = default_map(nc);
         assert_eq!(
             marked(&run(&mut map, &[&cells(6, nc, &column, 3.0)])),
             column
@@ -594,9 +600,7 @@ mod tests {
         // 10 that starts the second call; its earlier frames are all 20.
         let nc = 5;
         let column: Vec<(usize, usize)> = (0..nc).map(|c| (0, c)).collect();
-        let (mut map, _) =
-            TransientMap::new(&TransientMapParams::default(), &strength_info(nc), None)
-                .expect("valid");
+        let mut map = default_map(nc);
         let first = run(&mut map, &[&rows(&[20.0, 20.0, 20.0, 20.0, 20.0, 5.0], nc)]);
         assert!(marked(&first).is_empty());
         let second = run(&mut map, &[&rows(&[10.0, 0.0, 0.0, 0.0], nc)]);
@@ -634,26 +638,11 @@ mod tests {
     #[test]
     fn reset_forgets_the_buffered_frames() {
         let nc = 2;
-        let (mut map, _) =
-            TransientMap::new(&TransientMapParams::default(), &strength_info(nc), None)
-                .expect("valid");
+        let mut map = default_map(nc);
         assert_eq!(run(&mut map, &[&rows(&[1.0, 2.0], nc)]).frames(), 0);
         map.reset();
         assert_eq!(run(&mut map, &[&rows(&[1.0, 2.0], nc)]).frames(), 0);
         assert_eq!(run(&mut map, &[&rows(&[1.0, 2.0], nc)]).frames(), 2);
-    }
-
-    #[test]
-    fn a_weaker_peak_as_far_as_the_fusion_distance_before_is_kept() {
-        // Fusion over 3 frames: the 4 dB peak three frames before the 6 dB one stays.
-        let x = [0.0, 0.0, 0.0, 4.0, 0.0, 0.0, 6.0, 0.0, 0.0];
-        let p = TransientMapParams {
-            min_spread: 1,
-            ..Default::default()
-        };
-        let (mut map, _) = TransientMap::new(&p, &strength_info(1), None).expect("valid");
-        let out = run(&mut map, &[&Block::from_vec(x.to_vec(), 1)]);
-        assert_eq!(marked(&out), [(3, 0), (6, 0)]);
     }
 
     #[test]
