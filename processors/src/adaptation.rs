@@ -354,7 +354,7 @@ mod tests {
 
     fn run(p: &AdaptationParams, nc: usize, x: &[f64], chunks: &[usize]) -> Vec<f64> {
         let (mut a, _) = Adaptation::new(p, &ihc(nc)).expect("valid");
-        crate::chunked::feed(&mut a, x, nc, nc, chunks.iter().copied().cycle())
+        crate::testing::feed(&mut a, x, nc, nc, chunks.iter().copied().cycle())
     }
 
     #[test]
@@ -448,7 +448,7 @@ mod tests {
         for (p, floor) in cases {
             let info = SignalInfo::time_frequency(fs, cf.to_vec());
             let (mut a, _) = Adaptation::new(&p, &info).expect("valid");
-            let got = crate::chunked::feed(&mut a, &x, 3, 3, [700, 1700]);
+            let got = crate::testing::feed(&mut a, &x, 3, 3, [700, 1700]);
             let want = spec_loops(&p, &floor, fs, &x);
             assert_eq!(got.len(), want.len());
             for (n, (g, w)) in got.iter().zip(&want).enumerate() {
@@ -602,12 +602,10 @@ mod tests {
             limited in any::<bool>(),
         ) {
             let nc = 3;
-            let x: Vec<f64> = (0..1500 * nc)
-                .map(|i| {
-                    let t = (i as u64).wrapping_mul(6_364_136_223_846_793_005).wrapping_add(seed);
-                    let u = (t >> 11) as f64 / (1u64 << 53) as f64;
-                    if i % 97 < 40 { 0.0 } else { u * u }
-                })
+            let x: Vec<f64> = crate::testing::noise(1500 * nc, seed)
+                .iter()
+                .enumerate()
+                .map(|(i, u)| if i % 97 < 40 { 0.0 } else { (u + 0.5) * (u + 0.5) })
                 .collect();
             let p = AdaptationParams { lim: if limited { 10.0 } else { 0.0 }, ..Default::default() };
             let whole = run(&p, nc, &x, &[1500]);

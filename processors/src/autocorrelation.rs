@@ -347,6 +347,7 @@ pub static REQUEST: RequestDef = request_def::<Autocorrelation>();
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::{noise, plain_dft};
     use proptest::prelude::*;
 
     #[test]
@@ -359,19 +360,17 @@ mod tests {
     }
 
     fn signal(len: usize, seed: u64) -> Vec<f64> {
-        (0..len)
-            .map(|i| {
-                let t = (i as u64 ^ seed).wrapping_mul(6_364_136_223_846_793_005);
-                let u = (t >> 11) as f64 / (1u64 << 53) as f64;
-                (i as f64 * 0.3).sin().max(0.0) + 0.2 * u
-            })
+        noise(len, seed)
+            .iter()
+            .enumerate()
+            .map(|(i, u)| (i as f64 * 0.3).sin().max(0.0) + 0.2 * (u + 0.5))
             .collect()
     }
 
     fn run(p: &AutocorrelationParams, nc: usize, x: &[f64], chunks: &[usize]) -> (usize, Vec<f64>) {
         let (mut ac, info) = Autocorrelation::new(p, &ihc(1000.0, nc)).expect("valid");
         let cycled = chunks.iter().copied().cycle();
-        let all = crate::chunked::feed(&mut ac, x, nc, info.width(), cycled);
+        let all = crate::testing::feed(&mut ac, x, nc, info.width(), cycled);
         (info.lags_s.len(), all)
     }
 
@@ -442,32 +441,20 @@ mod tests {
             Autocorrelation::new(&AutocorrelationParams::default(), &ihc(1000.0, nc))
                 .expect("valid");
         assert!(format!("{ac:?}").contains("fft_len: 64"));
-        let first = crate::chunked::feed(&mut ac, &x, nc, info.width(), [50]);
+        let first = crate::testing::feed(&mut ac, &x, nc, info.width(), [50]);
         ac.reset();
-        let again = crate::chunked::feed(&mut ac, &x, nc, info.width(), [50]);
+        let again = crate::testing::feed(&mut ac, &x, nc, info.width(), [50]);
         assert!(!first.is_empty());
         assert_eq!(first, again);
     }
 
-    /// `real(ifft(|fft(g, L)|^K))` by direct DFTs, independent of the FFT library.
+    /// `real(ifft(|fft(g, L)|^K))` by plain DFTs, independent of the FFT library (the
+    /// inverse of the real, even power spectrum is the real part of its forward DFT / L).
     fn generalised_acf(g: &[f64], l: usize, k: f64) -> Vec<f64> {
-        use std::f64::consts::PI;
-        let power: Vec<f64> = (0..l)
-            .map(|b| {
-                let (re, im) = g.iter().enumerate().fold((0.0, 0.0), |(re, im), (n, v)| {
-                    let a = -2.0 * PI * ((b * n) % l) as f64 / l as f64;
-                    (re + v * a.cos(), im + v * a.sin())
-                });
-                (re * re + im * im).sqrt().powf(k)
-            })
-            .collect();
-        (0..l)
-            .map(|j| {
-                let sum: f64 = (0..l)
-                    .map(|b| power[b] * (2.0 * PI * ((b * j) % l) as f64 / l as f64).cos())
-                    .sum();
-                sum / l as f64
-            })
+        let power: Vec<f64> = plain_dft(g, l).iter().map(|v| v.norm().powf(k)).collect();
+        plain_dft(&power, l)
+            .iter()
+            .map(|v| v.re / l as f64)
             .collect()
     }
 

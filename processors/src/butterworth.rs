@@ -170,7 +170,7 @@ pub static REQUEST: RequestDef = request_def::<Butterworth>();
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::chunked::feed;
+    use crate::testing::feed;
 
     #[test]
     fn specs_match_struct() {

@@ -684,6 +684,7 @@ pub static REQUEST: RequestDef = request_def::<Crosscorrelation>();
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::noise;
 
     /// Parts over channel ranges, joined, give the unsplit output bit for bit, for the
     /// direct method (groups cut where they do not overlap) and the FFT, over chunks
@@ -719,18 +720,11 @@ mod tests {
                 std::ptr::eq(p, &fft),
                 "{nc}"
             );
-            let mut state = 7u64;
-            let mut noise = move || {
-                state = state
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                (state >> 11) as f64 / (1u64 << 53) as f64
-            };
             let mut split: Option<Vec<Part>> = None;
             let mut made = 0;
             for (k, len) in [100, 400, 7, 1000, 3333, 1, 900].into_iter().enumerate() {
-                let l = Block::from_vec((0..len * nc).map(|_| noise()).collect(), nc);
-                let r = Block::from_vec((0..len * nc).map(|_| noise()).collect(), nc);
+                let l = Block::from_vec(noise(len * nc, 2 * k as u64), nc);
+                let r = Block::from_vec(noise(len * nc, 2 * k as u64 + 1), nc);
                 let mut want = vec![Block::new(out_info.width())];
                 whole.process(&[&l, &r], &mut want);
                 // split after the first chunk, so that the parts start from a state

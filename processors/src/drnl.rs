@@ -758,7 +758,7 @@ impl Processor for Drnl {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::chunked::feed;
+    use crate::testing::feed;
     use afe_core::Params;
     use proptest::prelude::*;
     use serde_json::Value;

@@ -436,20 +436,8 @@ pub static REQUEST: RequestDef = request_def::<Duet>();
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::{noise, plain_dft};
     use proptest::prelude::*;
-
-    /// Deterministic noise in [-0.5, 0.5).
-    fn noise(len: usize, seed: u64) -> Vec<f64> {
-        let mut state = seed | 1;
-        (0..len)
-            .map(|_| {
-                state ^= state << 13;
-                state ^= state >> 7;
-                state ^= state << 17;
-                (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-            })
-            .collect()
-    }
 
     /// Runs `duet` over the ears in chunks of the given sizes, then the rest; returns
     /// the joined output.
@@ -559,21 +547,11 @@ mod tests {
             .map(|n| 0.54 - 0.46 * (2.0 * PI * n as f64 / ws as f64).cos())
             .collect();
         let nfft = (2 * ws - 1).next_power_of_two();
-        let twiddle: Vec<Complex64> = (0..nfft)
-            .map(|m| Complex64::from_polar(1.0, -2.0 * PI * m as f64 / nfft as f64))
-            .collect();
-        // A real signal's spectrum is real at Nyquist, exactly so from a real FFT (and the
-        // sign of that zero decides whether arg ρ is π or −π there).
-        let dft = |x: &[f64], start: usize| -> Vec<Complex64> {
-            let mut spectrum: Vec<Complex64> = (0..nfft)
-                .map(|k| {
-                    (0..ws)
-                        .map(|n| twiddle[(k * n) % nfft] * (win[n] * x[start + n]))
-                        .sum()
-                })
-                .collect();
-            spectrum[nfft / 2].im = 0.0;
-            spectrum
+        // Its Nyquist bin is exactly real, as from a real FFT: the sign of that zero
+        // decides whether arg ρ is π or −π there.
+        let dft = |x: &[f64], start: usize| {
+            let frame: Vec<f64> = (0..ws).map(|n| win[n] * x[start + n]).collect();
+            plain_dft(&frame, nfft)
         };
         let frames = (left.len() - hs) / hs;
         let stft: Vec<(Vec<Complex64>, Vec<Complex64>)> = (0..frames)

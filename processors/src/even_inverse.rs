@@ -97,31 +97,14 @@ impl EvenInverse {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::{noise, plain_dft};
 
-    /// `S[m]` by its definition, summed over the whole mirrored spectrum.
+    /// `S[m]` by its definition: the real part of the plain DFT of the whole mirrored
+    /// spectrum (it is even, so its DFT is real).
     fn direct(p: &[f64], count: usize) -> Vec<f64> {
         let n = 2 * (p.len() - 1);
         let full: Vec<f64> = (0..n).map(|k| p[k.min(n - k)]).collect();
-        (0..count)
-            .map(|m| {
-                full.iter()
-                    .enumerate()
-                    .map(|(k, v)| v * (2.0 * PI * ((k * m) % n) as f64 / n as f64).cos())
-                    .sum()
-            })
-            .collect()
-    }
-
-    fn spectrum(len: usize, seed: u64) -> Vec<f64> {
-        let mut s = seed;
-        (0..len)
-            .map(|_| {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                (s >> 11) as f64 / (1u64 << 53) as f64
-            })
-            .collect()
+        plain_dft(&full, n)[..count].iter().map(|v| v.re).collect()
     }
 
     #[test]
@@ -134,7 +117,7 @@ mod tests {
             (12, 7),
             (2, 2),
         ] {
-            let p = spectrum(n / 2 + 1, n as u64);
+            let p = noise(n / 2 + 1, n as u64);
             let mut out = vec![f64::NAN; count];
             EvenInverse::new(n).run(&p, &mut out);
             let want = direct(&p, count);
@@ -151,7 +134,7 @@ mod tests {
     #[test]
     fn agrees_with_a_complex_to_real_fft() {
         let n = 2048;
-        let p = spectrum(n / 2 + 1, 7);
+        let p = noise(n / 2 + 1, 7);
         let ifft = RealFftPlanner::<f64>::new().plan_fft_inverse(n);
         let mut full: Vec<Complex64> = p.iter().map(|&v| Complex64::new(v, 0.0)).collect();
         let mut want = ifft.make_output_vec();

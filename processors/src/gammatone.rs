@@ -405,7 +405,7 @@ mod tests {
         let mut whole = vec![0.0; 1000 * 31];
         gt.filter(&x, &mut whole);
         gt.reset();
-        let chunked = crate::chunked::feed(&mut gt, &x, 1, 31, std::iter::repeat(300));
+        let chunked = crate::testing::feed(&mut gt, &x, 1, 31, std::iter::repeat(300));
         assert_eq!(chunked, whole);
     }
 

@@ -338,9 +338,9 @@ mod tests {
         let info = SignalInfo::time_frequency(16000.0, vec![1000.0, 2000.0]);
         let (mut ihc, _) = Ihc::new(&IhcParams::default(), &info).expect("valid");
         let x = two_tones(64);
-        let first = crate::chunked::feed(&mut ihc, &x, 2, 2, [64]);
+        let first = crate::testing::feed(&mut ihc, &x, 2, 2, [64]);
         ihc.reset();
-        assert_eq!(crate::chunked::feed(&mut ihc, &x, 2, 2, [64]), first);
+        assert_eq!(crate::testing::feed(&mut ihc, &x, 2, 2, [64]), first);
         assert!(format!("{ihc:?}").contains("Dau"));
     }
 

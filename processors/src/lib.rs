@@ -8,8 +8,6 @@ pub mod adaptation;
 pub mod ams_features;
 pub mod autocorrelation;
 pub mod butterworth;
-#[cfg(test)]
-mod chunked;
 mod cpu;
 pub mod crosscorrelation;
 pub mod drnl;
@@ -32,6 +30,8 @@ pub mod ratemap;
 mod registry;
 pub mod spectral_features;
 pub mod stft;
+#[cfg(test)]
+mod testing;
 pub mod transient;
 pub mod transient_map;
 

@@ -534,9 +534,9 @@ mod tests {
             .map(|t| 0.1 + 0.01 * (0.3 * t as f64).sin())
             .collect();
         let (mut pre, _) = PreProc::new(&p, 8000.0, 1).expect("valid");
-        let first = crate::chunked::feed(&mut pre, &x, 1, 1, [3000]);
+        let first = crate::testing::feed(&mut pre, &x, 1, 1, [3000]);
         pre.reset();
-        assert_eq!(crate::chunked::feed(&mut pre, &x, 1, 1, [3000]), first);
+        assert_eq!(crate::testing::feed(&mut pre, &x, 1, 1, [3000]), first);
     }
 
     #[test]
@@ -550,7 +550,7 @@ mod tests {
         let whole = run(&p, std::slice::from_ref(&x), fs);
         // An empty first chunk seeds nothing; the first real chunk covers the seed.
         let (mut pre, _) = PreProc::new(&p, fs, 1).expect("valid");
-        let chunked = crate::chunked::feed(&mut pre, &x, 1, 1, [0, 5000, 11000]);
+        let chunked = crate::testing::feed(&mut pre, &x, 1, 1, [0, 5000, 11000]);
         assert_eq!(chunked, whole[0]);
     }
 

@@ -933,6 +933,7 @@ pub static REQUEST: RequestDef = request_def::<Precedence>();
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::noise;
     use proptest::prelude::*;
 
     #[test]
@@ -942,18 +943,6 @@ mod tests {
 
     fn filterbank(fs: f64, nc: usize) -> SignalInfo {
         SignalInfo::time_frequency(fs, (0..nc).map(|c| 300.0 * (c + 1) as f64).collect())
-    }
-
-    fn noise(len: usize, seed: u64) -> Vec<f64> {
-        let mut state = seed.wrapping_mul(6_364_136_223_846_793_005) | 1;
-        (0..len)
-            .map(|_| {
-                state ^= state << 13;
-                state ^= state >> 7;
-                state ^= state << 17;
-                (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-            })
-            .collect()
     }
 
     /// Runs the model over `[time][channel]` ears `l`, `r` cut into chunks of `chunks`
