@@ -649,6 +649,27 @@ mod tests {
         }
     }
 
+    /// At 4 kHz the decimated rate is 1 kHz, so the default top band (1024 Hz) is above
+    /// its Nyquist frequency: spec 15 weighs only bins `k ≤ nfft/2`, which leaves the
+    /// bands whose lower edge `mc_{j−1} = 4 + 63.75·(j − 1)` Hz is at or above 500 Hz
+    /// (`j ≥ 9`) silent, not an error.
+    #[test]
+    fn lin_bands_above_the_decimated_nyquist_frequency_are_silent() {
+        let p = AmsParams {
+            fb_type: AmsFbType::Lin,
+            ..AmsParams::default()
+        };
+        let (mut ams, info) = AmsFeatures::new(&p, &ihc(4000.0, 2)).expect("valid");
+        assert!(info.mod_cf_hz[14] > 500.0);
+        let out = run(&mut ams, &envelope(8000, 2), 2, &[]);
+        assert!(out.len() >= 2 * 15 * 50, "{} values", out.len());
+        for band in out.chunks_exact(15) {
+            assert!(band[..8].iter().all(|v| v.is_finite() && *v >= 0.0));
+            assert!(band[7] > 0.0, "{band:?}");
+            assert!(band[8..].iter().all(|&v| v == 0.0), "{band:?}");
+        }
+    }
+
     #[test]
     fn bad_parameters_name_themselves() {
         let info = ihc(16000.0, 2);
