@@ -414,7 +414,15 @@ mod tests {
         // w = 8: |j| < 4, 7 taps; w = 8.5: |j| ≤ 4, 9 taps.
         assert_eq!(hann_envelope(8.0).len(), 7);
         assert_eq!(hann_envelope(8.5).len(), 9);
-        assert_eq!(hann_envelope(8.0)[3], 1.0);
+        // Spec N12: a half-width within 1e-9·w above an integer counts as that integer.
+        assert_eq!(hann_envelope(8.0 + 2e-9).len(), 7);
+        assert_eq!(hann_envelope(8.0 + 2e-6).len(), 9);
+        // 0.5·(1 + cos(2πj/8)): 1, ½ ± √2/4, ½ and the first and last ½ − √2/4.
+        let (hi, lo) = (0.5 + 2f64.sqrt() / 4.0, 0.5 - 2f64.sqrt() / 4.0);
+        let want = [lo, 0.5, hi, 1.0, hi, 0.5, lo];
+        for (h, w) in hann_envelope(8.0).iter().zip(want) {
+            assert!((h - w).abs() < 1e-15, "{h} vs {w}");
+        }
     }
 
     #[test]
@@ -468,6 +476,174 @@ mod tests {
         separate.extend(run(&x[25 * k..]));
         assert_eq!(chunked, separate);
         assert_ne!(chunked, run(&x));
+    }
+
+    /// Spec 27 step by step on complex filters: envelope times carrier, DC removal or
+    /// `G + iG`, normalisation by the largest modulus of a plain 2-D DFT, `'same'`
+    /// convolutions summed over the taps that fall on the padded log spectrogram (the
+    /// all-ones ones too), the DC map wherever `Re G` has a negative tap, the kept rows,
+    /// the real part, the crop and the per-row normalisation.
+    fn reference(x: &[f64], k: usize, range_db: f64) -> Vec<f64> {
+        let frames = x.len() / k;
+        let peak = x.iter().fold(0.0f64, |m, v| m.max(*v));
+        let floor = peak * 10f64.powf(-range_db / 10.0);
+        let width = frames + 40;
+        let s: Vec<Vec<f64>> = (0..k)
+            .map(|c| {
+                (0..width)
+                    .map(|t| {
+                        let t = t.clamp(20, frames + 19) - 20;
+                        10.0 * (x[t * k + c] + floor).log10()
+                    })
+                    .collect()
+            })
+            .collect();
+        let spectral = omega_list(0, 3.0 * k as f64);
+        let mut omega_k: Vec<f64> = spectral.iter().map(|v| -v).collect();
+        omega_k.push(0.0);
+        omega_k.extend(spectral.iter().rev());
+        let mut omega_n = vec![0.0];
+        omega_n.extend(omega_list(1, 40.0).iter().rev());
+        let mut features: Vec<Vec<f64>> = Vec::new();
+        for &on in &omega_n {
+            for &ok in &omega_k {
+                if ok < 0.0 && on == 0.0 {
+                    continue;
+                }
+                let (mut wk, mut wn) = (PI / ok.abs() * 3.5, PI / on.abs() * 3.5);
+                let (mut ok, mut on) = (ok, on);
+                if wn > 40.0 {
+                    (wn, on) = (40.0, 0.0);
+                }
+                if wk > 3.0 * k as f64 {
+                    (wk, ok) = (3.0 * k as f64, 0.0);
+                }
+                let (hk, hn) = (hann_envelope(wk), hann_envelope(wn));
+                let (lk, ln) = (hk.len(), hn.len());
+                let (k0, n0) = ((lk + 1) as f64 / 2.0, (ln + 1) as f64 / 2.0);
+                let e: Vec<Vec<f64>> = hk
+                    .iter()
+                    .map(|a| hn.iter().map(|b| a * b).collect())
+                    .collect();
+                let mut g: Vec<Vec<Complex64>> = (0..lk)
+                    .map(|a| {
+                        (0..ln)
+                            .map(|b| {
+                                let phase = on * ((b + 1) as f64 - n0) + ok * ((a + 1) as f64 - k0);
+                                e[a][b] * Complex64::from_polar(1.0, phase)
+                            })
+                            .collect()
+                    })
+                    .collect();
+                let count = (lk * ln) as f64;
+                if on != 0.0 || ok != 0.0 {
+                    let mean_e = e.iter().flatten().sum::<f64>() / count;
+                    let mean_g = g.iter().flatten().sum::<Complex64>() / count;
+                    for (gr, er) in g.iter_mut().zip(&e) {
+                        for (v, ev) in gr.iter_mut().zip(er) {
+                            *v -= ev / mean_e * mean_g;
+                        }
+                    }
+                } else {
+                    g.iter_mut()
+                        .flatten()
+                        .for_each(|v| *v *= Complex64::new(1.0, 1.0));
+                }
+                let mut top = 0.0f64;
+                for u in 0..lk {
+                    for v in 0..ln {
+                        let mut sum = Complex64::new(0.0, 0.0);
+                        for (a, gr) in g.iter().enumerate() {
+                            for (b, gv) in gr.iter().enumerate() {
+                                let turns = (u * a) as f64 / lk as f64 + (v * b) as f64 / ln as f64;
+                                sum += gv * Complex64::from_polar(1.0, -2.0 * PI * turns);
+                            }
+                        }
+                        top = top.max(sum.norm());
+                    }
+                }
+                g.iter_mut().flatten().for_each(|v| *v /= top);
+                let total: f64 = g.iter().flatten().map(|v| v.norm()).sum();
+                let dc = g.iter().flatten().any(|v| v.re < 0.0);
+                // 'same': out[r][t] = Σ G[a][b]·S[r + ⌊Lk/2⌋ − a][t + ⌊Ln/2⌋ − b], zero off S.
+                let conv =
+                    |r: usize, t: usize, f: &dyn Fn(usize, usize, usize, usize) -> Complex64| {
+                        let mut sum = Complex64::new(0.0, 0.0);
+                        for a in 0..lk {
+                            for b in 0..ln {
+                                let (rr, tt) = (
+                                    (r + lk / 2) as isize - a as isize,
+                                    (t + ln / 2) as isize - b as isize,
+                                );
+                                if (0..k as isize).contains(&rr)
+                                    && (0..width as isize).contains(&tt)
+                                {
+                                    sum += f(a, b, rr as usize, tt as usize);
+                                }
+                            }
+                        }
+                        sum
+                    };
+                let step = (lk / 4).max(1);
+                for r in ((k / 2) % step..k).step_by(step) {
+                    let row: Vec<f64> = (20..20 + frames)
+                        .map(|t| {
+                            let f = conv(r, t, &|a, b, rr, tt| g[a][b] * s[rr][tt]);
+                            if !dc {
+                                return f.re;
+                            }
+                            let a_ = |a: usize, b: usize| g[a][b].norm() / total;
+                            let sa = conv(r, t, &|a, b, rr, tt| (a_(a, b) * s[rr][tt]).into());
+                            let ones_a = conv(r, t, &|a, b, _, _| a_(a, b).into());
+                            let ones_g = conv(r, t, &|a, b, _, _| g[a][b]);
+                            (f - sa / ones_a * ones_g).re
+                        })
+                        .collect();
+                    features.push(row);
+                }
+            }
+        }
+        let n = frames as f64;
+        let mut out = vec![0.0; frames * features.len()];
+        for (j, row) in features.iter().enumerate() {
+            let mean = row.iter().sum::<f64>() / n;
+            let sd = (row.iter().map(|v| v * v).sum::<f64>() / n - mean * mean).sqrt();
+            for (t, v) in row.iter().enumerate() {
+                out[t * features.len() + j] = (v - mean) / sd;
+            }
+        }
+        out
+    }
+
+    /// Six channels (spectral filters of 7, 15 and 17 taps, so most reach past the edge
+    /// channels), a ratemap spanning 1e-12 to 1e-2 (the 60-dB floor shapes the quiet
+    /// part), 37 frames. The features are O(1) and differ by at most about 1e-13 (the
+    /// sums run in other orders); the bound is 1e-12.
+    #[test]
+    fn matches_the_spec_written_out() {
+        let (k, frames) = (6, 37);
+        let x: Vec<f64> = (0..frames * k)
+            .map(|i| {
+                let (t, c) = ((i / k) as f64, (i % k) as f64);
+                let level = if (i / k) % 9 < 3 { 1e-12 } else { 1e-2 };
+                level * (1.2 + (0.4 * t + 0.9 * c).sin()) * (1.0 + 0.3 * c)
+            })
+            .collect();
+        let p = GaborParams {
+            max_dynamic_range_db: 60.0,
+        };
+        let (mut g, info) = Gabor::new(&p, &ratemap(k)).expect("valid");
+        let mut out = vec![Block::new(info.width())];
+        g.process(&[&Block::from_vec(x.clone(), k)], &mut out);
+        let want = reference(&x, k, 60.0);
+        assert_eq!(out[0].as_slice().len(), want.len());
+        for (i, (a, b)) in out[0].as_slice().iter().zip(&want).enumerate() {
+            assert!(
+                (a - b).abs() <= 1e-12,
+                "value {i} (feature {}): {a} vs {b}",
+                i % info.width()
+            );
+        }
     }
 
     #[test]
