@@ -761,6 +761,7 @@ mod tests {
     use crate::testing::feed;
     use afe_core::Params;
     use proptest::prelude::*;
+    use realfft::num_complex::Complex64;
     use serde_json::Value;
 
     /// `|H(e^{iω})|` of a section at `f` Hz.
@@ -780,6 +781,21 @@ mod tests {
             (7000.0, 900.0, 44100.0),
         ] {
             let s = gt_section(cf, bw, fs);
+            // Spec 12's coefficients, with g0 from a complex division (2e−13 from the
+            // ratio of two hypots at 80 Hz, where the numerator nearly cancels).
+            let (theta, phi) = (2.0 * PI * cf / fs, 2.0 * PI * bw / fs);
+            let alpha = -(-phi).exp() * theta.cos();
+            let (a1, a2) = (2.0 * alpha, (-2.0 * phi).exp());
+            let z = Complex64::from_polar(1.0, -theta);
+            let g0 = ((1.0 + a1 * z + a2 * z * z) / (1.0 + alpha * z)).norm();
+            let want = [g0, g0 * alpha, 0.0, a1, a2];
+            let got = [s.b[0], s.b[1], s.b[2], s.a[0], s.a[1]];
+            for (g, w) in got.iter().zip(want) {
+                assert!(
+                    (g - w).abs() <= 1e-12 * w.abs(),
+                    "{cf} Hz: {got:?} vs {want:?}"
+                );
+            }
             assert!((gain_at(&s, cf, fs) - 1.0).abs() < 1e-12, "{cf} Hz");
             assert!(gain_at(&s, cf + 3.0 * bw, fs) < 0.5, "{cf} Hz resonates");
             assert_eq!(s.b[2], 0.0);
@@ -790,6 +806,24 @@ mod tests {
     fn lp_sections_are_butterworth_low_passes() {
         for (fc, fs) in [(100.0, 44100.0), (1000.0, 16000.0), (7000.0, 44100.0)] {
             let s = lp_section(fc, fs);
+            // Spec 12: K = cot(π·fc/fs), C = 1/(1 + √2·K + K²), D = 2C(1 − K²),
+            // E = C(1 − √2·K + K²).
+            let k = (PI * fc / fs).tan().recip();
+            let c = 1.0 / (1.0 + 2f64.sqrt() * k + k * k);
+            let want = [
+                c,
+                2.0 * c,
+                c,
+                2.0 * c * (1.0 - k * k),
+                c * (1.0 - 2f64.sqrt() * k + k * k),
+            ];
+            let got = [s.b[0], s.b[1], s.b[2], s.a[0], s.a[1]];
+            for (g, w) in got.iter().zip(want) {
+                assert!(
+                    (g - w).abs() <= 1e-13 * w.abs(),
+                    "{fc} Hz: {got:?} vs {want:?}"
+                );
+            }
             assert!((gain_at(&s, 0.0, fs) - 1.0).abs() < 1e-12);
             assert!(
                 (gain_at(&s, fc, fs) - SQRT_2.recip()).abs() < 1e-12,
@@ -815,6 +849,31 @@ mod tests {
             let nl_fc = 10f64.powf(-0.05252 + 1.01 * f.log10());
             assert!((gain_at(&d.gt_nl, nl_fc, fs) - 1.0).abs() < 1e-12);
         }
+        // Every row of spec 12's CASP table at 500 Hz, and MAP's at 3 kHz.
+        let p10 = |x: f64| 10f64.powf(x);
+        let lf = 500f64.log10();
+        let (lin_fc, nl_fc) = (p10(-0.06762 + 1.01 * lf), p10(-0.05252 + 1.01 * lf));
+        let casp = ChannelDesign {
+            lin_gain: p10(4.20405 - 0.47909 * lf),
+            gt_lin: gt_section(lin_fc, p10(0.03728 + 0.75 * lf), fs),
+            lp_lin: Some(lp_section(lin_fc, fs)),
+            gt_nl: gt_section(nl_fc, p10(-0.03193 + 0.70 * lf), fs),
+            lp_nl: Some(lp_section(nl_fc, fs)),
+            compression: (p10(1.40298 + 0.81916 * lf), p10(1.61912 - 0.81867 * lf)),
+        };
+        assert_eq!(casp_channel(500.0, fs), casp);
+        let ct_bm = 1e-9 * p10(25.0 / 20.0);
+        let map = ChannelDesign {
+            lin_gain: 500.0,
+            gt_lin: gt_section(0.62 * 3000.0 + 266.0, 0.2 * 3000.0 + 235.0, fs),
+            lp_lin: None,
+            gt_nl: gt_section(3000.0, 0.14 * 3000.0 + 180.0, fs),
+            lp_nl: None,
+            compression: (4000.0, ct_bm / 4000.0),
+        };
+        assert_eq!(map_channel(3000.0, fs), map);
+        assert_eq!(map_threshold(), ct_bm);
+        assert!((casp_exponent() - 0.25).abs() < 6e-9 && casp_exponent() != 0.25);
         let below = casp_channel(1000.0, fs).compression;
         let above = casp_channel(1000.001, fs).compression;
         assert!((below.0 - 10f64.powf(1.40298 + 0.81916 * 3.0)).abs() < 1e-9 * below.0);
@@ -931,6 +990,40 @@ mod tests {
             section(lp, &mut nl);
         }
         lin.iter().zip(&nl).map(|(l, n)| l + n).collect()
+    }
+
+    /// MAP's input scaling and middle ear as spec 12 writes them: `x1 = 20·x`, the TM
+    /// low-pass `y[n] = b0·x1[n] − a1·y[n−1]` and the stapes high-pass
+    /// `s[n] = G·y[n] − G·y[n−1] + Hc·s[n−1]`, times 45e−9; in two calls (its states carry
+    /// over).
+    #[test]
+    fn maps_middle_ear_follows_the_spec_equations() {
+        for fs in [44100.0, 16000.0] {
+            let x = signal(1200);
+            let dt = 1.0 / fs;
+            let a1 = dt * 2.0 * PI * 50.0 - 1.0;
+            let b0 = 1.0 + a1;
+            let t = (PI * 1000.0 / fs).tan();
+            let (g, hc) = (1.0 / (1.0 + t), (1.0 - t) / (1.0 + t));
+            let (mut y_prev, mut s_prev) = (0.0, 0.0);
+            let want: Vec<f64> = x
+                .iter()
+                .map(|v| {
+                    let y = b0 * 20.0 * v - a1 * y_prev;
+                    let s = g * y - g * y_prev + hc * s_prev;
+                    (y_prev, s_prev) = (y, s);
+                    45e-9 * s
+                })
+                .collect();
+            let mut me = MapMiddleEar::new(fs);
+            let mut got = vec![0.0; x.len()];
+            me.run(&x[..500], &mut got[..500]);
+            me.run(&x[500..], &mut got[500..]);
+            let top = want.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            for (n, (a, b)) in got.iter().zip(&want).enumerate() {
+                assert!((a - b).abs() <= 1e-12 * top, "{fs} Hz, n = {n}: {a} vs {b}");
+            }
+        }
     }
 
     #[test]
