@@ -63,8 +63,8 @@ struct Filter {
     half_n: usize,
     /// `Re G`, `[2·half_k + 1][2·half_n + 1]`.
     real: Vec<f64>,
-    /// `|G|/Σ|G|` (same layout) when the AFE subtracts a DC map, i.e. when `Re G` has a
-    /// negative tap.
+    /// `|G|` (same layout; the AFE's `|G|/Σ|G|` up to a scale the map cancels) when the
+    /// AFE subtracts a DC map, i.e. when `Re G` has a negative tap.
     dc_weights: Option<Vec<f64>>,
     /// Kept channels and, per channel, the sums of `Re G` and of the DC weights over the
     /// taps that fall on the spectrogram (the all-ones convolutions of the DC map).
@@ -126,26 +126,27 @@ fn design(mut omega_k: f64, mut omega_n: f64, channels: usize) -> Filter {
             e * Complex64::new(0.0, omega_n * n + omega_k * k).exp()
         })
         .collect();
-    let count = g.len() as f64;
+    // The pure DC filter (both frequencies 0) becomes `G + iG` in spec 27: that changes
+    // only its imaginary part, which neither its features (real) nor its DC test (its
+    // real part, the envelope, is positive) read, so only the other filters change here.
     if omega_n != 0.0 || omega_k != 0.0 {
+        let count = g.len() as f64;
         let mean_e = envelope.iter().sum::<f64>() / count;
         let mean_g = g.iter().sum::<Complex64>() / count;
         for (v, e) in g.iter_mut().zip(&envelope) {
             *v -= (e / mean_e) * mean_g;
-        }
-    } else {
-        for v in g.iter_mut() {
-            *v += Complex64::new(0.0, 1.0) * *v;
         }
     }
     // Spec 27 divides G by the largest modulus of its 2-D DFT. That scales every feature
     // of the filter by one positive factor, which the per-chunk normalisation (step 8)
     // removes again, and leaves the sign test and the DC weights as they are: skipped.
     let real: Vec<f64> = g.iter().map(|v| v.re).collect();
-    let dc_weights = real.iter().any(|v| *v < 0.0).then(|| {
-        let total: f64 = g.iter().map(|v| v.norm()).sum();
-        g.iter().map(|v| v.norm() / total).collect::<Vec<f64>>()
-    });
+    // Spec 27 weighs the DC map by `|G|/Σ|G|`; the map divides by the same weights'
+    // all-ones convolution, so their scale cancels and `|G|` serves.
+    let dc_weights = real
+        .iter()
+        .any(|v| *v < 0.0)
+        .then(|| g.iter().map(|v| v.norm()).collect::<Vec<f64>>());
     let step = (lk / 4).max(1);
     let rows = ((channels / 2) % step..channels)
         .step_by(step)
