@@ -187,7 +187,7 @@ const LN1P: [f64; 9] = [
 ];
 
 /// `ln x` for `x ≥ 0` within 4e−8 for normal `x` (finite for 0, subnormals and ∞):
-/// exponent and mantissa from the bits, the mantissa `m` brought into [√½, √2), and
+/// exponent and mantissa from the bits, the mantissa `m` brought into (√½, √2], and
 /// `ln m` by the polynomial [`LN1P`] in `m − 1` (no division: the divider is busy with
 /// the square roots).
 #[inline(always)]
@@ -1130,6 +1130,19 @@ mod tests {
         let mut fed = [0.0; 8];
         fed[4..].fill(1.0);
         d.receive_feedback(&Block::from_vec(fed.to_vec(), 4));
+        // anything but two rows of four (no frame from the MOC this chunk, another
+        // width) leaves the gains as they are
+        for other in [
+            Block::new(4),
+            Block::from_vec(vec![0.5; 4], 4),
+            Block::from_vec(vec![0.5; 8], 2),
+        ] {
+            d.receive_feedback(&other);
+            assert_eq!(
+                (d.moc_ipsi(), d.moc_contra()),
+                (&[0.0; 4][..], &[1.0; 4][..])
+            );
+        }
         let mut z = vec![0.0; x.len() * nc];
         d.filter(&x, &mut z);
         assert_eq!(z, y);
