@@ -773,6 +773,17 @@ mod tests {
         num / den
     }
 
+    /// Asserts `b0, b1, b2, a1, a2` of the section at `f` Hz each within `rel` of `want`.
+    fn assert_coefficients(s: &Biquad, want: [f64; 5], rel: f64, f: f64) {
+        let got = [s.b[0], s.b[1], s.b[2], s.a[0], s.a[1]];
+        for (g, w) in got.iter().zip(want) {
+            assert!(
+                (g - w).abs() <= rel * w.abs(),
+                "{f} Hz: {got:?} vs {want:?}"
+            );
+        }
+    }
+
     #[test]
     fn gt_sections_have_unity_gain_at_their_centre() {
         for (cf, bw, fs) in [
@@ -788,14 +799,7 @@ mod tests {
             let (a1, a2) = (2.0 * alpha, (-2.0 * phi).exp());
             let z = Complex64::from_polar(1.0, -theta);
             let g0 = ((1.0 + a1 * z + a2 * z * z) / (1.0 + alpha * z)).norm();
-            let want = [g0, g0 * alpha, 0.0, a1, a2];
-            let got = [s.b[0], s.b[1], s.b[2], s.a[0], s.a[1]];
-            for (g, w) in got.iter().zip(want) {
-                assert!(
-                    (g - w).abs() <= 1e-12 * w.abs(),
-                    "{cf} Hz: {got:?} vs {want:?}"
-                );
-            }
+            assert_coefficients(&s, [g0, g0 * alpha, 0.0, a1, a2], 1e-12, cf);
             assert!((gain_at(&s, cf, fs) - 1.0).abs() < 1e-12, "{cf} Hz");
             assert!(gain_at(&s, cf + 3.0 * bw, fs) < 0.5, "{cf} Hz resonates");
             assert_eq!(s.b[2], 0.0);
@@ -809,21 +813,9 @@ mod tests {
             // Spec 12: K = cot(π·fc/fs), C = 1/(1 + √2·K + K²), D = 2C(1 − K²),
             // E = C(1 − √2·K + K²).
             let k = (PI * fc / fs).tan().recip();
-            let c = 1.0 / (1.0 + 2f64.sqrt() * k + k * k);
-            let want = [
-                c,
-                2.0 * c,
-                c,
-                2.0 * c * (1.0 - k * k),
-                c * (1.0 - 2f64.sqrt() * k + k * k),
-            ];
-            let got = [s.b[0], s.b[1], s.b[2], s.a[0], s.a[1]];
-            for (g, w) in got.iter().zip(want) {
-                assert!(
-                    (g - w).abs() <= 1e-13 * w.abs(),
-                    "{fc} Hz: {got:?} vs {want:?}"
-                );
-            }
+            let c = 1.0 / (1.0 + SQRT_2 * k + k * k);
+            let (d, e) = (2.0 * c * (1.0 - k * k), c * (1.0 - SQRT_2 * k + k * k));
+            assert_coefficients(&s, [c, 2.0 * c, c, d, e], 1e-13, fc);
             assert!((gain_at(&s, 0.0, fs) - 1.0).abs() < 1e-12);
             assert!(
                 (gain_at(&s, fc, fs) - SQRT_2.recip()).abs() < 1e-12,
