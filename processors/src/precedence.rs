@@ -935,6 +935,7 @@ mod tests {
     use super::*;
     use crate::testing::noise;
     use proptest::prelude::*;
+    use std::f64::consts::PI;
 
     #[test]
     fn specs_match_struct() {
@@ -1135,6 +1136,331 @@ mod tests {
         assert!(ild.iter().all(|v| v.is_nan()));
         assert!(itd.iter().all(|v| *v == -16.0 / fs));
         assert!(cc.iter().all(|v| *v == 0.0));
+    }
+
+    /// `Σ_n a[n + m]·b[n]` for `m = −max_lag..=max_lag`, zero where the signals do not
+    /// overlap (spec 01-P7 `calcXCorr` with `'none'` scaling), summed term by term.
+    fn direct_xcorr(a: &[f64], b: &[f64], max_lag: usize) -> Vec<f64> {
+        let max_lag = max_lag as isize;
+        (-max_lag..=max_lag)
+            .map(|m| {
+                (0..b.len() as isize)
+                    .filter(|&n| n + m >= 0 && ((n + m) as usize) < a.len())
+                    .map(|n| a[(n + m) as usize] * b[n as usize])
+                    .sum()
+            })
+            .collect()
+    }
+
+    /// The largest value and its first index (the values here are never NaN).
+    fn first_largest(x: &[f64]) -> (f64, usize) {
+        let mut best = (x[0], 0);
+        for (i, &v) in x.iter().enumerate() {
+            if v > best.0 {
+                best = (v, i);
+            }
+        }
+        best
+    }
+
+    /// Spec 29 written out with plain loops, over `[time][channel]` ears with centre
+    /// frequencies `cfs`: autocorrelations and every cross-correlation summed directly,
+    /// the `S` and `L` signals built per channel and summed over channels afterwards.
+    /// Returns ITD, ILD and CC joined, and the LLAR mode (0-based) of each frame.
+    fn spec_reference(fs: f64, cfs: &[f64], ears: [&[f64]; 2]) -> ([Vec<f64>; 3], Vec<usize>) {
+        let nc = cfs.len();
+        let w = 2 * (0.02 * fs / 2.0).round() as usize;
+        let h = (0.01 * fs).round() as usize;
+        let max_lag = (0.001 * fs).ceil() as usize;
+        let ac_lag = (0.01 * fs).round() as usize;
+        let main_peak_width = (0.75 * fs / 1000.0).floor() as usize;
+        let cc_lag = (fs / 1000.0).ceil() as usize;
+        let fr = (fs / 1000.0).round() as usize;
+        let win: Vec<f64> = (0..w)
+            .map(|k| 0.5 * (1.0 - (2.0 * PI * (k + 1) as f64 / (w + 1) as f64).cos()))
+            .collect();
+        // a(τ) at 1-based τ
+        let decay = |tau: usize| {
+            if tau <= 6 * fr {
+                1.0
+            } else if tau <= 20 * fr {
+                (1.0 - (tau - 6 * fr - 1) as f64 / (14 * fr - 1) as f64).powi(4)
+            } else {
+                0.0
+            }
+        };
+        let largest = |x: &[f64]| first_largest(x).0;
+        let sum_rows = |rows: &[Vec<f64>]| -> Vec<f64> {
+            (0..rows[0].len())
+                .map(|i| rows.iter().map(|r| r[i]).sum())
+                .collect()
+        };
+        let frames = (ears[0].len() / nc - w) / h + 1;
+        let mut ac = vec![vec![Vec::new(); nc]; 2];
+        let mut cc_modes = vec![Vec::new(); 4];
+        let mut out: [Vec<f64>; 3] = Default::default();
+        let mut modes = Vec::new();
+        for t in 0..frames {
+            // [ear][variant: S, L][channel]
+            let mut variants = [[Vec::new(), Vec::new()], [Vec::new(), Vec::new()]];
+            for (e, ear) in ears.iter().enumerate() {
+                let x: Vec<Vec<f64>> = (0..nc)
+                    .map(|n| (0..w).map(|k| win[k] * ear[(t * h + k) * nc + n]).collect())
+                    .collect();
+                // A1: the work array, raw on the first frame
+                let mut a = Vec::new();
+                for n in 0..nc {
+                    let r = direct_xcorr(&x[n], &x[n], ac_lag);
+                    let weight = 1.0 / cfs[n].max(100.0);
+                    if t == 0 {
+                        ac[e][n] = r.iter().map(|v| v * weight).collect();
+                        a.push(r);
+                    } else {
+                        for (s, v) in ac[e][n].iter_mut().zip(&r) {
+                            *s += v * weight;
+                        }
+                        a.push(ac[e][n].clone());
+                    }
+                }
+                // A2, A3
+                let top = 20.0 * largest(&x.concat()).abs().log10();
+                let bandwidth = x
+                    .iter()
+                    .filter(|xn| 20.0 * largest(xn).abs().log10() - top > -12.0)
+                    .count();
+                if bandwidth <= 5 {
+                    for n in 0..nc {
+                        let whole = largest(&a.concat());
+                        let m = largest(&a[n]);
+                        if 20.0 * (m / whole).log10() > -60.0 {
+                            a[n].iter_mut().for_each(|v| *v /= m);
+                        } else {
+                            a[n].fill(0.0);
+                        }
+                    }
+                }
+                // A4 to A6
+                let s = sum_rows(&a);
+                let (side, j) = first_largest(&s[ac_lag + main_peak_width..]);
+                let tau = (main_peak_width + j).min(100 * fr);
+                let q = (side / largest(&s)).clamp(0.0, 0.5);
+                let k = (0..=100)
+                    .find(|&k| {
+                        let b = k as f64 / 100.0;
+                        b / (1.0 + b * b) >= q
+                    })
+                    .unwrap_or(100);
+                let b = (k as f64 / 100.0).min(0.9);
+                let at = decay(tau);
+                // A7
+                for xn in &x {
+                    let mut s = vec![0.0; w + 5 * tau];
+                    let mut y = vec![0.0; w + 5 * tau];
+                    for q in 0..6 {
+                        let short = (-b * at).powi(q as i32);
+                        let sign = if q % 2 == 1 { 1.0 } else { -1.0 };
+                        let long = sign * b.powi(6 - q as i32) * at.powi(5 - q as i32);
+                        for (k, v) in xn.iter().enumerate() {
+                            s[q * tau + k] += v * short;
+                            y[q * tau + k] += v * long;
+                        }
+                    }
+                    variants[e][0].push(s);
+                    variants[e][1].push(y[6 * tau..].to_vec());
+                }
+            }
+            // B
+            let table = [(0, 0), (1, 1), (0, 1), (1, 0)];
+            for (m, &(vl, vr)) in table.iter().enumerate() {
+                let c = direct_xcorr(
+                    &sum_rows(&variants[0][vl]),
+                    &sum_rows(&variants[1][vr]),
+                    cc_lag,
+                );
+                if t == 0 {
+                    cc_modes[m] = c;
+                } else {
+                    cc_modes[m].iter_mut().zip(&c).for_each(|(a, v)| *a += v);
+                }
+            }
+            let maxima: Vec<f64> = cc_modes.iter().map(|c| largest(c)).collect();
+            let mode = first_largest(&maxima).1;
+            modes.push(mode);
+            // C
+            let (vl, vr) = table[mode];
+            let (b1, b2, b3) = (-0.0938272, 0.000112586, -0.0000000399154);
+            for n in 0..nc {
+                let (xl, xr) = (&variants[0][vl][n], &variants[1][vr][n]);
+                let (sl, sr): (f64, f64) = (
+                    xl.iter().map(|v| v * v).sum(),
+                    xr.iter().map(|v| v * v).sum(),
+                );
+                let (el, er) = ((sl / xl.len() as f64).sqrt(), (sr / xr.len() as f64).sqrt());
+                let (level, en) = if el > 0.0 && er > 0.0 {
+                    (20.0 * (er / el).log10(), el * er)
+                } else {
+                    (0.0, 0.0)
+                };
+                let f = cfs[n].min(1200.0);
+                let wn = 10f64.powf((-b1 * f - b2 * f * f - b3 * f * f * f) / 10.0) / 276.0;
+                let row: Vec<f64> = direct_xcorr(xl, xr, max_lag)
+                    .iter()
+                    .map(|v| wn * (v / (f64::EPSILON + (sl * sr).sqrt())))
+                    .collect();
+                let lag = first_largest(&row).1;
+                out[0].push((lag as f64 - max_lag as f64) / fs);
+                out[1].push(level * en / en);
+                out[2].extend(row);
+            }
+        }
+        (out, modes)
+    }
+
+    /// Test ears: the same noise in both, channel `n` at `levels[n]`, each ear delayed by
+    /// `delays` samples and with an echo `(delay in samples, relative level)` of its own;
+    /// the right ear at half the level.
+    struct Scene<'a> {
+        levels: &'a [f64],
+        delays: [usize; 2],
+        echoes: [(usize, f64); 2],
+    }
+
+    impl Scene<'_> {
+        /// The `[time][channel]` left and right ears, `len` samples long.
+        fn ears(&self, len: usize) -> (Vec<f64>, Vec<f64>) {
+            let nc = self.levels.len();
+            let mut ears = (vec![0.0; len * nc], vec![0.0; len * nc]);
+            let ([dl, dr], [(el, gl), (er, gr)]) = (self.delays, self.echoes);
+            for (n, level) in self.levels.iter().enumerate() {
+                let src = noise(len, 40 + n as u64);
+                let at = |t: usize, d: usize| if t >= d { src[t - d] } else { 0.0 };
+                for t in 0..len {
+                    ears.0[t * nc + n] = level * (at(t, dl) + gl * at(t, dl + el));
+                    ears.1[t * nc + n] = 0.5 * level * (at(t, dr) + gr * at(t, dr + er));
+                }
+            }
+            ears
+        }
+    }
+
+    #[test]
+    fn the_model_follows_spec_29_written_out() {
+        let fs = 16000.0;
+        let len = 2400;
+        // Four channels (the per-channel normalisation; one at −20 dB is scaled, one at
+        // −80 dB zeroed), eight of equal level (the summary path), five (the largest
+        // bandwidth normalised per channel), and interaural delays and echoes under
+        // which each LLAR mode is selected, the last changing mode from frame to frame.
+        let scenes = [
+            Scene {
+                levels: &[1.0, 0.7, 0.1, 1e-4],
+                delays: [0, 4],
+                echoes: [(48, 0.7), (90, 0.5)],
+            },
+            Scene {
+                levels: &[1.0; 8],
+                delays: [0, 4],
+                echoes: [(48, 0.7), (90, 0.5)],
+            },
+            Scene {
+                levels: &[1.0, 0.8, 0.9, 0.7, 0.6],
+                delays: [0, 30],
+                echoes: [(0, 0.0), (30, 0.9)],
+            },
+            Scene {
+                levels: &[1.0, 0.8, 0.9],
+                delays: [30, 0],
+                echoes: [(30, 0.9), (0, 0.0)],
+            },
+            Scene {
+                levels: &[1.0, 0.8, 0.9],
+                delays: [0, 20],
+                echoes: [(30, 0.6), (60, 0.6)],
+            },
+            Scene {
+                levels: &[1.0, 0.8, 0.9],
+                delays: [0, 100],
+                echoes: [(20, 0.9), (80, 0.9)],
+            },
+        ];
+        let mut seen_modes = Vec::new();
+        for scene in scenes {
+            let nc = scene.levels.len();
+            let cfs: Vec<f64> = (0..nc).map(|n| 80.0 + 210.0 * n as f64).collect();
+            let info = SignalInfo::time_frequency(fs, cfs.clone());
+            let (l, r) = scene.ears(len);
+            let (want, modes) = spec_reference(fs, &cfs, [&l, &r]);
+            let got = run(&PrecedenceParams::default(), &info, (&l, &r), &[1000, 1400]);
+            seen_modes.extend(modes);
+            // Bounds: the FFT correlations against direct sums measure 2e-14 dB (ILD) and
+            // 3e-15 of a row's largest value (CC).
+            assert_eq!(got[0], want[0], "ITD, {nc} channels");
+            assert_eq!((got[1].len(), got[2].len()), (want[1].len(), want[2].len()));
+            for (i, (g, v)) in got[1].iter().zip(&want[1]).enumerate() {
+                assert!((g - v).abs() <= 1e-13, "ILD cell {i}: {g} vs {v} dB");
+            }
+            let nl = 33;
+            for (i, (g, v)) in got[2].chunks(nl).zip(want[2].chunks(nl)).enumerate() {
+                let top = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+                for (a, b) in g.iter().zip(v) {
+                    assert!((a - b).abs() <= 1e-13 * top, "CC row {i}: {a} vs {b}");
+                }
+            }
+        }
+        seen_modes.sort_unstable();
+        seen_modes.dedup();
+        assert_eq!(seen_modes, [0, 1, 2, 3], "every LLAR mode is selected");
+    }
+    #[test]
+    fn reset_starts_the_cumulative_state_afresh() {
+        let (fs, nc, len) = (16000.0, 3, 1500);
+        let info = filterbank(fs, nc);
+        let p = PrecedenceParams::default();
+        let (l, r) = Scene {
+            levels: &[1.0, 0.8, 0.9],
+            delays: [0, 20],
+            echoes: [(30, 0.6), (60, 0.6)],
+        }
+        .ears(len);
+        let (l2, r2) = Scene {
+            levels: &[0.3, 1.0, 0.5],
+            delays: [0, 4],
+            echoes: [(48, 0.7), (90, 0.5)],
+        }
+        .ears(len);
+        let (mut prec, infos) = Precedence::new(&p, &info).expect("valid");
+        let mut outs: Vec<Block> = infos.iter().map(|i| Block::new(i.width())).collect();
+        let block = |x: &[f64], rows: usize| Block::from_vec(x[..rows * nc].to_vec(), nc);
+        // a first stream, cut mid-frame, then the second from the start
+        prec.process(&[&block(&l, 1000), &block(&r, 1000)], &mut outs);
+        prec.reset();
+        prec.process(&[&block(&l2, len), &block(&r2, len)], &mut outs);
+        let fresh = run(&p, &info, (&l2, &r2), &[len]);
+        for (o, f) in outs.iter().zip(&fresh) {
+            assert_eq!(o.as_slice(), &f[..]);
+        }
+        let debug = format!("{prec:?}");
+        assert!(
+            debug.contains("window: 320") && debug.contains("fft_len: 640"),
+            "{debug}"
+        );
+    }
+
+    #[test]
+    fn transform_lengths_are_the_smallest_of_four_families() {
+        // 2W − 1 at 16, 44.1 and 48 kHz (5·2^7, 7·2^8, 2^11), then 2^10 and 3·2^8
+        // exactly, and one above 3·2^8 (7·2^7)
+        let cases = [
+            (639, 640),
+            (1763, 1792),
+            (1919, 2048),
+            (1024, 1024),
+            (768, 768),
+            (769, 896),
+        ];
+        for (n, want) in cases {
+            assert_eq!(fft_len(n), want, "{n}");
+        }
     }
 
     #[test]
