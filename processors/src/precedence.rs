@@ -131,10 +131,11 @@ struct Ear {
     /// Largest windowed value of each channel, then largest value of each
     /// autocorrelation row.
     peaks: Vec<f64>,
-    /// Autocorrelation rows for the per-channel normalisation, `[channel][lag]`
-    /// (`2·acLag + 1` lags).
+    /// Autocorrelation rows for the per-channel normalisation, `[channel][lag]`, lags
+    /// `0..=acLag`: the rows are even, and only their maximum (at lag 0) and the lags
+    /// from `mainPeakWidth` on are read, so the negative half is left out.
     rows: Vec<f64>,
-    /// Summary autocorrelation, `2·acLag + 1` lags.
+    /// Summary autocorrelation, lags `0..=acLag`.
     sacf: Vec<f64>,
     /// Sum of the windowed frame over the channels, and its spectrum.
     sum: Vec<f64>,
@@ -498,8 +499,8 @@ impl Precedence {
             power: vec![0.0; nc * bins],
             summary: vec![0.0; bins],
             peaks: vec![0.0; nc],
-            rows: vec![0.0; nc * (2 * ac_lag + 1)],
-            sacf: vec![0.0; 2 * ac_lag + 1],
+            rows: vec![0.0; nc * (ac_lag + 1)],
+            sacf: vec![0.0; ac_lag + 1],
             sum: vec![0.0; w],
             sum_spectrum: vec![Complex64::default(); bins],
             sum_short: vec![0.0; longest],
@@ -592,7 +593,7 @@ impl Model {
             let power = &mut ear.power[c * bins..(c + 1) * bins];
             accumulate_power(spec, power, &mut ear.summary, self.ac_weight[c], first);
         }
-        let nl = 2 * self.ac_lag + 1;
+        let nl = self.ac_lag + 1;
         let scale = 1.0 / nfft as f64;
         if per_channel {
             // Per-channel rows (the raw autocorrelation on the first frame), each scaled
@@ -633,7 +634,7 @@ impl Model {
             self.fft_buf.inverse_lags(&*self.ifft, scale, &mut ear.sacf);
         }
         let total = first_max(&ear.sacf).0;
-        let (side, j) = first_max(&ear.sacf[self.ac_lag + self.main_peak_width..]);
+        let (side, j) = first_max(&ear.sacf[self.main_peak_width..]);
         let tau = (self.main_peak_width + j).min(self.decay.len());
         let b = peak_ratio(side / total).min(0.9);
         ear.lag = LagRemoval::new(tau, b, self.decay[tau - 1]);
@@ -792,17 +793,13 @@ struct FftBuffers {
 }
 
 impl FftBuffers {
-    /// The inverse transform of the (real) spectrum, scaled by `scale`, as lags `−n..n`
-    /// into `out` (`2n + 1` values): lag `ℓ ≥ 0` at `time[ℓ]`, `−ℓ` at `time[nfft − ℓ]`.
+    /// The inverse transform of the (real) spectrum, scaled by `scale`, at lags
+    /// `0..out.len()` into `out`.
     fn inverse_lags(&mut self, ifft: &dyn ComplexToReal<f64>, scale: f64, out: &mut [f64]) {
-        let n = out.len() / 2;
-        let nfft = self.time.len();
         // A real spectrum of the planned length: the transform cannot fail.
         let _ = ifft.process_with_scratch(&mut self.spectrum, &mut self.time, &mut self.scratch);
-        out[n] = self.time[0] * scale;
-        for l in 1..=n {
-            out[n + l] = self.time[l] * scale;
-            out[n - l] = self.time[nfft - l] * scale;
+        for (o, t) in out.iter_mut().zip(&self.time) {
+            *o = t * scale;
         }
     }
 
@@ -862,7 +859,8 @@ fn conj_product(fa: &[Complex64], fb: &[Complex64], out: &mut [Complex64]) {
 )]
 fn short_xcorr(r: &[f64], ll: &LagRemoval, lr: &LagRemoval, out: &mut [f64]) {
     let span = r.len() as isize;
-    let (half, nl) = ((span - 1) / 2, out.len() as isize);
+    // `r` holds 2W − 1 lags, lag 0 at W − 1
+    let (half, nl) = (span / 2, out.len() as isize);
     let max_lag = nl / 2;
     out.fill(0.0);
     for q in 0..TAPS {
@@ -1164,14 +1162,20 @@ mod tests {
     }
 
     /// Spec 29 written out with plain loops, over `[time][channel]` ears with centre
-    /// frequencies `cfs`: autocorrelations and every cross-correlation summed directly,
+    /// frequencies `cfs` and `prec_maxDelaySec` `max_delay_sec`: autocorrelations and
+    /// every cross-correlation summed directly,
     /// the `S` and `L` signals built per channel and summed over channels afterwards.
     /// Returns ITD, ILD and CC joined, and the LLAR mode (0-based) of each frame.
-    fn spec_reference(fs: f64, cfs: &[f64], ears: [&[f64]; 2]) -> ([Vec<f64>; 3], Vec<usize>) {
+    fn spec_reference(
+        fs: f64,
+        cfs: &[f64],
+        ears: [&[f64]; 2],
+        max_delay_sec: f64,
+    ) -> ([Vec<f64>; 3], Vec<usize>) {
         let nc = cfs.len();
         let w = 2 * (0.02 * fs / 2.0).round() as usize;
         let h = (0.01 * fs).round() as usize;
-        let max_lag = (0.001 * fs).ceil() as usize;
+        let max_lag = (max_delay_sec * fs).ceil() as usize;
         let ac_lag = (0.01 * fs).round() as usize;
         let main_peak_width = (0.75 * fs / 1000.0).floor() as usize;
         let cc_lag = (fs / 1000.0).ceil() as usize;
@@ -1347,10 +1351,14 @@ mod tests {
     fn the_model_follows_spec_29_written_out() {
         let fs = 16000.0;
         let len = 2400;
-        // Four channels (the per-channel normalisation; one at −20 dB is scaled, one at
-        // −80 dB zeroed), eight of equal level (the summary path), five (the largest
-        // bandwidth normalised per channel), and interaural delays and echoes under
-        // which each LLAR mode is selected, the last changing mode from frame to frame.
+        // The per-channel normalisation (four channels: one at −20 dB is scaled, one at
+        // −80 dB zeroed; eight of which three lie within 12 dB of the loudest; five, the
+        // largest such bandwidth), the summary path (eight of equal level), both again at
+        // −40 dB (the bandwidth and the 60-dB test are relative: a first channel 25 dB
+        // down, 50 dB in power, is kept), an echo where the decay weight is below 1 (130 samples, 8 ms), an
+        // interaural lag at the edge of the mode search (16 samples), and delays and
+        // echoes under which each LLAR mode is selected, the last changing mode from
+        // frame to frame.
         let scenes = [
             Scene {
                 levels: &[1.0, 0.7, 0.1, 1e-4],
@@ -1361,6 +1369,26 @@ mod tests {
                 levels: &[1.0; 8],
                 delays: [0, 4],
                 echoes: [(48, 0.7), (90, 0.5)],
+            },
+            Scene {
+                levels: &[1.0, 0.9, 0.05, 0.05, 1.0, 0.05, 0.05, 0.05],
+                delays: [0, 4],
+                echoes: [(48, 0.7), (90, 0.5)],
+            },
+            Scene {
+                levels: &[0.01; 8],
+                delays: [0, 4],
+                echoes: [(48, 0.7), (130, 0.7)],
+            },
+            Scene {
+                levels: &[5.6e-4, 0.01, 0.008, 0.009],
+                delays: [0, 4],
+                echoes: [(48, 0.7), (90, 0.5)],
+            },
+            Scene {
+                levels: &[1.0, 0.8, 0.9],
+                delays: [16, 0],
+                echoes: [(40, 0.3), (60, 0.3)],
             },
             Scene {
                 levels: &[1.0, 0.8, 0.9, 0.7, 0.6],
@@ -1389,21 +1417,28 @@ mod tests {
             let cfs: Vec<f64> = (0..nc).map(|n| 80.0 + 210.0 * n as f64).collect();
             let info = SignalInfo::time_frequency(fs, cfs.clone());
             let (l, r) = scene.ears(len);
-            let (want, modes) = spec_reference(fs, &cfs, [&l, &r]);
-            let got = run(&PrecedenceParams::default(), &info, (&l, &r), &[1000, 1400]);
-            seen_modes.extend(modes);
-            // Bounds: the FFT correlations against direct sums measure 2e-14 dB (ILD) and
-            // 3e-15 of a row's largest value (CC).
-            assert_eq!(got[0], want[0], "ITD, {nc} channels");
-            assert_eq!((got[1].len(), got[2].len()), (want[1].len(), want[2].len()));
-            for (i, (g, v)) in got[1].iter().zip(&want[1]).enumerate() {
-                assert!((g - v).abs() <= 1e-13, "ILD cell {i}: {g} vs {v} dB");
-            }
-            let nl = 33;
-            for (i, (g, v)) in got[2].chunks(nl).zip(want[2].chunks(nl)).enumerate() {
-                let top = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-                for (a, b) in g.iter().zip(v) {
-                    assert!((a - b).abs() <= 1e-13 * top, "CC row {i}: {a} vs {b}");
+            // the default lag range, and one beyond the window's end for every lag delay
+            for max_delay_sec in [0.001, 0.015] {
+                let (want, modes) = spec_reference(fs, &cfs, [&l, &r], max_delay_sec);
+                let p = PrecedenceParams {
+                    max_delay_sec,
+                    ..Default::default()
+                };
+                let got = run(&p, &info, (&l, &r), &[1000, 1400]);
+                seen_modes.extend(modes);
+                // Bounds: the FFT correlations against direct sums measure 2e-14 dB (ILD)
+                // and 3e-15 of a row's largest value (CC).
+                assert_eq!(got[0], want[0], "ITD, {nc} channels");
+                assert_eq!((got[1].len(), got[2].len()), (want[1].len(), want[2].len()));
+                for (i, (g, v)) in got[1].iter().zip(&want[1]).enumerate() {
+                    assert!((g - v).abs() <= 1e-13, "ILD cell {i}: {g} vs {v} dB");
+                }
+                let nl = 2 * (max_delay_sec * fs).ceil() as usize + 1;
+                for (i, (g, v)) in got[2].chunks(nl).zip(want[2].chunks(nl)).enumerate() {
+                    let top = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+                    for (a, b) in g.iter().zip(v) {
+                        assert!((a - b).abs() <= 1e-13 * top, "CC row {i}: {a} vs {b}");
+                    }
                 }
             }
         }
