@@ -1355,10 +1355,11 @@ mod tests {
         // −80 dB zeroed; eight of which three lie within 12 dB of the loudest; five, the
         // largest such bandwidth), the summary path (eight of equal level), both again at
         // −40 dB (the bandwidth and the 60-dB test are relative: a first channel 25 dB
-        // down, 50 dB in power, is kept), an echo where the decay weight is below 1 (130 samples, 8 ms), an
-        // interaural lag at the edge of the mode search (16 samples), and delays and
-        // echoes under which each LLAR mode is selected, the last changing mode from
-        // frame to frame.
+        // down, 50 dB in power, is kept), echoes where the decay weight is below 1 (130
+        // samples, 8 ms) and at the end of the lag search (160 samples), an interaural
+        // lag at the edge of the mode search (16 samples, which a 16-sample echo's `L`
+        // signal brings to lag 0 in another mode), and delays and echoes under which each
+        // LLAR mode is selected, the last changing mode from frame to frame.
         let scenes = [
             Scene {
                 levels: &[1.0, 0.7, 0.1, 1e-4],
@@ -1383,12 +1384,12 @@ mod tests {
             Scene {
                 levels: &[5.6e-4, 0.01, 0.008, 0.009],
                 delays: [0, 4],
-                echoes: [(48, 0.7), (90, 0.5)],
+                echoes: [(48, 0.7), (160, 0.6)],
             },
             Scene {
                 levels: &[1.0, 0.8, 0.9],
                 delays: [16, 0],
-                echoes: [(40, 0.3), (60, 0.3)],
+                echoes: [(16, 0.8), (0, 0.0)],
             },
             Scene {
                 levels: &[1.0, 0.8, 0.9, 0.7, 0.6],
