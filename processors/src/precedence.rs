@@ -1162,10 +1162,10 @@ mod tests {
     }
 
     /// Spec 29 written out with plain loops, over `[time][channel]` ears with centre
-    /// frequencies `cfs` and `prec_maxDelaySec` `max_delay_sec`: autocorrelations and
-    /// every cross-correlation summed directly,
-    /// the `S` and `L` signals built per channel and summed over channels afterwards.
-    /// Returns ITD, ILD and CC joined, and the LLAR mode (0-based) of each frame.
+    /// frequencies `cfs` and a `prec_maxDelaySec` of `max_delay_sec` (s): autocorrelations
+    /// and every cross-correlation summed directly, the `S` and `L` signals built per
+    /// channel and summed over channels afterwards. Returns ITD, ILD and CC joined, and
+    /// the LLAR mode (0-based) of each frame.
     fn spec_reference(
         fs: f64,
         cfs: &[f64],
