@@ -1447,6 +1447,7 @@ mod tests {
         seen_modes.dedup();
         assert_eq!(seen_modes, [0, 1, 2, 3], "every LLAR mode is selected");
     }
+
     #[test]
     fn reset_starts_the_cumulative_state_afresh() {
         let (fs, nc, len) = (16000.0, 3, 1500);
