@@ -7,8 +7,8 @@
 //! `C[m] = ½P[0] + ½(−1)^m P[M] + Σ_{j=1}^{M−1} P[j]·cos(πjm/M)`. With
 //! `v[j] = P[j] + P[M − j]`, `w[j] = P[j] − P[M − j]` and `u[j] = ½v[j] + sin(πj/M)·w[j]`
 //! (`j < M`), the `M`-point DFT `U` of `u` gives the even terms, `C[2k] = Re U[k]`, and the
-//! differences of the odd ones, `C[2k + 1] − C[2k − 1] = Im U[k]`, from
-//! `C[1] = ½·Σ_{j<M} w[j]·cos(πj/M)`: `v` is symmetric about `M/2` and `sin(πj/M)·w[j]`
+//! differences of the odd ones, `C[2k + 1] − C[2k − 1] = Im U[k]`, from `C[1]` (the
+//! definition at `m = 1`): `v` is symmetric about `M/2` and `sin(πj/M)·w[j]`
 //! antisymmetric, so each lands in one part of `U`.
 
 use std::f64::consts::PI;
@@ -20,9 +20,9 @@ use realfft::{RealFftPlanner, RealToComplex};
 /// A planned inverse of length `N` for real, even spectra, with its buffers.
 pub struct EvenInverse {
     fft: Arc<dyn RealToComplex<f64>>,
-    /// `sin(πj/M)` and `½·cos(πj/M)`, `j < M`.
+    /// `sin(πj/M)` and `cos(πj/M)`, `j < M`.
     sin: Vec<f64>,
-    half_cos: Vec<f64>,
+    cos: Vec<f64>,
     u: Vec<f64>,
     spectrum: Vec<Complex64>,
     scratch: Vec<Complex64>,
@@ -51,7 +51,7 @@ impl EvenInverse {
         let angle = |j: usize| PI * j as f64 / m as f64;
         EvenInverse {
             sin: (0..m).map(|j| angle(j).sin()).collect(),
-            half_cos: (0..m).map(|j| 0.5 * angle(j).cos()).collect(),
+            cos: (0..m).map(|j| angle(j).cos()).collect(),
             u: fft.make_input_vec(),
             spectrum: fft.make_output_vec(),
             scratch: fft.make_scratch_vec(),
@@ -61,37 +61,76 @@ impl EvenInverse {
 
     /// From `p`, the spectrum's first half `P[0..=M]` (`M = N/2`; the rest is its mirror
     /// image), writes `S[m] = Σₖ P[k]·e^{2πikm/N}` for `m < out.len()` (at most `M + 1`),
-    /// unnormalised as a complex-to-real FFT's output.
+    /// unnormalised as a complex-to-real FFT's output. Inlined so that its loops get the
+    /// caller's vector width.
     ///
     /// # Panics
     /// If `p` does not hold `M + 1` values or `out` more than `M + 1`.
+    #[inline(always)]
     pub fn run(&mut self, p: &[f64], out: &mut [f64]) {
         let m = self.u.len();
         assert_eq!(p.len(), m + 1, "the spectrum's first half, M + 1 values");
         assert!(out.len() <= m + 1, "at most M + 1 values of the inverse");
-        let mut c1 = 0.0;
-        for (j, u) in self.u.iter_mut().enumerate() {
-            let (a, b) = (p[j], p[m - j]);
-            let w = a - b;
-            *u = 0.5 * (a + b) + self.sin[j] * w;
-            c1 += self.half_cos[j] * w;
+        // `P[M − j]` for `j < M`: `p[1..]` backwards.
+        let mirrored = p[..m].iter().zip(p[1..].iter().rev());
+        for ((u, (&a, &b)), s) in self.u.iter_mut().zip(mirrored).zip(&self.sin) {
+            *u = 0.5 * (a + b) + s * (a - b);
         }
+        // C[1] by its definition.
+        let c1 = 0.5 * (p[0] - p[m]) + dot(&p[1..m], &self.cos[1..]);
         // Lengths match by construction, so the FFT cannot fail.
         let _ = self
             .fft
             .process_with_scratch(&mut self.u, &mut self.spectrum, &mut self.scratch);
-        let mut odd = c1;
-        for (k, pair) in out.chunks_mut(2).enumerate() {
-            let u = self.spectrum[k];
-            if k > 0 {
-                odd += u.im;
-            }
-            pair[0] = 2.0 * u.re;
-            if let Some(o) = pair.get_mut(1) {
-                *o = 2.0 * odd;
+        for (o, u) in out.iter_mut().step_by(2).zip(&self.spectrum) {
+            *o = 2.0 * u.re;
+        }
+        // C[2k + 1] = C[1] + Σ_{0 < i ≤ k} Im U[i], in blocks summed side by side.
+        let odd = out.len() / 2;
+        let step = odd.div_ceil(BLOCKS).max(1);
+        let mut start = [0.0; BLOCKS];
+        start[0] = c1;
+        for b in 1..BLOCKS {
+            let terms = self
+                .spectrum
+                .get(((b - 1) * step).max(1)..(b * step).min(odd));
+            let sum: f64 = terms.unwrap_or_default().iter().map(|u| u.im).sum();
+            start[b] = start[b - 1] + sum;
+        }
+        for i in 0..step {
+            for (b, acc) in start.iter_mut().enumerate() {
+                let k = b * step + i;
+                if k < odd {
+                    if k > 0 {
+                        *acc += self.spectrum[k].im;
+                    }
+                    out[2 * k + 1] = 2.0 * *acc;
+                }
             }
         }
     }
+}
+
+/// Blocks of the odd outputs' running sum, so that their additions overlap.
+const BLOCKS: usize = 4;
+
+/// `Σ a[i]·b[i]` over eight running sums, so that it vectorises.
+#[inline(always)]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let (a8, b8) = (a.chunks_exact(8), b.chunks_exact(8));
+    let rest: f64 = a8
+        .remainder()
+        .iter()
+        .zip(b8.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    let mut acc = [0.0; 8];
+    for (x, y) in a8.zip(b8) {
+        for ((s, x), y) in acc.iter_mut().zip(x).zip(y) {
+            *s += x * y;
+        }
+    }
+    acc.iter().sum::<f64>() + rest
 }
 
 #[cfg(test)]
