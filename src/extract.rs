@@ -45,23 +45,40 @@ pub fn run(job: &Job, fs: f64, channels: &[&[f64]]) -> Result<Recorder> {
 /// requests of `job` are added to it. Chunks are pipelined: chunk k+1 is submitted before
 /// the output of chunk k is collected, so the concurrent scheduler can overlap them.
 pub fn run_with(mgr: &mut Manager, job: &Job, channels: &[&[f64]]) -> Result<Recorder> {
+    let mut rec = Recorder::new(job.all);
+    rec.expect_input(channels.first().map_or(0, |c| c.len() as u64));
+    run_slices_into(mgr, job, channels, &mut rec)?;
+    Ok(rec)
+}
+
+/// As [`run_with`], handing each chunk's output to `sink`.
+pub fn run_slices_into<S: Sink>(
+    mgr: &mut Manager,
+    job: &Job,
+    channels: &[&[f64]],
+    sink: &mut S,
+) -> std::result::Result<(), S::Error> {
     let len = channels.first().map_or(0, |c| c.len());
     if channels.iter().any(|c| c.len() != len) {
-        return Err(Error::InvalidInput(
-            "the channels have different lengths".into(),
-        ));
+        return Err(Error::InvalidInput("the channels have different lengths".into()).into());
     }
     let mut pos = 0;
-    record_known_length(mgr, job, channels.len(), len as u64, |frames, out| {
-        let end = pos + frames.min(len - pos);
-        for (o, c) in out.iter_mut().zip(channels) {
-            o.clear();
-            o.extend_from_slice(&c[pos..end]);
-        }
-        let got = end - pos;
-        pos = end;
-        Ok(got)
-    })
+    run_into(
+        mgr,
+        job,
+        channels.len(),
+        |frames, out| {
+            let end = pos + frames.min(len - pos);
+            for (o, c) in out.iter_mut().zip(channels) {
+                o.clear();
+                o.extend_from_slice(&c[pos..end]);
+            }
+            let got = end - pos;
+            pos = end;
+            Ok(got)
+        },
+        sink,
+    )
 }
 
 /// Computes `job` on the WAV file `wav` with `mgr` (made for its rate and channels),
@@ -113,6 +130,35 @@ impl Sink for Recorder {
     fn whole(&mut self, manager: &mut Manager) -> Result<()> {
         self.record_whole(manager);
         Ok(())
+    }
+}
+
+/// A sink that looks at each chunk's output and keeps only its size, as a live consumer
+/// that hands each chunk on would: what `afe bench --discard` times.
+#[derive(Debug, Default)]
+pub struct Discard {
+    values: usize,
+}
+
+impl Discard {
+    /// Output values seen so far, over every requested signal.
+    pub fn values(&self) -> usize {
+        self.values
+    }
+}
+
+impl Sink for Discard {
+    type Error = Error;
+
+    fn chunk(&mut self, manager: &Manager) -> Result<()> {
+        for s in manager.signals(false) {
+            self.values += std::hint::black_box(s.new.as_slice()).len();
+        }
+        Ok(())
+    }
+
+    fn whole(&mut self, manager: &mut Manager) -> Result<()> {
+        self.chunk(manager)
     }
 }
 

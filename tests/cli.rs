@@ -519,6 +519,31 @@ fn threads_trace_and_bench() {
     assert_eq!(b["chunk"], 441);
     assert!(b["x_realtime"].as_f64().expect("number") > 0.0);
     assert!(b["wall_seconds_median"].as_f64().expect("number") > 0.0);
+    assert_eq!(b["outputs"], "kept");
+    // with --discard every chunk's output is still computed and seen, then dropped
+    for chunk in ["441", "1000000"] {
+        let out = afe(&[
+            "bench",
+            w,
+            "-r",
+            "ild",
+            "--chunk",
+            chunk,
+            "--repeat",
+            "1",
+            "--discard",
+            "--json",
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let d: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+        assert_eq!(d["outputs"], "discarded");
+        assert_eq!(d["output_values"], b["output_values"], "chunk {chunk}");
+    }
+    assert!(b["output_values"].as_u64().expect("count") > 0);
     // `afe bench ... | head` ends quietly too
     let stderr = with_stdout_closed(&["bench", w, "-r", "ild", "--repeat", "1", "--json"]);
     assert!(!stderr.contains("panicked"), "{stderr}");

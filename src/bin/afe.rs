@@ -8,7 +8,7 @@ use std::io::{IsTerminal, Write as _};
 use std::time::{Duration, Instant};
 
 use afe::bass_source::Pacing;
-use afe::extract::{run_wav, run_with, Job};
+use afe::extract::{run_slices_into, run_wav, run_with, Discard, Job};
 use afe::output::OutputFile;
 use afe::stream::{SourceSpec, StreamJob, StreamReport};
 use afe::wav::{Audio, WavBlocks};
@@ -78,6 +78,11 @@ enum Command {
         /// Number of timed runs (the median is reported), at most 100000.
         #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u64).range(1..=100_000))]
         repeat: u64,
+        /// Drop each chunk's output once computed, as a live consumer would, instead of
+        /// keeping the whole signal's output in memory as `afe extract` does: times the
+        /// processing without the first writes to the output's memory.
+        #[arg(long)]
+        discard: bool,
         /// Print the result as one JSON object.
         #[arg(long)]
         json: bool,
@@ -428,6 +433,7 @@ fn main() -> ExitCode {
             chunk,
             threads,
             repeat,
+            discard,
             json,
         } => requests.load().and_then(|(requests, params)| {
             let job = Job {
@@ -437,7 +443,7 @@ fn main() -> ExitCode {
                 all: false,
                 threads: threads.count(),
             };
-            bench(&input, &job, repeat as usize, json)
+            bench(&input, &job, repeat as usize, discard, json)
         }),
         Command::Devices => devices(),
         Command::Batch {
@@ -960,27 +966,39 @@ fn plot(
     Ok(())
 }
 
-fn bench(input: &Path, job: &Job, repeat: usize, as_json: bool) -> Result<(), CliError> {
+fn bench(
+    input: &Path,
+    job: &Job,
+    repeat: usize,
+    discard: bool,
+    as_json: bool,
+) -> Result<(), CliError> {
     let audio = read_input(input)?;
     let refs: Vec<&[f64]> = audio.channels.iter().map(Vec::as_slice).collect();
     let seconds = refs[0].len() as f64 / audio.fs;
     let mut times = Vec::with_capacity(repeat);
+    let mut values = 0;
     for _ in 0..repeat {
         let mut mgr = Manager::with_threads(audio.fs, refs.len(), job.threads)?;
         for r in &job.requests {
             mgr.add_request(r, &job.params)?;
         }
+        let added = Job {
+            requests: Vec::new(),
+            ..job.clone()
+        };
         let start = Instant::now();
-        let rec = run_with(
-            &mut mgr,
-            &Job {
-                requests: Vec::new(),
-                ..job.clone()
-            },
-            &refs,
-        )?;
-        times.push(start.elapsed().as_secs_f64());
-        std::hint::black_box(rec);
+        if discard {
+            let mut sink = Discard::default();
+            run_slices_into(&mut mgr, &added, &refs, &mut sink)?;
+            times.push(start.elapsed().as_secs_f64());
+            values = sink.values();
+        } else {
+            let rec = run_with(&mut mgr, &added, &refs)?;
+            times.push(start.elapsed().as_secs_f64());
+            values = rec.signals().iter().map(|s| s.data.as_slice().len()).sum();
+            std::hint::black_box(rec);
+        }
     }
     times.sort_by(f64::total_cmp);
     let median = times[times.len() / 2];
@@ -994,17 +1012,20 @@ fn bench(input: &Path, job: &Job, repeat: usize, as_json: bool) -> Result<(), Cl
         "threads": job.threads,
         "chunk": job.chunk,
         "repeat": repeat,
+        "outputs": if discard { "discarded" } else { "kept" },
+        "output_values": values,
     });
     if as_json {
         outln!("{result}");
     } else {
         outln!(
-            "{:.3} s of audio in {:.4} s (median of {repeat}): {:.1}x real time, threads {}, chunk {}",
+            "{:.3} s of audio in {:.4} s (median of {repeat}): {:.1}x real time, threads {}, chunk {}, {values} output values {}",
             seconds,
             median,
             seconds / median,
             job.threads,
-            job.chunk.map_or("whole signal".to_string(), |c| format!("{c} samples"))
+            job.chunk.map_or("whole signal".to_string(), |c| format!("{c} samples")),
+            if discard { "discarded" } else { "kept" }
         );
     }
     Ok(())
