@@ -9,6 +9,7 @@ use afe_core::erb::linspace;
 use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
 
+use crate::exp::exp;
 use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// A named parameter preset of the AFE (`adpt_model`), which overrides `adpt_lim`,
@@ -142,6 +143,10 @@ pub struct Adaptation {
     /// Loop feedback coefficient `a1 = exp(−1/(τ·fs))` and input gain `1 − a1`, per loop.
     a1: Vec<f64>,
     b0: Vec<f64>,
+    /// Frequency channels; the per-channel vectors below have `lanes` entries per row,
+    /// the channels padded to whole SIMD steps with neutral values.
+    channels: usize,
+    lanes: usize,
     /// Per channel: the floor, and the output offset and scale `(v − corr)·mult`.
     min_level: Vec<f64>,
     corr: Vec<f64>,
@@ -152,6 +157,23 @@ pub struct Adaptation {
     limit: Option<Limit>,
     /// Loop states, `[loop][channel]`.
     state: Vec<f64>,
+    /// The sample being adapted, one value per lane.
+    row: Vec<f64>,
+}
+
+/// Channels per SIMD step of [`adapt`].
+const STEP: usize = 8;
+
+/// `values`, rows of `channels` entries, with each row padded to `lanes` by `fill`.
+fn padded(values: &[f64], channels: usize, lanes: usize, fill: f64) -> Vec<f64> {
+    values
+        .chunks(channels.max(1))
+        .flat_map(|row| {
+            row.iter()
+                .copied()
+                .chain(std::iter::repeat_n(fill, lanes - row.len()))
+        })
+        .collect()
 }
 
 impl Adaptation {
@@ -209,7 +231,7 @@ impl Adaptation {
             .iter()
             .map(|m| m.powf(1.0 / 2f64.powi(loops as i32)))
             .collect();
-        let mult = corr.iter().map(|c| 100.0 / (1.0 - c)).collect();
+        let mult: Vec<f64> = corr.iter().map(|c| 100.0 / (1.0 - c)).collect();
         let limit = if p.lim > 1.0 {
             let constants: Vec<[f64; 3]> = initial
                 .iter()
@@ -235,15 +257,27 @@ impl Adaptation {
         } else {
             None
         };
+        let nc = input.channels();
+        let lanes = nc.max(1).next_multiple_of(STEP);
+        // Padding lanes hold 1: divided by a state of 1 they stay 1, below the limitation.
+        let pad = |v: &[f64], fill| padded(v, nc, lanes, fill);
+        let initial = pad(&initial, 1.0);
         let adaptation = Adaptation {
             a1,
             b0,
-            min_level,
-            corr,
-            mult,
+            channels: nc,
+            lanes,
+            min_level: pad(&min_level, 1.0),
+            corr: pad(&corr, 0.0),
+            mult: pad(&mult, 1.0),
             state: initial.clone(),
             initial,
-            limit,
+            limit: limit.map(|l| Limit {
+                f: pad(&l.f, 0.0),
+                ex: pad(&l.ex, 0.0),
+                off: pad(&l.off, 0.0),
+            }),
+            row: vec![1.0; lanes],
         };
         Ok((adaptation, input.clone()))
     }
@@ -271,8 +305,9 @@ struct Limit {
 }
 
 /// Runs the loops over `input` (`[time][channel]`) into `out`. Each step is a pass over
-/// the channels of one sample, so the divisions and state updates vectorise; the
-/// overshoot limitation, whose `exp` only applies above 1, is a pass of its own.
+/// the lanes of one sample, eight at a time, so that the divisions, state updates and the
+/// overshoot limitation (computed for the eight lanes where one of them is above 1, kept
+/// where the value is) vectorise.
 #[cfg_attr(
     not(feature = "no-avx512"),
     multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2+fma"))
@@ -282,34 +317,44 @@ struct Limit {
     multiversion::multiversion(targets("x86_64+avx2+fma"))
 )]
 fn adapt(a: &mut Adaptation, input: &[f64], out: &mut [f64]) {
-    let nc = a.min_level.len().max(1);
+    let (nc, lanes) = (a.channels.max(1), a.lanes);
     for (x, y) in input.chunks_exact(nc).zip(out.chunks_exact_mut(nc)) {
-        for ((v, &x), &m) in y.iter_mut().zip(x).zip(&a.min_level) {
+        for ((v, &x), &m) in a.row.iter_mut().zip(x).zip(&a.min_level) {
             *v = x.max(m);
         }
-        for (j, states) in a.state.chunks_exact_mut(nc).enumerate() {
-            let (a1, b0) = (a.a1[j], a.b0[j]);
-            for (v, s) in y.iter_mut().zip(states.iter()) {
-                *v /= *s;
-            }
-            if let Some(l) = &a.limit {
-                let at = j * nc..(j + 1) * nc;
-                let lanes = l.f[at.clone()]
-                    .iter()
-                    .zip(&l.ex[at.clone()])
-                    .zip(&l.off[at]);
-                for (v, ((f, ex), off)) in y.iter_mut().zip(lanes) {
-                    if *v > 1.0 {
-                        *v = f / (1.0 + (ex * (*v - 1.0)).exp()) - off;
+        // Eight lanes at a time through every loop, in registers (local arrays alias
+        // nothing, so that they vectorise).
+        for (k, lane) in a.row.chunks_exact_mut(STEP).enumerate() {
+            let mut v = [0.0; STEP];
+            v.copy_from_slice(lane);
+            for (j, (&a1, &b0)) in a.a1.iter().zip(&a.b0).enumerate() {
+                let at = j * lanes + k * STEP..j * lanes + (k + 1) * STEP;
+                let mut s = [0.0; STEP];
+                s.copy_from_slice(&a.state[at.clone()]);
+                for (v, s) in v.iter_mut().zip(&s) {
+                    *v /= s;
+                }
+                if let Some(l) = &a.limit {
+                    if v.iter().fold(false, |any, v| any | (*v > 1.0)) {
+                        let (mut f, mut ex, mut off) = ([0.0; STEP], [0.0; STEP], [0.0; STEP]);
+                        f.copy_from_slice(&l.f[at.clone()]);
+                        ex.copy_from_slice(&l.ex[at.clone()]);
+                        off.copy_from_slice(&l.off[at.clone()]);
+                        for (v, ((f, ex), off)) in v.iter_mut().zip(f.iter().zip(&ex).zip(&off)) {
+                            let limited = f / (1.0 + exp(ex * (*v - 1.0))) - off;
+                            *v = if *v > 1.0 { limited } else { *v };
+                        }
                     }
                 }
+                for (s, v) in s.iter_mut().zip(&v) {
+                    *s = a1 * *s + b0 * v;
+                }
+                a.state[at].copy_from_slice(&s);
             }
-            for (s, v) in states.iter_mut().zip(y.iter()) {
-                *s = a1 * *s + b0 * *v;
-            }
+            lane.copy_from_slice(&v);
         }
-        for ((v, c), m) in y.iter_mut().zip(&a.corr).zip(&a.mult) {
-            *v = (*v - c) * m;
+        for (((y, v), c), m) in y.iter_mut().zip(&a.row).zip(&a.corr).zip(&a.mult) {
+            *y = (v - c) * m;
         }
     }
 }

@@ -13,6 +13,7 @@ pub mod crosscorrelation;
 pub mod drnl;
 pub mod duet;
 mod even_inverse;
+mod exp;
 pub mod filterbank;
 mod framed;
 pub mod gabor;
