@@ -544,6 +544,17 @@ fn threads_trace_and_bench() {
         assert_eq!(d["output_values"], b["output_values"], "chunk {chunk}");
     }
     assert!(b["output_values"].as_u64().expect("count") > 0);
+    // pitch depends on chunk boundaries: the whole signal goes through in one call
+    let values = |discard: &[&str]| {
+        let mut args = vec!["bench", w, "-r", "pitch", "--repeat", "1", "--json"];
+        args.extend_from_slice(discard);
+        let out = afe(&args);
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+        v["output_values"].as_u64().expect("count")
+    };
+    let kept = values(&[]);
+    assert!(kept > 0);
+    assert_eq!(values(&["--discard"]), kept);
     // `afe bench ... | head` ends quietly too
     let stderr = with_stdout_closed(&["bench", w, "-r", "ild", "--repeat", "1", "--json"]);
     assert!(!stderr.contains("panicked"), "{stderr}");
