@@ -85,15 +85,14 @@ impl EvenInverse {
         for (o, u) in out.iter_mut().step_by(2).zip(&self.spectrum) {
             *o = 2.0 * u.re;
         }
-        // C[2k + 1] = C[1] + Σ_{0 < i ≤ k} Im U[i], in blocks summed side by side.
+        // C[2k + 1] = C[1] + Σ_{0 < i ≤ k} Im U[i], in blocks summed side by side; U[0] is
+        // real (its imaginary part an exact 0), so the sums may start at i = 0.
         let odd = out.len() / 2;
         let step = odd.div_ceil(BLOCKS).max(1);
         let mut start = [0.0; BLOCKS];
         start[0] = c1;
         for b in 1..BLOCKS {
-            let terms = self
-                .spectrum
-                .get(((b - 1) * step).max(1)..(b * step).min(odd));
+            let terms = self.spectrum.get((b - 1) * step..(b * step).min(odd));
             let sum: f64 = terms.unwrap_or_default().iter().map(|u| u.im).sum();
             start[b] = start[b - 1] + sum;
         }
@@ -101,9 +100,7 @@ impl EvenInverse {
             for (b, acc) in start.iter_mut().enumerate() {
                 let k = b * step + i;
                 if k < odd {
-                    if k > 0 {
-                        *acc += self.spectrum[k].im;
-                    }
+                    *acc += self.spectrum[k].im;
                     out[2 * k + 1] = 2.0 * *acc;
                 }
             }
