@@ -1002,6 +1002,7 @@ fn bench(
     }
     times.sort_by(f64::total_cmp);
     let median = times[times.len() / 2];
+    let outputs = if discard { "discarded" } else { "kept" };
     let result = json!({
         "input": input.display().to_string(),
         "requests": job.requests,
@@ -1012,20 +1013,19 @@ fn bench(
         "threads": job.threads,
         "chunk": job.chunk,
         "repeat": repeat,
-        "outputs": if discard { "discarded" } else { "kept" },
+        "outputs": outputs,
         "output_values": values,
     });
     if as_json {
         outln!("{result}");
     } else {
         outln!(
-            "{:.3} s of audio in {:.4} s (median of {repeat}): {:.1}x real time, threads {}, chunk {}, {values} output values {}",
+            "{:.3} s of audio in {:.4} s (median of {repeat}): {:.1}x real time, threads {}, chunk {}, {values} output values {outputs}",
             seconds,
             median,
             seconds / median,
             job.threads,
-            job.chunk.map_or("whole signal".to_string(), |c| format!("{c} samples")),
-            if discard { "discarded" } else { "kept" }
+            job.chunk.map_or("whole signal".to_string(), |c| format!("{c} samples"))
         );
     }
     Ok(())
