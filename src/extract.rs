@@ -1,7 +1,7 @@
 //! Running a set of requests over a whole signal, whole or in chunks.
 
-use afe_core::{Error, ParamMap, Result};
-use afe_graph::Manager;
+use afe_core::{Block, Error, ParamMap, Result};
+use afe_graph::{Manager, OutputRef};
 
 use crate::recorder::Recorder;
 use crate::wav::WavBlocks;
@@ -117,6 +117,15 @@ pub trait Sink {
     /// Takes the output of a whole-signal call ([`Manager::process_signal`]), which it may
     /// move out of `manager`.
     fn whole(&mut self, manager: &mut Manager) -> std::result::Result<(), Self::Error>;
+    /// Whether a whole-signal call hands this sink the requested outputs it computes in
+    /// blocks as they come ([`Sink::block`], see [`Manager::process_signal_streaming`])
+    /// rather than joined, in [`Sink::whole`], with the others.
+    fn streams(&self) -> bool {
+        false
+    }
+    /// Takes one block of the requested output `source` during a whole-signal call, where
+    /// the sink [`Sink::streams`].
+    fn block(&mut self, _source: OutputRef, _block: &Block) {}
 }
 
 impl Sink for Recorder {
@@ -133,8 +142,9 @@ impl Sink for Recorder {
     }
 }
 
-/// A sink that looks at each chunk's output and keeps only its size, as a live consumer
-/// that hands each chunk on would: what `afe bench --discard` times.
+/// A sink that looks at each chunk's output (and each block streamed from a whole-signal
+/// call) and keeps only its size, as a live consumer that hands it on would: what
+/// `afe bench --discard` times.
 #[derive(Debug, Default)]
 pub struct Discard {
     values: usize,
@@ -159,6 +169,14 @@ impl Sink for Discard {
 
     fn whole(&mut self, manager: &mut Manager) -> Result<()> {
         self.chunk(manager)
+    }
+
+    fn streams(&self) -> bool {
+        true
+    }
+
+    fn block(&mut self, _source: OutputRef, block: &Block) {
+        self.values += std::hint::black_box(block.as_slice()).len();
     }
 }
 
@@ -220,7 +238,11 @@ pub fn run_into<S: Sink>(
                 return Err(empty().into());
             }
             let refs: Vec<&[f64]> = buf.iter().map(Vec::as_slice).collect();
-            mgr.process_signal(&refs)?;
+            if sink.streams() {
+                mgr.process_signal_streaming(&refs, &mut |r, b| sink.block(r, b))?;
+            } else {
+                mgr.process_signal(&refs)?;
+            }
             return sink.whole(mgr);
         }
         // blocks give one call's output, the first holding the AGC's seeding time

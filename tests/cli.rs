@@ -544,9 +544,10 @@ fn threads_trace_and_bench() {
         assert_eq!(d["output_values"], b["output_values"], "chunk {chunk}");
     }
     assert!(b["output_values"].as_u64().expect("count") > 0);
-    // pitch depends on chunk boundaries: the whole signal goes through in one call
+    // pitch depends on chunk boundaries: the whole signal goes through in one call, the
+    // ratemap in blocks (handed on as they come with --discard)
     let values = |discard: &[&str]| {
-        let mut args = vec!["bench", w, "-r", "pitch", "--repeat", "1", "--json"];
+        let mut args = vec!["bench", w, "-r", "pitch,ratemap", "--repeat", "1", "--json"];
         args.extend_from_slice(discard);
         let out = afe(&args);
         let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");

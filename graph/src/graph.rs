@@ -206,8 +206,15 @@ impl Graph {
     /// once): the nodes whose whole chain is
     /// chunk-invariant run in blocks of `block` samples (bit-identical to one call, with
     /// the intermediate signals in cache), then every other node runs once, in order, on
-    /// its parents' joined outputs, as the AFE's `processSignal` calls it.
-    pub fn run_whole(&mut self, signal: &[&[f64]], block: usize, whole: &mut [Vec<Option<Block>>]) {
+    /// its parents' joined outputs, as the AFE's `processSignal` calls it. Each block of
+    /// an invariant node's output that `whole` does not join goes to `each_block`.
+    pub fn run_whole(
+        &mut self,
+        signal: &[&[f64]],
+        block: usize,
+        whole: &mut [Vec<Option<Block>>],
+        each_block: &mut dyn FnMut(OutputRef, &Block),
+    ) {
         let invariant = self.invariant_nodes();
         let absorbing = self.absorbing_nodes(&invariant);
         let len = signal.first().map_or(0, |c| c.len());
@@ -222,9 +229,11 @@ impl Graph {
                     if i > 0 {
                         self.run_node(i);
                     }
-                    for (acc, out) in whole[i].iter_mut().zip(&self.nodes[i].outputs) {
-                        if let Some(acc) = acc {
-                            acc.extend_from(out);
+                    let outputs = whole[i].iter_mut().zip(&self.nodes[i].outputs);
+                    for (output, (acc, out)) in outputs.enumerate() {
+                        match acc {
+                            Some(acc) => acc.extend_from(out),
+                            None => each_block(OutputRef { node: i, output }, out),
                         }
                     }
                 }

@@ -17,7 +17,7 @@ mod wakeup;
 pub use engine::{is_worker_thread, MAX_THREADS};
 pub use graph::{Channel, OutputRef};
 pub use manager::{
-    check_parameter_names, Manager, RequestHandle, Signal, MAX_PREPARED_CHUNK, WHOLE_SIGNAL_BLOCK,
-    WHOLE_SIGNAL_LIMIT_MB,
+    check_parameter_names, BlockSink, Manager, RequestHandle, Signal, MAX_PREPARED_CHUNK,
+    WHOLE_SIGNAL_BLOCK, WHOLE_SIGNAL_LIMIT_MB,
 };
 pub use trace::{chrome_trace, TraceEvent};

@@ -114,6 +114,10 @@ pub struct Manager {
     clocks: Vec<Vec<FrameClock>>,
 }
 
+/// Where a streamed whole-signal call hands each block of an output
+/// ([`Manager::process_signal_streaming`]).
+pub type BlockSink<'a> = dyn FnMut(OutputRef, &Block) + 'a;
+
 /// The frame count of one output, for the index and time of each chunk's first frame.
 #[derive(Debug, Clone, Copy, Default)]
 struct FrameClock {
@@ -466,7 +470,7 @@ impl Manager {
     /// computes whole (requested outputs aside), and the nodes that take it whole.
     fn one_call_bytes(&self, len: usize) -> (f64, Vec<&'static str>) {
         let invariant = self.graph.invariant_nodes();
-        let kept = self.kept_outputs(&invariant);
+        let kept = self.kept_outputs(&invariant, false);
         let absorbing = self.graph.absorbing_nodes(&invariant);
         let mut bytes = 0.0;
         let mut what: Vec<&'static str> = Vec::new();
@@ -616,7 +620,7 @@ impl Manager {
             .iter()
             .map(|c| c.iter().map(|c| (c.since, c.given)).collect())
             .collect();
-        self.run_blocks(chunk, 0)?;
+        self.run_blocks(chunk, 0, None)?;
         // the chunk's first frame is the first of its first block
         for (clocks, before) in self.clocks.iter_mut().zip(before) {
             for (c, (since, given)) in clocks.iter_mut().zip(before) {
@@ -749,6 +753,30 @@ impl Manager {
     /// in one call, and the invariant chain below them still runs in blocks (on this
     /// thread).
     pub fn process_signal(&mut self, signal: &[&[f64]]) -> Result<()> {
+        self.run_signal(signal, None)
+    }
+
+    /// As [`Manager::process_signal`], for a consumer that hands the output on rather
+    /// than keeping it (a file written as it comes, `afe bench --discard`): each requested
+    /// output computed in blocks (every one in a chunk-invariant graph, those of the
+    /// invariant part otherwise) goes to `each_block` block by block, with its reference
+    /// (as [`Signal::source`]), instead of being joined, so that it never takes the
+    /// whole signal's memory. The signals then show only the other requested outputs.
+    pub fn process_signal_streaming(
+        &mut self,
+        signal: &[&[f64]],
+        each_block: &mut BlockSink<'_>,
+    ) -> Result<()> {
+        self.run_signal(signal, Some(each_block))
+    }
+
+    /// [`Manager::process_signal`], streaming the outputs computed in blocks to `stream`
+    /// where given.
+    fn run_signal(
+        &mut self,
+        signal: &[&[f64]],
+        mut stream: Option<&mut BlockSink<'_>>,
+    ) -> Result<()> {
         self.check_chunk(signal)?;
         let len = signal[0].len();
         if len == 0 {
@@ -762,8 +790,17 @@ impl Manager {
             // processors are in the graph, which tells which nodes absorb blocks).
             let invariant = self.graph.invariant_nodes();
             self.edit(|m| {
-                let mut whole = m.whole_buffers(&invariant, len);
-                m.graph.run_whole(signal, WHOLE_SIGNAL_BLOCK, &mut whole);
+                // with the processors back in the graph, which knows those that absorb
+                let shown = m.kept_outputs(&invariant, false);
+                let mut whole = m.whole_buffers(&invariant, len, stream.is_some());
+                // the graph hands on the blocks it does not join: those shown are streamed
+                let mut each = |r: OutputRef, b: &Block| {
+                    if let Some(f) = stream.as_mut().filter(|_| shown[r.node][r.output]) {
+                        f(r, b);
+                    }
+                };
+                m.graph
+                    .run_whole(signal, WHOLE_SIGNAL_BLOCK, &mut whole, &mut each);
                 m.whole = whole;
                 Ok(())
             })?;
@@ -776,7 +813,7 @@ impl Manager {
             self.whole_shown = true;
             return Ok(());
         };
-        self.run_blocks(signal, prefix)?;
+        self.run_blocks(signal, prefix, stream)?;
         // the whole output is shown: its first frame is the first since the reset
         for c in self.clocks.iter_mut().flatten() {
             c.first_since = 0;
@@ -787,10 +824,31 @@ impl Manager {
 
     /// Runs `signal` through the graph in blocks of [`WHOLE_SIGNAL_BLOCK`] samples (the
     /// first holding at least `prefix`), pipelined, and shows the joined outputs (the
-    /// requested ones, or all with [`Manager::set_keep_all`]).
-    fn run_blocks(&mut self, signal: &[&[f64]], prefix: usize) -> Result<()> {
+    /// requested ones, or all with [`Manager::set_keep_all`]), or hands each block of
+    /// them to `stream` where given.
+    fn run_blocks(
+        &mut self,
+        signal: &[&[f64]],
+        prefix: usize,
+        mut stream: Option<&mut BlockSink<'_>>,
+    ) -> Result<()> {
         let len = signal[0].len();
-        let mut whole = self.whole_buffers(&vec![true; self.graph.nodes.len()], len);
+        let invariant = vec![true; self.graph.nodes.len()];
+        let mut whole = self.whole_buffers(&invariant, len, stream.is_some());
+        let streamed: Vec<OutputRef> = match stream {
+            Some(_) => self
+                .kept_outputs(&invariant, false)
+                .iter()
+                .enumerate()
+                .flat_map(|(node, k)| {
+                    k.iter()
+                        .enumerate()
+                        .filter(|(_, k)| **k)
+                        .map(move |(output, _)| OutputRef { node, output })
+                })
+                .collect(),
+            None => Vec::new(),
+        };
         let mut start = 0;
         while start < len {
             let end = len.min(start + WHOLE_SIGNAL_BLOCK.max(prefix.saturating_sub(start)));
@@ -798,16 +856,34 @@ impl Manager {
             start = end;
             self.submit_chunk(&part)?;
             if self.in_flight() >= self.pipeline_depth() {
-                self.collect_chunk()?;
-                self.append_outputs(&mut whole);
+                self.collect_block(&mut whole, &streamed, &mut stream)?;
             }
         }
         while self.in_flight() > 0 {
-            self.collect_chunk()?;
-            self.append_outputs(&mut whole);
+            self.collect_block(&mut whole, &streamed, &mut stream)?;
         }
         self.whole = whole;
         self.whole_shown = true;
+        Ok(())
+    }
+
+    /// Collects the oldest block in flight: its outputs joined into `whole`, and those
+    /// `streamed` handed to `stream`.
+    fn collect_block(
+        &mut self,
+        whole: &mut [Vec<Option<Block>>],
+        streamed: &[OutputRef],
+        stream: &mut Option<&mut BlockSink<'_>>,
+    ) -> Result<()> {
+        self.collect_chunk()?;
+        self.append_outputs(whole);
+        if let Some(f) = stream {
+            for &r in streamed {
+                if let Some(s) = self.signal(r) {
+                    f(r, s.new);
+                }
+            }
+        }
         Ok(())
     }
 
@@ -816,8 +892,13 @@ impl Manager {
     /// block (the `invariant` nodes') are sized for a signal of `samples` samples, so
     /// that each value is written once; the others are moved in whole (see
     /// [`Graph::run_whole`]).
-    fn whole_buffers(&mut self, invariant: &[bool], samples: usize) -> Vec<Vec<Option<Block>>> {
-        let kept = self.kept_outputs(invariant);
+    fn whole_buffers(
+        &mut self,
+        invariant: &[bool],
+        samples: usize,
+        stream: bool,
+    ) -> Vec<Vec<Option<Block>>> {
+        let kept = self.kept_outputs(invariant, stream);
         let fs = self.fs;
         let mut whole = std::mem::take(&mut self.whole);
         whole.resize_with(kept.len(), Vec::new);
@@ -859,15 +940,17 @@ impl Manager {
     /// (every one with [`Manager::set_keep_all`]) and, in a graph with per-chunk nodes
     /// (`invariant` false), the inputs of those that do not absorb blocks. The rest (the full-rate filterbank and
     /// IHC signals are 2.8 MB per second and channel pair) is never joined.
-    fn kept_outputs(&self, invariant: &[bool]) -> Vec<Vec<bool>> {
+    fn kept_outputs(&self, invariant: &[bool], stream: bool) -> Vec<Vec<bool>> {
         let nodes = &self.graph.nodes;
+        // streamed outputs are not joined for show
+        let shown = |i: usize| !(stream && invariant[i]);
         let mut kept: Vec<Vec<bool>> = nodes
             .iter()
             .enumerate()
-            .map(|(i, n)| vec![self.keep_all && i > 0; n.outputs.len()])
+            .map(|(i, n)| vec![self.keep_all && i > 0 && shown(i); n.outputs.len()])
             .collect();
         for r in self.requests.iter().flatten().flat_map(|r| &r.outputs) {
-            kept[r.node][r.output] = true;
+            kept[r.node][r.output] = shown(r.node);
         }
         let absorbing = self.graph.absorbing_nodes(invariant);
         let joined = invariant.iter().zip(&absorbing).map(|(i, a)| !i && !a);
@@ -1410,6 +1493,78 @@ mod tests {
         assert!(e.to_string().contains("empty"), "{e}");
         assert!(Manager::new(f64::NAN, 2).is_err());
         assert!(Manager::new(16000.0, 3).is_err());
+    }
+
+    /// A streamed whole-signal call hands on, block by block, exactly the requested
+    /// outputs computed in blocks, and they join to `process_signal`'s bit for bit; the
+    /// others are shown as after `process_signal` (both executors; graphs with per-chunk
+    /// nodes, with one that absorbs blocks, and a chunk-invariant one).
+    #[test]
+    fn a_streamed_whole_signal_hands_on_the_blocks_it_does_not_join() {
+        let fs = 16000.0;
+        let x: Vec<f64> = (0..3 * WHOLE_SIGNAL_BLOCK + 123)
+            .map(|t| (0.05 * t as f64).sin() * (1.0 + (t % 700) as f64 / 700.0))
+            .collect();
+        let y: Vec<f64> = x.iter().map(|v| 0.5 * v).collect();
+        for threads in [0, 2] {
+            for (requests, streamed) in [
+                (&["ratemap", "onsetMap"][..], &["ratemap"][..]),
+                // pitch absorbs the autocorrelation's blocks, which are not handed on
+                (&["pitch", "ratemap"][..], &["ratemap"][..]),
+                (&["ratemap", "ild"][..], &["ratemap", "ild"][..]),
+            ] {
+                let manager = || {
+                    let mut m = Manager::with_threads(fs, 2, threads).expect("manager");
+                    for r in requests {
+                        m.add_request(r, &ParamMap::new()).expect("request");
+                    }
+                    m
+                };
+                let mut whole = manager();
+                whole.process_signal(&[&x, &y]).expect("process");
+                let mut m = manager();
+                let mut blocks: Vec<(OutputRef, Block)> = Vec::new();
+                m.process_signal_streaming(&[&x, &y], &mut |r, b| match blocks
+                    .iter_mut()
+                    .find(|(s, _)| *s == r)
+                {
+                    Some((_, acc)) => acc.extend_from(b),
+                    None => blocks.push((r, b.clone())),
+                })
+                .expect("process");
+                let shown = m.signals(false);
+                let what = format!("{requests:?}, threads {threads}");
+                assert_eq!(
+                    blocks.len() + shown.len(),
+                    whole.signals(false).len(),
+                    "{what}"
+                );
+                for s in whole.signals(false) {
+                    let kept = shown.iter().find(|k| k.source == s.source);
+                    let got = blocks.iter().find(|(r, _)| *r == s.source);
+                    let data = match (kept, got) {
+                        (Some(k), None) => k.new,
+                        (None, Some((_, b))) => b,
+                        _ => panic!(
+                            "{what}: {} shown {} and streamed {}",
+                            s.name,
+                            kept.is_some(),
+                            got.is_some()
+                        ),
+                    };
+                    assert_eq!(
+                        got.is_some(),
+                        streamed.contains(&s.name),
+                        "{what}: {}",
+                        s.name
+                    );
+                    assert!(s.new.frames() > 0, "{what}: {}", s.name);
+                    let bits =
+                        |b: &Block| b.as_slice().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(bits(data), bits(s.new), "{what}: {}", s.name);
+                }
+            }
+        }
     }
 
     /// With `trm_minValuedB` an onset map reads the ratemap beside its onset strength: the
