@@ -117,7 +117,31 @@ impl Df2t {
             output.copy_from_slice(input);
             self.process(output);
         } else {
-            self.process_lanes(Source::Input(input), output);
+            self.process_lanes(Source::Input(input), output, self.channels);
+        }
+    }
+
+    /// Filters `input` (time-major, `channels` values per row) into the first `channels`
+    /// values of each `out_stride`-wide row of `output`, carrying state: one signal of
+    /// several interleaved in a row (the AMS features' bands) without a copy.
+    ///
+    /// # Panics
+    /// If `out_stride < channels` or `output` is too short for the rows of `input`.
+    pub fn process_into_rows(&mut self, input: &[f64], output: &mut [f64], out_stride: usize) {
+        let nc = self.channels;
+        let rows = input.len() / nc.max(1);
+        assert!(
+            out_stride >= nc && (rows == 0 || output.len() >= (rows - 1) * out_stride + nc),
+            "rows of {out_stride} for {rows} rows of {nc} channels"
+        );
+        if !self.passes.is_empty() {
+            self.process_lanes(Source::Input(input), output, out_stride);
+            return;
+        }
+        for (t, x) in input.chunks_exact(nc).enumerate() {
+            let row = &mut output[t * out_stride..t * out_stride + nc];
+            row.copy_from_slice(x);
+            self.process(row);
         }
     }
 
@@ -130,14 +154,14 @@ impl Df2t {
             }
             self.process(output);
         } else {
-            self.process_lanes(Source::Rectified(input), output);
+            self.process_lanes(Source::Rectified(input), output, self.channels);
         }
     }
 
     /// Filters `data` (time-major, `channels` values per row) in place, carrying state.
     pub fn process(&mut self, data: &mut [f64]) {
         if !self.passes.is_empty() {
-            self.process_lanes(Source::InPlace, data);
+            self.process_lanes(Source::InPlace, data, self.channels);
             return;
         }
         let nc = self.channels;
@@ -163,8 +187,9 @@ impl Df2t {
         }
     }
 
-    /// The multichannel path, pass by pass over the whole block.
-    fn process_lanes(&mut self, input: Source<'_>, data: &mut [f64]) {
+    /// The multichannel path, pass by pass over the whole block, writing rows of
+    /// `out_stride` values.
+    fn process_lanes(&mut self, input: Source<'_>, data: &mut [f64], out_stride: usize) {
         let lanes = self.lane_channel.len();
         let run = match self.order() {
             1 => run_lanes::<1>,
@@ -175,7 +200,8 @@ impl Df2t {
         for pass in &self.passes {
             let filter = (&self.b[..], &self.a[..]);
             let state = (&mut self.z[..], lanes, pass.first_lane);
-            run(filter, state, (input, data), self.channels, &pass.starts);
+            let strides = (self.channels, out_stride);
+            run(filter, state, (input, data), strides, &pass.starts);
         }
     }
 
@@ -221,22 +247,22 @@ enum Source<'a> {
 }
 
 /// Filters the vectors of one pass (first channels `starts`) over every row of `data`
-/// (`stride` values per row; read from `Source`), the
+/// (`strides`: values per input row, and per row of `data`; read from `Source`), the
 /// state of lanes `first..` of `z` (`[order][lanes]`) held in registers and the vectors
 /// interleaved per row. Per lane, the operations are the scalar path's.
 fn run_lanes<const M: usize>(
     filter: (&[f64], &[f64]),
     state: (&mut [f64], usize, usize),
     data: (Source<'_>, &mut [f64]),
-    stride: usize,
+    strides: (usize, usize),
     starts: &[usize],
 ) {
     match *starts {
-        [s0] => lanes_kernel::<M, 1>(filter, state, data, stride, [s0]),
-        [s0, s1] => lanes_kernel::<M, 2>(filter, state, data, stride, [s0, s1]),
-        [s0, s1, s2] => lanes_kernel::<M, 3>(filter, state, data, stride, [s0, s1, s2]),
+        [s0] => lanes_kernel::<M, 1>(filter, state, data, strides, [s0]),
+        [s0, s1] => lanes_kernel::<M, 2>(filter, state, data, strides, [s0, s1]),
+        [s0, s1, s2] => lanes_kernel::<M, 3>(filter, state, data, strides, [s0, s1, s2]),
         [s0, s1, s2, s3, ..] => {
-            lanes_kernel::<M, 4>(filter, state, data, stride, [s0, s1, s2, s3]);
+            lanes_kernel::<M, 4>(filter, state, data, strides, [s0, s1, s2, s3]);
         }
         [] => {}
     }
@@ -254,7 +280,7 @@ fn lanes_kernel<const M: usize, const V: usize>(
     (b, a): (&[f64], &[f64]),
     (z, lanes, first): (&mut [f64], usize, usize),
     (input, data): (Source<'_>, &mut [f64]),
-    stride: usize,
+    (stride, out_stride): (usize, usize),
     starts: [usize; V],
 ) {
     let mut s = [[[0.0; LANES]; V]; M];
@@ -265,7 +291,12 @@ fn lanes_kernel<const M: usize, const V: usize>(
         }
     }
     let (b0, bm, am) = (b[0], b[M], a[M]);
-    for (t, row) in data.chunks_exact_mut(stride).enumerate() {
+    let rows = match input {
+        Source::InPlace => data.len() / stride,
+        Source::Input(i) | Source::Rectified(i) => i.len() / stride,
+    };
+    for t in 0..rows {
+        let row = &mut data[t * out_stride..t * out_stride + stride];
         let mut x = [[0.0; LANES]; V];
         let from = match input {
             Source::InPlace => &*row,
@@ -410,6 +441,35 @@ mod tests {
             f.process(&mut rectified);
             g.process_rectified_from(&x, &mut out);
             assert_eq!(rectified, out, "{nc} channels, rectified");
+        }
+    }
+
+    /// Writing into wider rows gives the same values in the first columns of each row
+    /// (across calls, both paths), and leaves the rest of every row alone.
+    #[test]
+    fn filtering_into_wider_rows_fills_only_the_first_columns() {
+        for nc in [3, 31] {
+            let rows = 90;
+            let stride = 3 * nc + 2;
+            let x: Vec<f64> = (0..rows * nc)
+                .map(|i| ((i * 31) % 17) as f64 - 8.0)
+                .collect();
+            let (b, a) = ([0.2, 0.3, -0.1], [1.0, -0.5, 0.25]);
+            let (mut f, mut g) = (Df2t::new(&b, &a, nc), Df2t::new(&b, &a, nc));
+            let mut copy = x.clone();
+            f.process(&mut copy);
+            let offset = nc + 1;
+            let mut wide = vec![f64::NAN; offset + rows * stride];
+            let split = 37;
+            g.process_into_rows(&x[..split * nc], &mut wide[offset..], stride);
+            let rest = &mut wide[offset + split * stride..offset + (rows - 1) * stride + nc];
+            g.process_into_rows(&x[split * nc..], rest, stride);
+            for (t, row) in copy.chunks_exact(nc).enumerate() {
+                let at = offset + t * stride;
+                assert_eq!(&wide[at..at + nc], row, "{nc} channels, row {t}");
+            }
+            let written = wide.iter().filter(|v| !v.is_nan()).count();
+            assert_eq!(written, rows * nc, "{nc} channels: only the first columns");
         }
     }
 

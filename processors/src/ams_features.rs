@@ -210,7 +210,6 @@ pub struct AmsFeatures {
     kind: Bands,
     frames: FrameBuffer,
     decimated: Vec<f64>,
-    filtered: Vec<f64>,
     /// The log filterbank's output, `[time][band][channel]`.
     banded: Vec<f64>,
     /// One frame's sums per `[band][channel]`.
@@ -410,7 +409,6 @@ impl AmsFeatures {
             kind,
             frames: FrameBuffer::new(width, w, h),
             decimated: Vec::new(),
-            filtered: Vec::new(),
             banded: Vec::new(),
             sums: vec![0.0; width],
         };
@@ -434,26 +432,17 @@ impl Processor for AmsFeatures {
         let w_len = self.win.len() as f64;
         match &mut self.kind {
             Bands::Log { filters } => {
-                let len = self.decimated.len();
-                self.filtered.resize((ROWS * nc).min(len), 0.0);
-                self.banded.resize(len * nb, 0.0);
+                self.banded.resize(self.decimated.len() * nb, 0.0);
                 // Block by block of rows, so that the block stays in cache while every
-                // band's filter writes into it (the filters keep their state from block
-                // to block).
+                // band's filter writes its columns of it (the filters keep their state
+                // from block to block).
                 let blocks = self
                     .decimated
                     .chunks((ROWS * nc).max(1))
                     .zip(self.banded.chunks_mut((ROWS * nc * nb).max(1)));
                 for (x, rows) in blocks {
-                    let filtered = &mut self.filtered[..x.len()];
                     for (j, filter) in filters.iter_mut().enumerate() {
-                        filter.process_from(x, filtered);
-                        for (row, src) in rows
-                            .chunks_exact_mut(nc * nb)
-                            .zip(filtered.chunks_exact(nc))
-                        {
-                            row[j * nc..(j + 1) * nc].copy_from_slice(src);
-                        }
+                        filter.process_into_rows(x, &mut rows[j * nc..], nc * nb);
                     }
                 }
                 let input = &self.banded;
