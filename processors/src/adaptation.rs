@@ -459,48 +459,53 @@ mod tests {
         for (f, db) in cf.iter().zip(vds_floor) {
             assert!((threshold_of_hearing_db(*f) - db).abs() < 1e-12, "{f} Hz");
         }
-        // Silences (the floor), rises above 1 (the limitation) and slow decays.
-        let x: Vec<f64> = (0..2400 * 3)
-            .map(|i| {
-                let n = i / 3;
-                let u = ((i * 7919) % 1009) as f64 / 1009.0;
-                if n % 600 < 150 {
-                    0.0
-                } else {
-                    3.0 * u * u * (1.0 + (i % 3) as f64)
-                }
-            })
-            .collect();
         let model = |model| AdaptationParams {
             model,
             ..Default::default()
         };
-        let cases = [
-            (AdaptationParams::default(), [0.0; 3]),
-            (model(AdaptationModel::Puschel), [0.0; 3]),
-            (model(AdaptationModel::Breebaart), [0.0; 3]),
-            (model(AdaptationModel::VanDorpSchuitman), vds_floor),
-            (
-                AdaptationParams {
-                    lim: 5.0,
-                    min_db_spl: 20.0,
-                    tau_sec: vec![0.01, 0.2],
-                    model: AdaptationModel::None,
-                },
-                [20.0; 3],
-            ),
-        ];
-        for (p, floor) in cases {
-            let info = SignalInfo::time_frequency(fs, cf.to_vec());
-            let (mut a, _) = Adaptation::new(&p, &info).expect("valid");
-            let got = crate::testing::feed(&mut a, &x, 3, 3, [700, 1700]);
-            let want = spec_loops(&p, &floor, fs, &x);
-            assert_eq!(got.len(), want.len());
-            for (n, (g, w)) in got.iter().zip(&want).enumerate() {
-                assert!(
-                    (g - w).abs() <= 1e-12 * w.abs().max(1.0),
-                    "{p:?} at {n}: {g} vs {w}"
-                );
+        let custom = AdaptationParams {
+            lim: 5.0,
+            min_db_spl: 20.0,
+            tau_sec: vec![0.01, 0.2],
+            model: AdaptationModel::None,
+        };
+        // 3 channels (one step of eight with padding lanes) and 16 (two whole steps)
+        for nc in [3, 16] {
+            let cf: Vec<f64> = (0..nc)
+                .map(|c| 250.0 * 16f64.powf(c as f64 / (nc - 1) as f64))
+                .collect();
+            let thresholds: Vec<f64> = cf.iter().map(|f| threshold_of_hearing_db(*f)).collect();
+            // Silences (the floor), rises above 1 (the limitation) and slow decays.
+            let x: Vec<f64> = (0..2400 * nc)
+                .map(|i| {
+                    let n = i / nc;
+                    let u = ((i * 7919) % 1009) as f64 / 1009.0;
+                    if n % 600 < 150 {
+                        0.0
+                    } else {
+                        3.0 * u * u * (1.0 + (i % 3) as f64)
+                    }
+                })
+                .collect();
+            let cases = [
+                (AdaptationParams::default(), vec![0.0; nc]),
+                (model(AdaptationModel::Puschel), vec![0.0; nc]),
+                (model(AdaptationModel::Breebaart), vec![0.0; nc]),
+                (model(AdaptationModel::VanDorpSchuitman), thresholds),
+                (custom.clone(), vec![20.0; nc]),
+            ];
+            for (p, floor) in cases {
+                let info = SignalInfo::time_frequency(fs, cf.clone());
+                let (mut a, _) = Adaptation::new(&p, &info).expect("valid");
+                let got = crate::testing::feed(&mut a, &x, nc, nc, [700, 1700]);
+                let want = spec_loops(&p, &floor, fs, &x);
+                assert_eq!(got.len(), want.len());
+                for (n, (g, w)) in got.iter().zip(&want).enumerate() {
+                    assert!(
+                        (g - w).abs() <= 1e-12 * w.abs().max(1.0),
+                        "{nc} channels, {p:?} at {n}: {g} vs {w}"
+                    );
+                }
             }
         }
     }
