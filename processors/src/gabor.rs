@@ -257,6 +257,60 @@ impl Gabor {
     }
 }
 
+/// Kept row `r` of filter `f`'s 'same' convolution over the padded log spectrogram of `k`
+/// channels, for `acc_real.len()` frames: `out[t] = Σ G[a, b]·S[r + half_k − a, t + half_n − b]`
+/// with `Re G` into `acc_real` and, where the filter has them, the DC weights into `acc_dc`.
+#[cfg_attr(
+    not(feature = "no-avx512"),
+    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2+fma"))
+)]
+#[cfg_attr(
+    feature = "no-avx512",
+    multiversion::multiversion(targets("x86_64+avx2+fma"))
+)]
+fn convolve_row(
+    spectrogram: &[f64],
+    k: usize,
+    f: &Filter,
+    r: usize,
+    acc_real: &mut [f64],
+    acc_dc: &mut [f64],
+) {
+    let frames = acc_real.len();
+    let padded = spectrogram.len() / k;
+    let ln = 2 * f.half_n + 1;
+    acc_real.fill(0.0);
+    acc_dc.fill(0.0);
+    for a in 0..2 * f.half_k + 1 {
+        let Some(src) = (r + f.half_k)
+            .checked_sub(a)
+            .filter(|s| *s < k)
+            .map(|s| &spectrogram[s * padded..(s + 1) * padded])
+        else {
+            continue;
+        };
+        for b in 0..ln {
+            let start = CONTEXT + f.half_n - b;
+            let s = &src[start..start + frames];
+            let g = f.real[a * ln + b];
+            match &f.dc_weights {
+                Some(dc) => {
+                    let w = dc[a * ln + b];
+                    for ((ar, ad), x) in acc_real.iter_mut().zip(acc_dc.iter_mut()).zip(s) {
+                        *ar += g * x;
+                        *ad += w * x;
+                    }
+                }
+                None => {
+                    for (ar, x) in acc_real.iter_mut().zip(s) {
+                        *ar += g * x;
+                    }
+                }
+            }
+        }
+    }
+}
+
 impl Processor for Gabor {
     fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
         let frames = inputs[0].frames();
@@ -274,32 +328,8 @@ impl Processor for Gabor {
         for f in &self.filters {
             let ln = 2 * f.half_n + 1;
             for &(r, sum_real, sum_dc) in &f.rows {
-                self.acc_real.fill(0.0);
-                self.acc_dc.fill(0.0);
-                // 'same' convolution: out[r, t] = Σ G[a, b]·S[r + half_k − a, t + half_n − b].
-                for a in 0..2 * f.half_k + 1 {
-                    let Some(src) = (r + f.half_k)
-                        .checked_sub(a)
-                        .filter(|s| *s < k)
-                        .map(|s| &self.spectrogram[s * padded..(s + 1) * padded])
-                    else {
-                        continue;
-                    };
-                    for b in 0..ln {
-                        let start = CONTEXT + f.half_n - b;
-                        let s = &src[start..start + frames];
-                        let g = f.real[a * ln + b];
-                        for (acc, x) in self.acc_real.iter_mut().zip(s) {
-                            *acc += g * x;
-                        }
-                        if let Some(dc) = &f.dc_weights {
-                            let w = dc[a * ln + b];
-                            for (acc, x) in self.acc_dc.iter_mut().zip(s) {
-                                *acc += w * x;
-                            }
-                        }
-                    }
-                }
+                let (acc_real, acc_dc) = (&mut self.acc_real, &mut self.acc_dc);
+                convolve_row(&self.spectrogram, k, f, r, acc_real, acc_dc);
                 let row = &mut self.rows[feature * frames..(feature + 1) * frames];
                 if f.dc_weights.is_some() {
                     for ((o, g), d) in row.iter_mut().zip(&self.acc_real).zip(&self.acc_dc) {
