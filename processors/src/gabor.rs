@@ -319,14 +319,12 @@ impl Processor for Gabor {
             return;
         }
         self.log_spectrogram(inputs[0].as_slice(), frames);
-        let padded = frames + 2 * CONTEXT;
         let k = self.channels;
         self.rows.resize(self.features * frames, 0.0);
         self.acc_real.resize(frames, 0.0);
         self.acc_dc.resize(frames, 0.0);
         let mut feature = 0;
         for f in &self.filters {
-            let ln = 2 * f.half_n + 1;
             for &(r, sum_real, sum_dc) in &f.rows {
                 let (acc_real, acc_dc) = (&mut self.acc_real, &mut self.acc_dc);
                 convolve_row(&self.spectrogram, k, f, r, acc_real, acc_dc);
