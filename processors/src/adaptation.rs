@@ -157,8 +157,10 @@ pub struct Adaptation {
     limit: Option<Limit>,
     /// Loop states, `[loop][channel]`.
     state: Vec<f64>,
-    /// The sample being adapted, one value per lane.
+    /// The sample entering the first loop, one value per lane (padding lanes hold 1).
     row: Vec<f64>,
+    /// What each loop gave at the last step, `[loop][lane]` (see [`adapt`]).
+    stages: Vec<f64>,
 }
 
 /// Channels per SIMD step of [`adapt`].
@@ -278,6 +280,7 @@ impl Adaptation {
                 off: pad(&l.off, 0.0),
             }),
             row: vec![1.0; lanes],
+            stages: vec![1.0; loops * lanes],
         };
         Ok((adaptation, input.clone()))
     }
@@ -304,10 +307,14 @@ struct Limit {
     off: Vec<f64>,
 }
 
-/// Runs the loops over `input` (`[time][channel]`) into `out`. Each step is a pass over
-/// the lanes of one sample, eight at a time, so that the divisions, state updates and the
-/// overshoot limitation (computed for the eight lanes where one of them is above 1, kept
-/// where the value is) vectorise.
+/// Runs the loops over `input` (`[time][channel]`) into `out`, eight lanes at a time so
+/// that the divisions, state updates and the overshoot limitation (computed for the eight
+/// lanes where one of them is above 1, kept where the value is) vectorise.
+///
+/// The loops are staggered: at step `t`, loop `j` works on sample `t − j`, taking what
+/// loop `j − 1` gave at step `t − 1`. The loops of one step are then independent, so
+/// their divisions and limitations overlap instead of each waiting on the one before;
+/// every sample still sees the same operations in the same order.
 #[cfg_attr(
     not(feature = "no-avx512"),
     multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2+fma"))
@@ -317,19 +324,31 @@ struct Limit {
     multiversion::multiversion(targets("x86_64+avx2+fma"))
 )]
 fn adapt(a: &mut Adaptation, input: &[f64], out: &mut [f64]) {
-    let (nc, lanes) = (a.channels.max(1), a.lanes);
-    for (x, y) in input.chunks_exact(nc).zip(out.chunks_exact_mut(nc)) {
-        for ((v, &x), &m) in a.row.iter_mut().zip(x).zip(&a.min_level) {
-            *v = x.max(m);
+    let (nc, lanes, loops) = (a.channels.max(1), a.lanes, a.a1.len());
+    let n = input.len() / nc;
+    for t in 0..(n + loops).saturating_sub(1) {
+        if let Some(x) = input.get(t * nc..(t + 1) * nc) {
+            for ((v, &x), &m) in a.row.iter_mut().zip(x).zip(&a.min_level) {
+                *v = x.max(m);
+            }
         }
-        // Eight lanes at a time through every loop, in registers (local arrays alias
-        // nothing, so that they vectorise).
-        for (k, lane) in a.row.chunks_exact_mut(STEP).enumerate() {
-            let mut v = [0.0; STEP];
-            v.copy_from_slice(lane);
-            for (j, (&a1, &b0)) in a.a1.iter().zip(&a.b0).enumerate() {
+        // last loop first, so that each reads its predecessor's value of the step before
+        for j in (0..loops).rev().filter(|j| (*j..n + j).contains(&t)) {
+            let (before, from_j) = a.stages.split_at_mut(j * lanes);
+            let src = if j == 0 {
+                &a.row[..]
+            } else {
+                &before[(j - 1) * lanes..]
+            };
+            let (a1, b0) = (a.a1[j], a.b0[j]);
+            for (k, (src, dst)) in src
+                .chunks_exact(STEP)
+                .zip(from_j[..lanes].chunks_exact_mut(STEP))
+                .enumerate()
+            {
                 let at = j * lanes + k * STEP..j * lanes + (k + 1) * STEP;
-                let mut s = [0.0; STEP];
+                let (mut v, mut s) = ([0.0; STEP], [0.0; STEP]);
+                v.copy_from_slice(src);
                 s.copy_from_slice(&a.state[at.clone()]);
                 for (v, s) in v.iter_mut().zip(&s) {
                     *v /= s;
@@ -350,11 +369,18 @@ fn adapt(a: &mut Adaptation, input: &[f64], out: &mut [f64]) {
                     *s = a1 * *s + b0 * v;
                 }
                 a.state[at].copy_from_slice(&s);
+                dst.copy_from_slice(&v);
             }
-            lane.copy_from_slice(&v);
         }
-        for (((y, v), c), m) in y.iter_mut().zip(&a.row).zip(&a.corr).zip(&a.mult) {
-            *y = (v - c) * m;
+        // the last loop has just finished sample t − (loops − 1)
+        if let Some(y) = (t + 1)
+            .checked_sub(loops)
+            .and_then(|s| out.get_mut(s * nc..(s + 1) * nc))
+        {
+            let last = &a.stages[(loops - 1) * lanes..];
+            for (((y, v), c), m) in y.iter_mut().zip(last).zip(&a.corr).zip(&a.mult) {
+                *y = (v - c) * m;
+            }
         }
     }
 }
