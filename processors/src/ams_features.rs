@@ -8,7 +8,7 @@ use std::sync::Arc;
 use afe_core::butter::{butter, ButterType};
 use afe_core::erb::linspace;
 use afe_core::filter::Df2t;
-use afe_core::framing::FrameBuffer;
+use afe_core::framing::{Frame, FrameBuffer};
 use afe_core::window::{window, WINDOW_NAMES};
 use afe_core::{
     Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
@@ -312,6 +312,24 @@ fn lin_weights(
     (centres, weights)
 }
 
+/// Per column of `frame`, the sum over its rows of `|w·x|` with the window `win`, into `sums`.
+#[cfg_attr(
+    not(feature = "no-avx512"),
+    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2+fma"))
+)]
+#[cfg_attr(
+    feature = "no-avx512",
+    multiversion::multiversion(targets("x86_64+avx2+fma"))
+)]
+fn abs_sums<'a>(sums: &mut [f64], win: &[f64], frame: Frame<'a>) {
+    sums.fill(0.0);
+    for (w, z) in win.iter().zip(frame.rows()) {
+        for (acc, v) in sums.iter_mut().zip(z) {
+            *acc += (w * v).abs();
+        }
+    }
+}
+
 impl AmsFeatures {
     /// Builds the modulation spectrogram for the IHC signal `input`.
     pub fn new(params: &AmsParams, input: &SignalInfo) -> Result<(Self, SignalInfo)> {
@@ -449,12 +467,7 @@ impl Processor for AmsFeatures {
                 let n = self.frames.available(input);
                 let out = outputs[0].reset_to(n);
                 for (k, row) in out.chunks_exact_mut(nc * nb).enumerate() {
-                    self.sums.fill(0.0);
-                    for (w, z) in self.win.iter().zip(self.frames.frame(input, k).rows()) {
-                        for (acc, v) in self.sums.iter_mut().zip(z) {
-                            *acc += (w * v).abs();
-                        }
-                    }
+                    abs_sums(&mut self.sums, &self.win, self.frames.frame(input, k));
                     // band-major sums into the channel-major output row
                     for (j, sums) in self.sums.chunks_exact(nc).enumerate() {
                         for (c, v) in sums.iter().enumerate() {

@@ -72,13 +72,35 @@ pub const PITCH_FEATURES: [&str; 3] = ["pitch", "rawPitch", "confidence"];
 /// Seconds of past confidences the threshold looks at.
 const CONFIDENCE_MEMORY_SEC: f64 = 5.0;
 
+/// The summary autocorrelation of one frame (`row`, one run of `lags` values per
+/// channel): the mean over channels of lags `first..first + sacf.len()`, into `sacf`.
+#[cfg_attr(
+    not(feature = "no-avx512"),
+    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2+fma"))
+)]
+#[cfg_attr(
+    feature = "no-avx512",
+    multiversion::multiversion(targets("x86_64+avx2+fma"))
+)]
+fn summary(sacf: &mut [f64], row: &[f64], lags: usize, first: usize) {
+    sacf.fill(0.0);
+    let channels = row.len() / lags;
+    for acf in row.chunks_exact(lags) {
+        for (s, v) in sacf.iter_mut().zip(&acf[first..]) {
+            *s += v;
+        }
+    }
+    for s in sacf.iter_mut() {
+        *s /= channels as f64;
+    }
+}
+
 /// The pitch estimator of one ear: autocorrelation `[frame][channel][lag]` in,
 /// `[frame][pitch, rawPitch, confidence]` out.
 #[derive(Debug, Clone)]
 pub struct Pitch {
     conf_thres: f64,
     median_order: usize,
-    channels: usize,
     lags: usize,
     /// The lags within the pitch range: first index and their values in s.
     first_lag: usize,
@@ -157,7 +179,6 @@ impl Pitch {
         let pitch = Pitch {
             conf_thres: params.conf_thres,
             median_order: order as usize,
-            channels: input.channels(),
             lags,
             first_lag: first,
             lag_sec: input.lags_s[first..=last].to_vec(),
@@ -228,18 +249,9 @@ impl Processor for Pitch {
     /// The per-frame part: the SACF's largest peak gives the raw pitch and confidence,
     /// and the confidence joins the history.
     fn absorb(&mut self, inputs: &[&Block]) {
-        let (nc, nl) = (self.channels, self.lags);
+        let nl = self.lags;
         for row in inputs[0].rows() {
-            self.sacf.fill(0.0);
-            for acf in row.chunks_exact(nl) {
-                let lags = &acf[self.first_lag..self.first_lag + self.sacf.len()];
-                for (s, v) in self.sacf.iter_mut().zip(lags) {
-                    *s += v;
-                }
-            }
-            for s in &mut self.sacf {
-                *s /= nc as f64;
-            }
+            summary(&mut self.sacf, row, nl, self.first_lag);
             let (conf, raw) = match largest_peak(&self.sacf) {
                 Some((v, k)) => {
                     if self.history.len() == self.history_len {
