@@ -1,5 +1,7 @@
 //! Time-major sample blocks and the description of the signal they carry.
 
+use crate::huge_pages;
+
 /// What a signal's frames contain, which fixes its array layout (the AFE's signal
 /// classes, spec 00-overview §7).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -214,18 +216,16 @@ impl Block {
 
     /// An empty block of `width`-value rows with room for `frames` rows.
     pub fn with_room(width: usize, frames: usize) -> Self {
-        Block {
-            data: Vec::with_capacity(width.saturating_mul(frames)),
-            width,
-        }
+        let mut b = Block::new(width);
+        b.reserve_frames(frames);
+        b
     }
 
     /// An empty block as wide as this one, with as much room.
     pub fn empty_like(&self) -> Self {
-        Block {
-            data: Vec::with_capacity(self.data.capacity()),
-            width: self.width,
-        }
+        let mut b = Block::new(self.width);
+        b.grow(self.data.capacity());
+        b
     }
 
     /// Rows it holds without reallocating.
@@ -286,6 +286,7 @@ impl Block {
     /// Does not allocate once the block has held that many values before.
     pub fn reset_to(&mut self, frames: usize) -> &mut [f64] {
         self.data.clear();
+        self.grow(frames * self.width);
         self.data.resize(frames * self.width, 0.0);
         &mut self.data
     }
@@ -295,6 +296,7 @@ impl Block {
     ///
     /// Does not allocate once the block has held that many values before.
     pub fn resize_to(&mut self, frames: usize) -> &mut [f64] {
+        self.grow((frames * self.width).saturating_sub(self.data.len()));
         self.data.resize(frames * self.width, 0.0);
         &mut self.data
     }
@@ -305,12 +307,22 @@ impl Block {
     /// If `other` has another width.
     pub fn extend_from(&mut self, other: &Block) {
         assert_eq!(self.width, other.width, "appending rows of another width");
+        self.grow(other.data.len());
         self.data.extend_from_slice(&other.data);
     }
 
     /// Makes room for `frames` more rows, so that appending them does not reallocate.
     pub fn reserve_frames(&mut self, frames: usize) {
-        self.data.reserve(frames.saturating_mul(self.width));
+        self.grow(frames.saturating_mul(self.width));
+    }
+
+    /// Makes room for `values` more values. A new allocation long enough is advised to
+    /// the kernel for huge pages before its first write (see `huge_pages`).
+    fn grow(&mut self, values: usize) {
+        if self.data.capacity() - self.data.len() < values {
+            self.data.reserve(values);
+            huge_pages::advise(&self.data);
+        }
     }
 
     /// Removes every row, keeping the capacity.

@@ -11,6 +11,7 @@ pub mod filter;
 pub mod fir2;
 pub mod framing;
 pub mod hilbert;
+mod huge_pages;
 pub mod lanes;
 pub mod params;
 pub mod processor;
