@@ -316,13 +316,10 @@ impl Block {
         self.grow(frames.saturating_mul(self.width));
     }
 
-    /// Makes room for `values` more values. A new allocation long enough is advised to
-    /// the kernel for huge pages before its first write (see `huge_pages`).
+    /// Makes room for `values` more values. A new allocation of 4 MiB or more is advised
+    /// to the kernel for huge pages before anything is written to it (see `huge_pages`).
     fn grow(&mut self, values: usize) {
-        if self.data.capacity() - self.data.len() < values {
-            self.data.reserve(values);
-            huge_pages::advise(&self.data);
-        }
+        huge_pages::reserve(&mut self.data, values);
     }
 
     /// Removes every row, keeping the capacity.

@@ -1,14 +1,35 @@
 //! Transparent huge pages for long blocks: a whole signal's output is written once to
 //! fresh memory, and on Linux each first write to a 4-KiB page is a fault (about 2 µs on
 //! a virtual machine, a third of the time of a whole-signal run that keeps its outputs).
-//! Advised, the kernel backs the buffer with 2-MiB pages: one fault per 512 pages.
+//! Advised, the kernel backs the buffer with 2-MiB pages where it finds free ones: one
+//! fault per 512 pages. (Memory locked with `mlockall` is filled in when it is mapped,
+//! before the advice; it stays on the pages it got.)
 
-/// Allocations from this many bytes up are advised (smaller ones hold few whole 2-MiB
-/// pages, and may share them with other allocations' pages).
+/// Allocations from this many bytes of capacity up are advised: below it, a buffer holds
+/// at most one whole huge page, not worth a system call and a split mapping.
 const MIN_BYTES: usize = 4 << 20;
 
-/// The size of a huge page on x86-64 and aarch64 (bytes).
+/// The size of a huge page on x86-64 and on aarch64 with 4-KiB base pages (bytes).
 const HUGE_PAGE: usize = 2 << 20;
+
+/// `Vec::reserve` for `additional` more values (amortised: at least doubling), except
+/// that a new allocation of [`MIN_BYTES`] or more is advised for huge pages before
+/// anything is written to it: the values it held are copied in after the advice.
+pub(crate) fn reserve(values: &mut Vec<f64>, additional: usize) {
+    if values.capacity() - values.len() >= additional {
+        return;
+    }
+    let needed = values.len().saturating_add(additional);
+    let capacity = needed.max(values.capacity().saturating_mul(2));
+    if capacity.saturating_mul(std::mem::size_of::<f64>()) < MIN_BYTES {
+        values.reserve_exact(capacity - values.len());
+        return;
+    }
+    let mut fresh = Vec::with_capacity(capacity);
+    advise(&fresh);
+    fresh.extend_from_slice(values);
+    *values = fresh;
+}
 
 /// The whole huge pages inside `bytes` bytes from address `start`: their first address
 /// and length in bytes, if the allocation is large enough to be advised.
@@ -23,27 +44,28 @@ fn advised_range(start: usize, bytes: usize) -> Option<(usize, usize)> {
 
 /// Asks the kernel to back the whole huge pages of `values`' allocation with huge pages,
 /// where it allows that (`/sys/kernel/mm/transparent_hugepage/enabled` set to `always`
-/// or `madvise`). A hint: nothing changes where it is refused or unsupported.
-pub(crate) fn advise(values: &Vec<f64>) {
+/// or `madvise`). A hint, true where the kernel took it; nothing else changes where it
+/// is refused or unsupported.
+fn advise(values: &Vec<f64>) -> bool {
     let bytes = values.capacity() * std::mem::size_of::<f64>();
-    if let Some((first, len)) = advised_range(values.as_ptr() as usize, bytes) {
-        hint(first, len);
-    }
+    advised_range(values.as_ptr() as usize, bytes).is_some_and(|(first, len)| hint(first, len))
 }
 
 #[cfg(target_os = "linux")]
-fn hint(first: usize, len: usize) {
+fn hint(first: usize, len: usize) -> bool {
     // SAFETY: `first..first + len` lies inside one live allocation of ours (see
-    // `advised_range`), and MADV_HUGEPAGE changes neither the mapping nor its contents,
-    // only how the kernel backs the pages. The result is ignored: the advice is a hint.
+    // `advised_range`). MADV_HUGEPAGE never touches the contents: it splits the mapping
+    // at the range's ends and flags the range. (On such a split mapping glibc's `realloc`
+    // cannot move the block with `mremap` and copies it instead; `reserve` copies anyway.)
     #[allow(unsafe_code)]
-    unsafe {
-        libc::madvise(first as *mut libc::c_void, len, libc::MADV_HUGEPAGE);
-    }
+    let status = unsafe { libc::madvise(first as *mut libc::c_void, len, libc::MADV_HUGEPAGE) };
+    status == 0
 }
 
 #[cfg(not(target_os = "linux"))]
-fn hint(_first: usize, _len: usize) {}
+fn hint(_first: usize, _len: usize) -> bool {
+    false
+}
 
 #[cfg(test)]
 mod tests {
@@ -69,15 +91,23 @@ mod tests {
     }
 
     #[test]
-    fn advising_leaves_the_values_as_they_were() {
-        let mut v: Vec<f64> = (0..(3 * HUGE_PAGE / 8)).map(|i| i as f64).collect();
-        advise(&v);
-        v.push(-1.0);
-        assert!(v
-            .iter()
-            .take(v.len() - 1)
-            .enumerate()
-            .all(|(i, &x)| x == i as f64));
+    fn reserving_keeps_the_values_and_grows_as_vec_does() {
+        let mut short = vec![1.0, 2.0, 3.0];
+        reserve(&mut short, 10);
+        assert_eq!(
+            (short.as_slice(), short.capacity()),
+            (&[1.0, 2.0, 3.0][..], 13)
+        );
+        let cap = short.capacity();
+        reserve(&mut short, 10);
+        assert_eq!(short.capacity(), cap, "room enough: nothing reallocates");
+        let n = MIN_BYTES / 8 + 5;
+        let mut long: Vec<f64> = (0..n).map(|i| i as f64).collect();
+        let old = long.capacity();
+        reserve(&mut long, 1);
+        assert_eq!(long.capacity(), 2 * old);
+        assert!(long.iter().enumerate().all(|(i, &x)| x == i as f64));
+        assert_eq!(long.len(), n);
     }
 
     /// The flags of the mapping holding `address`, from `/proc/self/smaps`.
@@ -107,18 +137,24 @@ mod tests {
 
     #[cfg(target_os = "linux")]
     #[test]
-    fn a_long_buffer_is_marked_for_huge_pages() {
-        if !std::path::Path::new("/sys/kernel/mm/transparent_hugepage").exists() {
-            return; // a kernel without transparent huge pages refuses the advice
+    fn a_long_reservation_is_marked_for_huge_pages() {
+        // larger than glibc ever serves from its heap: mappings of their own
+        let values = 24 * HUGE_PAGE / 8;
+        let control: Vec<f64> = Vec::with_capacity(values);
+        let at = |v: &Vec<f64>| advised_range(v.as_ptr() as usize, values * 8).map(|r| r.0);
+        let Some(flags) = at(&control).and_then(mapping_flags) else {
+            return; // no /proc/self/smaps to read the flags from
+        };
+        let marked = |flags: &str| flags.split_whitespace().any(|f| f == "hg");
+        if marked(&flags) {
+            return; // the allocator advises every mapping itself: nothing to tell apart
         }
-        // larger than glibc ever serves from its heap: a mapping of its own, never advised
-        let bytes = 24 * HUGE_PAGE;
-        let v = vec![0.0; bytes / 8];
-        let (first, _) = advised_range(v.as_ptr() as usize, bytes).expect("large");
-        let before = mapping_flags(first).expect("the buffer is mapped");
-        assert!(!before.split_whitespace().any(|f| f == "hg"), "{before}");
-        advise(&v);
-        let after = mapping_flags(first).expect("the buffer is mapped");
-        assert!(after.split_whitespace().any(|f| f == "hg"), "{after}");
+        let mut reserved = Vec::new();
+        reserve(&mut reserved, values);
+        if !advise(&control) {
+            return; // the kernel refuses the advice (no transparent huge pages)
+        }
+        let flags = at(&reserved).and_then(mapping_flags).expect("mapped");
+        assert!(marked(&flags), "{flags}");
     }
 }
