@@ -423,20 +423,26 @@ mod tests {
         }
     }
 
+    /// A sawtooth-like test signal of `rows` rows of `nc` channels, and two fresh filters
+    /// of one second-order design over `nc` channels.
+    fn signal_and_filters(rows: usize, nc: usize) -> (Vec<f64>, Df2t, Df2t) {
+        let x = (0..rows * nc)
+            .map(|i| ((i * 31) % 17) as f64 - 8.0)
+            .collect();
+        let (b, a) = ([0.2, 0.3, -0.1], [1.0, -0.5, 0.25]);
+        (x, Df2t::new(&b, &a, nc), Df2t::new(&b, &a, nc))
+    }
+
     #[test]
     fn filtering_from_an_input_equals_filtering_a_copy() {
         for nc in [1, 3, 31] {
-            let x: Vec<f64> = (0..100 * nc)
-                .map(|i| ((i * 31) % 17) as f64 - 8.0)
-                .collect();
-            let (b, a) = ([0.2, 0.3, -0.1], [1.0, -0.5, 0.25]);
-            let (mut f, mut g) = (Df2t::new(&b, &a, nc), Df2t::new(&b, &a, nc));
+            let (x, mut f, mut g) = signal_and_filters(100, nc);
             let mut copy = x.clone();
             f.process(&mut copy);
             let mut out = vec![0.0; x.len()];
             g.process_from(&x, &mut out);
             assert_eq!(copy, out, "{nc} channels");
-            let (mut f, mut g) = (Df2t::new(&b, &a, nc), Df2t::new(&b, &a, nc));
+            let (_, mut f, mut g) = signal_and_filters(100, nc);
             let mut rectified: Vec<f64> = x.iter().map(|v| v.max(0.0)).collect();
             f.process(&mut rectified);
             g.process_rectified_from(&x, &mut out);
@@ -451,11 +457,7 @@ mod tests {
         for nc in [3, 31] {
             let rows = 90;
             let stride = 3 * nc + 2;
-            let x: Vec<f64> = (0..rows * nc)
-                .map(|i| ((i * 31) % 17) as f64 - 8.0)
-                .collect();
-            let (b, a) = ([0.2, 0.3, -0.1], [1.0, -0.5, 0.25]);
-            let (mut f, mut g) = (Df2t::new(&b, &a, nc), Df2t::new(&b, &a, nc));
+            let (x, mut f, mut g) = signal_and_filters(rows, nc);
             let mut copy = x.clone();
             f.process(&mut copy);
             let offset = nc + 1;
