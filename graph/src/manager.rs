@@ -158,7 +158,7 @@ pub const MAX_AMPLITUDE: f64 = 1e100;
 
 /// Block length in samples in which a whole signal goes through a chunk-invariant graph:
 /// bit-identical to one call, and the intermediate signals stay in cache.
-pub const WHOLE_SIGNAL_BLOCK: usize = 4096;
+pub const WHOLE_SIGNAL_BLOCK: usize = 1024;
 
 /// Largest chunk (samples) [`Manager::prepare`] sizes buffers for: 10 s at 96 kHz.
 pub const MAX_PREPARED_CHUNK: usize = 960_000;
