@@ -8,6 +8,11 @@ use crate::wav::WavBlocks;
 
 pub use afe_graph::WHOLE_SIGNAL_BLOCK;
 
+/// Samples per ear read at a time when a whole signal is gathered for one call: large
+/// enough that the gathered input soon lives in its own mapping, which grows without
+/// copying (smaller reads cost `gabor` 7 % in page faults).
+const GATHER_READ: usize = 1 << 16;
+
 /// What to compute and how to feed the input.
 #[derive(Debug, Clone, Default)]
 pub struct Job {
@@ -225,7 +230,7 @@ pub fn run_into<S: Sink>(
         // a whole signal: one call where the AFE depends on chunk boundaries
         (None, None) => {
             let mut part = vec![Vec::new(); ears];
-            while next(WHOLE_SIGNAL_BLOCK << 4, &mut part)? > 0 {
+            while next(GATHER_READ, &mut part)? > 0 {
                 for (all, p) in buf.iter_mut().zip(&part) {
                     all.extend_from_slice(p);
                 }
