@@ -247,18 +247,34 @@ fn log_bank(p: &AmsParams, fs_ds: f64, channels: usize) -> Result<(Vec<f64>, Vec
     let nyq = fs_ds / 2.0;
     // Band edges of quality factor Q = 1: f·(√(1 + 1/(4Q²)) ∓ 1/(2Q)).
     let root = 1.25f64.sqrt();
-    let too_high = |f: f64| {
-        let name = if p.cf_hz.is_empty() {
-            "ams_highFreqHz"
+    // Names what the user has: the range's top (saying when it is the default) or the
+    // explicit centre, the band that reaches Nyquist, and what would fit.
+    let too_high = |f: f64, edge: f64| {
+        let (name, value, given) = if p.cf_hz.is_empty() {
+            let default = AmsParams::default().high_freq_hz;
+            let which = if p.high_freq_hz == default {
+                " (the default)"
+            } else {
+                ""
+            };
+            let given = format!("with ams_highFreqHz = {}{which}, ", p.high_freq_hz);
+            ("ams_highFreqHz", p.high_freq_hz, given)
         } else {
-            "ams_cfHz"
+            ("ams_cfHz", f, String::new())
         };
+        let fs = fs_ds * p.ds_ratio as f64;
         invalid(
             name,
-            f,
+            value,
             format!(
-                "modulation filters must stay below the Nyquist frequency {nyq} Hz of the \
-                 envelope decimated by ams_dsRatio"
+                "{given}the modulation band centred at {f:.1} Hz reaches {edge:.1} Hz, not below the \
+                 Nyquist frequency ({nyq} Hz) of the envelope decimated by ams_dsRatio = {} \
+                 ({fs} Hz / {}): keep the centre frequencies below {:.1} Hz (a band-pass \
+                 reaches {:.3} times its centre) or lower ams_dsRatio",
+                p.ds_ratio,
+                p.ds_ratio,
+                nyq / (root + 0.5),
+                root + 0.5,
             ),
         )
     };
@@ -266,7 +282,7 @@ fn log_bank(p: &AmsParams, fs_ds: f64, channels: usize) -> Result<(Vec<f64>, Vec
     for (j, &f) in mf.iter().enumerate() {
         let w0 = f / nyq;
         if w0 >= 1.0 {
-            return Err(too_high(f));
+            return Err(too_high(f, f));
         }
         let (b, a) = if j == 0 {
             butter(1, &[w0], ButterType::Low)
@@ -274,7 +290,7 @@ fn log_bank(p: &AmsParams, fs_ds: f64, channels: usize) -> Result<(Vec<f64>, Vec
             let f1 = f * (root - 0.5);
             let f2 = f * (root + 0.5);
             if f2 / nyq >= 1.0 {
-                return Err(too_high(f));
+                return Err(too_high(f, f2));
             }
             butter(1, &[f1 / nyq, f2 / nyq], ButterType::BandPass)
         };
@@ -670,6 +686,53 @@ mod tests {
             assert!(band[7] > 0.0, "{band:?}");
             assert!(band[8..].iter().all(|&v| v == 0.0), "{band:?}");
         }
+    }
+
+    #[test]
+    fn bands_past_nyquist_are_named_with_what_would_fit() {
+        // 8 kHz input: the envelope decimated by 4 has its Nyquist frequency at 1000 Hz,
+        // which the default band centred at 689.1 Hz reaches (edges 0.618 and 1.618 times
+        // the centre: 1115.0 Hz)
+        let err = AmsFeatures::new(&AmsParams::default(), &ihc(8000.0, 2))
+            .expect_err("default bands reach 1657 Hz");
+        let msg = err.to_string();
+        assert!(
+            msg.starts_with(
+                "invalid value 1024 for parameter 'ams_highFreqHz': with ams_highFreqHz = 1024 \
+                 (the default), the modulation band centred at 689.1 Hz reaches 1115.0 Hz"
+            ),
+            "{msg}"
+        );
+        for part in [
+            "Nyquist frequency (1000 Hz)",
+            "ams_dsRatio = 4 (8000 Hz / 4)",
+            "below 618.0 Hz",
+        ] {
+            assert!(msg.contains(part), "{part}: {msg}");
+        }
+        // what the message says fits does fit
+        let fits = AmsParams {
+            high_freq_hz: 617.9,
+            ..AmsParams::default()
+        };
+        assert!(AmsFeatures::new(&fits, &ihc(8000.0, 2)).is_ok());
+        let over = AmsParams {
+            high_freq_hz: 618.1,
+            ..AmsParams::default()
+        };
+        assert!(AmsFeatures::new(&over, &ihc(8000.0, 2)).is_err());
+        // an explicit centre is named as given
+        let explicit = AmsParams {
+            cf_hz: vec![10.0, 900.0],
+            ..AmsParams::default()
+        };
+        let msg = AmsFeatures::new(&explicit, &ihc(8000.0, 2))
+            .expect_err("900 Hz reaches 1456 Hz")
+            .to_string();
+        assert!(
+            msg.starts_with("invalid value 900 for parameter 'ams_cfHz'"),
+            "{msg}"
+        );
     }
 
     #[test]

@@ -551,6 +551,11 @@ mod tests {
             msg.contains("(the default)") && msg.contains("at most 4000 Hz"),
             "{msg}"
         );
+        // the channels past Nyquist, 4359 to 7641 Hz of the default grid (spec 11)
+        assert!(
+            msg.contains("puts 6 centre frequencies, from 4359 Hz up to 7641 Hz, above"),
+            "{msg}"
+        );
         let p = FilterbankParams {
             high_freq_hz: 1e308,
             n_erbs: 1.0,
