@@ -203,6 +203,9 @@ impl SignalInfo {
 pub struct Block {
     data: Vec<f64>,
     width: usize,
+    /// Values at the start that are sealed: kept, but neither shown nor written (see
+    /// [`Block::seal`]).
+    sealed: usize,
 }
 
 impl Block {
@@ -211,6 +214,7 @@ impl Block {
         Block {
             data: Vec::new(),
             width,
+            sealed: 0,
         }
     }
 
@@ -230,7 +234,9 @@ impl Block {
 
     /// Rows it holds without reallocating.
     pub fn room(&self) -> usize {
-        self.data.capacity().checked_div(self.width).unwrap_or(0)
+        (self.data.capacity() - self.sealed)
+            .checked_div(self.width)
+            .unwrap_or(0)
     }
 
     /// A block holding `data` as rows of `width` values.
@@ -243,7 +249,11 @@ impl Block {
             "block data length {} is not a multiple of its width {width}",
             data.len()
         );
-        Block { data, width }
+        Block {
+            data,
+            width,
+            sealed: 0,
+        }
     }
 
     /// Values per row.
@@ -253,42 +263,40 @@ impl Block {
 
     /// Number of rows (samples or frames).
     pub fn frames(&self) -> usize {
-        self.data.len().checked_div(self.width).unwrap_or(0)
+        self.shown().len().checked_div(self.width).unwrap_or(0)
     }
 
     /// True when the block holds no rows.
     pub fn is_empty(&self) -> bool {
-        self.data.is_empty()
+        self.data.len() == self.sealed
     }
 
     /// All values, row after row.
     pub fn as_slice(&self) -> &[f64] {
-        &self.data
+        self.shown()
     }
 
     /// All values, row after row, mutable.
     pub fn as_mut_slice(&mut self) -> &mut [f64] {
-        &mut self.data
+        &mut self.data[self.sealed..]
     }
 
     /// Row `i`.
     pub fn row(&self, i: usize) -> &[f64] {
-        &self.data[i * self.width..(i + 1) * self.width]
+        &self.shown()[i * self.width..(i + 1) * self.width]
     }
 
     /// Iterator over the rows.
     pub fn rows(&self) -> std::slice::ChunksExact<'_, f64> {
-        self.data.chunks_exact(self.width.max(1))
+        self.shown().chunks_exact(self.width.max(1))
     }
 
     /// Makes the block `frames` rows long, zero-filled, and returns its values.
     ///
     /// Does not allocate once the block has held that many values before.
     pub fn reset_to(&mut self, frames: usize) -> &mut [f64] {
-        self.data.clear();
-        self.grow(frames * self.width);
-        self.data.resize(frames * self.width, 0.0);
-        &mut self.data
+        self.data.truncate(self.sealed);
+        self.resize_to(frames)
     }
 
     /// Makes the block `frames` rows long without clearing it, for a caller that then
@@ -296,9 +304,10 @@ impl Block {
     ///
     /// Does not allocate once the block has held that many values before.
     pub fn resize_to(&mut self, frames: usize) -> &mut [f64] {
-        self.grow((frames * self.width).saturating_sub(self.data.len()));
-        self.data.resize(frames * self.width, 0.0);
-        &mut self.data
+        let len = self.sealed + frames * self.width;
+        self.grow(len.saturating_sub(self.data.len()));
+        self.data.resize(len, 0.0);
+        &mut self.data[self.sealed..]
     }
 
     /// Appends the rows of `other`.
@@ -307,8 +316,8 @@ impl Block {
     /// If `other` has another width.
     pub fn extend_from(&mut self, other: &Block) {
         assert_eq!(self.width, other.width, "appending rows of another width");
-        self.grow(other.data.len());
-        self.data.extend_from_slice(&other.data);
+        self.grow(other.as_slice().len());
+        self.data.extend_from_slice(other.as_slice());
     }
 
     /// Makes room for `frames` more rows, so that appending them does not reallocate.
@@ -324,10 +333,28 @@ impl Block {
 
     /// Removes every row, keeping the capacity.
     pub fn clear(&mut self) {
-        self.data.clear();
+        self.data.truncate(self.sealed);
     }
 
-    /// Consumes the block, returning its values row after row.
+    /// Seals the rows it holds: they stay, after the rows sealed before, but the block
+    /// shows and writes only rows that come after them, as if empty. A whole signal's
+    /// output is so written chunk after chunk in place, where the processor writes its
+    /// chunk, instead of being copied there (see [`Block::unseal`]).
+    pub fn seal(&mut self) {
+        self.sealed = self.data.len();
+    }
+
+    /// Shows every row again, the sealed ones first.
+    pub fn unseal(&mut self) {
+        self.sealed = 0;
+    }
+
+    /// The values shown: those after the sealed ones.
+    fn shown(&self) -> &[f64] {
+        &self.data[self.sealed..]
+    }
+
+    /// Consumes the block, returning its values row after row (sealed ones included).
     pub fn into_vec(self) -> Vec<f64> {
         self.data
     }
@@ -346,6 +373,32 @@ mod tests {
         assert_eq!(b.reset_to(1), &[0.0, 0.0, 0.0]);
         assert_eq!(b.data.capacity(), cap);
         assert_eq!(b.frames(), 1);
+    }
+
+    #[test]
+    fn sealed_rows_stay_unseen_and_the_next_chunk_is_written_after_them() {
+        let mut b = Block::with_room(2, 6);
+        let room = b.room();
+        b.resize_to(2).copy_from_slice(&[1.0, 2.0, 3.0, 4.0]);
+        let at = b.as_slice().as_ptr();
+        b.seal();
+        assert!(b.is_empty() && b.frames() == 0 && b.rows().next().is_none());
+        assert_eq!(b.room(), room - 2);
+        // a processor's next chunk, as it writes it: cleared, then one row, then resized
+        b.clear();
+        b.reset_to(1).copy_from_slice(&[5.0, 6.0]);
+        b.resize_to(2)[2..].copy_from_slice(&[7.0, 8.0]);
+        assert_eq!(b.as_slice(), &[5.0, 6.0, 7.0, 8.0]);
+        assert_eq!((b.frames(), b.row(1)), (2, &[7.0, 8.0][..]));
+        b.as_mut_slice()[0] = 9.0;
+        let mut copy = Block::new(2);
+        copy.extend_from(&b);
+        assert_eq!(copy.as_slice(), &[9.0, 6.0, 7.0, 8.0]);
+        b.seal();
+        b.unseal();
+        assert_eq!(b.as_slice(), &[1.0, 2.0, 3.0, 4.0, 9.0, 6.0, 7.0, 8.0]);
+        assert_eq!(b.as_slice().as_ptr(), at, "written in place, never moved");
+        assert_eq!(b.frames(), 4);
     }
 
     #[test]

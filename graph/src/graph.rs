@@ -206,8 +206,9 @@ impl Graph {
     /// once): the nodes whose whole chain is
     /// chunk-invariant run in blocks of `block` samples (bit-identical to one call, with
     /// the intermediate signals in cache), then every other node runs once, in order, on
-    /// its parents' joined outputs, as the AFE's `processSignal` calls it. Each block of
-    /// an invariant node's output that `whole` does not join goes to `each_block`.
+    /// its parents' joined outputs, as the AFE's `processSignal` calls it. The invariant
+    /// nodes write the outputs that `whole` joins in place, block after block (see
+    /// [`Graph::lend_buffers`]); each block of their other outputs goes to `each_block`.
     pub fn run_whole(
         &mut self,
         signal: &[&[f64]],
@@ -218,9 +219,11 @@ impl Graph {
         let invariant = self.invariant_nodes();
         let absorbing = self.absorbing_nodes(&invariant);
         let len = signal.first().map_or(0, |c| c.len());
+        let lent = self.lend_buffers(whole, &invariant);
         for start in (0..len).step_by(block.max(1)) {
             let end = (start + block).min(len);
             let part: Vec<&[f64]> = signal.iter().map(|c| &c[start..end]).collect();
+            self.seal_lent(&lent);
             self.load_input(&part);
             for i in 0..self.nodes.len() {
                 if absorbing[i] {
@@ -229,16 +232,17 @@ impl Graph {
                     if i > 0 {
                         self.run_node(i);
                     }
-                    let outputs = whole[i].iter_mut().zip(&self.nodes[i].outputs);
+                    let outputs = whole[i].iter().zip(&self.nodes[i].outputs);
                     for (output, (acc, out)) in outputs.enumerate() {
-                        match acc {
-                            Some(acc) => acc.extend_from(out),
-                            None => each_block(OutputRef { node: i, output }, out),
+                        // a joined output is written in place (lent)
+                        if acc.is_none() {
+                            each_block(OutputRef { node: i, output }, out);
                         }
                     }
                 }
             }
         }
+        self.return_buffers(whole, &lent);
         for i in (0..self.nodes.len()).filter(|&i| !invariant[i]) {
             let node = &mut self.nodes[i];
             let inputs: Option<Vec<&Block>> = node
@@ -256,6 +260,52 @@ impl Graph {
                 if let Some(acc) = acc {
                     std::mem::swap(acc, out);
                 }
+            }
+        }
+    }
+
+    /// Lends the joining buffers of the `nodes` (the blocks in `whole`, sized for a whole
+    /// signal) to their outputs, so that each chunk is written in place instead of being
+    /// copied there: each buffer takes its output's place, and `whole` keeps the output's
+    /// own block until [`Graph::return_buffers`]. [`Graph::seal_lent`] before each chunk
+    /// keeps what they hold.
+    pub fn lend_buffers(
+        &mut self,
+        whole: &mut [Vec<Option<Block>>],
+        nodes: &[bool],
+    ) -> Vec<OutputRef> {
+        let mut lent = Vec::new();
+        for (i, (node, outputs)) in self.nodes.iter_mut().zip(whole).enumerate() {
+            if !nodes[i] {
+                continue;
+            }
+            for (output, (out, acc)) in node.outputs.iter_mut().zip(outputs).enumerate() {
+                if let Some(acc) = acc {
+                    std::mem::swap(out, acc);
+                    lent.push(OutputRef { node: i, output });
+                }
+            }
+        }
+        lent
+    }
+
+    /// Seals what the `lent` buffers hold, so that the next chunk is written after it
+    /// (see [`Block::seal`]).
+    pub fn seal_lent(&mut self, lent: &[OutputRef]) {
+        for r in lent {
+            self.nodes[r.node].outputs[r.output].seal();
+        }
+    }
+
+    /// Takes the `lent` buffers back into `whole`, showing all they hold, and gives the
+    /// outputs their own blocks again.
+    pub fn return_buffers(&mut self, whole: &mut [Vec<Option<Block>>], lent: &[OutputRef]) {
+        for r in lent {
+            if let Some(acc) = whole[r.node][r.output].as_mut() {
+                let out = &mut self.nodes[r.node].outputs[r.output];
+                std::mem::swap(out, acc);
+                acc.unseal();
+                out.clear();
             }
         }
     }

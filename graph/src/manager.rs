@@ -849,34 +849,62 @@ impl Manager {
                 .collect(),
             None => Vec::new(),
         };
+        // The sequential executor writes the joined outputs in place (the concurrent one
+        // double-buffers every output, and they are copied)
+        let lent = match self.engine {
+            Some(_) => Vec::new(),
+            None => self.graph.lend_buffers(&mut whole, &invariant),
+        };
+        let fed = self.feed_blocks(signal, prefix, &mut whole, &lent, &streamed, &mut stream);
+        self.graph.return_buffers(&mut whole, &lent);
+        self.whole = whole;
+        fed?;
+        self.whole_shown = true;
+        Ok(())
+    }
+
+    /// [`Manager::run_blocks`]' loop: submits the blocks and collects them, the `lent`
+    /// outputs being written in place.
+    fn feed_blocks(
+        &mut self,
+        signal: &[&[f64]],
+        prefix: usize,
+        whole: &mut [Vec<Option<Block>>],
+        lent: &[OutputRef],
+        streamed: &[OutputRef],
+        stream: &mut Option<&mut BlockSink<'_>>,
+    ) -> Result<()> {
+        let len = signal[0].len();
         let mut start = 0;
         while start < len {
             let end = len.min(start + WHOLE_SIGNAL_BLOCK.max(prefix.saturating_sub(start)));
             let part: Vec<&[f64]> = signal.iter().map(|c| &c[start..end]).collect();
             start = end;
+            self.graph.seal_lent(lent);
             self.submit_chunk(&part)?;
             if self.in_flight() >= self.pipeline_depth() {
-                self.collect_block(&mut whole, &streamed, &mut stream)?;
+                self.collect_block(whole, lent, streamed, stream)?;
             }
         }
         while self.in_flight() > 0 {
-            self.collect_block(&mut whole, &streamed, &mut stream)?;
+            self.collect_block(whole, lent, streamed, stream)?;
         }
-        self.whole = whole;
-        self.whole_shown = true;
         Ok(())
     }
 
-    /// Collects the oldest block in flight: its outputs joined into `whole`, and those
-    /// `streamed` handed to `stream`.
+    /// Collects the oldest block in flight: its outputs joined into `whole` (but for
+    /// those `lent`, written in place), and those `streamed` handed to `stream`.
     fn collect_block(
         &mut self,
         whole: &mut [Vec<Option<Block>>],
+        lent: &[OutputRef],
         streamed: &[OutputRef],
         stream: &mut Option<&mut BlockSink<'_>>,
     ) -> Result<()> {
         self.collect_chunk()?;
-        self.append_outputs(whole);
+        if lent.is_empty() {
+            self.append_outputs(whole);
+        }
         if let Some(f) = stream {
             for &r in streamed {
                 if let Some(s) = self.signal(r) {
@@ -1493,6 +1521,48 @@ mod tests {
         assert!(e.to_string().contains("empty"), "{e}");
         assert!(Manager::new(f64::NAN, 2).is_err());
         assert!(Manager::new(16000.0, 3).is_err());
+    }
+
+    /// The sequential executor writes a whole signal's joined outputs in place, block
+    /// after block, into the buffers sized for the signal: the outputs' own blocks are
+    /// never used (they would hold a block each, copied on). The values are those of the
+    /// concurrent executor, which copies (a chunk-invariant graph, and one with per-chunk
+    /// nodes, every intermediate signal joined).
+    #[test]
+    fn whole_signals_are_written_in_place_not_copied() {
+        let fs = 16000.0;
+        let x: Vec<f64> = (0..3 * WHOLE_SIGNAL_BLOCK + 77)
+            .map(|t| (0.03 * t as f64).sin() * (1.0 + (t % 500) as f64 / 500.0))
+            .collect();
+        for requests in [&["ratemap", "ild"][..], &["ratemap", "onsetMap"][..]] {
+            let run = |threads| {
+                let mut m = Manager::with_threads(fs, 2, threads).expect("manager");
+                m.set_keep_all(true);
+                for r in requests {
+                    m.add_request(r, &ParamMap::new()).expect("request");
+                }
+                m.process_signal(&[&x, &x]).expect("process");
+                m
+            };
+            let (sequential, concurrent) = (run(0), run(2));
+            let invariant = sequential.graph.invariant_nodes();
+            let mut joined = 0;
+            for (s, c) in sequential
+                .signals(true)
+                .iter()
+                .zip(concurrent.signals(true))
+            {
+                assert_eq!(s.key(), c.key());
+                let bits = |b: &Block| b.as_slice().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(s.new), bits(c.new), "{requests:?}: {}", s.key());
+                if s.source.node > 0 && invariant[s.source.node] {
+                    let own = &sequential.graph.nodes[s.source.node].outputs[s.source.output];
+                    assert_eq!(own.room(), 0, "{requests:?}: {} was copied", s.key());
+                    joined += 1;
+                }
+            }
+            assert!(joined >= 6, "{requests:?}: {joined} joined in blocks");
+        }
     }
 
     /// A streamed whole-signal call hands on, block by block, exactly the requested
