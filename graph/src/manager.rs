@@ -902,6 +902,7 @@ impl Manager {
         stream: &mut Option<&mut BlockSink<'_>>,
     ) -> Result<()> {
         self.collect_chunk()?;
+        // the joined outputs are either all lent or all copied
         if lent.is_empty() {
             self.append_outputs(whole);
         }
@@ -1525,9 +1526,10 @@ mod tests {
 
     /// The sequential executor writes a whole signal's joined outputs in place, block
     /// after block, into the buffers sized for the signal: the outputs' own blocks are
-    /// never used (they would hold a block each, copied on). The values are those of the
-    /// concurrent executor, which copies (a chunk-invariant graph, and one with per-chunk
-    /// nodes, every intermediate signal joined).
+    /// never used (they would hold a block each, copied on). The values are those of a
+    /// run with the concurrent executor, which copies a chunk-invariant graph's blocks (a
+    /// graph with per-chunk nodes runs its invariant part on the calling thread either
+    /// way). Both graphs join every intermediate signal.
     #[test]
     fn whole_signals_are_written_in_place_not_copied() {
         let fs = 16000.0;
