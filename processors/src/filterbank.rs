@@ -224,8 +224,11 @@ impl CfGrid {
         let Some(bad) = self.cf_hz.iter().find(|f| **f > limit) else {
             return Ok(());
         };
-        let above = self.cf_hz.iter().filter(|f| **f > limit).count();
         let top = self.cf_hz.iter().fold(*bad, |m, f| m.max(*f));
+        let channels = match self.cf_hz.iter().filter(|f| **f > limit).count() {
+            1 => format!("a centre frequency at {bad:.0} Hz"),
+            n => format!("{n} centre frequencies, from {bad:.0} Hz up to {top:.0} Hz,"),
+        };
         Err(if params.cf_hz.is_empty() {
             let default = FilterbankParams::default().high_freq_hz;
             let which = if params.high_freq_hz == default {
@@ -237,9 +240,8 @@ impl CfGrid {
                 "fb_highFreqHz",
                 params.high_freq_hz,
                 format!(
-                    "{}{which} puts {above} centre frequencies, from {bad:.0} Hz up to {top:.0} \
-                     Hz, above the Nyquist frequency ({nyquist} Hz) of the {fs} Hz input: set \
-                     fb_highFreqHz to at most {nyquist} Hz",
+                    "{}{which} puts {channels} above the Nyquist frequency ({nyquist} Hz) of \
+                     the {fs} Hz input: set fb_highFreqHz to at most {nyquist} Hz",
                     params.high_freq_hz
                 ),
             )

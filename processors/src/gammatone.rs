@@ -556,6 +556,18 @@ mod tests {
             msg.contains("puts 6 centre frequencies, from 4359 Hz up to 7641 Hz, above"),
             "{msg}"
         );
+        // one channel past Nyquist: 80 Hz to 4400 Hz at 1 ERB ends at 4359 Hz
+        let one = FilterbankParams {
+            high_freq_hz: 4400.0,
+            ..Default::default()
+        };
+        let msg = Gammatone::new(&one, 8000.0)
+            .expect_err("4359 Hz")
+            .to_string();
+        assert!(
+            msg.contains("4400 puts a centre frequency at 4359 Hz above the Nyquist frequency"),
+            "{msg}"
+        );
         let p = FilterbankParams {
             high_freq_hz: 1e308,
             n_erbs: 1.0,
