@@ -1524,6 +1524,20 @@ mod tests {
         assert!(Manager::new(16000.0, 3).is_err());
     }
 
+    /// A binaural manager on `threads` worker threads with `requests` at their defaults.
+    fn binaural(fs: f64, threads: usize, requests: &[&str]) -> Manager {
+        let mut m = Manager::with_threads(fs, 2, threads).expect("manager");
+        for r in requests {
+            m.add_request(r, &ParamMap::new()).expect("request");
+        }
+        m
+    }
+
+    /// The values' bit patterns, to compare blocks bit for bit.
+    fn bits(b: &Block) -> Vec<u64> {
+        b.as_slice().iter().map(|v| v.to_bits()).collect()
+    }
+
     /// The sequential executor writes a whole signal's joined outputs in place, block
     /// after block, into the buffers sized for the signal: the outputs' own blocks are
     /// never used (they would hold a block each, copied on). The values are those of a
@@ -1538,11 +1552,8 @@ mod tests {
             .collect();
         for requests in [&["ratemap", "ild"][..], &["ratemap", "onsetMap"][..]] {
             let run = |threads| {
-                let mut m = Manager::with_threads(fs, 2, threads).expect("manager");
+                let mut m = binaural(fs, threads, requests);
                 m.set_keep_all(true);
-                for r in requests {
-                    m.add_request(r, &ParamMap::new()).expect("request");
-                }
                 m.process_signal(&[&x, &x]).expect("process");
                 m
             };
@@ -1555,7 +1566,6 @@ mod tests {
                 .zip(concurrent.signals(true))
             {
                 assert_eq!(s.key(), c.key());
-                let bits = |b: &Block| b.as_slice().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
                 assert_eq!(bits(s.new), bits(c.new), "{requests:?}: {}", s.key());
                 if s.source.node > 0 && invariant[s.source.node] {
                     let own = &sequential.graph.nodes[s.source.node].outputs[s.source.output];
@@ -1585,13 +1595,7 @@ mod tests {
                 (&["pitch", "ratemap"][..], &["ratemap"][..]),
                 (&["ratemap", "ild"][..], &["ratemap", "ild"][..]),
             ] {
-                let manager = || {
-                    let mut m = Manager::with_threads(fs, 2, threads).expect("manager");
-                    for r in requests {
-                        m.add_request(r, &ParamMap::new()).expect("request");
-                    }
-                    m
-                };
+                let manager = || binaural(fs, threads, requests);
                 let mut whole = manager();
                 whole.process_signal(&[&x, &y]).expect("process");
                 let mut m = manager();
@@ -1631,8 +1635,6 @@ mod tests {
                         s.name
                     );
                     assert!(s.new.frames() > 0, "{what}: {}", s.name);
-                    let bits =
-                        |b: &Block| b.as_slice().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
                     assert_eq!(bits(data), bits(s.new), "{what}: {}", s.name);
                 }
             }
