@@ -131,6 +131,15 @@ pub trait Sink {
     /// Takes one block of the requested output `source` during a whole-signal call, where
     /// the sink [`Sink::streams`].
     fn block(&mut self, _source: OutputRef, _block: &Block) {}
+    /// Where the sink keeps every output whole in memory (as [`Recorder`] does): the input
+    /// samples per ear the run will have, 0 if unknown. A whole signal that runs in blocks
+    /// then has its outputs written straight into buffers sized for the whole run
+    /// ([`Manager::process_source`]) and handed over in [`Sink::whole`], instead of each
+    /// block going to [`Sink::chunk`] to be copied. `None` (the default) for a sink that
+    /// hands the output on as it comes.
+    fn keeps_whole(&self) -> Option<u64> {
+        None
+    }
 }
 
 impl Sink for Recorder {
@@ -144,6 +153,10 @@ impl Sink for Recorder {
     fn whole(&mut self, manager: &mut Manager) -> Result<()> {
         self.record_whole(manager);
         Ok(())
+    }
+
+    fn keeps_whole(&self) -> Option<u64> {
+        Some(self.expected_input().unwrap_or(0))
     }
 }
 
@@ -252,6 +265,17 @@ pub fn run_into<S: Sink>(
         }
         // blocks give one call's output, the first holding the AGC's seeding time
         (None, Some(prefix)) => {
+            if let Some(samples) = sink.keeps_whole() {
+                // written in place into the sink's whole-run outputs
+                let samples = usize::try_from(samples).unwrap_or(0);
+                mgr.process_source(samples, &mut |n, out| {
+                    if crate::interrupt::requested() {
+                        return Err(Error::Interrupted);
+                    }
+                    next(n, out)
+                })?;
+                return sink.whole(mgr);
+            }
             mgr.reset()?;
             (WHOLE_SIGNAL_BLOCK, WHOLE_SIGNAL_BLOCK.max(prefix))
         }

@@ -58,6 +58,11 @@ impl Recorder {
         self.expected = Some(samples);
     }
 
+    /// Input samples per ear the run will have, as given to [`Recorder::expect_input`].
+    pub fn expected_input(&self) -> Option<u64> {
+        self.expected
+    }
+
     /// Appends what `manager` computed in its last chunk.
     pub fn record(&mut self, manager: &Manager) {
         for s in manager.signals(self.all) {

@@ -2,6 +2,7 @@
 //! a DAG of processors shared between requests, and runs it chunk by chunk. The
 //! sequential executor here is the reference for every scheduler.
 
+mod block_input;
 mod engine;
 mod graph;
 mod manager;
@@ -14,6 +15,7 @@ mod sync;
 mod trace;
 mod wakeup;
 
+pub use block_input::BlockSource;
 pub use engine::{is_worker_thread, MAX_THREADS};
 pub use graph::{Channel, OutputRef};
 pub use manager::{

@@ -6,6 +6,7 @@ use afe_core::{Block, Error, ParamMap, Result, SignalInfo};
 use afe_processors::requests;
 use serde_json::Value;
 
+use crate::block_input::{BlockInput, BlockSource};
 use crate::engine::Engine;
 use crate::graph::{Channel, Graph, OutputRef};
 use crate::resolve::chain_of;
@@ -620,7 +621,8 @@ impl Manager {
             .iter()
             .map(|c| c.iter().map(|c| (c.since, c.given)).collect())
             .collect();
-        self.run_blocks(chunk, 0, None)?;
+        let len = chunk[0].len();
+        self.run_blocks(BlockInput::Signal(chunk, 0), len, 0, None)?;
         // the chunk's first frame is the first of its first block
         for (clocks, before) in self.clocks.iter_mut().zip(before) {
             for (c, (since, given)) in clocks.iter_mut().zip(before) {
@@ -783,8 +785,8 @@ impl Manager {
             return Err(Error::InvalidInput("the signal is empty".into()));
         }
         self.reset()?;
-        self.check_whole_signal(len)?;
         let Some(prefix) = self.graph.one_call_prefix() else {
+            self.check_whole_signal(len)?;
             // The nodes that depend on chunk boundaries must see the signal in one call:
             // the graph runs on this thread, its invariant part in blocks (and the
             // processors are in the graph, which tells which nodes absorb blocks).
@@ -813,12 +815,48 @@ impl Manager {
             self.whole_shown = true;
             return Ok(());
         };
-        self.run_blocks(signal, prefix, stream)?;
-        // the whole output is shown: its first frame is the first since the reset
-        for c in self.clocks.iter_mut().flatten() {
-            c.first_since = 0;
-            c.first_given = c.given - c.since;
-        }
+        self.run_blocks(BlockInput::Signal(signal, 0), len, prefix, stream)?;
+        self.show_since_reset();
+        Ok(())
+    }
+
+    /// As [`Manager::process_signal`] for a graph that runs in blocks (see
+    /// [`Manager::one_call_prefix`]), its input drawn block by block from `next` instead
+    /// of held whole: a long file decoded as it goes, its outputs written once into
+    /// buffers sized for `samples` input samples per ear (the length where known, else 0:
+    /// they then grow as they fill).
+    ///
+    /// ```
+    /// use afe_core::ParamMap;
+    /// use afe_graph::Manager;
+    /// let x: Vec<f64> = (0..16000).map(|t| (0.05 * t as f64).sin()).collect();
+    /// let mut mgr = Manager::new(16000.0, 1)?;
+    /// mgr.add_request("innerhaircell", &ParamMap::new())?;
+    /// let mut pos = 0;
+    /// mgr.process_source(x.len(), &mut |n, out| {
+    ///     let end = x.len().min(pos + n);
+    ///     out[0].clear();
+    ///     out[0].extend_from_slice(&x[pos..end]);
+    ///     let got = end - pos;
+    ///     pos = end;
+    ///     Ok(got)
+    /// })?;
+    /// assert_eq!(mgr.signals(false)[0].new.frames(), 16000);
+    /// # Ok::<(), afe_core::Error>(())
+    /// ```
+    pub fn process_source(&mut self, samples: usize, next: &mut BlockSource<'_>) -> Result<()> {
+        let Some(prefix) = self.graph.one_call_prefix() else {
+            let (_, whole) = self.one_call_bytes(0);
+            return Err(Error::InvalidInput(format!(
+                "{} need the whole signal in one call, not drawn block by block: \
+                 gather it and call process_signal",
+                whole.join(", ")
+            )));
+        };
+        self.reset()?;
+        let input = BlockInput::source(next, self.ears);
+        self.run_blocks(input, samples, prefix, None)?;
+        self.show_since_reset();
         Ok(())
     }
 
@@ -828,13 +866,13 @@ impl Manager {
     /// them to `stream` where given.
     fn run_blocks(
         &mut self,
-        signal: &[&[f64]],
+        input: BlockInput<'_, '_>,
+        samples: usize,
         prefix: usize,
         mut stream: Option<&mut BlockSink<'_>>,
     ) -> Result<()> {
-        let len = signal[0].len();
         let invariant = vec![true; self.graph.nodes.len()];
-        let mut whole = self.whole_buffers(&invariant, len, stream.is_some());
+        let mut whole = self.whole_buffers(&invariant, samples, stream.is_some());
         let streamed: Vec<OutputRef> = match stream {
             Some(_) => self
                 .kept_outputs(&invariant, false)
@@ -855,7 +893,7 @@ impl Manager {
             Some(_) => Vec::new(),
             None => self.graph.lend_buffers(&mut whole, &invariant),
         };
-        let fed = self.feed_blocks(signal, prefix, &mut whole, &lent, &streamed, &mut stream);
+        let fed = self.feed_blocks(input, prefix, &mut whole, &lent, &streamed, &mut stream);
         self.graph.return_buffers(&mut whole, &lent);
         self.whole = whole;
         fed?;
@@ -863,23 +901,37 @@ impl Manager {
         Ok(())
     }
 
+    /// Shows a whole-signal run's output from its first frame, the first since the reset.
+    fn show_since_reset(&mut self) {
+        for c in self.clocks.iter_mut().flatten() {
+            c.first_since = 0;
+            c.first_given = c.given - c.since;
+        }
+    }
+
     /// [`Manager::run_blocks`]' loop: submits the blocks and collects them, the `lent`
     /// outputs being written in place.
     fn feed_blocks(
         &mut self,
-        signal: &[&[f64]],
+        mut input: BlockInput<'_, '_>,
         prefix: usize,
         whole: &mut [Vec<Option<Block>>],
         lent: &[OutputRef],
         streamed: &[OutputRef],
         stream: &mut Option<&mut BlockSink<'_>>,
     ) -> Result<()> {
-        let len = signal[0].len();
-        let mut start = 0;
-        while start < len {
-            let end = len.min(start + WHOLE_SIGNAL_BLOCK.max(prefix.saturating_sub(start)));
-            let part: Vec<&[f64]> = signal.iter().map(|c| &c[start..end]).collect();
-            start = end;
+        let mut fed = 0;
+        loop {
+            let part = input.next(WHOLE_SIGNAL_BLOCK.max(prefix.saturating_sub(fed)))?;
+            let got = part.first().map_or(0, |p| p.len());
+            if got == 0 {
+                break;
+            }
+            if fed == 0 {
+                // a first block that holds a long seeding time holds every node's output
+                self.check_whole_signal(got)?;
+            }
+            fed += got;
             self.graph.seal_lent(lent);
             self.submit_chunk(&part)?;
             if self.in_flight() >= self.pipeline_depth() {
@@ -888,6 +940,9 @@ impl Manager {
         }
         while self.in_flight() > 0 {
             self.collect_block(whole, lent, streamed, stream)?;
+        }
+        if fed == 0 {
+            return Err(Error::InvalidInput("the signal is empty".into()));
         }
         Ok(())
     }
@@ -1575,6 +1630,63 @@ mod tests {
             }
             assert!(joined >= 6, "{requests:?}: {joined} joined in blocks");
         }
+    }
+
+    /// A whole signal drawn block by block from a source (in short reads, with and
+    /// without its length known) gives `process_signal`'s outputs bit for bit, written
+    /// in place; so does a graph with the AGC, whose first block must hold its seeding
+    /// time. A graph with per-chunk nodes and an empty source are refused.
+    #[test]
+    fn a_signal_drawn_from_a_source_gives_the_signal_in_memorys_output() {
+        let fs = 16000.0;
+        let x: Vec<f64> = (0..5 * WHOLE_SIGNAL_BLOCK + 31)
+            .map(|t| (0.04 * t as f64).sin() * (1.0 + (t % 600) as f64 / 600.0))
+            .collect();
+        let agc = params(&[("pp_bNormalizeRMS", json!(1))]);
+        for (p, hint) in [(ParamMap::new(), x.len()), (agc, 0)] {
+            let fresh = || {
+                let mut m = Manager::new(fs, 2).expect("manager");
+                for r in ["ratemap", "ild"] {
+                    m.add_request(r, &p).expect("request");
+                }
+                m.set_keep_all(true);
+                m
+            };
+            let mut whole = fresh();
+            whole.process_signal(&[&x, &x]).expect("process");
+            let mut drawn = fresh();
+            let mut pos = 0;
+            drawn
+                .process_source(hint, &mut |n, out| {
+                    let end = x.len().min(pos + n.min(700));
+                    for o in out.iter_mut() {
+                        o.clear();
+                        o.extend_from_slice(&x[pos..end]);
+                    }
+                    let got = end - pos;
+                    pos = end;
+                    Ok(got)
+                })
+                .expect("drawn");
+            let (w, d) = (whole.signals(true), drawn.signals(true));
+            assert_eq!(w.len(), d.len());
+            for (w, d) in w.iter().zip(&d) {
+                assert_eq!(w.key(), d.key());
+                assert_eq!(bits(w.new), bits(d.new), "hint {hint}: {}", d.key());
+                let own = &drawn.graph.nodes[d.source.node].outputs[d.source.output];
+                assert_eq!(own.room(), 0, "hint {hint}: {} was copied", d.key());
+            }
+        }
+        let mut per_chunk = binaural(fs, 0, &["onsetMap"]);
+        let e = per_chunk
+            .process_source(0, &mut |_, _| Ok(0))
+            .expect_err("per-chunk");
+        assert!(e.to_string().contains("call process_signal"), "{e}");
+        let mut empty = binaural(fs, 0, &["ratemap"]);
+        let e = empty
+            .process_source(0, &mut |_, _| Ok(0))
+            .expect_err("empty");
+        assert!(e.to_string().contains("the signal is empty"), "{e}");
     }
 
     /// A streamed whole-signal call hands on, block by block, exactly the requested

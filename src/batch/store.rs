@@ -373,6 +373,13 @@ impl Sink for FileWriter<'_> {
             FileWriter::Npz { rec, .. } => Ok(rec.whole(manager)?),
         }
     }
+
+    fn keeps_whole(&self) -> Option<u64> {
+        match self {
+            FileWriter::Zarr(_) => None,
+            FileWriter::Npz { rec, .. } => rec.keeps_whole(),
+        }
+    }
 }
 
 /// A file's zarr group being written.
