@@ -444,6 +444,7 @@ fn compute_file(store: &Store, file: &InputFile) -> Result<(), BatchError> {
     };
     let mut mgr = Manager::with_threads(wav.fs(), wav.channels(), 0)?;
     let mut writer = store.writer(file, wav.fs(), wav.channels())?;
+    writer.expect_input(wav.frames());
     let ears = wav.channels();
     run_into(
         &mut mgr,

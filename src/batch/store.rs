@@ -339,6 +339,14 @@ pub enum FileWriter<'a> {
 }
 
 impl FileWriter<'_> {
+    /// Sizes an `.npz`'s outputs for a file of `samples` samples per ear (as the header
+    /// declares), so that each is written once instead of growing.
+    pub fn expect_input(&mut self, samples: u64) {
+        if let FileWriter::Npz { rec, .. } = self {
+            rec.expect_input(samples);
+        }
+    }
+
     /// Writes what is left and the arrays' final shapes.
     pub fn finish(self) -> Result<(), BatchError> {
         match self {
