@@ -50,6 +50,25 @@ impl<'s, 'a> BlockInput<'s, 'a> {
     }
 }
 
+/// A source of `x`, the same on every ear, that gives at most `most` samples a call.
+#[cfg(test)]
+pub(crate) fn slice_source(
+    x: &[f64],
+    most: usize,
+) -> impl FnMut(usize, &mut [Vec<f64>]) -> Result<usize> + '_ {
+    let mut pos = 0;
+    move |n, out| {
+        let end = x.len().min(pos + n.min(most));
+        for o in out.iter_mut() {
+            o.clear();
+            o.extend_from_slice(&x[pos..end]);
+        }
+        let got = end - pos;
+        pos = end;
+        Ok(got)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -59,17 +78,7 @@ mod tests {
     #[test]
     fn short_reads_are_topped_up_to_full_blocks() {
         let x: Vec<f64> = (0..11).map(f64::from).collect();
-        let mut pos = 0;
-        let mut source = |n: usize, out: &mut [Vec<f64>]| {
-            let end = x.len().min(pos + n.min(3));
-            for o in out.iter_mut() {
-                o.clear();
-                o.extend_from_slice(&x[pos..end]);
-            }
-            let got = end - pos;
-            pos = end;
-            Ok(got)
-        };
+        let mut source = slice_source(&x, 3);
         let mut input = BlockInput::source(&mut source, 2);
         let mut blocks = Vec::new();
         loop {

@@ -1307,6 +1307,7 @@ impl Manager {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::block_input::slice_source;
     use serde_json::json;
 
     /// A whole signal that processors take at once (the Hilbert IHC) is refused before
@@ -1588,6 +1589,14 @@ mod tests {
         m
     }
 
+    /// `len` samples of a tone (`w` radians per sample) whose amplitude swells from 1 to 2
+    /// over every `period` samples: blocks differ from one another.
+    fn swelling_tone(len: usize, w: f64, period: usize) -> Vec<f64> {
+        (0..len)
+            .map(|t| (w * t as f64).sin() * (1.0 + (t % period) as f64 / period as f64))
+            .collect()
+    }
+
     /// The values' bit patterns, to compare blocks bit for bit.
     fn bits(b: &Block) -> Vec<u64> {
         b.as_slice().iter().map(|v| v.to_bits()).collect()
@@ -1602,9 +1611,7 @@ mod tests {
     #[test]
     fn whole_signals_are_written_in_place_not_copied() {
         let fs = 16000.0;
-        let x: Vec<f64> = (0..3 * WHOLE_SIGNAL_BLOCK + 77)
-            .map(|t| (0.03 * t as f64).sin() * (1.0 + (t % 500) as f64 / 500.0))
-            .collect();
+        let x = swelling_tone(3 * WHOLE_SIGNAL_BLOCK + 77, 0.03, 500);
         for requests in [&["ratemap", "ild"][..], &["ratemap", "onsetMap"][..]] {
             let run = |threads| {
                 let mut m = binaural(fs, threads, requests);
@@ -1639,9 +1646,7 @@ mod tests {
     #[test]
     fn a_signal_drawn_from_a_source_gives_the_signal_in_memorys_output() {
         let fs = 16000.0;
-        let x: Vec<f64> = (0..5 * WHOLE_SIGNAL_BLOCK + 31)
-            .map(|t| (0.04 * t as f64).sin() * (1.0 + (t % 600) as f64 / 600.0))
-            .collect();
+        let x = swelling_tone(5 * WHOLE_SIGNAL_BLOCK + 31, 0.04, 600);
         let agc = params(&[("pp_bNormalizeRMS", json!(1))]);
         for (p, hint) in [(ParamMap::new(), x.len()), (agc, 0)] {
             let fresh = || {
@@ -1655,18 +1660,8 @@ mod tests {
             let mut whole = fresh();
             whole.process_signal(&[&x, &x]).expect("process");
             let mut drawn = fresh();
-            let mut pos = 0;
             drawn
-                .process_source(hint, &mut |n, out| {
-                    let end = x.len().min(pos + n.min(700));
-                    for o in out.iter_mut() {
-                        o.clear();
-                        o.extend_from_slice(&x[pos..end]);
-                    }
-                    let got = end - pos;
-                    pos = end;
-                    Ok(got)
-                })
+                .process_source(hint, &mut slice_source(&x, 700))
                 .expect("drawn");
             let (w, d) = (whole.signals(true), drawn.signals(true));
             assert_eq!(w.len(), d.len());
@@ -1696,9 +1691,7 @@ mod tests {
     #[test]
     fn a_streamed_whole_signal_hands_on_the_blocks_it_does_not_join() {
         let fs = 16000.0;
-        let x: Vec<f64> = (0..3 * WHOLE_SIGNAL_BLOCK + 123)
-            .map(|t| (0.05 * t as f64).sin() * (1.0 + (t % 700) as f64 / 700.0))
-            .collect();
+        let x = swelling_tone(3 * WHOLE_SIGNAL_BLOCK + 123, 0.05, 700);
         let y: Vec<f64> = x.iter().map(|v| 0.5 * v).collect();
         for threads in [0, 2] {
             for (requests, streamed) in [
