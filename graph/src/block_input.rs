@@ -33,14 +33,16 @@ impl<'s, 'a> BlockInput<'s, 'a> {
                 Ok(signal.iter().map(|c| &c[start..end]).collect())
             }
             BlockInput::Source(next, block, spare) => {
+                // the counts the source returns are what it gave, whatever it left behind
                 let mut got = next(samples, block)?;
+                block.iter_mut().for_each(|b| b.truncate(got));
                 while got > 0 && got < samples {
                     let more = next(samples - got, spare)?;
                     if more == 0 {
                         break;
                     }
                     for (b, s) in block.iter_mut().zip(spare.iter()) {
-                        b.extend_from_slice(s);
+                        b.extend_from_slice(&s[..more.min(s.len())]);
                     }
                     got += more;
                 }
@@ -91,6 +93,25 @@ mod tests {
             blocks.push(b[0].to_vec());
         }
         assert_eq!(blocks, [&x[..5], &x[5..10], &x[10..]]);
+    }
+
+    /// A source that leaves its last block in the vectors when it says it is done still
+    /// ends the input (its count is what counts).
+    #[test]
+    fn the_end_is_where_the_source_says_it_is() {
+        let mut calls = 0;
+        let mut source = |n: usize, out: &mut [Vec<f64>]| {
+            calls += 1;
+            if calls > 1 {
+                return Ok(0); // the vectors still hold the first block
+            }
+            out[0].clear();
+            out[0].extend((0..n).map(|t| t as f64));
+            Ok(n)
+        };
+        let mut input = BlockInput::source(&mut source, 1);
+        assert_eq!(input.next(4).expect("block")[0].len(), 4);
+        assert!(input.next(4).expect("end")[0].is_empty());
     }
 
     /// A signal in memory is cut into blocks of the asked sizes.
