@@ -266,7 +266,9 @@ pub fn run_into<S: Sink>(
         // blocks give one call's output, the first holding the AGC's seeding time
         (None, Some(prefix)) => {
             if let Some(samples) = sink.keeps_whole() {
-                // written in place into the sink's whole-run outputs
+                // written in place into the sink's whole-run outputs (the source fills one
+                // vector per ear of the manager's)
+                mgr.check_channels(ears)?;
                 let samples = usize::try_from(samples).unwrap_or(0);
                 mgr.process_source(samples, &mut |n, out| {
                     if crate::interrupt::requested() {
@@ -309,4 +311,73 @@ pub fn run_into<S: Sink>(
         return Err(empty().into());
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    /// A whole signal through a graph that runs in blocks (drawn block by block into
+    /// [`Manager::process_source`]) is recorded as one `process_signal` gives it, bit for
+    /// bit, every intermediate signal included; with the AGC too.
+    #[test]
+    fn a_whole_signal_is_recorded_as_process_signal_gives_it() {
+        let fs = 16000.0;
+        let x: Vec<f64> = (0..20_000)
+            .map(|t| (0.03 * t as f64).sin() * (1.0 + (t % 900) as f64 / 900.0))
+            .collect();
+        for agc in [false, true] {
+            let mut params = ParamMap::new();
+            if agc {
+                params.insert("pp_bNormalizeRMS".into(), json!(1));
+            }
+            let job = Job {
+                requests: vec!["ratemap".into(), "ild".into()],
+                params: params.clone(),
+                all: true,
+                ..Job::default()
+            };
+            let rec = run(&job, fs, &[&x, &x]).expect("run");
+            let mut mgr = Manager::new(fs, 2).expect("manager");
+            mgr.set_keep_all(true);
+            for r in &job.requests {
+                mgr.add_request(r, &params).expect("request");
+            }
+            mgr.process_signal(&[&x, &x]).expect("process");
+            let want = mgr.signals(true);
+            assert_eq!(rec.signals().len(), want.len(), "agc {agc}");
+            for (got, want) in rec.signals().iter().zip(&want) {
+                assert_eq!(got.key, want.key());
+                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(
+                    bits(got.data.as_slice()),
+                    bits(want.new.as_slice()),
+                    "agc {agc}: {}",
+                    got.key
+                );
+            }
+        }
+    }
+
+    /// A manager made for one ear, given two channels, says so, whether the input is fed
+    /// in chunks or drawn whole.
+    #[test]
+    fn a_channel_count_the_manager_was_not_made_for_is_refused() {
+        let x = vec![0.1; 5000];
+        for chunk in [None, Some(1000)] {
+            let job = Job {
+                requests: vec!["ratemap".into()],
+                chunk,
+                ..Job::default()
+            };
+            let mut mgr = Manager::new(16000.0, 1).expect("manager");
+            let e = run_with(&mut mgr, &job, &[&x, &x]).expect_err("two channels");
+            assert!(
+                e.to_string()
+                    .contains("got 2 channel(s), but this manager was made for 1"),
+                "{chunk:?}: {e}"
+            );
+        }
+    }
 }

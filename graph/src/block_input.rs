@@ -1,7 +1,7 @@
 //! The input of a whole-signal run in blocks: a signal held in memory, or one drawn block
 //! by block from a source (a file decoded as it goes).
 
-use afe_core::Result;
+use afe_core::{Error, Result};
 
 /// Input drawn block by block ([`crate::Manager::process_source`]): fills one vector per
 /// ear (replacing their content) with up to the asked number of samples per ear and
@@ -34,21 +34,32 @@ impl<'s, 'a> BlockInput<'s, 'a> {
             }
             BlockInput::Source(next, block, spare) => {
                 // the counts the source returns are what it gave, whatever it left behind
-                let mut got = next(samples, block)?;
+                let mut got = gave(next(samples, block)?, block)?;
                 block.iter_mut().for_each(|b| b.truncate(got));
                 while got > 0 && got < samples {
-                    let more = next(samples - got, spare)?;
+                    let more = gave(next(samples - got, spare)?, spare)?;
                     if more == 0 {
                         break;
                     }
                     for (b, s) in block.iter_mut().zip(spare.iter()) {
-                        b.extend_from_slice(&s[..more.min(s.len())]);
+                        b.extend_from_slice(&s[..more]);
                     }
                     got += more;
                 }
                 Ok(block.iter().map(Vec::as_slice).collect())
             }
         }
+    }
+}
+
+/// The count a source returned, checked against the vectors it filled: each must hold at
+/// least that many samples.
+fn gave(count: usize, filled: &[Vec<f64>]) -> Result<usize> {
+    match filled.iter().map(Vec::len).min() {
+        Some(len) if len < count => Err(Error::InvalidInput(format!(
+            "the input source said it gave {count} samples per ear but filled only {len}"
+        ))),
+        _ => Ok(count),
     }
 }
 
@@ -112,6 +123,23 @@ mod tests {
         let mut input = BlockInput::source(&mut source, 1);
         assert_eq!(input.next(4).expect("block")[0].len(), 4);
         assert!(input.next(4).expect("end")[0].is_empty());
+    }
+
+    /// A source that says it gave more samples than it wrote is an error, not a short
+    /// block (a short first block would seed the AGC on too few samples).
+    #[test]
+    fn a_source_that_overstates_its_count_is_refused() {
+        let mut source = |_: usize, out: &mut [Vec<f64>]| {
+            out.iter_mut().for_each(|o| *o = vec![0.5; 3]);
+            Ok(5)
+        };
+        let mut input = BlockInput::source(&mut source, 2);
+        let e = input.next(8).expect_err("overstated");
+        assert!(
+            e.to_string()
+                .contains("gave 5 samples per ear but filled only 3"),
+            "{e}"
+        );
     }
 
     /// A signal in memory is cut into blocks of the asked sizes.

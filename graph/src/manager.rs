@@ -471,19 +471,24 @@ impl Manager {
         }
     }
 
-    fn check_chunk(&self, chunk: &[&[f64]]) -> Result<()> {
-        if chunk.len() != self.ears {
-            return Err(Error::InvalidInput(format!(
-                "got {} channel(s), but this manager was made for {} ({})",
-                chunk.len(),
-                self.ears,
-                if self.ears == 2 {
-                    "left, right"
-                } else {
-                    "mono"
-                }
-            )));
+    /// Checks that an input of `channels` channels is one this manager was made for.
+    pub fn check_channels(&self, channels: usize) -> Result<()> {
+        if channels == self.ears {
+            return Ok(());
         }
+        Err(Error::InvalidInput(format!(
+            "got {channels} channel(s), but this manager was made for {} ({})",
+            self.ears,
+            if self.ears == 2 {
+                "left, right"
+            } else {
+                "mono"
+            }
+        )))
+    }
+
+    fn check_chunk(&self, chunk: &[&[f64]]) -> Result<()> {
+        self.check_channels(chunk.len())?;
         if chunk.iter().any(|c| c.len() != chunk[0].len()) {
             return Err(Error::InvalidInput(format!(
                 "left and right have different lengths ({} and {} samples)",

@@ -13,8 +13,9 @@ impl Manager {
     /// Checks that a whole signal of `len` samples fits [`WHOLE_SIGNAL_LIMIT_MB`] (or
     /// `AFE_WHOLE_SIGNAL_LIMIT_MB`) where [`Manager::process_signal`] must hold it in one
     /// call: the joined inputs and the outputs of the processors that take their whole
-    /// input at once, requested outputs aside. Always fine for a graph that runs in
-    /// blocks (see [`Manager::one_call_prefix`]).
+    /// input at once, requested outputs aside. A graph that runs in blocks (see
+    /// [`Manager::one_call_prefix`]) holds only its first block, which with a seeding time
+    /// longer than a block (the AGC's) holds every node's output over that time.
     pub fn check_whole_signal(&self, len: usize) -> Result<()> {
         let (bytes, what) = match self.graph.one_call_prefix() {
             Some(prefix) if prefix <= WHOLE_SIGNAL_BLOCK => return Ok(()),
@@ -117,8 +118,8 @@ impl Manager {
             return Err(Error::InvalidInput("the signal is empty".into()));
         }
         self.reset()?;
+        self.check_whole_signal(len)?;
         let Some(prefix) = self.graph.one_call_prefix() else {
-            self.check_whole_signal(len)?;
             // The nodes that depend on chunk boundaries must see the signal in one call:
             // the graph runs on this thread, its invariant part in blocks (and the
             // processors are in the graph, which tells which nodes absorb blocks).
@@ -178,24 +179,34 @@ impl Manager {
     /// ```
     pub fn process_source(&mut self, samples: usize, next: &mut BlockSource<'_>) -> Result<()> {
         let Some(prefix) = self.graph.one_call_prefix() else {
-            let (_, whole) = self.one_call_bytes(0);
+            let invariant = self.graph.invariant_nodes();
+            let mut whole: Vec<&str> = Vec::new();
+            for (node, _) in self.graph.nodes.iter().zip(invariant).filter(|(_, i)| !i) {
+                if !whole.contains(&node.name) {
+                    whole.push(node.name);
+                }
+            }
             return Err(Error::InvalidInput(format!(
-                "{} need the whole signal in one call, not drawn block by block: \
+                "the whole signal must reach {} in one call, not drawn block by block: \
                  gather it and call process_signal",
                 whole.join(", ")
             )));
         };
         self.reset()?;
+        if samples > 0 {
+            // before the outputs are sized (a source of unknown length: at its first block)
+            self.check_whole_signal(samples)?;
+        }
         let input = BlockInput::source(next, self.ears);
         self.run_blocks(input, samples, prefix, None)?;
         self.show_since_reset();
         Ok(())
     }
 
-    /// Runs `signal` through the graph in blocks of [`WHOLE_SIGNAL_BLOCK`] samples (the
+    /// Runs `input` through the graph in blocks of [`WHOLE_SIGNAL_BLOCK`] samples (the
     /// first holding at least `prefix`), pipelined, and shows the joined outputs (the
-    /// requested ones, or all with [`Manager::set_keep_all`]), or hands each block of
-    /// them to `stream` where given.
+    /// requested ones, or all with [`Manager::set_keep_all`]), sized for `samples` input
+    /// samples, or hands each block of them to `stream` where given.
     pub(super) fn run_blocks(
         &mut self,
         input: BlockInput<'_, '_>,
@@ -260,7 +271,8 @@ impl Manager {
                 break;
             }
             if fed == 0 {
-                // a first block that holds a long seeding time holds every node's output
+                // a first block that holds a long seeding time holds every node's output (a
+                // source of unknown length is checked here)
                 self.check_whole_signal(got)?;
             }
             fed += got;
@@ -533,11 +545,20 @@ mod tests {
                 assert_eq!(own.room(), 0, "hint {hint}: {} was copied", d.key());
             }
         }
-        let mut per_chunk = binaural(fs, 0, &["onsetMap"]);
-        let e = per_chunk
-            .process_source(0, &mut |_, _| Ok(0))
-            .expect_err("per-chunk");
-        assert!(e.to_string().contains("call process_signal"), "{e}");
+        // onsetMap takes its input whole; pitch absorbs it block by block, but its
+        // frames still depend on the chunking
+        for request in ["onsetMap", "pitch"] {
+            let mut per_chunk = binaural(fs, 0, &[request]);
+            let e = per_chunk
+                .process_source(0, &mut |_, _| Ok(0))
+                .expect_err("per-chunk");
+            let e = e.to_string();
+            let named = format!("must reach {request} in one call");
+            assert!(
+                e.contains(&named) && e.contains("call process_signal"),
+                "{e}"
+            );
+        }
         let mut empty = binaural(fs, 0, &["ratemap"]);
         let e = empty
             .process_source(0, &mut |_, _| Ok(0))
