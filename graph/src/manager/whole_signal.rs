@@ -41,18 +41,21 @@ impl Manager {
     /// Bytes of the blocks every node writes over a first block of `len` samples (a
     /// seeding time longer than the usual block), and the nodes that ask for it.
     fn first_block_bytes(&self, len: usize) -> (f64, Vec<&'static str>) {
+        let infos = self.graph.nodes.iter().flat_map(|n| &n.infos);
+        let bytes = infos.map(|info| self.signal_bytes(info, len)).sum();
+        (bytes, self.per_chunk_nodes())
+    }
+
+    /// The names of the nodes whose output depends on the chunking, each once.
+    fn per_chunk_nodes(&self) -> Vec<&'static str> {
         let invariant = self.graph.invariant_nodes();
-        let mut bytes = 0.0;
-        let mut what = Vec::new();
-        for (node, inv) in self.graph.nodes.iter().zip(&invariant) {
-            if !inv && !what.contains(&node.name) {
-                what.push(node.name);
-            }
-            for info in &node.infos {
-                bytes += self.signal_bytes(info, len);
+        let mut names = Vec::new();
+        for (node, _) in self.graph.nodes.iter().zip(invariant).filter(|(_, i)| !i) {
+            if !names.contains(&node.name) {
+                names.push(node.name);
             }
         }
-        (bytes, what)
+        names
     }
 
     /// Bytes of the intermediate signals a one-call run of `len` samples joins or
@@ -118,8 +121,8 @@ impl Manager {
             return Err(Error::InvalidInput("the signal is empty".into()));
         }
         self.reset()?;
-        self.check_whole_signal(len)?;
         let Some(prefix) = self.graph.one_call_prefix() else {
+            self.check_whole_signal(len)?;
             // The nodes that depend on chunk boundaries must see the signal in one call:
             // the graph runs on this thread, its invariant part in blocks (and the
             // processors are in the graph, which tells which nodes absorb blocks).
@@ -179,24 +182,13 @@ impl Manager {
     /// ```
     pub fn process_source(&mut self, samples: usize, next: &mut BlockSource<'_>) -> Result<()> {
         let Some(prefix) = self.graph.one_call_prefix() else {
-            let invariant = self.graph.invariant_nodes();
-            let mut whole: Vec<&str> = Vec::new();
-            for (node, _) in self.graph.nodes.iter().zip(invariant).filter(|(_, i)| !i) {
-                if !whole.contains(&node.name) {
-                    whole.push(node.name);
-                }
-            }
             return Err(Error::InvalidInput(format!(
                 "the whole signal must reach {} in one call, not drawn block by block: \
                  gather it and call process_signal",
-                whole.join(", ")
+                self.per_chunk_nodes().join(", ")
             )));
         };
         self.reset()?;
-        if samples > 0 {
-            // before the outputs are sized (a source of unknown length: at its first block)
-            self.check_whole_signal(samples)?;
-        }
         let input = BlockInput::source(next, self.ears);
         self.run_blocks(input, samples, prefix, None)?;
         self.show_since_reset();
@@ -206,7 +198,9 @@ impl Manager {
     /// Runs `input` through the graph in blocks of [`WHOLE_SIGNAL_BLOCK`] samples (the
     /// first holding at least `prefix`), pipelined, and shows the joined outputs (the
     /// requested ones, or all with [`Manager::set_keep_all`]), sized for `samples` input
-    /// samples, or hands each block of them to `stream` where given.
+    /// samples, or hands each block of them to `stream` where given. The memory limit
+    /// is checked before the outputs are sized, or at the first block where `samples` is
+    /// 0 (a source of unknown length).
     pub(super) fn run_blocks(
         &mut self,
         input: BlockInput<'_, '_>,
@@ -214,6 +208,9 @@ impl Manager {
         prefix: usize,
         mut stream: Option<&mut BlockSink<'_>>,
     ) -> Result<()> {
+        if samples > 0 {
+            self.check_whole_signal(samples)?;
+        }
         let invariant = vec![true; self.graph.nodes.len()];
         let mut whole = self.whole_buffers(&invariant, samples, stream.is_some());
         let streamed: Vec<OutputRef> = match stream {
@@ -271,8 +268,8 @@ impl Manager {
                 break;
             }
             if fed == 0 {
-                // a first block that holds a long seeding time holds every node's output (a
-                // source of unknown length is checked here)
+                // a first block that holds a long seeding time holds every node's output
+                // (checked up front where the length is known; here for a source)
                 self.check_whole_signal(got)?;
             }
             fed += got;
