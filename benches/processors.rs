@@ -15,8 +15,9 @@
 //! * Group `drnl`: the DRNL filterbank alone (`casp`, `map`), one ear, 16/32 channels,
 //!   in channel-samples per second.
 //! * Group `stages`: each processor after the filterbank alone (`innerhaircell` and
-//!   `ratemap` on one ear, `ild` and `crosscorrelation` on both), fed its real input
-//!   (the example's IHC envelopes; `precedence`, on both ears, the filterbank output),
+//!   `ratemap`, `autocorrelation` and `adaptation` on one ear, `ild` and
+//!   `crosscorrelation` on both), fed its real input (the example's IHC envelopes;
+//!   `precedence`, on both ears, the filterbank output),
 //!   16/32/64 channels, chunks of 441, 2205 and the whole signal; throughput in audio
 //!   samples per ear.
 //!
@@ -233,6 +234,8 @@ fn drnl(c: &mut Criterion) {
 /// The processors after the filterbank, each alone on its real input (see the crate doc).
 fn stages(c: &mut Criterion) {
     use afe_core::{Block, Processor, SignalInfo};
+    use afe_processors::adaptation::{Adaptation, AdaptationParams};
+    use afe_processors::autocorrelation::{Autocorrelation, AutocorrelationParams};
     use afe_processors::crosscorrelation::{Crosscorrelation, CrosscorrelationParams};
     use afe_processors::filterbank::FilterbankParams;
     use afe_processors::gammatone::Gammatone;
@@ -330,6 +333,14 @@ fn stages(c: &mut Criterion) {
             let filterbank = [&fb_in[0], &fb_in[1]];
             let p = (&mut prec as &mut dyn Processor, &infos[..]);
             bench(&mut group, id("precedence"), p, &filterbank, chunk);
+            let (mut ac, info) = Autocorrelation::new(&AutocorrelationParams::default(), &ihc_info)
+                .expect("autocorrelation");
+            let p = (&mut ac as &mut dyn Processor, &[info][..]);
+            bench(&mut group, id("autocorrelation"), p, &[&ihc_in[0]], chunk);
+            let (mut adapt, info) =
+                Adaptation::new(&AdaptationParams::default(), &ihc_info).expect("adaptation");
+            let p = (&mut adapt as &mut dyn Processor, &[info][..]);
+            bench(&mut group, id("adaptation"), p, &[&ihc_in[0]], chunk);
         }
     }
     group.finish();
