@@ -214,25 +214,28 @@ pub struct AmsFeatures {
     banded: Vec<f64>,
     /// One frame's sums per `[band][channel]`.
     sums: Vec<f64>,
-    /// The frame sums from hop sums, for the log filterbank with the default window.
+    /// The frame sums from hop sums, for the log filterbank with a window of ones two
+    /// hops long (the default); then `frames` and `sums` stay empty.
     hop_sums: Option<HopSums>,
 }
 
 /// Frame sums for a rectangular window two hops long (the AFE's default), from the sums
 /// of each hop's rows: frame `k` is hop `k`'s sum plus hop `k + 1`'s. Each row is summed
 /// once and none is kept between chunks, where framing sums every row twice and copies
-/// the rows of the next frame at each chunk: the log filterbank's AMS 20–30 % faster.
-/// The values differ from one running sum over the frame in rounding only (two partial
-/// sums added), and like it they do not depend on the chunking.
+/// the rows of the next frame at each chunk. The values differ from one running sum over
+/// the frame in rounding only (two partial sums added), and like it they do not depend on
+/// the chunking.
 #[derive(Debug, Clone)]
 struct HopSums {
     /// Rows per hop.
     hop: usize,
-    /// The sum of the current hop's rows so far, `[band][channel]`, and their number.
+    /// The sum of the current hop's rows so far, `[band][channel]`.
     current: Vec<f64>,
+    /// How many rows `current` holds.
     rows: usize,
-    /// The last complete hop's sum, if there is one.
-    last: Option<Vec<f64>>,
+    /// The last complete hop's sum, valid once `has_last`.
+    last: Vec<f64>,
+    has_last: bool,
 }
 
 impl HopSums {
@@ -241,19 +244,20 @@ impl HopSums {
             hop,
             current: vec![0.0; width],
             rows: 0,
-            last: None,
+            last: vec![0.0; width],
+            has_last: false,
         }
     }
 
     /// Frames completed by `rows` more rows.
     fn frames_after(&self, rows: usize) -> usize {
         let hops = (self.rows + rows) / self.hop;
-        (hops + usize::from(self.last.is_some())).saturating_sub(1)
+        (hops + usize::from(self.has_last)).saturating_sub(1)
     }
 
     /// Sums the rows of `banded` (`[time][band][channel]`) into hops, and writes each
     /// completed frame's sum divided by `w_len` into the rows of `out`
-    /// (`[frame][channel][band]`, [`HopSums::frames_after`] of them).
+    /// (`[frame][channel][band]`, [`HopSums::frames_after`] of them). Allocates nothing.
     fn run(&mut self, banded: &[f64], out: &mut [f64], (nc, nb): (usize, usize), w_len: f64) {
         let mut rows = banded.chunks_exact(self.current.len().max(1));
         let mut frames = out.chunks_exact_mut((nc * nb).max(1));
@@ -265,25 +269,22 @@ impl HopSums {
             if self.rows < self.hop {
                 return;
             }
-            let pair = self
-                .last
-                .as_ref()
-                .and_then(|l| frames.next().map(|f| (l, f)));
-            if let Some((last, frame)) = pair {
-                for (j, (a, b)) in last
+            // the first hop completes no frame, so it takes no output row
+            let frame = if self.has_last { frames.next() } else { None };
+            if let Some(frame) = frame {
+                let hops = self
+                    .last
                     .chunks_exact(nc)
-                    .zip(self.current.chunks_exact(nc))
-                    .enumerate()
-                {
+                    .zip(self.current.chunks_exact(nc));
+                for (j, (a, b)) in hops.enumerate() {
                     for (c, (a, b)) in a.iter().zip(b).enumerate() {
                         frame[c * nb + j] = (a + b) / w_len;
                     }
                 }
             }
-            let done = std::mem::replace(&mut self.current, self.last.take().unwrap_or_default());
-            self.current.resize(done.len(), 0.0);
+            std::mem::swap(&mut self.current, &mut self.last);
             self.current.fill(0.0);
-            self.last = Some(done);
+            self.has_last = true;
             self.rows = 0;
         }
     }
@@ -291,7 +292,7 @@ impl HopSums {
     fn reset(&mut self) {
         self.current.fill(0.0);
         self.rows = 0;
-        self.last = None;
+        self.has_last = false;
     }
 }
 
@@ -496,7 +497,7 @@ impl AmsFeatures {
         }
         let h = h as usize;
         let win = window(&p.wname, w, "ams_wname")?;
-        let rectangular = w == 2 * h && win.iter().all(|v| *v == 1.0);
+        let ones_over_two_hops = w == 2 * h && win.iter().all(|v| *v == 1.0);
         let channels = input.channels();
         let (mod_cf_hz, kind, width) = match p.fb_type {
             AmsFbType::Log => {
@@ -527,6 +528,10 @@ impl AmsFeatures {
                 (centres, kind, channels)
             }
         };
+        let hop_sums =
+            (ones_over_two_hops && p.fb_type == AmsFbType::Log).then(|| HopSums::new(width, h));
+        // the framing path's buffers, empty where the hop sums replace it
+        let framed = if hop_sums.is_some() { 0 } else { width };
         let ams = AmsFeatures {
             channels,
             bands: mod_cf_hz.len(),
@@ -536,11 +541,11 @@ impl AmsFeatures {
                 skip: 0,
             },
             kind,
-            frames: FrameBuffer::new(width, w, h),
+            frames: FrameBuffer::new(framed, w, h),
             decimated: Vec::new(),
             banded: Vec::new(),
-            sums: vec![0.0; width],
-            hop_sums: (rectangular && p.fb_type == AmsFbType::Log).then(|| HopSums::new(width, h)),
+            sums: vec![0.0; framed],
+            hop_sums,
         };
         let info = SignalInfo {
             kind: SignalKind::Modulation,
@@ -1116,28 +1121,33 @@ mod tests {
             hops.hop_sums.is_some(),
             "the default window is summed by hops"
         );
+        // the same processor on the framing path, with that path's buffers
         let (mut framed, _) = AmsFeatures::new(&p, &info).expect("valid");
-        framed.hop_sums = None;
-        let (a, b) = (run(&mut hops, &x, 3, &[]), run(&mut framed, &x, 3, &[]));
-        assert_eq!(a.len(), b.len());
+        let hop = framed.hop_sums.take().expect("summed by hops").hop;
+        let width = framed.channels * framed.bands;
+        framed.frames = FrameBuffer::new(width, framed.win.len(), hop);
+        framed.sums = vec![0.0; width];
+        let b = run(&mut framed, &x, 3, &[]);
         assert!(b.iter().any(|v| *v > 0.0));
-        for (i, (a, b)) in a.iter().zip(&b).enumerate() {
-            assert!(
-                (a - b).abs() <= 1e-14 * b.abs(),
-                "value {i}: {a} against {b}"
-            );
+        for chunks in [&[][..], &[1, 37, 200, 999][..]] {
+            let a = run(&mut hops, &x, 3, chunks);
+            hops.reset();
+            assert_eq!(a.len(), b.len());
+            for (i, (a, b)) in a.iter().zip(&b).enumerate() {
+                assert!(
+                    (a - b).abs() <= 1e-14 * b.abs(),
+                    "value {i}: {a} against {b}"
+                );
+            }
         }
-        for wname in ["hann", "rectwin"] {
+        for (wname, h_size_sec) in [("hann", 0.016), ("rectwin", 0.01)] {
             let other = AmsParams {
                 wname: wname.into(),
-                h_size_sec: 0.01,
+                h_size_sec,
                 ..p.clone()
             };
             let (a, _) = AmsFeatures::new(&other, &info).expect("valid");
-            assert!(
-                a.hop_sums.is_none(),
-                "{wname} with a hop that is not half the window"
-            );
+            assert!(a.hop_sums.is_none(), "{wname}, hop {h_size_sec} s: framed");
         }
     }
 
