@@ -166,6 +166,11 @@ pub const WHOLE_SIGNAL_BLOCK: usize = 1024;
 /// Largest chunk (samples) [`Manager::prepare`] sizes buffers for: 10 s at 96 kHz.
 pub const MAX_PREPARED_CHUNK: usize = 960_000;
 
+/// Most silence [`Manager::prepare`] runs, in seconds of audio: far more than the first
+/// frames of the default windows need (`amsFeatures`' 32 ms takes more than two 10-ms
+/// chunks).
+pub const PREPARE_SECONDS_MAX: f64 = 2.0;
+
 /// Chunks longer than this (samples) go through a chunk-invariant graph in blocks of
 /// [`WHOLE_SIGNAL_BLOCK`].
 const LONG_CHUNK: usize = 4 * WHOLE_SIGNAL_BLOCK;
@@ -575,8 +580,10 @@ impl Manager {
 
     /// Sizes every output block and every processor's buffers for chunks of up to
     /// `max_chunk` samples before the first chunk, so that no chunk up to that size
-    /// allocates on the audio path, the first ones included: two silent chunks of that
-    /// size run through the processors on this thread, which are then reset. Only before
+    /// allocates on the audio path, the first ones included: silent chunks of that size
+    /// run through the processors on this thread (at least two, then until every output
+    /// has had frames twice, at most [`PREPARE_SECONDS_MAX`] of audio), which are then
+    /// reset. Only before
     /// the first chunk (or after [`Manager::reset`]); a request added later is sized by
     /// its first chunks.
     pub fn prepare(&mut self, max_chunk: usize) -> Result<()> {
@@ -591,12 +598,29 @@ impl Manager {
             )));
         }
         let silence = vec![0.0; max_chunk];
+        // at least two chunks (the second also meets the rows the first one left for later
+        // frames), and until every output has had frames twice: a window longer than two
+        // chunks gives its first frame later
+        let most = (PREPARE_SECONDS_MAX * self.fs) as usize / max_chunk + 2;
         self.edit(|m| {
             let chunk: Vec<&[f64]> = (0..m.ears).map(|_| silence.as_slice()).collect();
-            // the second chunk also meets the rows the first one left for later frames
-            for _ in 0..2 {
+            let mut outputs_seen: Vec<Vec<u8>> = m
+                .graph
+                .nodes
+                .iter()
+                .map(|n| vec![0; n.outputs.len()])
+                .collect();
+            for k in 0..most {
                 m.graph.load_input(&chunk);
                 m.graph.run_sequential();
+                for (seen, node) in outputs_seen.iter_mut().zip(&m.graph.nodes) {
+                    for (s, block) in seen.iter_mut().zip(&node.outputs) {
+                        *s = s.saturating_add(u8::from(!block.is_empty()));
+                    }
+                }
+                if k >= 1 && outputs_seen.iter().flatten().all(|s| *s >= 2) {
+                    break;
+                }
             }
             m.graph.reset();
             Ok(())

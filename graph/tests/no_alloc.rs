@@ -1,7 +1,8 @@
 //! The audio path allocates nothing: after `Manager::prepare` with the chunk size in use,
 //! the scheduler's worker threads make no allocation at all, from the first chunk on (a
 //! counting global allocator checks it on the real {ratemap, ild, itd, ic} graph, with
-//! the cross-correlation split over the workers).
+//! the cross-correlation split over the workers, and `amsFeatures`, whose hop sums are
+//! swapped at every hop and cleared by the reset that ends `prepare`).
 
 #![allow(unsafe_code)]
 
@@ -56,7 +57,7 @@ fn workers_do_not_allocate_after_prepare() {
                 .into_iter()
                 .collect();
             for p in [ParamMap::new(), big] {
-                for r in ["ratemap", "ild", "itd", "ic"] {
+                for r in ["ratemap", "ild", "itd", "ic", "amsFeatures"] {
                     mgr.add_request(r, &p).expect("request");
                 }
             }
