@@ -583,9 +583,8 @@ impl Manager {
     /// allocates on the audio path, the first ones included: silent chunks of that size
     /// run through the processors on this thread (at least two, then until every output
     /// has had frames twice, at most [`PREPARE_SECONDS_MAX`] of audio), which are then
-    /// reset. Only before
-    /// the first chunk (or after [`Manager::reset`]); a request added later is sized by
-    /// its first chunks.
+    /// reset. Only before the first chunk (or after [`Manager::reset`]); a request added
+    /// later is sized by its first chunks.
     pub fn prepare(&mut self, max_chunk: usize) -> Result<()> {
         if self.position != 0 {
             return Err(Error::InvalidInput(
