@@ -519,6 +519,7 @@ fn threads_trace_and_bench() {
     assert_eq!(b["chunk"], 441);
     assert!(b["x_realtime"].as_f64().expect("number") > 0.0);
     assert!(b["wall_seconds_median"].as_f64().expect("number") > 0.0);
+    assert!(b["wall_seconds_first"].as_f64().expect("number") > 0.0);
     assert_eq!(b["outputs"], "kept");
     // with --discard every chunk's output is still computed and seen, then dropped
     for chunk in ["441", "1000000"] {
