@@ -6,17 +6,14 @@
 //! "unbiased" divisor and normalised by lag 0. Chunk-invariant: only un-framed samples
 //! carry over.
 
-use std::sync::Arc;
-
 use afe_core::framing::FrameBuffer;
 use afe_core::window::{window, WINDOW_NAMES};
 use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
-use realfft::num_complex::Complex64;
-use realfft::{RealFftPlanner, RealToComplex};
 use serde::{Deserialize, Serialize};
 
 use crate::even_inverse::EvenInverse;
 use crate::framed::check_framing;
+use crate::real_fft::RealFft;
 
 use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
@@ -124,14 +121,15 @@ pub struct Autocorrelation {
     frames: FrameBuffer,
     /// `(W − 1)/(W − 1 − j)` per lag `j`: the AFE's unbiased scaling over that of lag 0.
     scale: Vec<f64>,
-    fft: Arc<dyn RealToComplex<f64>>,
+    /// The forward transform, whose input holds the clipped, zero-padded frame.
+    fft: RealFft,
     /// The inverse of the (real, even) power spectrum, at half a full transform's cost.
     inverse: EvenInverse,
     /// Windowed frame, `[channel][time]`.
     columns: Vec<f64>,
-    time: Vec<f64>,
-    spectrum: Vec<Complex64>,
-    scratch: Vec<Complex64>,
+    /// The frame's spectrum `X[0..=N/2]`, real and imaginary parts.
+    re: Vec<f64>,
+    im: Vec<f64>,
     /// The power spectrum's first half, and the unnormalised ACF at lags `0..W − 1`.
     power: Vec<f64>,
     acf: Vec<f64>,
@@ -141,7 +139,7 @@ impl std::fmt::Debug for Autocorrelation {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Autocorrelation")
             .field("params", &self.params)
-            .field("fft_len", &self.time.len())
+            .field("fft_len", &self.fft.len())
             .finish_non_exhaustive()
     }
 }
@@ -174,21 +172,18 @@ impl Autocorrelation {
         let nc = input.channels();
         // The AFE's transform length 2^nextpow2(2W − 1): no wrap-around up to lag W − 1.
         let nfft = (2 * w - 1).next_power_of_two();
-        let mut planner = RealFftPlanner::<f64>::new();
-        let fft = planner.plan_fft_forward(nfft);
         let top = (w - 1) as f64;
         let ac = Autocorrelation {
             params: params.clone(),
             frames: FrameBuffer::new(nc, w, h),
             scale: (0..w - 1).map(|j| top / (top - j as f64)).collect(),
             columns: vec![0.0; nc * w],
-            time: fft.make_input_vec(),
-            spectrum: fft.make_output_vec(),
-            scratch: fft.make_scratch_vec(),
+            re: vec![0.0; nfft / 2 + 1],
+            im: vec![0.0; nfft / 2 + 1],
             power: vec![0.0; nfft / 2 + 1],
             acf: vec![0.0; w - 1],
             inverse: EvenInverse::new(nfft),
-            fft,
+            fft: RealFft::new(nfft),
             win,
         };
         let lags_s = (0..w - 1).map(|k| k as f64 / fs).collect();
@@ -202,23 +197,21 @@ impl Autocorrelation {
     fn correlate(&mut self, c: usize, out: &mut [f64]) {
         let w = self.win.len();
         let f = &self.columns[c * w..(c + 1) * w];
+        let time = self.fft.input();
         clip(
             f,
             self.params.clip_method,
             self.params.clip_alpha,
-            &mut self.time[..w],
+            &mut time[..w],
         );
-        self.time[w..].fill(0.0);
-        // Lengths match by construction, so the FFTs cannot fail.
-        let _ =
-            self.fft
-                .process_with_scratch(&mut self.time, &mut self.spectrum, &mut self.scratch);
+        time[w..].fill(0.0);
+        self.fft.run(&mut self.re, &mut self.im);
         let k = self.params.spectral_exponent;
-        let power = self.power.iter_mut().zip(&self.spectrum);
+        let power = self.power.iter_mut().zip(self.re.iter().zip(&self.im));
         if k == 2.0 {
-            power.for_each(|(p, x)| *p = x.norm_sqr());
+            power.for_each(|(p, (re, im))| *p = re * re + im * im);
         } else {
-            power.for_each(|(p, x)| *p = x.norm().powf(k));
+            power.for_each(|(p, (re, im))| *p = re.hypot(*im).powf(k));
         }
         self.inverse.run(&self.power, &mut self.acf);
         // An all-zero frame gives 0/0 = NaN at every lag, as in the AFE.

@@ -12,50 +12,45 @@
 //! antisymmetric, so each lands in one part of `U`.
 
 use std::f64::consts::PI;
-use std::sync::Arc;
 
-use realfft::num_complex::Complex64;
-use realfft::{RealFftPlanner, RealToComplex};
+use crate::real_fft::RealFft;
 
 /// A planned inverse of length `N` for real, even spectra, with its buffers.
 pub struct EvenInverse {
-    fft: Arc<dyn RealToComplex<f64>>,
+    /// The real FFT of length `M`, whose input holds `u`.
+    fft: RealFft,
     /// `sin(πj/M)` and `cos(πj/M)`, `j < M`.
     sin: Vec<f64>,
     cos: Vec<f64>,
-    u: Vec<f64>,
-    spectrum: Vec<Complex64>,
-    scratch: Vec<Complex64>,
+    /// `U`'s real and imaginary parts.
+    re: Vec<f64>,
+    im: Vec<f64>,
 }
 
 impl std::fmt::Debug for EvenInverse {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("EvenInverse")
-            .field("len", &(2 * self.u.len()))
+            .field("len", &(2 * self.fft.len()))
             .finish_non_exhaustive()
     }
 }
 
 impl EvenInverse {
-    /// Plans the inverse of length `n` (even, at least 2).
+    /// Plans the inverse of length `n`, a multiple of 4 (so that the real FFT of half the
+    /// length has an even length as well).
     ///
     /// # Panics
-    /// If `n` is odd or below 2.
+    /// If `n` is not a positive multiple of 4.
     pub fn new(n: usize) -> Self {
-        assert!(
-            n >= 2 && n % 2 == 0,
-            "an even length of at least 2, not {n}"
-        );
+        assert!(n >= 4 && n % 4 == 0, "a positive multiple of 4, not {n}");
         let m = n / 2;
-        let fft = RealFftPlanner::<f64>::new().plan_fft_forward(m);
         let angle = |j: usize| PI * j as f64 / m as f64;
         EvenInverse {
             sin: (0..m).map(|j| angle(j).sin()).collect(),
             cos: (0..m).map(|j| angle(j).cos()).collect(),
-            u: fft.make_input_vec(),
-            spectrum: fft.make_output_vec(),
-            scratch: fft.make_scratch_vec(),
-            fft,
+            re: vec![0.0; m / 2 + 1],
+            im: vec![0.0; m / 2 + 1],
+            fft: RealFft::new(m),
         }
     }
 
@@ -68,22 +63,19 @@ impl EvenInverse {
     /// If `p` does not hold `M + 1` values or `out` more than `M + 1`.
     #[inline(always)]
     pub fn run(&mut self, p: &[f64], out: &mut [f64]) {
-        let m = self.u.len();
+        let m = self.fft.len();
         assert_eq!(p.len(), m + 1, "the spectrum's first half, M + 1 values");
         assert!(out.len() <= m + 1, "at most M + 1 values of the inverse");
         // `P[M − j]` for `j < M`: `p[1..]` backwards.
         let mirrored = p[..m].iter().zip(p[1..].iter().rev());
-        for ((u, (&a, &b)), s) in self.u.iter_mut().zip(mirrored).zip(&self.sin) {
+        for ((u, (&a, &b)), s) in self.fft.input().iter_mut().zip(mirrored).zip(&self.sin) {
             *u = 0.5 * (a + b) + s * (a - b);
         }
         // C[1] by its definition.
         let c1 = 0.5 * (p[0] - p[m]) + dot(&p[1..m], &self.cos[1..]);
-        // Lengths match by construction, so the FFT cannot fail.
-        let _ = self
-            .fft
-            .process_with_scratch(&mut self.u, &mut self.spectrum, &mut self.scratch);
-        for (o, u) in out.iter_mut().step_by(2).zip(&self.spectrum) {
-            *o = 2.0 * u.re;
+        self.fft.run(&mut self.re, &mut self.im);
+        for (o, u) in out.iter_mut().step_by(2).zip(&self.re) {
+            *o = 2.0 * u;
         }
         // C[2k + 1] = C[1] + Σ_{0 < i ≤ k} Im U[i], in blocks summed side by side; U[0] is
         // real (its imaginary part an exact 0), so the sums may start at i = 0.
@@ -92,15 +84,15 @@ impl EvenInverse {
         let mut start = [0.0; BLOCKS];
         start[0] = c1;
         for b in 1..BLOCKS {
-            let terms = self.spectrum.get((b - 1) * step..(b * step).min(odd));
-            let sum: f64 = terms.unwrap_or_default().iter().map(|u| u.im).sum();
+            let terms = self.im.get((b - 1) * step..(b * step).min(odd));
+            let sum: f64 = terms.unwrap_or_default().iter().sum();
             start[b] = start[b - 1] + sum;
         }
         for i in 0..step {
             for (b, acc) in start.iter_mut().enumerate() {
                 let k = b * step + i;
                 if k < odd {
-                    *acc += self.spectrum[k].im;
+                    *acc += self.im[k];
                     out[2 * k + 1] = 2.0 * *acc;
                 }
             }
@@ -134,6 +126,8 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 mod tests {
     use super::*;
     use crate::testing::{noise, plain_dft};
+    use realfft::num_complex::Complex64;
+    use realfft::RealFftPlanner;
 
     /// `S[m]` by its definition: the real part of the plain DFT of the whole mirrored
     /// spectrum (it is even, so its DFT is real).
@@ -151,7 +145,7 @@ mod tests {
             (64, 33),
             (64, 32),
             (12, 7),
-            (2, 2),
+            (4, 3),
         ] {
             let p = noise(n / 2 + 1, n as u64);
             let mut out = vec![f64::NAN; count];
@@ -194,8 +188,8 @@ mod tests {
     }
 
     #[test]
-    #[should_panic(expected = "an even length")]
-    fn an_odd_length_is_refused() {
-        EvenInverse::new(7);
+    #[should_panic(expected = "a positive multiple of 4")]
+    fn a_length_not_a_multiple_of_4_is_refused() {
+        EvenInverse::new(6);
     }
 }

@@ -1,0 +1,215 @@
+//! The DFT of a real sequence of even length `N = 2M`, by an `M`-point complex FFT of the
+//! sequence taken in pairs and a split pass that separates the two halves' spectra: the
+//! operations of `realfft`'s forward transform, so its values bit for bit, with a faster
+//! split pass. `realfft`'s is compiled for the baseline SSE2 and runs one complex value
+//! at a time (8 % of issue 11's whole set on the AVX2 path); here it has a version per
+//! vector width and works on the real and imaginary parts as separate arrays, so that
+//! the pairs `(k, M − k)`, the second running backwards, vectorise. The autocorrelation
+//! takes 5 % less time with it.
+//!
+//! With `Z = FFT_M(x[2m] + i·x[2m + 1])`, the spectrum is, for `0 < k < M`,
+//! `X[k] = ½(Z[k] + Z̄[M − k]) − ½i·e^{−2πik/N}·(Z[k] − Z̄[M − k])`, and
+//! `X[0] = Re Z[0] + Im Z[0]`, `X[M] = Re Z[0] − Im Z[0]`.
+
+use std::f64::consts::PI;
+use std::sync::Arc;
+
+use realfft::num_complex::Complex64;
+use rustfft::{Fft, FftPlanner};
+
+/// A planned forward transform of `N` real values, with its buffers.
+pub struct RealFft {
+    fft: Arc<dyn Fft<f64>>,
+    /// `½·e^{−2πik/N}` for `0 < k < ⌈N/4⌉`, real and imaginary parts.
+    twiddle_re: Vec<f64>,
+    twiddle_im: Vec<f64>,
+    /// The real input, in pairs `(x[2m], x[2m + 1])`; then the FFT's output `Z`.
+    pairs: Vec<Complex64>,
+    z: Vec<Complex64>,
+    scratch: Vec<Complex64>,
+}
+
+impl std::fmt::Debug for RealFft {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RealFft")
+            .field("len", &self.len())
+            .finish_non_exhaustive()
+    }
+}
+
+impl RealFft {
+    /// Plans the transform of `n` real values (even, at least 2).
+    ///
+    /// # Panics
+    /// If `n` is odd or below 2.
+    pub fn new(n: usize) -> Self {
+        assert!(
+            n >= 2 && n % 2 == 0,
+            "an even length of at least 2, not {n}"
+        );
+        let fft = FftPlanner::new().plan_fft_forward(n / 2);
+        let step = -2.0 * PI / n as f64;
+        let twiddles: Vec<Complex64> = (1..n.div_ceil(4))
+            .map(|k| {
+                let angle = step * k as f64;
+                Complex64::new(angle.cos(), angle.sin()) * 0.5
+            })
+            .collect();
+        RealFft {
+            twiddle_re: twiddles.iter().map(|t| t.re).collect(),
+            twiddle_im: twiddles.iter().map(|t| t.im).collect(),
+            pairs: vec![Complex64::default(); n / 2],
+            z: vec![Complex64::default(); n / 2],
+            scratch: vec![Complex64::default(); fft.get_outofplace_scratch_len()],
+            fft,
+        }
+    }
+
+    /// `N`, the number of real values transformed.
+    pub fn len(&self) -> usize {
+        2 * self.pairs.len()
+    }
+
+    /// The `N` real values to transform. [`RealFft::run`] leaves them unspecified: write
+    /// all of them before each run.
+    pub fn input(&mut self) -> &mut [f64] {
+        bytemuck::cast_slice_mut(&mut self.pairs)
+    }
+
+    /// Writes the spectrum `X[0..=M]` of the input, real parts into `re` and imaginary
+    /// parts into `im`. Inlined so that its first pass gets the caller's vector width.
+    ///
+    /// # Panics
+    /// If `re` or `im` does not hold `M + 1` values.
+    #[inline(always)]
+    pub fn run(&mut self, re: &mut [f64], im: &mut [f64]) {
+        let m = self.pairs.len();
+        assert!(
+            re.len() == m + 1 && im.len() == m + 1,
+            "the spectrum's first half, M + 1 values"
+        );
+        self.fft
+            .process_outofplace_with_scratch(&mut self.pairs, &mut self.z, &mut self.scratch);
+        for ((r, i), z) in re.iter_mut().zip(im.iter_mut()).zip(&self.z) {
+            (*r, *i) = (z.re, z.im);
+        }
+        let (z0_re, z0_im) = (re[0], im[0]);
+        (re[0], im[0]) = (z0_re + z0_im, 0.0);
+        (re[m], im[m]) = (z0_re - z0_im, 0.0);
+        // pairs (k, M − k) for 0 < k < M/2, and with M even X[M/2] = Z̄[M/2]
+        let pairs = (m - 1) / 2;
+        let (re_low, re_high) = re[1..m].split_at_mut(pairs);
+        let (im_low, im_high) = im[1..m].split_at_mut(pairs);
+        let middle = re_high.len() - pairs;
+        if middle == 1 {
+            im_high[0] = -im_high[0];
+        }
+        let (re_high, im_high) = (&mut re_high[middle..], &mut im_high[middle..]);
+        split(
+            (re_low, im_low),
+            (re_high, im_high),
+            (&self.twiddle_re[..pairs], &self.twiddle_im[..pairs]),
+        );
+    }
+}
+
+/// The split pass over the pairs `(k, M − k)`, `0 < k < M/2`, in `realfft`'s order of
+/// operations: `low` holds `Z[k]` from `k = 1` on, `high` `Z[M − k]` ending at `k = 1`,
+/// as real and imaginary parts, and both get `X` in their place. A function of its own,
+/// with a version per vector width, so that its slices are known apart and the loop
+/// vectorises although `high` runs backwards.
+#[cfg_attr(
+    not(feature = "no-avx512"),
+    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2+fma"))
+)]
+#[cfg_attr(
+    feature = "no-avx512",
+    multiversion::multiversion(targets("x86_64+avx2+fma"))
+)]
+fn split(
+    (re_low, im_low): (&mut [f64], &mut [f64]),
+    (re_high, im_high): (&mut [f64], &mut [f64]),
+    (tw_re, tw_im): (&[f64], &[f64]),
+) {
+    let pairs = re_high.len();
+    let (re_low, im_low) = (&mut re_low[..pairs], &mut im_low[..pairs]);
+    let (im_high, tw_re, tw_im) = (&mut im_high[..pairs], &tw_re[..pairs], &tw_im[..pairs]);
+    for i in 0..pairs {
+        let j = pairs - 1 - i;
+        let (xr, xi, yr, yi) = (re_low[i], im_low[i], re_high[j], im_high[j]);
+        let (sum_re, sum_im) = (xr + yr, xi + yi);
+        let (diff_re, diff_im) = (xr - yr, xi - yi);
+        let half_sum_re = 0.5 * sum_re;
+        let half_diff_im = 0.5 * diff_im;
+        let t_re = sum_im * tw_re[i] + diff_re * tw_im[i];
+        let t_im = sum_im * tw_im[i] - diff_re * tw_re[i];
+        (re_low[i], im_low[i]) = (half_sum_re + t_re, half_diff_im + t_im);
+        (re_high[j], im_high[j]) = (half_sum_re - t_re, t_im - half_diff_im);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing::noise;
+    use realfft::RealFftPlanner;
+
+    fn spectrum(fft: &mut RealFft, x: &[f64]) -> Vec<Complex64> {
+        fft.input().copy_from_slice(x);
+        let (mut re, mut im) = (
+            vec![f64::NAN; x.len() / 2 + 1],
+            vec![f64::NAN; x.len() / 2 + 1],
+        );
+        fft.run(&mut re, &mut im);
+        re.iter()
+            .zip(&im)
+            .map(|(r, i)| Complex64::new(*r, *i))
+            .collect()
+    }
+
+    #[test]
+    fn gives_realffts_spectrum_bit_for_bit() {
+        for n in [2, 4, 6, 10, 12, 64, 882, 1024, 2048] {
+            let mut ours = RealFft::new(n);
+            let theirs = RealFftPlanner::<f64>::new().plan_fft_forward(n);
+            for seed in [n as u64, 1] {
+                let x = noise(n, seed);
+                let got = spectrum(&mut ours, &x);
+                let mut input = x.clone();
+                let mut want = theirs.make_output_vec();
+                theirs
+                    .process(&mut input, &mut want)
+                    .expect("lengths match");
+                for (k, (g, w)) in got.iter().zip(&want).enumerate() {
+                    assert_eq!(
+                        (g.re.to_bits(), g.im.to_bits()),
+                        (w.re.to_bits(), w.im.to_bits()),
+                        "N = {n}, k = {k}: {g} vs {w}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn matches_the_definition() {
+        let n = 12;
+        let x = noise(n, 3);
+        let mut fft = RealFft::new(n);
+        assert_eq!(format!("{fft:?}"), "RealFft { len: 12, .. }");
+        for (k, g) in spectrum(&mut fft, &x).iter().enumerate() {
+            let want: Complex64 = x
+                .iter()
+                .enumerate()
+                .map(|(t, v)| Complex64::from_polar(*v, -2.0 * PI * (k * t) as f64 / n as f64))
+                .sum();
+            assert!((g - want).norm() < 1e-13, "k = {k}: {g} vs {want}");
+        }
+    }
+
+    #[test]
+    #[should_panic(expected = "an even length")]
+    fn an_odd_length_is_refused() {
+        RealFft::new(7);
+    }
+}
