@@ -263,7 +263,7 @@ impl HopSums {
         let mut frames = out.chunks_exact_mut((nc * nb).max(1));
         loop {
             for row in rows.by_ref().take(self.hop - self.rows) {
-                add_abs(&mut self.current, row);
+                add_abs(&mut self.current, 1.0, row);
                 self.rows += 1;
             }
             if self.rows < self.hop {
@@ -296,7 +296,8 @@ impl HopSums {
     }
 }
 
-/// `acc += |row|`, element by element.
+/// `acc += |w·row|`, element by element: one row of a frame's sums, weighted by its
+/// window value (the hop sums add whole rows with `w = 1`, which changes no bit).
 #[cfg_attr(
     not(feature = "no-avx512"),
     multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2+fma"))
@@ -305,9 +306,9 @@ impl HopSums {
     feature = "no-avx512",
     multiversion::multiversion(targets("x86_64+avx2+fma"))
 )]
-fn add_abs(acc: &mut [f64], row: &[f64]) {
+fn add_abs(acc: &mut [f64], w: f64, row: &[f64]) {
     for (a, v) in acc.iter_mut().zip(row) {
-        *a += v.abs();
+        *a += (w * v).abs();
     }
 }
 
@@ -424,20 +425,10 @@ fn lin_weights(
 }
 
 /// Per column of `frame`, the sum over its rows of `|w·x|` with the window `win`, into `sums`.
-#[cfg_attr(
-    not(feature = "no-avx512"),
-    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2+fma"))
-)]
-#[cfg_attr(
-    feature = "no-avx512",
-    multiversion::multiversion(targets("x86_64+avx2+fma"))
-)]
-fn abs_sums<'a>(sums: &mut [f64], win: &[f64], frame: Frame<'a>) {
+fn abs_sums(sums: &mut [f64], win: &[f64], frame: Frame<'_>) {
     sums.fill(0.0);
     for (w, z) in win.iter().zip(frame.rows()) {
-        for (acc, v) in sums.iter_mut().zip(z) {
-            *acc += (w * v).abs();
-        }
+        add_abs(sums, *w, z);
     }
 }
 
