@@ -4,8 +4,8 @@
 //! split pass. `realfft`'s is compiled for the baseline SSE2 and runs one complex value
 //! at a time (8 % of issue 11's whole set on the AVX2 path); here it has a version per
 //! vector width and works on the real and imaginary parts as separate arrays, so that
-//! the pairs `(k, M − k)`, the second running backwards, vectorise. The autocorrelation
-//! takes 5 % less time with it.
+//! the pairs `(k, M − k)`, the second running backwards, vectorise. The `autocorrelation`
+//! request (with its filterbank and hair cells) takes about 5 % less time with it there.
 //!
 //! With `Z = FFT_M(x[2m] + i·x[2m + 1])`, the spectrum is, for `0 < k < M`,
 //! `X[k] = ½(Z[k] + Z̄[M − k]) − ½i·e^{−2πik/N}·(Z[k] − Z̄[M − k])`, and
@@ -14,7 +14,7 @@
 use std::f64::consts::PI;
 use std::sync::Arc;
 
-use realfft::num_complex::Complex64;
+use num_complex::Complex64;
 use rustfft::{Fft, FftPlanner};
 
 /// A planned forward transform of `N` real values, with its buffers.
@@ -169,7 +169,7 @@ mod tests {
 
     #[test]
     fn gives_realffts_spectrum_bit_for_bit() {
-        for n in [2, 4, 6, 10, 12, 64, 882, 1024, 2048] {
+        for n in [2, 4, 6, 8, 10, 12, 64, 882, 1024, 2048] {
             let mut ours = RealFft::new(n);
             let theirs = RealFftPlanner::<f64>::new().plan_fft_forward(n);
             for seed in [n as u64, 1] {

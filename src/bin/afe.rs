@@ -392,6 +392,12 @@ fn main() -> ExitCode {
             };
         }
     };
+    if let Command::Bench { .. } = cli.command {
+        // the runs after the first reuse the memory of the outputs the one before freed,
+        // instead of having the kernel zero it afresh; before any thread starts (the
+        // interrupt handler's too), so that every thread shares the main heap
+        afe_core::memory_reuse::keep_freed_memory();
+    }
     install_interrupt_handler();
     let result = match cli.command {
         Command::List { name, json } => list(name.as_deref(), json),
@@ -977,9 +983,6 @@ fn bench(
     let audio = read_input(input)?;
     let refs: Vec<&[f64]> = audio.channels.iter().map(Vec::as_slice).collect();
     let seconds = refs[0].len() as f64 / audio.fs;
-    // the runs after the first reuse the memory of the outputs the one before freed, as
-    // any long-lived process does, instead of having the kernel zero it afresh
-    afe_core::memory_reuse::keep_freed_memory();
     let mut times = Vec::with_capacity(repeat);
     let mut values = 0;
     for _ in 0..repeat {
