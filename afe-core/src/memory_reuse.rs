@@ -1,9 +1,9 @@
 //! Reuse of freed memory by a process that runs whole signals one after another, as a
-//! benchmark's repeats do. Each run keeps its outputs in fresh
-//! blocks, hundreds of MB for ten seconds of autocorrelation, and glibc maps blocks that
-//! large for each allocation and unmaps them when freed: every run then pays the kernel
-//! for zeroing that memory again on first touch (a fifth of a whole-signal run's time on
-//! the development VMs). Kept in the heap instead, the next run's blocks reuse it.
+//! benchmark's repeats do. Each run keeps its outputs in fresh blocks, hundreds of MB for
+//! ten seconds of autocorrelation, and glibc maps blocks that large for each allocation
+//! and unmaps them when freed: every run then pays the kernel for zeroing that memory
+//! again on first touch (a fifth of a whole-signal run's time on the development VMs).
+//! Kept in the heap instead, the next run's blocks reuse it.
 
 /// Free memory at the heap's top (bytes) above which glibc hands that memory back to the
 /// kernel: as much as its `int` parameter allows (2 GiB).
