@@ -550,6 +550,15 @@ impl AmsFeatures {
 /// Rows of the decimated signal filtered by every band before the next rows.
 const ROWS: usize = 64;
 
+/// Filters the rows `x` (`[time][channel]`, `nc` channels) by every band into `rows`
+/// (`[time][band][channel]`); the filters keep their state.
+fn filter_block(filters: &mut [Df2t], x: &[f64], rows: &mut [f64], nc: usize) {
+    let stride = nc * filters.len();
+    for (j, filter) in filters.iter_mut().enumerate() {
+        filter.process_into_rows(x, &mut rows[j * nc..], stride);
+    }
+}
+
 impl Processor for AmsFeatures {
     fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
         let nc = self.channels;
@@ -558,25 +567,33 @@ impl Processor for AmsFeatures {
         let w_len = self.win.len() as f64;
         match &mut self.kind {
             Bands::Log { filters } => {
+                let width = (nc * nb).max(1);
+                if let Some(hop_sums) = &mut self.hop_sums {
+                    // Block by block of rows: every band's filter writes its columns of a
+                    // block that stays in cache, and the hop sums take the block before
+                    // the next is filtered, so the bands are never all in memory.
+                    let rows = self.decimated.len() / nc.max(1);
+                    let out = outputs[0].reset_to(hop_sums.frames_after(rows));
+                    let mut at = 0;
+                    self.banded.resize(ROWS * width, 0.0);
+                    for x in self.decimated.chunks((ROWS * nc).max(1)) {
+                        let block = &mut self.banded[..x.len() / nc.max(1) * width];
+                        filter_block(filters, x, block, nc);
+                        let frames = hop_sums.frames_after(x.len() / nc.max(1)) * width;
+                        hop_sums.run(block, &mut out[at..at + frames], (nc, nb), w_len);
+                        at += frames;
+                    }
+                    return;
+                }
                 self.banded.resize(self.decimated.len() * nb, 0.0);
-                // Block by block of rows, so that the block stays in cache while every
-                // band's filter writes its columns of it (the filters keep their state
-                // from block to block).
                 let blocks = self
                     .decimated
                     .chunks((ROWS * nc).max(1))
-                    .zip(self.banded.chunks_mut((ROWS * nc * nb).max(1)));
+                    .zip(self.banded.chunks_mut((ROWS * width).max(1)));
                 for (x, rows) in blocks {
-                    for (j, filter) in filters.iter_mut().enumerate() {
-                        filter.process_into_rows(x, &mut rows[j * nc..], nc * nb);
-                    }
+                    filter_block(filters, x, rows, nc);
                 }
                 let input = &self.banded;
-                if let Some(hop_sums) = &mut self.hop_sums {
-                    let n = hop_sums.frames_after(input.len() / (nc * nb).max(1));
-                    hop_sums.run(input, outputs[0].reset_to(n), (nc, nb), w_len);
-                    return;
-                }
                 let n = self.frames.available(input);
                 let out = outputs[0].reset_to(n);
                 for (k, row) in out.chunks_exact_mut(nc * nb).enumerate() {
