@@ -7,15 +7,22 @@
 /// Channels per SIMD vector of the multichannel path.
 const LANES: usize = 8;
 /// Vectors per pass of the multichannel path: their independent recursions hide each
-/// other's latency.
-const MAX_VECTORS: usize = 4;
+/// other's latency. Four with AVX-512's 32 registers; two with AVX2's sixteen, where the
+/// state of four spills to memory (measured 1.5 times slower per row).
+fn max_vectors() -> usize {
+    if crate::cpu::has_avx512() {
+        4
+    } else {
+        2
+    }
+}
 /// Highest order run with the state in registers; higher orders take the scalar path.
 const MAX_LANE_ORDER: usize = 4;
 
 /// A real DF2T filter applied independently to every channel of a time-major block.
 ///
 /// Eight or more channels with an order up to 4 run across SIMD lanes, in place, with
-/// the state in registers: passes of up to four vectors, each vector loading eight
+/// the state in registers: passes of up to four vectors (two without AVX-512), each vector loading eight
 /// adjacent channels of a row. When the channel count is not a multiple of eight, the
 /// last vector of a pass overlaps its neighbour; the overlapping channels then have two
 /// lanes with equal state that compute and store equal values. Every channel sees
@@ -33,20 +40,21 @@ pub struct Df2t {
     z: Vec<f64>,
 }
 
-/// Up to `MAX_VECTORS` vectors filtered together: their first channels and state lanes.
+/// Up to [`max_vectors`] vectors filtered together: their first channels and state lanes.
 #[derive(Debug, Clone, PartialEq)]
 struct Pass {
     starts: Vec<usize>,
     first_lane: usize,
 }
 
-/// Splits `channels` (≥ `LANES`) into passes of whole vectors (see [`Df2t`]).
-fn plan_passes(channels: usize) -> (Vec<Pass>, Vec<usize>) {
+/// Splits `channels` (≥ `LANES`) into passes of up to `vectors` whole vectors (see
+/// [`Df2t`]).
+fn plan_passes(channels: usize, vectors: usize) -> (Vec<Pass>, Vec<usize>) {
     let (mut passes, mut lane_channel) = (Vec::new(), Vec::new());
     let mut start = 0;
     while start < channels {
         let rest = channels - start;
-        let full = LANES * MAX_VECTORS;
+        let full = LANES * vectors;
         // A pass leaves at least one whole vector for the next one.
         let size = if rest <= full {
             rest
@@ -91,7 +99,7 @@ impl Df2t {
         }
         let (passes, lane_channel) = if channels >= LANES && (1..=MAX_LANE_ORDER).contains(&(m - 1))
         {
-            plan_passes(channels)
+            plan_passes(channels, max_vectors())
         } else {
             (Vec::new(), (0..channels).collect())
         };
@@ -277,9 +285,32 @@ fn run_lanes<const M: usize>(
     multiversion::multiversion(targets("x86_64+avx2"))
 )]
 fn lanes_kernel<const M: usize, const V: usize>(
+    filter: (&[f64], &[f64]),
+    state: (&mut [f64], usize, usize),
+    (input, data): (Source<'_>, &mut [f64]),
+    strides: (usize, usize),
+    starts: [usize; V],
+) {
+    // One row loop per source, so that the loop itself carries no branch on it.
+    match input {
+        Source::InPlace => lanes_loop::<M, V, false>(filter, state, None, data, strides, starts),
+        Source::Input(i) => {
+            lanes_loop::<M, V, false>(filter, state, Some(i), data, strides, starts)
+        }
+        Source::Rectified(i) => {
+            lanes_loop::<M, V, true>(filter, state, Some(i), data, strides, starts);
+        }
+    }
+}
+
+/// The row loop of [`lanes_kernel`]: rows from `input` (half-wave rectified if
+/// `RECTIFY`), or from `data` itself when `input` is `None`.
+#[inline(always)]
+fn lanes_loop<const M: usize, const V: usize, const RECTIFY: bool>(
     (b, a): (&[f64], &[f64]),
     (z, lanes, first): (&mut [f64], usize, usize),
-    (input, data): (Source<'_>, &mut [f64]),
+    input: Option<&[f64]>,
+    data: &mut [f64],
     (stride, out_stride): (usize, usize),
     starts: [usize; V],
 ) {
@@ -291,20 +322,14 @@ fn lanes_kernel<const M: usize, const V: usize>(
         }
     }
     let (b0, bm, am) = (b[0], b[M], a[M]);
-    let rows = match input {
-        Source::InPlace => data.len() / stride,
-        Source::Input(i) | Source::Rectified(i) => i.len() / stride,
-    };
+    let rows = input.map_or(data.len(), <[f64]>::len) / stride;
     for t in 0..rows {
         let row = &mut data[t * out_stride..t * out_stride + stride];
+        let from = input.map_or(&*row, |i| &i[t * stride..(t + 1) * stride]);
         let mut x = [[0.0; LANES]; V];
-        let from = match input {
-            Source::InPlace => &*row,
-            Source::Input(i) | Source::Rectified(i) => &i[t * stride..(t + 1) * stride],
-        };
         for (xv, &c) in x.iter_mut().zip(&starts) {
             xv.copy_from_slice(&from[c..c + LANES]);
-            if let Source::Rectified(_) = input {
+            if RECTIFY {
                 *xv = xv.map(|v| v.max(0.0));
             }
         }
@@ -475,34 +500,39 @@ mod tests {
         }
     }
 
-    /// The passes, worked by hand: whole passes of four vectors while more than a vector
-    /// remains after them; a last pass of under a vector's worth takes a vector from the
+    /// The passes, worked by hand for two and four vectors: whole passes while more than
+    /// a vector remains after them; a last pass of under a vector's worth takes a vector from the
     /// pass before, and a pass not a multiple of eight ends on a vector overlapping its
     /// neighbour.
     #[test]
-    fn passes_take_four_vectors_and_leave_the_last_a_whole_one() {
-        let starts = |channels| -> Vec<Vec<usize>> {
-            let (passes, lanes) = plan_passes(channels);
+    fn passes_take_whole_vectors_and_leave_the_last_a_whole_one() {
+        let starts = |channels, vectors| -> Vec<Vec<usize>> {
+            let (passes, lanes) = plan_passes(channels, vectors);
             assert_eq!(
                 lanes.len(),
                 passes.iter().map(|p| 8 * p.starts.len()).sum::<usize>()
             );
             passes.into_iter().map(|p| p.starts).collect()
         };
-        assert_eq!(starts(8), [vec![0]]);
-        assert_eq!(starts(31), [vec![0, 8, 16, 23]]);
-        assert_eq!(starts(32), [vec![0, 8, 16, 24]]);
+        assert_eq!(starts(8, 4), [vec![0]]);
+        assert_eq!(starts(31, 4), [vec![0, 8, 16, 23]]);
+        assert_eq!(starts(32, 4), [vec![0, 8, 16, 24]]);
         // 8 left after a full pass: a pass of its own
-        assert_eq!(starts(40), [vec![0, 8, 16, 24], vec![32]]);
+        assert_eq!(starts(40, 4), [vec![0, 8, 16, 24], vec![32]]);
         // 4 left: the first pass gives up a vector
-        assert_eq!(starts(36), [vec![0, 8, 16], vec![24, 28]]);
-        assert_eq!(starts(64), [vec![0, 8, 16, 24], vec![32, 40, 48, 56]]);
-        let (passes, lanes) = plan_passes(36);
+        assert_eq!(starts(36, 4), [vec![0, 8, 16], vec![24, 28]]);
+        assert_eq!(starts(64, 4), [vec![0, 8, 16, 24], vec![32, 40, 48, 56]]);
+        let (passes, lanes) = plan_passes(36, 4);
         assert_eq!(passes[1].first_lane, 24);
         assert_eq!(
             &lanes[24..40],
             &[24, 25, 26, 27, 28, 29, 30, 31, 28, 29, 30, 31, 32, 33, 34, 35]
         );
+        assert_eq!(starts(15, 2), [vec![0, 7]]);
+        assert_eq!(starts(31, 2), [vec![0, 8], vec![16, 23]]);
+        assert_eq!(starts(24, 2), [vec![0, 8], vec![16]]);
+        assert_eq!(starts(20, 2), [vec![0], vec![8, 12]]);
+        assert_eq!(starts(36, 2), [vec![0, 8], vec![16], vec![24, 28]]);
     }
 
     /// Seeding sets a channel's first state (in both lanes where vectors overlap) and

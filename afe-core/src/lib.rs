@@ -5,6 +5,7 @@
 
 pub mod block;
 pub mod butter;
+pub mod cpu;
 pub mod erb;
 pub mod error;
 pub mod filter;

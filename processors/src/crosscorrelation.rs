@@ -13,8 +13,8 @@ use realfft::num_complex::Complex64;
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use serde::{Deserialize, Serialize};
 
-use crate::cpu::has_avx512;
 use crate::framed::{check_framing, EarFrames};
+use afe_core::cpu::has_avx512;
 
 use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 

@@ -8,7 +8,6 @@ pub mod adaptation;
 pub mod ams_features;
 pub mod autocorrelation;
 pub mod butterworth;
-mod cpu;
 pub mod crosscorrelation;
 pub mod drnl;
 pub mod duet;
