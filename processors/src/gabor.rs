@@ -289,13 +289,40 @@ fn convolve_row(
         else {
             continue;
         };
-        for b in 0..ln {
+        let taps = &f.real[a * ln..(a + 1) * ln];
+        let dc = f.dc_weights.as_ref().map(|w| &w[a * ln..(a + 1) * ln]);
+        // Four taps per pass over the frames, the sums held in registers between them:
+        // each sum still adds its terms tap by tap, and a quarter of the loads and stores.
+        let mut b = 0;
+        while b + 4 <= ln {
+            let start = CONTEXT + f.half_n - b;
+            let x: [&[f64]; 4] = std::array::from_fn(|i| &src[start - i..start - i + frames]);
+            let g: [f64; 4] = std::array::from_fn(|i| taps[b + i]);
+            let xs = x[0].iter().zip(x[1]).zip(x[2].iter().zip(x[3]));
+            match dc {
+                Some(dc) => {
+                    let w: [f64; 4] = std::array::from_fn(|i| dc[b + i]);
+                    let accs = acc_real.iter_mut().zip(acc_dc.iter_mut());
+                    for ((ar, ad), ((x0, x1), (x2, x3))) in accs.zip(xs) {
+                        *ar = (((*ar + g[0] * x0) + g[1] * x1) + g[2] * x2) + g[3] * x3;
+                        *ad = (((*ad + w[0] * x0) + w[1] * x1) + w[2] * x2) + w[3] * x3;
+                    }
+                }
+                None => {
+                    for (ar, ((x0, x1), (x2, x3))) in acc_real.iter_mut().zip(xs) {
+                        *ar = (((*ar + g[0] * x0) + g[1] * x1) + g[2] * x2) + g[3] * x3;
+                    }
+                }
+            }
+            b += 4;
+        }
+        for b in b..ln {
             let start = CONTEXT + f.half_n - b;
             let s = &src[start..start + frames];
-            let g = f.real[a * ln + b];
-            match &f.dc_weights {
+            let g = taps[b];
+            match dc {
                 Some(dc) => {
-                    let w = dc[a * ln + b];
+                    let w = dc[b];
                     for ((ar, ad), x) in acc_real.iter_mut().zip(acc_dc.iter_mut()).zip(s) {
                         *ar += g * x;
                         *ad += w * x;
