@@ -8,7 +8,8 @@
 const LANES: usize = 8;
 /// Vectors per pass of the multichannel path: their independent recursions hide each
 /// other's latency. Four with AVX-512's 32 registers; two with AVX2's sixteen, where the
-/// state of four spills to memory (measured 1.5 times slower per row).
+/// state of four second-order filters spills to memory (measured 1.1 to 1.5 times slower
+/// per row at orders 2 and 4; no different at order 1).
 fn max_vectors() -> usize {
     if crate::cpu::has_avx512() {
         4
@@ -22,11 +23,12 @@ const MAX_LANE_ORDER: usize = 4;
 /// A real DF2T filter applied independently to every channel of a time-major block.
 ///
 /// Eight or more channels with an order up to 4 run across SIMD lanes, in place, with
-/// the state in registers: passes of up to four vectors (two without AVX-512), each vector loading eight
-/// adjacent channels of a row. When the channel count is not a multiple of eight, the
-/// last vector of a pass overlaps its neighbour; the overlapping channels then have two
-/// lanes with equal state that compute and store equal values. Every channel sees
-/// exactly the scalar operations, so the numbers do not depend on the path.
+/// the state in registers: passes of up to four vectors (two without AVX-512), each
+/// vector loading eight adjacent channels of a row. When the channel count is not a
+/// multiple of eight, the last vector of a pass overlaps its neighbour; the overlapping
+/// channels then have two lanes with equal state that compute and store equal values.
+/// Every channel sees exactly the scalar operations, so the numbers do not depend on the
+/// path.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Df2t {
     b: Vec<f64>,
@@ -295,7 +297,7 @@ fn lanes_kernel<const M: usize, const V: usize>(
     match input {
         Source::InPlace => lanes_loop::<M, V, false>(filter, state, None, data, strides, starts),
         Source::Input(i) => {
-            lanes_loop::<M, V, false>(filter, state, Some(i), data, strides, starts)
+            lanes_loop::<M, V, false>(filter, state, Some(i), data, strides, starts);
         }
         Source::Rectified(i) => {
             lanes_loop::<M, V, true>(filter, state, Some(i), data, strides, starts);
@@ -501,9 +503,9 @@ mod tests {
     }
 
     /// The passes, worked by hand for two and four vectors: whole passes while more than
-    /// a vector remains after them; a last pass of under a vector's worth takes a vector from the
-    /// pass before, and a pass not a multiple of eight ends on a vector overlapping its
-    /// neighbour.
+    /// a vector remains after them; a last pass of under a vector's worth takes a vector
+    /// from the pass before, and a pass not a multiple of eight ends on a vector
+    /// overlapping its neighbour.
     #[test]
     fn passes_take_whole_vectors_and_leave_the_last_a_whole_one() {
         let starts = |channels, vectors| -> Vec<Vec<usize>> {

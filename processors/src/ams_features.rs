@@ -210,7 +210,8 @@ pub struct AmsFeatures {
     kind: Bands,
     frames: FrameBuffer,
     decimated: Vec<f64>,
-    /// The log filterbank's output, `[time][band][channel]`.
+    /// The log filterbank's output, `[time][band][channel]`: one block of [`ROWS`] rows
+    /// where the hop sums take it, the whole chunk where frames are windowed.
     banded: Vec<f64>,
     /// One frame's sums per `[band][channel]`.
     sums: Vec<f64>,
@@ -577,11 +578,12 @@ impl Processor for AmsFeatures {
                     let mut at = 0;
                     self.banded.resize(ROWS * width, 0.0);
                     for x in self.decimated.chunks((ROWS * nc).max(1)) {
-                        let block = &mut self.banded[..x.len() / nc.max(1) * width];
+                        let n = x.len() / nc.max(1);
+                        let block = &mut self.banded[..n * width];
                         filter_block(filters, x, block, nc);
-                        let frames = hop_sums.frames_after(x.len() / nc.max(1)) * width;
-                        hop_sums.run(block, &mut out[at..at + frames], (nc, nb), w_len);
-                        at += frames;
+                        let len = hop_sums.frames_after(n) * width;
+                        hop_sums.run(block, &mut out[at..at + len], (nc, nb), w_len);
+                        at += len;
                     }
                     return;
                 }

@@ -292,7 +292,8 @@ fn convolve_row(
         let taps = &f.real[a * ln..(a + 1) * ln];
         let dc = f.dc_weights.as_ref().map(|w| &w[a * ln..(a + 1) * ln]);
         // Four taps per pass over the frames, the sums held in registers between them:
-        // each sum still adds its terms tap by tap, and a quarter of the loads and stores.
+        // each sum still adds its terms tap by tap, with a quarter of the accumulator loads
+        // and stores.
         let mut b = 0;
         while b + 4 <= ln {
             let start = CONTEXT + f.half_n - b;

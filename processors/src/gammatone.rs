@@ -9,12 +9,12 @@
 
 use std::f64::consts::PI;
 
+use afe_core::cpu::has_avx512;
 use afe_core::lanes::vector_start;
 use afe_core::{Block, ParamMap, Processor, Result, SignalInfo};
 use serde_json::json;
 
 use crate::filterbank::{invalid, CfGrid, FilterbankParams};
-use afe_core::cpu::has_avx512;
 
 /// The gammatone's verified parameters (the AFE's verify step): the grid, order,
 /// bandwidth, alignment and the informational per-channel delay `fb_delaySec`.
