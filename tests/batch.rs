@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant, SystemTime};
 
-use afe::batch::Store;
+use afe_batch::Store;
 use common::{afe, npz_arrays};
 use serde_json::Value;
 

@@ -13,12 +13,12 @@ use std::process::{Command, Stdio};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use afe::remote::{Client, RemoteSource, ServeOptions, Server, Subscription};
-use afe::stream::{run_spec, SourceSpec, StreamJob, StreamReport};
+use afe::stream::{SourceSpec, StreamJob, StreamReport};
 use afe::{Manager, ParamMap};
 use afe_bass_source::{Pacing, Source};
+use afe_net::zenoh::{self, Wait};
+use afe_net::{run_spec, Client, RemoteSource, ServeOptions, Server, Subscription};
 use serde_json::Value;
-use zenoh::Wait;
 
 const BLOCK: usize = 441;
 
@@ -334,7 +334,7 @@ fn eight_clients_lose_nothing_in_thirty_seconds_while_a_stalled_one_loses_counte
             std::thread::spawn(move || {
                 let client = connect(port);
                 let mut sub = subscribe(&client, &requests(&set, &ParamMap::new()));
-                let mut tally = afe::remote::Tally::default();
+                let mut tally = afe_net::Tally::default();
                 while tally.messages() < blocks {
                     let f = sub
                         .recv(Duration::from_secs(5))

@@ -10,8 +10,8 @@ use std::net::TcpStream;
 use std::time::Duration;
 
 use afe::stream::{run, StreamJob};
-use afe::view::View;
 use afe_bass_source::{Pacing, Synth};
+use afe_view::View;
 use serde_json::{json, Value};
 use tungstenite::Message;
 

@@ -14,7 +14,6 @@ pub mod framing;
 pub mod hilbert;
 mod huge_pages;
 pub mod lanes;
-pub mod memory_reuse;
 pub mod params;
 pub mod processor;
 pub mod sgolay;

@@ -4,7 +4,7 @@
 
 use std::path::PathBuf;
 
-use afe::batch::{self, BatchError, BatchOptions, InputFile, Store, StoreSpec};
+use afe_batch::{BatchError, BatchOptions, InputFile, Store, StoreSpec};
 use pyo3::exceptions::{PyKeyError, PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -86,7 +86,7 @@ pub fn batch_run(
     let spec = spec(spec_json)?;
     let options = options(options_json)?;
     let summary =
-        crate::interrupt::interruptible(py, || batch::run(&inputs, &store, &spec, &options))?
+        crate::interrupt::interruptible(py, || afe_batch::run(&inputs, &store, &spec, &options))?
             .map_err(to_py_batch)?;
     Ok(summary.to_json().to_string())
 }
@@ -107,7 +107,7 @@ pub fn batch_plan(
     let spec = spec(spec_json)?;
     let options = options(options_json)?;
     let (_, files, already) = py
-        .allow_threads(|| batch::plan(&inputs, &store, &spec, &options))
+        .allow_threads(|| afe_batch::plan(&inputs, &store, &spec, &options))
         .map_err(to_py_batch)?;
     Ok((
         files
@@ -130,9 +130,9 @@ pub fn batch_compute(
 ) -> PyResult<String> {
     py.allow_threads(|| {
         let opened = Store::open(&store)?;
-        let record = batch::compute(&opened, &InputFile { id, path, audio_s })
+        let record = afe_batch::compute(&opened, &InputFile { id, path, audio_s })
             .ok_or(BatchError::Afe(afe::Error::Interrupted))?;
-        let ledger = batch::Ledger::open(&store).map_err(|e| BatchError::Store {
+        let ledger = afe_batch::Ledger::open(&store).map_err(|e| BatchError::Store {
             path: store.clone(),
             reason: e.to_string(),
         })?;
@@ -149,14 +149,14 @@ pub fn batch_compute(
 #[pyfunction]
 pub fn store_status(py: Python<'_>, store: PathBuf) -> PyResult<String> {
     let (spec, records) = py
-        .allow_threads(|| batch::status(&store))
+        .allow_threads(|| afe_batch::status(&store))
         .map_err(to_py_batch)?;
     Ok(serde_json::json!({
         "format": spec.format.as_str(),
         "requests": spec.requests,
         "params": spec.params,
         "param_hash": spec.param_hash(),
-        "files": records.iter().map(batch::Record::to_json).collect::<Vec<_>>(),
+        "files": records.iter().map(afe_batch::Record::to_json).collect::<Vec<_>>(),
     })
     .to_string())
 }

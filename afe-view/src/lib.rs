@@ -6,7 +6,7 @@
 //! - server → page, text: `{"type":"layout", "version", "fs_hz", "ears", "block_ms",
 //!   "catalogue": [request names], "order": [keys], "signals": {key: description},
 //!   "requests": [{"handle", "outputs"}]}` on connection and whenever the graph changes
-//!   (the description is [`crate::metadata::describe`]'s); `{"type":"reply", "op", "ok",
+//!   (the description is [`afe::metadata::describe`]'s); `{"type":"reply", "op", "ok",
 //!   "message"}` after an edit; `{"type":"lagged", "batches"}` when this page fell
 //!   behind and lost batches;
 //! - server → page, binary: a batch of blocks (see `server::encode`): the new frames of

@@ -3,6 +3,7 @@
 
 use std::time::Duration;
 
+use afe::stream::{Observer, SourceSpec, StreamError, StreamJob, Streamed};
 use afe_bass_source::{Clock, PortFormat, Source};
 use zenoh::handlers::FifoChannelHandler;
 use zenoh::pubsub::Subscriber;
@@ -15,6 +16,23 @@ use super::{key, RemoteError};
 
 /// How long a read waits for a block before checking that the server is still there.
 const POLL: Duration = Duration::from_millis(100);
+
+/// Opens the source `spec` names and streams it, as [`afe::stream::run_spec`] does, with
+/// `zenoh:ENDPOINT[@NAME]` sources opened here.
+pub fn run_spec(
+    spec: &SourceSpec,
+    job: &StreamJob,
+    on_block: impl Observer,
+) -> Result<Streamed, StreamError> {
+    match spec {
+        SourceSpec::Zenoh { endpoint, name } => {
+            let source = RemoteSource::connect(endpoint, name.as_deref())
+                .map_err(|e| afe_bass_source::Error::Remote(e.to_string()))?;
+            afe::stream::run(source, job, on_block)
+        }
+        other => afe::stream::run_spec(other, job, on_block),
+    }
+}
 
 /// The audio blocks a server publishes, in order; a gap in their frame indices (blocks
 /// lost on the way) counts as an overrun, as a device's would.

@@ -3,7 +3,7 @@
 //! resume after a crash at file granularity, and shards for independent jobs.
 //!
 //! ```no_run
-//! use afe::batch::{run, BatchOptions, Format, StoreSpec};
+//! use afe_batch::{run, BatchOptions, Format, StoreSpec};
 //! let spec = StoreSpec {
 //!     requests: vec!["ratemap".into(), "ild".into()],
 //!     params: afe::ParamMap::new(),
@@ -11,7 +11,7 @@
 //! };
 //! let summary = run(&["corpus/".into()], "features.zarr".as_ref(), &spec, &BatchOptions::default())?;
 //! println!("{}", summary.text());
-//! # Ok::<(), afe::batch::BatchError>(())
+//! # Ok::<(), afe_batch::BatchError>(())
 //! ```
 
 mod inputs;
@@ -27,8 +27,8 @@ use std::time::Instant;
 use afe_graph::Manager;
 use serde_json::{json, Value};
 
-use crate::extract::{run_into, Job};
-use crate::wav::open_input;
+use afe::extract::{run_into, Job};
+use afe::wav::open_input;
 
 pub use inputs::{discover, shard, InputFile};
 pub use ledger::{Ledger, Record, Status};
@@ -110,7 +110,7 @@ pub enum BatchError {
     /// The graph refused the requests or parameters, or failed on a file.
     #[error(transparent)]
     Afe(#[from] afe_core::Error),
-    /// Stopped by [`crate::interrupt`]: the files done so far are kept.
+    /// Stopped by [`afe::interrupt`]: the files done so far are kept.
     #[error("interrupted after {done} file(s) of this run: run it again to resume (finished files are kept)")]
     Interrupted {
         /// Files this run finished.
@@ -308,7 +308,7 @@ fn check_spec(spec: &StoreSpec) -> Result<(), BatchError> {
         return Err(BatchError::Usage("no request given".into()));
     }
     for r in &spec.requests {
-        crate::find_request(r)?;
+        afe::find_request(r)?;
     }
     afe_graph::check_parameter_names(&spec.params)?;
     Ok(())
@@ -349,7 +349,7 @@ pub fn run(
     std::thread::scope(|scope| {
         for _ in 0..workers {
             scope.spawn(|| {
-                while !stop.load(Ordering::Relaxed) && !crate::interrupt::requested() {
+                while !stop.load(Ordering::Relaxed) && !afe::interrupt::requested() {
                     let Some(file) = files.get(next.fetch_add(1, Ordering::Relaxed)) else {
                         break;
                     };
@@ -393,7 +393,7 @@ pub fn run(
         .saturating_sub(summary.done + summary.failed.len());
     summary.failed.sort();
     lock(&progress).finish(&summary);
-    if crate::interrupt::requested() {
+    if afe::interrupt::requested() {
         return Err(BatchError::Interrupted { done: summary.done });
     }
     if options.on_error == OnError::Stop {
@@ -413,7 +413,7 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 
 /// Computes one file into `store` (first removing what a killed run left of it) and
 /// returns its record, for the caller to append to a ledger; failures are in the record.
-/// `None`: interrupted (see [`crate::interrupt`]), nothing to record.
+/// `None`: interrupted (see [`afe::interrupt`]), nothing to record.
 pub fn compute(store: &Store, file: &InputFile) -> Option<Record> {
     let start = Instant::now();
     let result = compute_file(store, file);

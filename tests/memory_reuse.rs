@@ -1,10 +1,15 @@
 //! `keep_freed_memory` in a process of its own, on its main thread: it changes the
 //! allocator for the whole process, and keeps the memory of the main thread's heap (the
-//! test harness would run the test on a thread of its own, with a heap of its own).
+//! test harness would run the test on a thread of its own, with a heap of its own). The
+//! CLI's own module, compiled here through `#[path]`.
+
+#[path = "../cli/memory_reuse.rs"]
+#[allow(dead_code)]
+mod memory_reuse;
 
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
 fn main() {
-    assert!(afe_core::memory_reuse::keep_freed_memory());
+    assert!(memory_reuse::keep_freed_memory());
     let values = (64 << 20) / std::mem::size_of::<f64>();
     drop(std::hint::black_box(vec![1.0_f64; values]));
     let before = minor_faults();
@@ -18,7 +23,7 @@ fn main() {
 
 #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
 fn main() {
-    assert!(!afe_core::memory_reuse::keep_freed_memory());
+    assert!(!memory_reuse::keep_freed_memory());
 }
 
 /// Page faults of this process that the kernel served without I/O.

@@ -16,9 +16,9 @@ use zarrs::group::{Group, GroupBuilder};
 
 use super::inputs::{fnv1a, InputFile};
 use super::BatchError;
-use crate::extract::Sink;
-use crate::output::OutputFile;
-use crate::recorder::Recorder;
+use afe::extract::Sink;
+use afe::output::OutputFile;
+use afe::Recorder;
 
 /// Most bytes in a chunk of an output array (1 MiB: a few seconds of a full-rate
 /// filterbank, minutes of a ratemap); a shorter output is one chunk of its own length.
@@ -472,7 +472,7 @@ impl ZarrFile<'_> {
             (DataType::Float64, 8)
         };
         let mut attrs = serde_json::Map::new();
-        attrs.insert("afe".into(), crate::metadata::describe(manager, s));
+        attrs.insert("afe".into(), afe::metadata::describe(manager, s));
         let array = ArrayBuilder::new(shape, chunk_shape, dtype, FillValue::new(vec![0; size]))
             .dimension_names(Some(s.info.kind.axes().to_vec()))
             .attributes(attrs)
@@ -545,13 +545,13 @@ pub struct StoredArray {
     pub shape: Vec<usize>,
     /// Values in C order.
     pub data: Vec<f64>,
-    /// Its `afe` attributes ([`crate::metadata::describe`]).
+    /// Its `afe` attributes ([`afe::metadata::describe`]).
     pub info: Value,
 }
 
 impl Store {
     /// The arrays of file `id`, read back (zarr stores only; an npz store's files are
-    /// read with numpy or [`crate::npy`]).
+    /// read with numpy or [`afe::npy`]).
     pub fn read(&self, id: &str) -> Result<Vec<StoredArray>, BatchError> {
         let Some(z) = &self.zarr else {
             return Err(BatchError::Usage(format!(

@@ -10,8 +10,8 @@ use std::sync::Arc;
 use afe_graph::{Manager, OutputRef};
 use serde_json::{json, Value};
 
-use crate::metadata::describe;
-use crate::stream::{Observer, Timing};
+use afe::metadata::describe;
+use afe::stream::{Observer, Timing};
 
 /// Values reserved per signal in a fresh batch, so that steady-state blocks append
 /// without growing it.
@@ -202,7 +202,7 @@ impl Tap {
             })
             .collect();
         let order: Vec<String> = signals.iter().map(afe_graph::Signal::key).collect();
-        let catalogue: Vec<&str> = afe_processors::requests().iter().map(|r| r.name).collect();
+        let catalogue: Vec<&str> = afe::requests().iter().map(|r| r.name).collect();
         let layout = json!({
             "type": "layout",
             "version": self.version,

@@ -15,19 +15,30 @@
 //! | `afe/N/frames/S` | subscription `S`'s new frames per block ([`wire`]) |
 //! | `afe/N/report` | the server's report, JSON, once per second of audio |
 
+#[cfg(feature = "zenoh")]
 mod client;
+#[cfg(feature = "zenoh")]
 mod server;
+#[cfg(feature = "zenoh")]
 mod source;
+#[cfg(feature = "zenoh")]
 mod tally;
 pub mod wire;
 
 use thiserror::Error;
 
-pub use crate::frames::{FrameBlock, Frames};
+pub use afe::frames::{FrameBlock, Frames};
+#[cfg(feature = "zenoh")]
 pub use client::{Client, Subscription};
+#[cfg(feature = "zenoh")]
 pub use server::{ServeOptions, ServeTap, Server};
-pub use source::RemoteSource;
+#[cfg(feature = "zenoh")]
+pub use source::{run_spec, RemoteSource};
+#[cfg(feature = "zenoh")]
 pub use tally::Tally;
+#[cfg(feature = "zenoh")]
+/// The Zenoh crate this one speaks through, for clients that open their own sessions.
+pub use zenoh;
 
 /// Where `afe serve` listens unless told otherwise: loopback only.
 pub const DEFAULT_LISTEN: &str = "tcp/127.0.0.1:7447";
@@ -64,6 +75,7 @@ pub enum RemoteError {
     ServerGone(String),
 }
 
+#[cfg(feature = "zenoh")]
 impl From<zenoh::Error> for RemoteError {
     fn from(e: zenoh::Error) -> Self {
         RemoteError::Zenoh(e.to_string())
@@ -76,6 +88,7 @@ impl From<wire::WireError> for RemoteError {
     }
 }
 
+#[cfg(feature = "zenoh")]
 /// Checks that `name` can be one chunk of a key expression.
 fn check_name(name: &str) -> Result<(), RemoteError> {
     let ok = !name.is_empty()
@@ -89,11 +102,13 @@ fn check_name(name: &str) -> Result<(), RemoteError> {
     }
 }
 
+#[cfg(feature = "zenoh")]
 /// The key `afe/<name>/<what>`.
 fn key(name: &str, what: &str) -> String {
     format!("afe/{name}/{what}")
 }
 
+#[cfg(feature = "zenoh")]
 /// A Zenoh configuration (from `base`, or the defaults) with multicast scouting off and
 /// the given mode and endpoints.
 fn config(
@@ -128,7 +143,7 @@ pub fn is_loopback(endpoint: &str) -> bool {
             .is_ok_and(|ip| ip.is_loopback())
 }
 
-#[cfg(test)]
+#[cfg(all(test, feature = "zenoh"))]
 mod tests {
     use super::*;
 

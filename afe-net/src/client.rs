@@ -16,7 +16,7 @@ use zenoh::{Session, Wait};
 
 use super::wire::{self, SignalPart};
 use super::{check_name, config, key, RemoteError};
-use crate::frames::{FrameBlock, Frames};
+use afe::frames::{FrameBlock, Frames};
 
 /// Blocks a subscription keeps for a reader that has not taken them (0.64 s at 10 ms).
 const RECEIVE_QUEUE: usize = 64;
@@ -256,7 +256,7 @@ pub struct Subscription {
 
 impl Subscription {
     /// The server's reply: `subscription`, `key`, `signals` (each signal's description,
-    /// as [`crate::metadata::describe`] gives it, with its `first_frame`), `fs_hz`,
+    /// as [`afe::metadata::describe`] gives it, with its `first_frame`), `fs_hz`,
     /// `ears`, `block_frames`, `start_frame`.
     pub fn reply(&self) -> &Value {
         &self.reply

@@ -12,8 +12,8 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::{register_font, FontStyle};
 
-use crate::recorder::Recorded;
-use crate::Recorder;
+use afe::Recorded;
+use afe::Recorder;
 
 /// Why a figure cannot be made.
 #[derive(Debug, thiserror::Error)]

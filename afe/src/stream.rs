@@ -419,29 +419,20 @@ pub fn run_spec(
     }
 }
 
-#[cfg(feature = "remote")]
-fn zenoh(
-    endpoint: &str,
-    name: Option<&str>,
-    job: &StreamJob,
-    on_block: impl Observer,
-) -> Result<Streamed, StreamError> {
-    let source = crate::remote::RemoteSource::connect(endpoint, name)
-        .map_err(|e| afe_bass_source::Error::Remote(e.to_string()))?;
-    run(source, job, on_block)
-}
-
-#[cfg(not(feature = "remote"))]
+/// A `zenoh:` source is opened by the network crate (`afe_net::run_spec`), which this
+/// library does not depend on.
 fn zenoh(
     _endpoint: &str,
     _name: Option<&str>,
     _job: &StreamJob,
     _on_block: impl Observer,
 ) -> Result<Streamed, StreamError> {
-    Err(StreamError::Spec(
-        "this afe was built without Zenoh: rebuild it with the `remote` feature".into(),
-    ))
+    Err(StreamError::Spec(ZENOH_OFF.into()))
 }
+
+/// What `afe` says about a `zenoh:` source when built without the network crate.
+pub const ZENOH_OFF: &str = "this afe was built without Zenoh: rebuild it with \
+`cargo build --release --features remote` (or `robot`)";
 
 #[cfg(feature = "alsa")]
 fn alsa(device: &str, job: &StreamJob, on_block: impl Observer) -> Result<Streamed, StreamError> {

@@ -6,7 +6,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 use serde_json::{json, Map, Value};
 
 use super::{Frames, Subscription};
-use crate::block_times::BlockTimes;
+use afe::block_times::BlockTimes;
 
 /// Running totals of a subscription's blocks.
 #[derive(Debug, Clone, Default)]

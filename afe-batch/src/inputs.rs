@@ -5,7 +5,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use super::BatchError;
-use crate::wav::WavBlocks;
+use afe::wav::WavBlocks;
 
 /// One input file of a batch.
 #[derive(Debug, Clone, PartialEq)]

@@ -25,8 +25,8 @@ use super::wire::{self, Header, Kind};
 use super::{
     check_name, config, key, RemoteError, MAX_QUERY_BYTES, MAX_REQUESTS, MAX_SUBSCRIPTIONS,
 };
-use crate::metadata::describe;
-use crate::stream::{Observer, Timing};
+use afe::metadata::describe;
+use afe::stream::{Observer, Timing};
 
 /// Messages a subscription may have on their way to its client before the next are
 /// dropped for it alone (at 10-ms blocks, 0.32 s).
@@ -468,7 +468,7 @@ impl ServeTap {
             "fs_hz": timing.fs(),
             "ears": mgr.ears(),
             "block_frames": timing.block_frames(),
-            "requests": crate::catalog::listing(),
+            "requests": afe::catalog::listing(),
         });
         *lock(&self.shared.catalogue) = Some(c.to_string());
         self.started = true;

@@ -21,7 +21,6 @@
 //! # Ok::<(), afe::Error>(())
 //! ```
 
-pub mod batch;
 pub mod block_times;
 pub mod catalog;
 pub mod extract;
@@ -30,16 +29,10 @@ pub mod interrupt;
 pub mod metadata;
 pub mod npy;
 pub mod output;
-#[cfg(feature = "plot")]
-pub mod plot;
 pub mod realtime;
 mod recorder;
-#[cfg(feature = "remote")]
-pub mod remote;
 pub mod rss;
 pub mod stream;
-#[cfg(feature = "view")]
-pub mod view;
 pub mod wav;
 
 pub use afe_bass_source as bass_source;

@@ -1,0 +1,126 @@
+//! `afe bench`: the median wall time of repeated runs on a WAV file.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use afe::extract::{run_slices_into, run_with, Discard, Job};
+use afe::Manager;
+use serde_json::json;
+
+use crate::args::{Requests, Threads};
+use crate::error::CliError;
+use crate::files::read_input;
+use crate::outln;
+
+/// `afe bench IN.wav -r ... [--repeat K]`.
+#[derive(clap::Args)]
+pub(crate) struct BenchArgs {
+    /// Input WAV file (mono or two-channel binaural).
+    input: PathBuf,
+    #[command(flatten)]
+    requests: Requests,
+    /// Feed the input in chunks of N samples (default: one call).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    chunk: Option<u64>,
+    #[command(flatten)]
+    threads: Threads,
+    /// Number of timed runs (the median is reported, and the first: the runs after it
+    /// reuse the memory it freed), at most 100000.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u64).range(1..=100_000))]
+    repeat: u64,
+    /// Drop each chunk's output once computed, as a live consumer would, instead of
+    /// keeping the whole signal's output in memory as `afe extract` does: times the
+    /// processing without the first writes to the output's memory.
+    #[arg(long)]
+    discard: bool,
+    /// Print the result as one JSON object.
+    #[arg(long)]
+    json: bool,
+}
+
+impl BenchArgs {
+    pub(crate) fn run(self) -> Result<(), CliError> {
+        let (requests, params) = self.requests.load()?;
+        let job = Job {
+            requests,
+            params,
+            chunk: self.chunk.map(|n| n as usize),
+            all: false,
+            threads: self.threads.count(),
+        };
+        bench(
+            &self.input,
+            &job,
+            self.repeat as usize,
+            self.discard,
+            self.json,
+        )
+    }
+}
+
+fn bench(
+    input: &Path,
+    job: &Job,
+    repeat: usize,
+    discard: bool,
+    as_json: bool,
+) -> Result<(), CliError> {
+    let audio = read_input(input)?;
+    let refs: Vec<&[f64]> = audio.channels.iter().map(Vec::as_slice).collect();
+    let seconds = refs[0].len() as f64 / audio.fs;
+    let mut times = Vec::with_capacity(repeat);
+    let mut values = 0;
+    for _ in 0..repeat {
+        let mut mgr = Manager::with_threads(audio.fs, refs.len(), job.threads)?;
+        for r in &job.requests {
+            mgr.add_request(r, &job.params)?;
+        }
+        let added = Job {
+            requests: Vec::new(),
+            ..job.clone()
+        };
+        let start = Instant::now();
+        if discard {
+            let mut sink = Discard::default();
+            run_slices_into(&mut mgr, &added, &refs, &mut sink)?;
+            times.push(start.elapsed().as_secs_f64());
+            values = sink.values();
+        } else {
+            let rec = run_with(&mut mgr, &added, &refs)?;
+            times.push(start.elapsed().as_secs_f64());
+            values = rec.signals().iter().map(|s| s.data.as_slice().len()).sum();
+            std::hint::black_box(rec);
+        }
+    }
+    let first = times[0];
+    times.sort_by(f64::total_cmp);
+    let median = times[times.len() / 2];
+    let outputs = if discard { "discarded" } else { "kept" };
+    let result = json!({
+        "input": input.display().to_string(),
+        "requests": job.requests,
+        "audio_seconds": seconds,
+        "wall_seconds_median": median,
+        "wall_seconds_min": times[0],
+        "wall_seconds_first": first,
+        "x_realtime": seconds / median,
+        "threads": job.threads,
+        "chunk": job.chunk,
+        "repeat": repeat,
+        "outputs": outputs,
+        "output_values": values,
+    });
+    if as_json {
+        outln!("{result}");
+    } else {
+        outln!(
+            "{:.3} s of audio in {:.4} s (median of {repeat}; first run {first:.4} s): {:.1}x real time, threads {}, chunk {}, {values} output values {outputs}",
+            seconds,
+            median,
+            seconds / median,
+            job.threads,
+            job.chunk.map_or("whole signal".to_string(), |c| format!("{c} samples"))
+        );
+    }
+    Ok(())
+}

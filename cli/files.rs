@@ -1,0 +1,43 @@
+//! The files of a command: its WAV input, and outputs checked before the work and
+//! written whole after it.
+
+use std::path::Path;
+
+use afe::output::OutputFile;
+use afe::wav::{Audio, WavBlocks};
+
+use crate::error::CliError;
+
+/// Opens a WAV file that afe can process: mono or two channels, not empty.
+pub(crate) fn open_input(input: &Path) -> Result<WavBlocks, CliError> {
+    Ok(afe::wav::open_input(input)?)
+}
+
+/// Reads a whole WAV file that afe can process.
+pub(crate) fn read_input(input: &Path) -> Result<Audio, CliError> {
+    Ok(open_input(input)?.read_all()?)
+}
+
+/// Checks `path` as an output of a run reading `input` (see [`OutputFile::check`]).
+pub(crate) fn checked_output(path: &Path, input: &Path) -> Result<OutputFile, CliError> {
+    let out = OutputFile::check(path)?;
+    out.check_not_input(input)?;
+    Ok(out)
+}
+
+/// Saves every recorded signal as a float64 array `<request>_<ear>` in an .npz, with
+/// their descriptions in its `afe_metadata` entry.
+pub(crate) fn save(rec: &afe::Recorder, output: &OutputFile) -> Result<(), CliError> {
+    output.write(|file| rec.write_npz(file))?;
+    eprintln!(
+        "wrote {} array(s) to {}: {}",
+        rec.signals().len(),
+        output.path().display(),
+        rec.signals()
+            .iter()
+            .map(|s| format!("{} {:?}", s.key, s.shape()))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    Ok(())
+}

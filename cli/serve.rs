@@ -1,0 +1,88 @@
+//! `afe serve`: a live source served at real time to the web view and to Zenoh clients.
+
+#[cfg(feature = "remote")]
+use std::path::PathBuf;
+
+use afe::bass_source::Pacing;
+use afe::stream::StreamJob;
+
+use crate::args::{ServeRequests, Threads};
+use crate::error::CliError;
+use crate::stream::{stream, StreamRun};
+
+/// `afe serve --source SPEC [--http ADDR] [--listen ENDPOINT]`.
+#[derive(clap::Args)]
+pub(crate) struct ServeArgs {
+    /// wav:FILE (replayed in a loop), synth:SPEC or alsa:DEVICE, as for `afe stream`.
+    #[arg(long, value_name = "wav:FILE|synth:SPEC|alsa:DEVICE")]
+    source: String,
+    #[command(flatten)]
+    requests: ServeRequests,
+    /// Serve the live web view on this address, e.g. 127.0.0.1:8080 (keep it on
+    /// loopback: the page can edit the graph, and it has no authentication).
+    #[arg(long, value_name = "ADDR")]
+    http: Option<std::net::SocketAddr>,
+    /// Zenoh endpoint the server listens on for remote clients (repeatable); loopback
+    /// unless told otherwise.
+    #[cfg(feature = "remote")]
+    #[arg(long, value_name = "ENDPOINT", default_value = afe_net::DEFAULT_LISTEN)]
+    listen: Vec<String>,
+    /// The server's name: its Zenoh keys are afe/NAME/...
+    #[cfg(feature = "remote")]
+    #[arg(long, value_name = "NAME", default_value = afe_net::DEFAULT_NAME)]
+    name: String,
+    /// A Zenoh configuration file (JSON5) to start from, e.g. with user-password
+    /// authentication (transport/auth/usrpwd); --listen overrides its endpoints.
+    #[cfg(feature = "remote")]
+    #[arg(long, value_name = "FILE.json5")]
+    zenoh_config: Option<PathBuf>,
+    /// Block fed to the graph per step, in ms.
+    #[arg(long, value_name = "M", default_value_t = 10.0)]
+    block_ms: f64,
+    /// Stop after SECONDS of audio (default: run until stopped).
+    #[arg(long = "for", value_name = "SECONDS")]
+    duration: Option<f64>,
+    /// ALSA capture rate in Hz (default 44100).
+    #[arg(long, value_name = "HZ")]
+    rate: Option<u32>,
+    #[command(flatten)]
+    threads: Threads,
+    /// Print the final report as one JSON object (and no status line).
+    #[arg(long)]
+    json: bool,
+}
+
+impl ServeArgs {
+    pub(crate) fn run(self) -> Result<(), CliError> {
+        let (requests, params) = self.requests.load()?;
+        let job = StreamJob {
+            requests,
+            params,
+            block_ms: self.block_ms,
+            duration_s: self.duration,
+            pacing: Pacing::Realtime,
+            // the sequential executor unless --threads says otherwise: at 10-ms blocks it
+            // gives remote clients the lowest latency (no hand-offs between threads)
+            threads: self.threads.threads.unwrap_or(0),
+            looping: self.source.starts_with("wav:"),
+            alsa_rate: self.rate.unwrap_or(44_100),
+            ..StreamJob::default()
+        };
+        let run = StreamRun {
+            source: &self.source,
+            pacing: Some(Pacing::Realtime),
+            rate_given: self.rate.is_some(),
+            as_json: self.json,
+            output: None,
+            view: self.http,
+            #[cfg(feature = "remote")]
+            serve: Some(afe_net::ServeOptions {
+                listen: self.listen,
+                name: self.name,
+                config_file: self.zenoh_config,
+            }),
+            endless: true,
+        };
+        stream(job, &run)
+    }
+}
