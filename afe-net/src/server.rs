@@ -5,6 +5,7 @@
 
 use std::collections::HashSet;
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, Receiver, Sender, SyncSender};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
@@ -39,6 +40,8 @@ const MATCH_WAIT: Duration = Duration::from_secs(2);
 const EDIT_WAIT: Duration = Duration::from_secs(5);
 /// How long a subscription waits for its client's liveliness token to be seen.
 const CLIENT_WAIT: Duration = Duration::from_secs(2);
+/// How often the query thread looks whether its server has gone.
+const QUERY_POLL: Duration = Duration::from_millis(50);
 
 /// Where and under which name to serve.
 #[derive(Debug, Clone)]
@@ -134,6 +137,9 @@ pub struct Server {
     _queryables: Vec<Queryable<()>>,
     _clients: Subscriber<()>,
     _token: LivelinessToken,
+    /// The thread answering queries, joined when the server goes; `stop` ends it.
+    queries: Option<JoinHandle<()>>,
+    stop: Arc<AtomicBool>,
 }
 
 impl Server {
@@ -190,10 +196,17 @@ impl Server {
         let (queries, pending) = mpsc::sync_channel::<(Op, Query)>(QUERY_BACKLOG);
         let worker = shared.clone();
         let catalogue_key = key(&name, "catalogue");
-        std::thread::Builder::new()
+        let stop = Arc::new(AtomicBool::new(false));
+        let stopped = stop.clone();
+        let query_thread = std::thread::Builder::new()
             .name("afe-zenoh-queries".into())
             .spawn(move || {
-                for (op, q) in pending {
+                while !stopped.load(Ordering::Relaxed) {
+                    let (op, q) = match pending.recv_timeout(QUERY_POLL) {
+                        Ok(query) => query,
+                        Err(mpsc::RecvTimeoutError::Timeout) => continue,
+                        Err(mpsc::RecvTimeoutError::Disconnected) => break,
+                    };
                     let outcome = match op {
                         Op::Catalogue => catalogue(&worker),
                         Op::Subscribe => subscribe(&worker, &q),
@@ -258,6 +271,8 @@ impl Server {
                 _queryables: queryables,
                 _clients: clients,
                 _token: token,
+                queries: Some(query_thread),
+                stop,
             },
             tap,
         ))
@@ -277,6 +292,10 @@ impl Server {
 impl Drop for Server {
     fn drop(&mut self) {
         let _ = self.session.close().wait();
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(thread) = self.queries.take() {
+            let _ = thread.join();
+        }
     }
 }
 

@@ -39,6 +39,15 @@ pub enum Kind {
     Frames = 2,
 }
 
+impl std::fmt::Display for Kind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Kind::Audio => "audio",
+            Kind::Frames => "frames",
+        })
+    }
+}
+
 /// The fixed part of every message.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Header {
@@ -68,16 +77,33 @@ pub enum WireError {
         got: usize,
     },
     /// Not an afe message, or from an unknown wire version.
-    #[error("not an afe wire message of version {VERSION} (magic {magic:?}, version {version})")]
+    #[error(
+        "not an afe {expected} message of wire version {VERSION} (magic {magic:?}, version {version})"
+    )]
     Foreign {
         /// The first four bytes.
         magic: [u8; 4],
         /// The version field.
         version: u16,
+        /// The kind the reader expected.
+        expected: Kind,
     },
     /// A kind other than the one expected on this key.
-    #[error("message kind {0} where {1:?} was expected")]
+    #[error("not an afe {1} message: its kind is {0}")]
     Kind(u16, Kind),
+    /// An audio message whose samples are not the frames times the channels its header
+    /// announces.
+    #[error(
+        "an audio message of {frames} frames of {channels} channels with {bytes} bytes of samples"
+    )]
+    AudioSize {
+        /// Frames announced.
+        frames: u32,
+        /// Channels announced.
+        channels: u32,
+        /// Bytes of samples received.
+        bytes: usize,
+    },
     /// Bytes left after the last signal.
     #[error("{0} bytes after the end of the message")]
     Trailing(usize),
@@ -107,7 +133,11 @@ impl Header {
         let magic: [u8; 4] = r.array();
         let version = u16::from_le_bytes(r.array());
         if &magic != MAGIC || version != VERSION {
-            return Err(WireError::Foreign { magic, version });
+            return Err(WireError::Foreign {
+                magic,
+                version,
+                expected: kind,
+            });
         }
         let k = u16::from_le_bytes(r.array());
         if k != kind as u16 {
@@ -171,10 +201,14 @@ fn take_values(body: &[u8], n: usize) -> Result<(Vec<f64>, &[u8]), WireError> {
 pub fn read_audio(bytes: &[u8]) -> Result<(Header, Vec<f64>), WireError> {
     let (h, body) = Header::read(bytes, Kind::Audio)?;
     let n = h.input_frames as usize * h.count as usize;
-    let (samples, rest) = take_values(body, n)?;
-    if !rest.is_empty() {
-        return Err(WireError::Trailing(rest.len()));
+    if body.len() != n.saturating_mul(8) {
+        return Err(WireError::AudioSize {
+            frames: h.input_frames,
+            channels: h.count,
+            bytes: body.len(),
+        });
     }
+    let (samples, _) = take_values(body, n)?;
     Ok((h, samples))
 }
 
@@ -299,6 +333,18 @@ mod tests {
             ..header(Kind::Audio, 0)
         }
         .write(&mut huge);
-        assert!(matches!(read_audio(&huge), Err(WireError::Short { .. })));
+        assert!(matches!(
+            read_audio(&huge),
+            Err(WireError::AudioSize { bytes: 0, .. })
+        ));
+        // the messages say what was expected, in words a reader can act on
+        assert_eq!(
+            read_audio(&out).map(|_| ()).unwrap_err().to_string(),
+            "not an afe audio message: its kind is 2"
+        );
+        assert!(read_frames(&foreign)
+            .unwrap_err()
+            .to_string()
+            .starts_with("not an afe frames message of wire version 1"));
     }
 }

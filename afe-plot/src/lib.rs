@@ -7,7 +7,7 @@
 
 use std::path::Path;
 
-use afe_core::SignalKind;
+use afe_core::{DrawAs, SignalKind};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::{register_font, FontStyle};
@@ -68,13 +68,8 @@ impl Default for Layout {
 
 /// Longest image axis drawn, in cells: longer signals are reduced by block maxima.
 const MAX_COLUMNS: usize = 1000;
-/// Dynamic range (dB below the peak) of signals of powers and of STFT magnitudes.
-const POWER_RANGE_DB: f64 = 60.0;
+/// Dynamic range (dB below the peak) of spectra that do not give their own.
 const SPECTRUM_RANGE_DB: f64 = 80.0;
-/// Signals drawn on a diverging colour map centred on zero.
-const SIGNED: &[&str] = &["ild", "itd", "precedence_itd", "precedence_ild"];
-/// Signals of powers, drawn in dB.
-const POWERS: &[&str] = &["ratemap"];
 
 /// The font for text in bitmaps (DejaVu Sans Mono, see `assets/fonts/LICENSE`).
 static FONT: &[u8] = include_bytes!("../assets/fonts/DejaVuSansMono.ttf");
@@ -340,20 +335,15 @@ fn panel(s: &Recorded, at: Option<f64>) -> Result<Panel, PlotError> {
         SignalKind::TimeDomain | SignalKind::TimeFrequency | SignalKind::BinaryMask => {
             let full_rate = frames > MAX_COLUMNS && s.info.fs_hz == s.info.audio_fs_hz;
             let (mut cells, cols) = over_time(values, frames, width, full_rate);
-            let (lo, hi, map, unit) = if POWERS.contains(&name.as_str()) {
+            let (lo, hi, map, unit) = if let DrawAs::PowerDecibels { range_db } = s.info.display {
                 cells
                     .iter_mut()
                     .for_each(|v| *v = 10.0 * v.max(1e-30).log10());
                 let peak = finite_range(&cells).1;
-                (
-                    peak - POWER_RANGE_DB,
-                    peak,
-                    Map::Sequential,
-                    "dB".to_string(),
-                )
+                (peak - range_db, peak, Map::Sequential, "dB".to_string())
             } else if s.info.kind == SignalKind::BinaryMask {
                 (0.0, 1.0, Map::Grey, "mask".to_string())
-            } else if SIGNED.contains(&name.as_str()) {
+            } else if s.info.display == DrawAs::Signed {
                 let (lo, hi) = symmetric(&cells);
                 (lo, hi, Map::Diverging, unit)
             } else {
@@ -401,18 +391,21 @@ fn panel(s: &Recorded, at: Option<f64>) -> Result<Panel, PlotError> {
                 x_label: time_label,
                 row_labels: cf_labels(&s.info.cf_hz),
                 y_label: "frequency (Hz)".into(),
-                lo: peak - SPECTRUM_RANGE_DB,
+                lo: peak - s.info.display.range_db().unwrap_or(SPECTRUM_RANGE_DB),
                 hi: peak,
                 map: Map::Sequential,
                 unit: "dB".into(),
             })
         }
-        SignalKind::Feature if name == "pitch" => Content::Line {
+        SignalKind::Feature if s.info.display == DrawAs::Trajectory => Content::Line {
             x: times(s).collect(),
             y: values.chunks_exact(width).map(|row| row[0]).collect(),
             y_label: format!(
-                "{} (Hz)",
-                s.info.features.first().map_or("pitch", String::as_str)
+                "{} ({unit})",
+                s.info
+                    .features
+                    .first()
+                    .map_or(name.as_str(), String::as_str)
             ),
         },
         SignalKind::Feature => {

@@ -1,12 +1,8 @@
 "use strict";
 // afe live view: one WebSocket; text messages describe the graph, binary ones carry
-// batches of frames (see src/view/mod.rs for the protocol).
+// batches of frames (see afe-view/src/lib.rs for the protocol).
 const $ = (id) => document.getElementById(id);
 const COLUMNS = 600;                 // frames (or blocks) across a scrolling canvas
-const DIVERGING = new Set(["ild", "itd", "precedence_itd", "precedence_ild"]);
-// drawn in dB (20·log10 of the magnitude) over a fixed range below the running peak
-const DECIBELS = new Map([["ratemap", 60], ["innerhaircell", 60], ["adaptation", 60],
-  ["filterbank", 60], ["time", 60], ["stft", 80]]);
 const state = { hello: null, layout: null, panels: new Map(), stats: { frames: 0, lost: 0, batches: 0, lagged: 0 } };
 window.afeStats = state.stats;
 
@@ -48,10 +44,14 @@ class Panel {
     this.key = key;
     this.d = d;
     const shape = d.frame_shape;
-    this.mode = shape.length >= 2 ? "frame" : d.name === "pitch" ? "line"
+    // how to draw it is the signal's own description (`display`), never its name:
+    // signed values on a diverging map, decibel drawings (20·log10 of the magnitude)
+    // over their range below the running peak, trajectories as lines
+    const display = d.display || { draw: "linear" };
+    this.mode = shape.length >= 2 ? "frame" : display.draw === "trajectory" ? "line"
       : d.kind === "time-domain" ? "envelope" : "scroll";
-    this.diverging = DIVERGING.has(d.name);
-    this.range = DECIBELS.get(d.name) || (d.kind === "spectrum" ? 80 : 0);
+    this.diverging = display.draw === "signed";
+    this.range = display.range_db || 0;
     this.rows = shape.length === 0 ? 1 : shape[0];
     this.cols = shape.length >= 2 ? shape.slice(1).reduce((a, b) => a * b, 1) : COLUMNS;
     this.max = 1e-12;

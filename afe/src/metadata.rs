@@ -7,19 +7,6 @@ use afe_core::{SignalInfo, SignalKind};
 use afe_graph::{Manager, Signal};
 use serde_json::{json, Map, Value};
 
-/// The window-length parameter of each processor that cuts frames (its hop is the
-/// output's frame period): the nearest one in a signal's chain gives its window.
-const WINDOW_PARAMETERS: &[&str] = &[
-    "rm_wSizeSec",
-    "ild_wSizeSec",
-    "cc_wSizeSec",
-    "ac_wSizeSec",
-    "ams_wSizeSec",
-    "prec_wSizeSec",
-    "stft_wSizeSec",
-    "duet_wDUETSec",
-];
-
 /// The kind's name in this JSON (`time-frequency`, `correlation`, ...).
 pub fn kind_name(kind: SignalKind) -> &'static str {
     match kind {
@@ -35,7 +22,11 @@ pub fn kind_name(kind: SignalKind) -> &'static str {
 }
 
 /// `info` as a JSON object: kind, AFE class, axes, dtype, rates in Hz, centre frequencies
-/// in Hz, lags in seconds, modulation frequencies, feature names, DUET bins, frame shape.
+/// in Hz, lags in seconds, modulation frequencies, feature names, DUET bins, frame shape,
+/// and what the signal says of itself: `unit` of the values (empty where the AFE has
+/// none), `window_s` and `hop_s` of framed signals (`null` for sample-rate ones) and
+/// `display`, how it is best drawn (`{"draw": "signed"}`, `{"draw": "power-decibels",
+/// "range_db": 60.0}`, ...).
 ///
 /// ```
 /// let info = afe::SignalInfo::time_frequency(16000.0, vec![100.0, 200.0]);
@@ -58,25 +49,18 @@ pub fn info_json(info: &SignalInfo) -> Value {
         "alpha": info.alpha,
         "delta_samples": info.delta_samples,
         "frame_shape": info.frame_shape(),
+        "unit": info.unit,
+        "window_s": info.window_s,
+        "hop_s": info.hop_s(),
+        "display": info.display,
     })
 }
 
-/// Unit of signal `name`'s values (empty where the AFE gives none).
-fn unit(name: &str) -> &'static str {
-    match name {
-        "precedence_itd" => "s",
-        "precedence_ild" => "dB",
-        "precedence_cc" => "",
-        n => afe_processors::find_request(n).map_or("", |d| d.output_unit),
-    }
-}
-
 /// Everything known about signal `s` of `manager`, as JSON: [`info_json`]'s fields plus
-/// `key`, `name`, `ear`, `instance`, `unit` (of the values; empty where the AFE has none), `first_frame` and `first_time_s` (where its rows
-/// start in the stream: row `k` is at `first_time_s + k / fs_hz`), `window_s` and `hop_s`
-/// of framed signals (`null` for sample-rate ones), `n_channels`, `processors` (the
-/// chain's request names, nearest first, each once) and `parameters` (the whole chain's effective parameters,
-/// derived ones such as `fb_delaySec` included).
+/// `key`, `name`, `ear`, `instance`, `first_frame` and `first_time_s` (where its rows
+/// start in the stream: row `k` is at `first_time_s + k / fs_hz`), `n_channels`,
+/// `processors` (the chain's request names, nearest first, each once) and `parameters`
+/// (the whole chain's effective parameters, derived ones such as `fb_delaySec` included).
 ///
 /// ```
 /// let mut mgr = afe::Manager::new(16000.0, 2)?;
@@ -104,12 +88,6 @@ pub fn describe(manager: &Manager, s: &Signal<'_>) -> Value {
             processors.push(name);
         }
     }
-    let framed = s.info.fs_hz != s.info.audio_fs_hz;
-    let window_s = chain
-        .iter()
-        .find_map(|(_, p)| WINDOW_PARAMETERS.iter().find_map(|w| p.get(*w)))
-        .filter(|_| framed)
-        .cloned();
     let mut d = info_json(s.info);
     if let Value::Object(m) = &mut d {
         m.extend([
@@ -117,18 +95,8 @@ pub fn describe(manager: &Manager, s: &Signal<'_>) -> Value {
             ("name".to_string(), json!(s.name)),
             ("ear".to_string(), json!(s.channel.as_str())),
             ("instance".to_string(), json!(s.instance)),
-            ("unit".to_string(), json!(unit(s.name))),
             ("first_frame".to_string(), json!(s.first_frame)),
             ("first_time_s".to_string(), json!(s.first_time_s)),
-            ("window_s".to_string(), window_s.unwrap_or(Value::Null)),
-            (
-                "hop_s".to_string(),
-                if framed {
-                    json!(1.0 / s.info.fs_hz)
-                } else {
-                    Value::Null
-                },
-            ),
             ("n_channels".to_string(), json!(s.info.cf_hz.len())),
             ("processors".to_string(), json!(processors)),
             ("parameters".to_string(), Value::Object(parameters)),

@@ -16,10 +16,6 @@ import numpy as np
 
 from .signal import Signal
 
-#: Signals drawn on a diverging colour map centred on zero.
-SIGNED = {"ild", "itd", "precedence_itd", "precedence_ild"}
-#: Signals of powers drawn in dB (10·log10) over this range below their peak.
-POWER_DB = {"ratemap": 60.0}
 #: Longest time axis drawn, in columns: longer signals are reduced by block maxima.
 MAX_COLUMNS = 2000
 
@@ -85,6 +81,8 @@ def draw(fig: Any, ax: Any, s: Signal, at: Optional[float] = None) -> None:
     values = np.asarray(s)
     t = s.t_s
     unit = s.unit
+    # how to draw it is the signal's own description, never its name
+    draw = s.display["draw"]
     span = [float(t[0]) if len(t) else 0.0, float(t[-1] + 1.0 / s.fs_hz) if len(t) else 1.0]
     title = s.key
     if s.kind == "time-domain" and values.ndim == 1:
@@ -93,26 +91,26 @@ def draw(fig: Any, ax: Any, s: Signal, at: Optional[float] = None) -> None:
     elif s.kind in ("time-domain", "time-frequency", "binary-mask") and values.ndim == 2:
         data, _ = _reduce(values, t) if s.kind == "time-domain" else (values, t)
         extent = [span[0], span[1], -0.5, values.shape[1] - 0.5]
-        if s.name in POWER_DB:
+        if draw == "power-decibels":
             db = 10 * np.log10(np.maximum(data, 1e-30))
             peak = float(np.max(db))
-            _image(fig, ax, db.T, extent, "dB", vmin=peak - POWER_DB[s.name], vmax=peak)
+            _image(fig, ax, db.T, extent, "dB", vmin=peak - s.display["range_db"], vmax=peak)
         elif s.kind == "binary-mask":
             _image(fig, ax, data.T, extent, "mask", vmin=0, vmax=1, cmap="gray_r")
         elif s.kind == "time-domain":
             _image(fig, ax, data.T, extent, "largest |value|" + (f" ({unit})" if unit else ""))
         else:
-            _image(fig, ax, data.T, extent, unit or "value", signed=s.name in SIGNED)
+            _image(fig, ax, data.T, extent, unit or "value", signed=draw == "signed")
         _channel_axis(ax, s.cf_hz)
     elif s.kind == "spectrum":
         db = 20 * np.log10(np.maximum(np.abs(values), 1e-12))
         peak = float(np.max(db))
         _image(fig, ax, db.T, [span[0], span[1], float(s.cf_hz[0]), float(s.cf_hz[-1])],
-               "dB", vmin=peak - 80, vmax=peak, cmap="magma")
+               "dB", vmin=peak - s.display.get("range_db", 80.0), vmax=peak, cmap="magma")
         ax.set_ylabel("frequency (Hz)")
-    elif s.kind == "feature" and s.name == "pitch":
+    elif s.kind == "feature" and draw == "trajectory":
         ax.plot(t, values[:, 0], ".", ms=2)
-        ax.set_ylabel(f"{s.features[0]} (Hz)")
+        ax.set_ylabel(f"{s.features[0]} ({unit})" if unit else s.features[0])
     elif s.kind == "feature":
         # each feature on its own scale: z-scores over time
         mean = np.nanmean(values, axis=0)

@@ -14,14 +14,14 @@ processors; a new one starts from the server's next block.
 
 Needs the ``eclipse-zenoh`` package (the version of the server's Zenoh, 1.10.2).
 The protocol (keys under ``afe/<name>/``, the binary messages) is described in the Rust
-crate's ``afe::remote`` and ``afe::remote::wire``.
+crate ``afe-net`` (``afe_net`` and ``afe_net::wire``, whose reader decodes the messages
+here too).
 """
 
 from __future__ import annotations
 
 import json
 import re
-import struct
 import threading
 import time
 import weakref
@@ -29,6 +29,7 @@ from typing import Any, Dict, Generic, List, Mapping, Optional, Tuple, TypeVar
 
 import numpy as np
 
+from . import _afe
 from .frames import Frames, Requests, request_list
 from .signal import Signal
 
@@ -37,11 +38,6 @@ DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 #: The wire version this client reads.
 WIRE_VERSION = 1
 
-_MAGIC = b"AFEZ"
-_HEADER = struct.Struct("<4sHHQQIIQ")  # 40 bytes
-_SIGNAL = struct.Struct("<QII")  # 16 bytes
-_KIND_AUDIO = 1
-_KIND_FRAMES = 2
 _Block = TypeVar("_Block")
 _Self = TypeVar("_Self", bound="_Receiver[Any]")
 _NAME = re.compile(r"[A-Za-z0-9_-]+\Z")
@@ -376,63 +372,38 @@ class _Meta:
         self.description = dict(d)
 
 
-def _read_header(data: bytes, expected: int) -> Tuple[int, int, int, int, int]:
-    """A message's header (see ``afe::remote::wire``): ``(seq, first_input_frame,
-    input_frames, count, t_ns)``, checked to be of kind ``expected`` and of this wire
-    version. Raises :class:`RemoteError` otherwise."""
-    what = "frames" if expected == _KIND_FRAMES else "audio"
-    if len(data) < _HEADER.size:
-        raise RemoteError(f"an {what} message of {len(data)} bytes is cut short")
-    magic, version, kind, seq, first_input, n_input, count, t_ns = _HEADER.unpack_from(data)
-    if magic != _MAGIC or version != WIRE_VERSION or kind != expected:
-        raise RemoteError(
-            f"not an afe {what} message of wire version {WIRE_VERSION} "
-            f"(magic {magic!r}, version {version}, kind {kind})"
-        )
-    return seq, first_input, n_input, count, t_ns
-
-
 def _read_audio(data: bytes, ears: int) -> Tuple[Tuple[int, int, int, int], np.ndarray]:
-    """Decodes an audio message of a server with ``ears`` channels: ``(seq,
-    first_frame, frames, t_ns)`` and the samples ``[frames, ears]``. Raises
-    :class:`RemoteError` for a message that does not follow the wire format."""
-    seq, first, frames, count, t_ns = _read_header(data, _KIND_AUDIO)
+    """Decodes an audio message of a server with ``ears`` channels (with the Rust
+    crate's reader, ``afe_net::wire``): ``(seq, first_frame, frames, t_ns)`` and the
+    samples ``[frames, ears]``. Raises :class:`RemoteError` for a message that does not
+    follow the wire format."""
+    try:
+        (seq, first, frames, count, t_ns), samples = _afe.wire_read_audio(data)
+    except ValueError as e:
+        raise RemoteError(str(e)) from None
     if count != ears:
         raise RemoteError(f"an audio block of {count} channels from a server of {ears}")
-    body = len(data) - _HEADER.size
-    if body != 8 * frames * count:
-        raise RemoteError(f"an audio message of {frames} frames of {count} channels with {body} bytes of samples")
-    samples = np.frombuffer(bytearray(data), dtype="<f8", offset=_HEADER.size).astype(np.float64, copy=False)
     return (seq, first, frames, t_ns), samples.reshape(frames, count)
 
 
 def _read_frames(data: bytes, metas: List[_Meta]) -> Tuple[Tuple[int, int, int, int], List[Tuple[int, np.ndarray]]]:
-    """Decodes a frames message (see ``afe::remote::wire``) of a subscription to the
-    signals ``metas``: ``(seq, first_input_frame, input_frames, t_ns)`` and, per signal,
-    ``(first_frame, array [rows, *frame_shape])``. Raises :class:`RemoteError` for a
-    message that does not follow the wire format."""
-    seq, first_input, n_input, count, t_ns = _read_header(data, _KIND_FRAMES)
+    """Decodes a frames message (with the Rust crate's reader, ``afe_net::wire``) of a
+    subscription to the signals ``metas``: ``(seq, first_input_frame, input_frames,
+    t_ns)`` and, per signal, ``(first_frame, array [rows, *frame_shape])``. Raises
+    :class:`RemoteError` for a message that does not follow the wire format or does not
+    fit the subscription."""
+    try:
+        (seq, first_input, n_input, count, t_ns), decoded = _afe.wire_read_frames(data)
+    except ValueError as e:
+        raise RemoteError(str(e)) from None
     if count != len(metas):
         raise RemoteError(f"{count} signals in a message of a subscription to {len(metas)}")
-    buf = bytearray(data)  # writable arrays that share the message's memory
-    at = _HEADER.size
     parts: List[Tuple[int, np.ndarray]] = []
-    for m in metas:
-        if len(buf) < at + _SIGNAL.size:
-            raise RemoteError(f"a frames message of {len(buf)} bytes is cut short")
-        first_frame, rows, width = _SIGNAL.unpack_from(buf, at)
-        at += _SIGNAL.size
+    for m, (first_frame, rows, width, values) in zip(metas, decoded):
         if width != m.width and rows > 0:
             raise RemoteError(f"{m.key}: {width} values per frame where {m.width} were announced")
-        n = rows * width
-        if len(buf) < at + 8 * n:
-            raise RemoteError(f"a frames message of {len(buf)} bytes is cut short")
-        values = np.frombuffer(buf, dtype="<f8", count=n, offset=at).astype(np.float64, copy=False)
-        at += 8 * n
         array = values.view(np.complex128) if m.complex else values
         parts.append((first_frame, array.reshape((rows,) + m.shape)))
-    if at != len(buf):
-        raise RemoteError(f"{len(buf) - at} bytes after the end of a frames message")
     return (seq, first_input, n_input, t_ns), parts
 
 

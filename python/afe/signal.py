@@ -125,6 +125,13 @@ class Signal(np.ndarray):
         return self.first_time_s + np.arange(self.shape[0]) / self.fs_hz
 
     @property
+    def display(self) -> Dict[str, Any]:
+        """How the values are best drawn: ``{"draw": "signed"}``, ``{"draw":
+        "power-decibels", "range_db": 60.0}``, ``"amplitude-decibels"``, ``"linear"`` or
+        ``"trajectory"`` (one value per frame as a line)."""
+        return self._meta["display"]
+
+    @property
     def window_s(self) -> Optional[float]:
         """Frame window length in s as set (``rm_wSizeSec``, ...); ``None`` unless framed."""
         return self._meta["window_s"]

@@ -5,6 +5,7 @@
 
 mod batch;
 mod interrupt;
+mod wire;
 
 use std::path::PathBuf;
 use std::sync::Mutex;
@@ -508,6 +509,8 @@ fn _afe(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(batch::batch_compute, m)?)?;
     m.add_function(wrap_pyfunction!(batch::store_status, m)?)?;
     m.add_function(wrap_pyfunction!(batch::store_read, m)?)?;
+    m.add_function(wrap_pyfunction!(wire::wire_read_audio, m)?)?;
+    m.add_function(wrap_pyfunction!(wire::wire_read_frames, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }
