@@ -1,5 +1,7 @@
 //! Time-major sample blocks and the description of the signal they carry.
 
+use serde::{Deserialize, Serialize};
+
 use crate::huge_pages;
 
 /// What a signal's frames contain, which fixes its array layout (the AFE's signal
@@ -56,7 +58,62 @@ impl SignalKind {
     }
 }
 
-/// Static description of a processor output: kind, rate and the values along each axis.
+/// How a signal's values are best drawn, so that plots and views need not know the
+/// request that made it. [`SignalKind`] gives the layout; this gives the scale.
+///
+/// Its serde form is tagged by `draw` with the names of [`DrawAs::as_str`], e.g.
+/// `{"draw": "power-decibels", "range_db": 60.0}`.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(tag = "draw", rename_all = "kebab-case")]
+pub enum DrawAs {
+    /// Values on a linear sequential scale from their smallest to their largest.
+    #[default]
+    Linear,
+    /// Signed values (cues such as ILD and ITD), on a diverging scale centred on zero.
+    Signed,
+    /// Powers (ratemap): drawn as `10·log10(v)` over `range_db` decibels below the
+    /// peak.
+    PowerDecibels {
+        /// The range drawn below the peak, in dB.
+        range_db: f64,
+    },
+    /// Amplitudes of a wide dynamic range (waveforms, envelopes, spectrum magnitudes):
+    /// a live view draws `20·log10|v|` over `range_db` decibels below its running peak;
+    /// a figure of the whole signal draws them linearly (spectra in dB over the range).
+    AmplitudeDecibels {
+        /// The range drawn below the peak, in dB.
+        range_db: f64,
+    },
+    /// One value per frame drawn as a line over time, NaN values being gaps (pitch).
+    Trajectory,
+}
+
+impl DrawAs {
+    /// The name of the drawing, as in its serde form: `linear`, `signed`,
+    /// `power-decibels`, `amplitude-decibels` or `trajectory`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            DrawAs::Linear => "linear",
+            DrawAs::Signed => "signed",
+            DrawAs::PowerDecibels { .. } => "power-decibels",
+            DrawAs::AmplitudeDecibels { .. } => "amplitude-decibels",
+            DrawAs::Trajectory => "trajectory",
+        }
+    }
+
+    /// The range in dB below the peak of a drawing in decibels, `None` otherwise.
+    pub fn range_db(self) -> Option<f64> {
+        match self {
+            DrawAs::PowerDecibels { range_db } | DrawAs::AmplitudeDecibels { range_db } => {
+                Some(range_db)
+            }
+            DrawAs::Linear | DrawAs::Signed | DrawAs::Trajectory => None,
+        }
+    }
+}
+
+/// Static description of a processor output: kind, rate, the values along each axis,
+/// and the facts a consumer needs to label and draw it (unit, framing window, scale).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SignalInfo {
     /// Layout of one frame.
@@ -89,6 +146,15 @@ pub struct SignalInfo {
     /// The signal's own name when a processor has several outputs of different kinds,
     /// e.g. `precedence_itd`; `None` names it after the request.
     pub name: Option<&'static str>,
+    /// Unit of the values (`"dB"`, `"s"`, `"Hz"`, ...), `""` when dimensionless or when
+    /// the AFE gives none.
+    pub unit: &'static str,
+    /// Length in seconds of the window each frame was cut with (from the processor that
+    /// cut them, e.g. `rm_wSizeSec`; signals derived from framed ones keep it); `None`
+    /// for sample-rate signals.
+    pub window_s: Option<f64>,
+    /// How the values are best drawn.
+    pub display: DrawAs,
 }
 
 impl SignalInfo {
@@ -112,13 +178,16 @@ impl SignalInfo {
         }
     }
 
-    /// The same channels framed at nominal rate `frame_rate_hz` (audio rate kept).
+    /// The same channels framed at nominal rate `frame_rate_hz` (audio rate and framing
+    /// window kept: a processor that cuts frames of its own sets its window with
+    /// [`SignalInfo::with_window_s`]); unit and drawing start from the defaults.
     pub fn framed(&self, frame_rate_hz: f64) -> Self {
         SignalInfo {
             kind: SignalKind::TimeFrequency,
             fs_hz: frame_rate_hz,
             cf_hz: self.cf_hz.clone(),
             audio_fs_hz: self.audio_fs_hz,
+            window_s: self.window_s,
             ..SignalInfo::default()
         }
     }
@@ -149,6 +218,30 @@ impl SignalInfo {
             name: Some(name),
             ..self
         }
+    }
+
+    /// The same signal with values in `unit` (see [`SignalInfo::unit`]).
+    pub fn with_unit(self, unit: &'static str) -> Self {
+        SignalInfo { unit, ..self }
+    }
+
+    /// The same signal cut into frames with a window of `window_s` seconds.
+    pub fn with_window_s(self, window_s: f64) -> Self {
+        SignalInfo {
+            window_s: Some(window_s),
+            ..self
+        }
+    }
+
+    /// The same signal, drawn as `display`.
+    pub fn drawn_as(self, display: DrawAs) -> Self {
+        SignalInfo { display, ..self }
+    }
+
+    /// Seconds between frames of a framed signal (`1 / fs_hz`), `None` for sample-rate
+    /// signals (whose rate is the audio's).
+    pub fn hop_s(&self) -> Option<f64> {
+        (self.fs_hz != self.audio_fs_hz).then(|| 1.0 / self.fs_hz)
     }
 
     /// Number of frequency channels (1 for a time-domain signal, 0 for features and
@@ -524,6 +617,44 @@ mod tests {
     #[should_panic(expected = "another width")]
     fn extend_from_refuses_another_width() {
         Block::new(2).extend_from(&Block::new(3));
+    }
+
+    /// The serde tag of each drawing is its `as_str` name, and the dB range rides along.
+    #[test]
+    fn drawings_name_themselves_as_serde_does() {
+        let all = [
+            DrawAs::Linear,
+            DrawAs::Signed,
+            DrawAs::PowerDecibels { range_db: 60.0 },
+            DrawAs::AmplitudeDecibels { range_db: 80.0 },
+            DrawAs::Trajectory,
+        ];
+        for d in all {
+            let v = serde_json::to_value(d).expect("serialisable");
+            assert_eq!(v["draw"], d.as_str(), "{d:?}");
+            assert_eq!(v.get("range_db").and_then(|r| r.as_f64()), d.range_db());
+            assert_eq!(serde_json::from_value::<DrawAs>(v).expect("read back"), d);
+        }
+        assert_eq!(SignalInfo::default().display, DrawAs::Linear);
+    }
+
+    /// Framing keeps the window the frames were cut with; unit and drawing belong to
+    /// each new signal.
+    #[test]
+    fn framing_keeps_the_window_and_resets_unit_and_drawing() {
+        let tf = SignalInfo::time_frequency(16000.0, vec![100.0]);
+        assert_eq!((tf.window_s, tf.hop_s(), tf.unit), (None, None, ""));
+        let rm = tf
+            .framed(100.0)
+            .with_window_s(0.02)
+            .with_unit("dB")
+            .drawn_as(DrawAs::Signed);
+        assert_eq!((rm.window_s, rm.hop_s()), (Some(0.02), Some(0.01)));
+        let derived = rm.correlation(100.0, vec![0.0]);
+        assert_eq!(
+            (derived.window_s, derived.unit, derived.display),
+            (Some(0.02), "", DrawAs::Linear)
+        );
     }
 
     #[test]

@@ -19,7 +19,7 @@ pub mod processor;
 pub mod sgolay;
 pub mod window;
 
-pub use block::{Block, SignalInfo, SignalKind};
+pub use block::{Block, DrawAs, SignalInfo, SignalKind};
 pub use error::{Error, Result};
 pub use params::{NoParams, ParamKind, ParamMap, ParamSpec, Params};
 pub use processor::{Part, Processor};

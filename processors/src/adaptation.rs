@@ -6,7 +6,7 @@
 //! level floor. Exactly chunk-invariant: the loop states carry over between chunks.
 
 use afe_core::erb::linspace;
-use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
+use afe_core::{Block, DrawAs, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
 
 use crate::exp::exp;
@@ -282,7 +282,11 @@ impl Adaptation {
             row: vec![1.0; lanes],
             stages: vec![1.0; loops * lanes],
         };
-        Ok((adaptation, input.clone()))
+        let info = input
+            .clone()
+            .with_unit(Self::OUTPUT_UNIT)
+            .drawn_as(DrawAs::AmplitudeDecibels { range_db: 60.0 });
+        Ok((adaptation, info))
     }
 }
 

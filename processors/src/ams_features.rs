@@ -542,7 +542,10 @@ impl AmsFeatures {
         let info = SignalInfo {
             kind: SignalKind::Modulation,
             mod_cf_hz,
-            ..input.framed(fs_ds / h as f64)
+            ..input
+                .framed(fs_ds / h as f64)
+                .with_unit(Self::OUTPUT_UNIT)
+                .with_window_s(p.w_size_sec)
         };
         Ok((ams, info))
     }

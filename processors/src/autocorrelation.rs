@@ -187,7 +187,10 @@ impl Autocorrelation {
             win,
         };
         let lags_s = (0..w - 1).map(|k| k as f64 / fs).collect();
-        let info = input.correlation(1.0 / params.h_size_sec, lags_s);
+        let info = input
+            .correlation(1.0 / params.h_size_sec, lags_s)
+            .with_unit(Self::OUTPUT_UNIT)
+            .with_window_s(params.w_size_sec);
         Ok((ac, info))
     }
 

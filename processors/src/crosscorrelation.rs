@@ -204,7 +204,10 @@ impl Crosscorrelation {
         let lags_s = (0..=2 * max_lag)
             .map(|i| (i as f64 - max_lag as f64) / fs)
             .collect();
-        let info = input.correlation(1.0 / params.h_size_sec, lags_s);
+        let info = input
+            .correlation(1.0 / params.h_size_sec, lags_s)
+            .with_unit(Self::OUTPUT_UNIT)
+            .with_window_s(params.w_size_sec);
         Ok((cc, info))
     }
 }

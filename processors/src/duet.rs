@@ -281,6 +281,8 @@ impl Duet {
             alpha: centres(p.bins_alpha, p.max_alpha),
             delta_samples: centres(p.bins_delta, p.max_delta),
             audio_fs_hz: input.audio_fs_hz,
+            unit: Self::OUTPUT_UNIT,
+            window_s: Some(p.w_duet_sec),
             ..SignalInfo::default()
         };
         Ok((duet, info))

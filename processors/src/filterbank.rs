@@ -5,7 +5,7 @@
 //! its processor.
 
 use afe_core::erb::{colon_range, erb2freq, freq2erb, linspace};
-use afe_core::{Error, ParamKind, ParamMap, ParamSpec, Params, Result, SignalInfo};
+use afe_core::{DrawAs, Error, ParamKind, ParamMap, ParamSpec, Params, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 
@@ -375,14 +375,19 @@ impl Descriptor for Filterbank {
 
     fn build(params: &FilterbankParams, inputs: &[SignalInfo]) -> Result<Built> {
         let fs = inputs[0].fs_hz;
+        let describe = |out: SignalInfo| {
+            vec![out
+                .with_unit(Self::OUTPUT_UNIT)
+                .drawn_as(DrawAs::AmplitudeDecibels { range_db: 60.0 })]
+        };
         Ok(match params.fb_type {
             FbType::Gammatone => {
                 let (p, out) = Gammatone::new(params, fs)?;
-                Built::new(p, vec![out])
+                Built::new(p, describe(out))
             }
             FbType::Drnl => {
                 let (p, out) = Drnl::new(params, fs)?;
-                Built::new(p, vec![out])
+                Built::new(p, describe(out))
             }
         })
     }

@@ -233,10 +233,12 @@ impl Gabor {
             acc_real: Vec::new(),
             acc_dc: Vec::new(),
         };
-        Ok((
-            gabor,
-            SignalInfo::feature(input.fs_hz, input.audio_fs_hz, names),
-        ))
+        let info = SignalInfo {
+            window_s: input.window_s,
+            ..SignalInfo::feature(input.fs_hz, input.audio_fs_hz, names)
+        }
+        .with_unit(Self::OUTPUT_UNIT);
+        Ok((gabor, info))
     }
 
     /// The padded log spectrogram of a chunk of `frames` ratemap rows.

@@ -20,7 +20,7 @@ impl Ic {
         let ic = Ic {
             lags: input.lags_s.len(),
         };
-        Ok((ic, input.framed(input.fs_hz)))
+        Ok((ic, input.framed(input.fs_hz).with_unit(Self::OUTPUT_UNIT)))
     }
 }
 

@@ -7,7 +7,7 @@
 use afe_core::butter::{butter, ButterType};
 use afe_core::filter::Df2t;
 use afe_core::hilbert::Hilbert;
-use afe_core::{Block, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
+use afe_core::{Block, DrawAs, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
 
 use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
@@ -136,7 +136,11 @@ impl Ihc {
             lowpass,
             hilbert: Hilbert::new(),
         };
-        Ok((ihc, input.clone()))
+        let info = input
+            .clone()
+            .with_unit(Self::OUTPUT_UNIT)
+            .drawn_as(DrawAs::AmplitudeDecibels { range_db: 60.0 });
+        Ok((ihc, info))
     }
 
     /// Replaces every column of `data` by the magnitude of its analytic signal.

@@ -4,7 +4,7 @@
 use afe_core::framing::Frame;
 use afe_core::lanes::vector_start;
 use afe_core::window::{window, WINDOW_NAMES};
-use afe_core::{Block, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
+use afe_core::{Block, DrawAs, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
 
 use crate::framed::{check_framing, EarFrames};
@@ -156,7 +156,11 @@ impl Ild {
             power_l: vec![0.0; nc],
             power_r: vec![0.0; nc],
         };
-        let info = input.framed(1.0 / params.h_size_sec);
+        let info = input
+            .framed(1.0 / params.h_size_sec)
+            .with_unit(Self::OUTPUT_UNIT)
+            .with_window_s(params.w_size_sec)
+            .drawn_as(DrawAs::Signed);
         Ok((ild, info))
     }
 }

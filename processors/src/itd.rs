@@ -1,7 +1,7 @@
 //! `itd`: interaural time difference per channel and frame, the lag of the
 //! cross-correlation maximum refined by a parabola (spec 19-itd). Positive = right leads.
 
-use afe_core::{Block, Processor, Result, SignalInfo, SignalKind};
+use afe_core::{Block, DrawAs, Processor, Result, SignalInfo, SignalKind};
 
 use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
@@ -46,7 +46,11 @@ impl Itd {
             lags: input.lags_s.len(),
             audio_fs_hz: input.audio_fs_hz,
         };
-        Ok((itd, input.framed(input.fs_hz)))
+        let info = input
+            .framed(input.fs_hz)
+            .with_unit(Self::OUTPUT_UNIT)
+            .drawn_as(DrawAs::Signed);
+        Ok((itd, info))
     }
 }
 

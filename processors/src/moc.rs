@@ -111,7 +111,7 @@ impl Moc {
             threshold_db: params.threshold_rate_db,
             max_db: params.max_attenuation_db,
         };
-        let attenuation = input.framed(input.fs_hz);
+        let attenuation = input.framed(input.fs_hz).with_unit(Self::OUTPUT_UNIT);
         let feedback = SignalInfo {
             feedback: true,
             ..attenuation.clone()

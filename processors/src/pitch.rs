@@ -10,7 +10,7 @@ use std::cmp::Ordering;
 use std::collections::VecDeque;
 
 use afe_core::{
-    Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
+    Block, DrawAs, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
 };
 use serde::{Deserialize, Serialize};
 
@@ -191,7 +191,12 @@ impl Pitch {
             window: vec![0.0; order as usize],
         };
         let features = PITCH_FEATURES.iter().map(|s| s.to_string()).collect();
-        let info = SignalInfo::feature(input.fs_hz, input.audio_fs_hz, features);
+        let info = SignalInfo {
+            window_s: input.window_s,
+            ..SignalInfo::feature(input.fs_hz, input.audio_fs_hz, features)
+        }
+        .with_unit(Self::OUTPUT_UNIT)
+        .drawn_as(DrawAs::Trajectory);
         Ok((pitch, info))
     }
 }

@@ -6,7 +6,7 @@
 use afe_core::butter::{butter, ButterType};
 use afe_core::filter::Df2t;
 use afe_core::{
-    Block, Error, ParamKind, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo,
+    Block, DrawAs, Error, ParamKind, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo,
 };
 use serde::{Deserialize, Serialize};
 
@@ -283,7 +283,10 @@ impl PreProc {
             middle_ear_gain,
             norm: [Vec::new(), Vec::new()],
         };
-        Ok((pre, vec![SignalInfo::time_domain(fs); ears]))
+        let info = SignalInfo::time_domain(fs)
+            .with_unit(Self::OUTPUT_UNIT)
+            .drawn_as(DrawAs::AmplitudeDecibels { range_db: 60.0 });
+        Ok((pre, vec![info; ears]))
     }
 
     /// Computes the AGC normaliser `sqrt(m[n]) + 1e−8` of ear `e` into `self.norm[e]`.

@@ -15,7 +15,7 @@ use std::sync::Arc;
 use afe_core::erb::linspace;
 use afe_core::framing::Frame;
 use afe_core::window::window;
-use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
+use afe_core::{Block, DrawAs, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use realfft::num_complex::Complex64;
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use serde::{Deserialize, Serialize};
@@ -551,10 +551,22 @@ impl Precedence {
         let lags_s = (0..=2 * max_lag)
             .map(|i| (i as f64 - max_lag as f64) / fs)
             .collect();
+        let framed = input.framed(rate).with_window_s(params.w_size_sec);
         let infos = [
-            input.framed(rate).named("precedence_itd"),
-            input.framed(rate).named("precedence_ild"),
-            input.correlation(rate, lags_s).named("precedence_cc"),
+            framed
+                .clone()
+                .named("precedence_itd")
+                .with_unit("s")
+                .drawn_as(DrawAs::Signed),
+            framed
+                .clone()
+                .named("precedence_ild")
+                .with_unit("dB")
+                .drawn_as(DrawAs::Signed),
+            framed
+                .correlation(rate, lags_s)
+                .named("precedence_cc")
+                .with_unit(""),
         ];
         Ok((p, infos))
     }

@@ -4,7 +4,7 @@
 use afe_core::filter::Df2t;
 use afe_core::framing::FrameBuffer;
 use afe_core::window::{window, WINDOW_NAMES};
-use afe_core::{Block, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
+use afe_core::{Block, DrawAs, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
 
 use crate::framed::check_framing;
@@ -117,7 +117,11 @@ impl Ratemap {
             frames: FrameBuffer::new(nc, w, h),
             scratch: Vec::new(),
         };
-        let info = input.framed(1.0 / params.h_size_sec);
+        let info = input
+            .framed(1.0 / params.h_size_sec)
+            .with_unit(Self::OUTPUT_UNIT)
+            .with_window_s(params.w_size_sec)
+            .drawn_as(DrawAs::PowerDecibels { range_db: 60.0 });
         Ok((rm, info))
     }
 }

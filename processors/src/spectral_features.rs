@@ -222,7 +222,11 @@ impl SpectralFeatures {
             db: vec![0.0; k],
             cumsum: vec![0.0; k],
         };
-        let info = SignalInfo::feature(input.fs_hz, input.audio_fs_hz, names);
+        let info = SignalInfo {
+            window_s: input.window_s,
+            ..SignalInfo::feature(input.fs_hz, input.audio_fs_hz, names)
+        }
+        .with_unit(Self::OUTPUT_UNIT);
         Ok((sf, info))
     }
 

@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use afe_core::framing::{window_samples, FrameBuffer};
 use afe_core::{
-    Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
+    Block, DrawAs, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
 };
 use realfft::num_complex::Complex64;
 use realfft::{RealFftPlanner, RealToComplex};
@@ -118,6 +118,9 @@ impl Stft {
             fs_hz: 2.0 / params.w_size_sec,
             cf_hz: (0..bins).map(|k| k as f64 * fs / nfft as f64).collect(),
             audio_fs_hz: input.audio_fs_hz,
+            unit: Self::OUTPUT_UNIT,
+            window_s: Some(params.w_size_sec),
+            display: DrawAs::AmplitudeDecibels { range_db: 80.0 },
             ..SignalInfo::default()
         };
         Ok((stft, info))

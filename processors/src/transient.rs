@@ -167,7 +167,7 @@ impl Descriptor for OnsetStrength {
 
     fn build(params: &OnsetParams, inputs: &[SignalInfo]) -> Result<Built> {
         let (p, out) = TransientStrength::onset(params, &inputs[0])?;
-        Ok(Built::new(p, vec![out]))
+        Ok(Built::new(p, vec![out.with_unit(Self::OUTPUT_UNIT)]))
     }
 }
 
@@ -185,7 +185,7 @@ impl Descriptor for OffsetStrength {
 
     fn build(params: &OffsetParams, inputs: &[SignalInfo]) -> Result<Built> {
         let (p, out) = TransientStrength::offset(params, &inputs[0])?;
-        Ok(Built::new(p, vec![out]))
+        Ok(Built::new(p, vec![out.with_unit(Self::OUTPUT_UNIT)]))
     }
 }
 
