@@ -20,7 +20,7 @@ pub(crate) struct BatchArgs {
     #[arg(required = true, value_name = "INPUT")]
     inputs: Vec<PathBuf>,
     #[command(flatten)]
-    requests: Option<Requests>,
+    requests: Requests,
     /// The store: a folder, created if missing.
     #[arg(short = 'o', long = "output", value_name = "STORE", required = true)]
     store: Option<PathBuf>,
@@ -46,13 +46,11 @@ impl BatchArgs {
         if let Some(BatchCommand::Status { store, json }) = self.status {
             return batch_status(&store, json);
         }
-        match (self.requests, self.store) {
-            (Some(requests), Some(store)) => {
-                let (requests, params) = requests.load()?;
-                batch(&self.inputs, &store, requests, params, self.options)
-            }
-            _ => Err("afe batch needs -r REQ,... and -o STORE".into()),
-        }
+        let Some(store) = self.store else {
+            return Err("afe batch needs -r REQ,... and -o STORE".into());
+        };
+        let (requests, params) = self.requests.load()?;
+        batch(&self.inputs, &store, requests, params, self.options)
     }
 }
 

@@ -115,7 +115,7 @@ pub fn check_input(path: &Path, wav: &WavBlocks) -> Result<(), afe_core::Error> 
 /// Reads a PCM (8/16/24/32-bit) or IEEE-float WAV file, scaling integers to ±1.0.
 ///
 /// ```
-/// let path = concat!(env!("CARGO_MANIFEST_DIR"), "/data/example_binaural.wav");
+/// let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../data/example_binaural.wav");
 /// let audio = afe::wav::read_wav(std::path::Path::new(path))?;
 /// assert_eq!((audio.fs, audio.channels.len()), (44100.0, 2));
 /// assert!(afe::wav::read_wav(std::path::Path::new("missing.wav")).is_err());
