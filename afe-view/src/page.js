@@ -193,7 +193,7 @@ class Panel {
       this.ctx.fillStyle = "#7fd";
       for (let k = rows - n; k < rows; k++) {
         const v = values[k * width];
-        if (!Number.isFinite(v)) continue;           // no pitch: a gap
+        if (!Number.isFinite(v)) continue;           // NaN (no value in this frame): a gap
         const y = h - 1 - (h - 2) * Math.min(1, v / Math.max(this.max, 1));
         this.ctx.fillRect(w - n + (k - rows + n), y - 1, 1, 3);
       }

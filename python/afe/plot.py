@@ -179,7 +179,7 @@ def plot(
         signals = dict(source)
     else:
         if requests is None:
-            raise ValueError("give the requests to compute, e.g. ['ratemap', 'ild']")
+            raise ValueError("give the requests to compute (afe.requests() lists them)")
         signals = process(source, fs, requests, params)
     for key, s in signals.items():
         if not isinstance(s, Signal):
