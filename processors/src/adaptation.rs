@@ -5,12 +5,12 @@
 //! stationary input and passes fast changes: the output is in model units, 0 at the
 //! level floor. Exactly chunk-invariant: the loop states carry over between chunks.
 
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::erb::linspace;
 use afe_core::{Block, DrawAs, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
 
 use crate::exp::exp;
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// A named parameter preset of the AFE (`adpt_model`), which overrides `adpt_lim`,
 /// `adpt_mindB` and `adpt_tau`.

@@ -6,6 +6,7 @@
 use std::sync::Arc;
 
 use afe_core::butter::{butter, ButterType};
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::erb::linspace;
 use afe_core::filter::Df2t;
 use afe_core::framing::{Frame, FrameBuffer};
@@ -18,8 +19,6 @@ use realfft::{RealFftPlanner, RealToComplex};
 use serde::{Deserialize, Serialize};
 
 use crate::framed::MAX_WINDOW;
-
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// How the modulation bands are computed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

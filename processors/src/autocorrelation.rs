@@ -6,6 +6,7 @@
 //! "unbiased" divisor and normalised by lag 0. Chunk-invariant: only un-framed samples
 //! carry over.
 
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::framing::FrameBuffer;
 use afe_core::window::{window, WINDOW_NAMES};
 use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
@@ -14,8 +15,6 @@ use serde::{Deserialize, Serialize};
 use crate::even_inverse::EvenInverse;
 use crate::framed::check_framing;
 use crate::real_fft::RealFft;
-
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// How a frame is centre-clipped (AFE `ac_clipMethod`): samples between the thresholds
 /// become 0, the others are kept as below.

@@ -6,6 +6,7 @@ use std::ops::Range;
 use std::sync::Arc;
 
 use afe_core::cpu::has_avx512;
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::framing::Frame;
 use afe_core::lanes::vector_start;
 use afe_core::window::{window, WINDOW_NAMES};
@@ -15,8 +16,6 @@ use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use serde::{Deserialize, Serialize};
 
 use crate::framed::{check_framing, EarFrames};
-
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// Parameters of the cross-correlation, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -2,7 +2,8 @@
 //! filterbank (spec 12-drnl), per channel the sum of a linear path and a compressive
 //! non-linear path, each a cascade of second-order sections run as DF2T in f64 with the
 //! reference's operation order. Two parameter sets: CASP (Jepsen et al. 2008, default)
-//! and MAP 1.14h. The request and the grid are [`crate::filterbank`]'s.
+//! and MAP 1.14h. The request is [`crate::filterbank`]'s, the parameters and the grid
+//! [`crate::filterbank_params`]'s.
 //!
 //! Reproduced as the AFE computes them: the gammatone-like sections take the low-pass
 //! cut-offs as centre frequencies, CASP's compression constants jump at 1000 Hz, MAP
@@ -15,23 +16,10 @@ use afe_core::filter::Df2t;
 use afe_core::lanes::vector_start;
 use afe_core::params::per_channel;
 use afe_core::{Block, ParamMap, Processor, Result, SignalInfo};
-use serde::{Deserialize, Serialize};
 use serde_json::json;
 
-use crate::filterbank::{invalid, FilterbankParams};
-
-/// DRNL parameter set (AFE `fb_model`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub enum DrnlModel {
-    /// Lopez-Poveda & Meddis (2001) as used in CASP (Jepsen et al. 2008): low-pass
-    /// sections on both paths, broken-stick compression.
-    #[serde(rename = "CASP")]
-    Casp,
-    /// MAP 1.14h: middle-ear (tympanic membrane and stapes) stage, no low-pass sections,
-    /// compression above a threshold.
-    #[serde(rename = "MAP")]
-    Map,
-}
+pub use crate::filterbank_params::DrnlModel;
+use crate::filterbank_params::{invalid, FilterbankParams};
 
 /// The DRNL's verified parameters (the AFE's map after preparation): the grid, the model
 /// and both MOC gains expanded to one per channel.

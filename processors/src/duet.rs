@@ -18,6 +18,7 @@
 use std::f64::consts::PI;
 use std::sync::Arc;
 
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::framing::{window_samples, FrameBuffer};
 use afe_core::sgolay::SavitzkyGolay;
 use afe_core::window::hamming_periodic;
@@ -29,7 +30,6 @@ use realfft::{RealFftPlanner, RealToComplex};
 use serde::{Deserialize, Serialize};
 
 use crate::framed::{EarFrames, MAX_WINDOW};
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// Parameters of the DUET histogram, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -4,8 +4,8 @@
 //! The coefficients follow the reference recipe operation by operation (component-wise
 //! division by fs, convolution as `a[k] + (−p)·a[k−1]`, textbook complex products, no FMA):
 //! the expanded polynomial is ill-conditioned at low centre frequencies, and this recipe
-//! reproduces the MATLAB AFE bit for bit. The request and the grid are
-//! [`crate::filterbank`]'s.
+//! reproduces the MATLAB AFE bit for bit. The request is [`crate::filterbank`]'s, the
+//! parameters and the grid [`crate::filterbank_params`]'s.
 
 use std::f64::consts::PI;
 
@@ -14,7 +14,7 @@ use afe_core::lanes::vector_start;
 use afe_core::{Block, ParamMap, Processor, Result, SignalInfo};
 use serde_json::json;
 
-use crate::filterbank::{invalid, CfGrid, FilterbankParams};
+use crate::filterbank_params::{invalid, CfGrid, FilterbankParams};
 
 /// The gammatone's verified parameters (the AFE's verify step): the grid, order,
 /// bandwidth, alignment and the informational per-channel delay `fb_delaySec`.

@@ -8,11 +8,10 @@
 //! attenuation of chunk k first shows in the filterbank output of chunk k+1, as in the AFE.
 //! A gammatone filterbank ignores it, as the AFE's does.
 
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::params::per_channel;
 use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
-
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// Parameters of the MOC, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -9,12 +9,11 @@
 use std::cmp::Ordering;
 use std::collections::VecDeque;
 
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::{
     Block, DrawAs, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
 };
 use serde::{Deserialize, Serialize};
-
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// Parameters of the pitch estimator, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -4,16 +4,15 @@
 //! One instance serves both ears, because the AGC can link their gains.
 
 use afe_core::butter::{butter, ButterType};
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::filter::Df2t;
 use afe_core::{
     Block, DrawAs, Error, ParamKind, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo,
 };
 use serde::{Deserialize, Serialize};
 
-use crate::filterbank::{fb_type_of, FbType};
+use crate::filterbank_params::{fb_type_of, FbType};
 use crate::middle_ear;
-
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// Parameters of the pre-processor, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -12,6 +12,7 @@
 
 use std::sync::Arc;
 
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::erb::linspace;
 use afe_core::framing::Frame;
 use afe_core::window::window;
@@ -21,7 +22,6 @@ use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use serde::{Deserialize, Serialize};
 
 use crate::framed::{check_framing, check_work, EarFrames};
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// Parameters of the precedence model, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
