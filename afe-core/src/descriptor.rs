@@ -2,6 +2,14 @@
 //! the type-erased entry the graph works with ([`RequestDef`]). The processors crate
 //! implements the trait for each processor and lists the entries; nothing here knows a
 //! processor by name.
+//!
+//! A request's parameter map is parsed once, by [`RequestDef::configure`], into the
+//! processor's typed parameters behind a [`Configured`]: the graph keeps that value and
+//! asks it how to share, build and chunk the node, so no later step parses the map again
+//! or can drop a parse error.
+
+use std::fmt;
+use std::marker::PhantomData;
 
 use crate::{ParamMap, ParamSpec, Params, Processor, Result, SignalInfo};
 
@@ -41,23 +49,10 @@ pub struct RequestDef {
     pub params: &'static [ParamSpec],
     /// The AFE defaults of those parameters.
     pub defaults: fn() -> ParamMap,
-    /// The processor's own parameters after defaults and verification; two nodes with
-    /// equal maps (and equal parents) compute the same thing and are shared.
-    pub canonical: fn(&ParamMap) -> Result<ParamMap>,
-    /// Builds the processor for parent outputs `inputs` (one per ear for preProc).
-    pub build: fn(&ParamMap, &[SignalInfo]) -> Result<Built>,
-    /// Whether, with these request parameters, any chunking gives the output of one call
-    /// (false where the AFE itself depends on chunk boundaries).
-    pub chunk_invariant: fn(&ParamMap) -> bool,
-    /// Where not chunk-invariant: the seconds of input a whole signal's first chunk must
-    /// hold (or be the whole signal) for chunks of any size after it to give one call's
-    /// output (the AGC seeds from a fixed prefix); `None` when one call is needed.
-    pub one_call_prefix_s: fn(&ParamMap) -> Option<f64>,
-    /// Requests read beside the dependency, with these request parameters (resolved with
-    /// the same parameters, so they are the nodes of the chain below when it has them).
-    /// Per-ear processors get the same ear's output after their dependency's; binaural
-    /// ones get left and right after theirs.
-    pub extra_inputs: fn(&ParamMap) -> &'static [&'static str],
+    /// Parses a request's parameter map into this processor's typed parameters (defaults
+    /// filled, values checked, the canonical map derived): the one parse of the map,
+    /// whose value the graph node keeps.
+    pub configure: fn(&ParamMap) -> Result<Box<dyn Configured>>,
     /// Parameters that cannot change at run time (as in the AFE): they fix what every
     /// representation above is laid out on.
     pub fixed: &'static [&'static str],
@@ -66,8 +61,8 @@ pub struct RequestDef {
     pub feeds_back_to: Option<&'static str>,
 }
 
-impl std::fmt::Debug for RequestDef {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+impl fmt::Debug for RequestDef {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.debug_struct("RequestDef")
             .field("name", &self.name)
             .finish_non_exhaustive()
@@ -84,13 +79,42 @@ impl Built {
     }
 }
 
+/// A request's parameters parsed into one processor's typed parameters (see
+/// [`RequestDef::configure`]): everything the graph asks of a node's parameters, without
+/// parsing the map again.
+pub trait Configured: fmt::Debug + Send + Sync {
+    /// The parameters that decide what the processor computes, as a map of AFE names;
+    /// two nodes with equal maps (and equal parents) compute the same thing and are
+    /// shared.
+    fn canonical(&self) -> &ParamMap;
+
+    /// Builds the processor for parent outputs `inputs` (the dependency's, then those of
+    /// the extra inputs; one per ear for preProc).
+    fn build(&self, inputs: &[SignalInfo]) -> Result<Built>;
+
+    /// Whether any chunking gives the output of one call (false where the AFE itself
+    /// depends on chunk boundaries).
+    fn chunk_invariant(&self) -> bool;
+
+    /// Where not chunk-invariant: the seconds of input a whole signal's first chunk must
+    /// hold (or be the whole signal) for chunks of any size after it to give one call's
+    /// output (the AGC seeds from a fixed prefix); `None` when one call is needed.
+    fn one_call_prefix_s(&self) -> Option<f64>;
+
+    /// Requests read beside the dependency (resolved with the same request parameters,
+    /// so they are the nodes of the chain below when it has them). Per-ear processors
+    /// get the same ear's output after their dependency's; binaural ones get left and
+    /// right after theirs.
+    fn extra_inputs(&self) -> &'static [&'static str];
+}
+
 /// What a processor module declares about the request it computes: its name, where its
 /// input comes from, its typed parameters and how to build it. The registry turns it into
-/// a [`RequestDef`] with [`request_def`]; parameters are parsed from the request's map
-/// once per use, into `Self::Params`.
-pub trait Descriptor {
+/// a [`RequestDef`] with [`request_def`]; a request's map is parsed once, into
+/// `Self::Params`, which every other method takes.
+pub trait Descriptor: 'static {
     /// The typed parameters (AFE names and defaults).
-    type Params: Params;
+    type Params: Params + fmt::Debug + Send + Sync;
     /// The AFE request name, e.g. `ratemap`.
     const NAME: &'static str;
     /// The request this one is computed from (`input` for the raw ear signals).
@@ -132,12 +156,12 @@ pub trait Descriptor {
     }
 
     /// Where not chunk-invariant, the prefix of a whole signal (seconds) after which
-    /// any chunking gives one call's output (see [`RequestDef::one_call_prefix_s`]).
+    /// any chunking gives one call's output (see [`Configured::one_call_prefix_s`]).
     fn one_call_prefix_s(_: &Self::Params) -> Option<f64> {
         None
     }
 
-    /// Requests read beside the dependency (see [`RequestDef::extra_inputs`]).
+    /// Requests read beside the dependency (see [`Configured::extra_inputs`]).
     fn extra_inputs(_: &Self::Params) -> &'static [&'static str] {
         &[]
     }
@@ -153,11 +177,7 @@ pub const fn request_def<D: Descriptor>() -> RequestDef {
         output_unit: D::OUTPUT_UNIT,
         params: D::Params::SPECS,
         defaults: defaults::<D>,
-        canonical: canonical::<D>,
-        build: build::<D>,
-        chunk_invariant: chunk_invariant::<D>,
-        one_call_prefix_s: one_call_prefix_s::<D>,
-        extra_inputs: extra_inputs::<D>,
+        configure: configure::<D>,
         fixed: D::FIXED,
         feeds_back_to: D::FEEDS_BACK_TO,
     }
@@ -167,22 +187,49 @@ fn defaults<D: Descriptor>() -> ParamMap {
     D::Params::default().to_map()
 }
 
-fn canonical<D: Descriptor>(map: &ParamMap) -> Result<ParamMap> {
-    D::canonical(&D::params(map)?)
+fn configure<D: Descriptor>(map: &ParamMap) -> Result<Box<dyn Configured>> {
+    let params = D::params(map)?;
+    let canonical = D::canonical(&params)?;
+    Ok(Box::new(Typed::<D> {
+        params,
+        canonical,
+        descriptor: PhantomData,
+    }))
 }
 
-fn build<D: Descriptor>(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
-    D::build(&D::params(map)?, inputs)
+/// The typed parameters of the processor described by `D`, with their canonical map.
+struct Typed<D: Descriptor> {
+    params: D::Params,
+    canonical: ParamMap,
+    descriptor: PhantomData<fn() -> D>,
 }
 
-fn chunk_invariant<D: Descriptor>(map: &ParamMap) -> bool {
-    D::params(map).is_ok_and(|p| D::chunk_invariant(&p))
+impl<D: Descriptor> fmt::Debug for Typed<D> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct(D::NAME)
+            .field("params", &self.params)
+            .finish()
+    }
 }
 
-fn one_call_prefix_s<D: Descriptor>(map: &ParamMap) -> Option<f64> {
-    D::params(map).ok().and_then(|p| D::one_call_prefix_s(&p))
-}
+impl<D: Descriptor> Configured for Typed<D> {
+    fn canonical(&self) -> &ParamMap {
+        &self.canonical
+    }
 
-fn extra_inputs<D: Descriptor>(map: &ParamMap) -> &'static [&'static str] {
-    D::params(map).map_or(&[], |p| D::extra_inputs(&p))
+    fn build(&self, inputs: &[SignalInfo]) -> Result<Built> {
+        D::build(&self.params, inputs)
+    }
+
+    fn chunk_invariant(&self) -> bool {
+        D::chunk_invariant(&self.params)
+    }
+
+    fn one_call_prefix_s(&self) -> Option<f64> {
+        D::one_call_prefix_s(&self.params)
+    }
+
+    fn extra_inputs(&self) -> &'static [&'static str] {
+        D::extra_inputs(&self.params)
+    }
 }

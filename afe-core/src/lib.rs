@@ -24,7 +24,7 @@ pub mod sgolay;
 pub mod window;
 
 pub use block::{Block, DrawAs, SignalInfo, SignalKind};
-pub use descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
+pub use descriptor::{request_def, Built, Configured, Descriptor, Ears, RequestDef};
 pub use error::{Error, Result};
 pub use params::{NoParams, ParamKind, ParamMap, ParamSpec, Params};
 pub use processor::{Part, Processor};

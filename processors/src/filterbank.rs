@@ -88,7 +88,8 @@ mod tests {
             };
             let grid = p.grid().expect("grid");
             assert!(grid.cf_hz[15] >= 22050.0, "{:?}", grid.cf_hz[15]);
-            let built = (REQUEST.build)(&p.to_map(), &[SignalInfo::time_domain(44100.0)])
+            let built = (REQUEST.configure)(&p.to_map())
+                .and_then(|c| c.build(&[SignalInfo::time_domain(44100.0)]))
                 .expect("accepted, as in the AFE");
             let mut proc_ = built.processor;
             let x = Block::from_vec(
@@ -104,7 +105,8 @@ mod tests {
                 high_freq_hz: 22051.0,
                 ..p
             };
-            let e = (REQUEST.build)(&beyond.to_map(), &[SignalInfo::time_domain(44100.0)]);
+            let e = (REQUEST.configure)(&beyond.to_map())
+                .and_then(|c| c.build(&[SignalInfo::time_domain(44100.0)]));
             assert!(e.is_err(), "{ty:?}");
         }
     }
@@ -127,15 +129,18 @@ mod tests {
             e.contains("'fb_type'") && e.contains("'gammatone', 'drnl'"),
             "{e}"
         );
-        assert_eq!(
-            fb_type_of(&map(&[("fb_type", json!("dnrl"))])),
-            FbType::Gammatone
+        let e = fb_type_of(&map(&[("fb_type", json!("dnrl"))]))
+            .expect_err("unknown type")
+            .to_string();
+        assert!(
+            e.contains("'fb_type'") && e.contains("'gammatone', 'drnl'"),
+            "{e}"
         );
         assert_eq!(
             fb_type_of(&map(&[("fb_type", json!("drnl"))])),
-            FbType::Drnl
+            Ok(FbType::Drnl)
         );
-        assert_eq!(fb_type_of(&ParamMap::new()), FbType::Gammatone);
+        assert_eq!(fb_type_of(&ParamMap::new()), Ok(FbType::Gammatone));
     }
 
     /// Each type's map holds its own parameters and `fb_type`; the other type's

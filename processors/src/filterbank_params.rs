@@ -98,14 +98,17 @@ impl Default for FilterbankParams {
     }
 }
 
+/// The declaration of `fb_type`, which the pre-processing reads as well.
+const FB_TYPE: ParamSpec = ParamSpec {
+    name: "fb_type",
+    kind: ParamKind::Choice(&["gammatone", "drnl"]),
+    unit: "",
+    description: "filterbank type: linear gammatone or dual-resonance non-linear",
+};
+
 impl Params for FilterbankParams {
     const SPECS: &'static [ParamSpec] = &[
-        ParamSpec {
-            name: "fb_type",
-            kind: ParamKind::Choice(&["gammatone", "drnl"]),
-            unit: "",
-            description: "filterbank type: linear gammatone or dual-resonance non-linear",
-        },
+        FB_TYPE,
         ParamSpec {
             name: "fb_lowFreqHz",
             kind: ParamKind::Number,
@@ -349,15 +352,21 @@ impl FilterbankParams {
 }
 
 /// The class a request's parameter map selects: its `fb_type`, or the default gammatone
-/// when the map has none (or one that the filterbank itself will refuse).
-pub fn fb_type_of(map: &ParamMap) -> FbType {
-    FilterbankParams::SPECS
-        .iter()
-        .find(|s| s.name == "fb_type")
-        .and_then(|spec| map.get(spec.name).map(|v| spec.normalize(v)))
-        .and_then(|v| v.ok().flatten())
-        .and_then(|v| serde_json::from_value(v).ok())
-        .unwrap_or(FbType::Gammatone)
+/// when the map has none. A value the filterbank would refuse is refused here too, so
+/// that a chain without a filterbank (the pre-processing reads `fb_type`) does not take
+/// a mistyped class for the default.
+pub fn fb_type_of(map: &ParamMap) -> Result<FbType> {
+    let Some(given) = map.get(FB_TYPE.name) else {
+        return Ok(FbType::Gammatone);
+    };
+    match FB_TYPE.normalize(given)? {
+        None => Ok(FbType::Gammatone),
+        Some(v) => serde_json::from_value(v).map_err(|e| Error::InvalidParameter {
+            name: FB_TYPE.name.into(),
+            value: given.to_string(),
+            reason: format!("not a filterbank type ({e})"),
+        }),
+    }
 }
 
 #[cfg(test)]

@@ -386,7 +386,7 @@ impl Descriptor for PreProc {
     /// e.g. `stft`, given `fb_type = 'drnl'` is affected too, where the AFE would not be.)
     fn params(map: &ParamMap) -> Result<PreProcParams> {
         let mut params = PreProcParams::from_map(map)?;
-        if fb_type_of(map) == FbType::Drnl {
+        if fb_type_of(map)? == FbType::Drnl {
             params.unity_comp = false;
         }
         Ok(params)
@@ -438,8 +438,11 @@ mod tests {
         assert!(!drnl.unity_comp);
         let gammatone = <PreProc as Descriptor>::params(&map("gammatone")).expect("valid");
         assert!(gammatone.unity_comp);
-        let canonical = (REQUEST.canonical)(&map("drnl")).expect("valid");
-        assert_eq!(canonical["pp_bUnityComp"], serde_json::json!(false));
+        let configured = (REQUEST.configure)(&map("drnl")).expect("valid");
+        assert_eq!(
+            configured.canonical()["pp_bUnityComp"],
+            serde_json::json!(false)
+        );
     }
 
     #[test]

@@ -78,8 +78,8 @@ mod tests {
                 "{}",
                 r.name
             );
-            let defaults = (r.defaults)();
-            for extra in (r.extra_inputs)(&defaults) {
+            let configured = (r.configure)(&(r.defaults)()).expect("defaults are valid");
+            for extra in configured.extra_inputs() {
                 assert!(earlier(extra), "{} reads {extra}", r.name);
             }
             for p in r.params {
@@ -92,7 +92,6 @@ mod tests {
                     );
                 }
             }
-            assert!((r.canonical)(&defaults).is_ok(), "{}", r.name);
             assert!(requests().iter().filter(|d| d.name == r.name).count() == 1);
         }
     }
@@ -113,24 +112,27 @@ mod tests {
                 "{}",
                 r.name
             );
+            let configured = (r.configure)(&defaults).expect("defaults are valid");
             assert_eq!(
-                (r.chunk_invariant)(&defaults),
+                configured.chunk_invariant(),
                 !per_chunk.contains(&r.name),
                 "{}",
                 r.name
             );
-            let prefix = (r.one_call_prefix_s)(&defaults);
+            let prefix = configured.one_call_prefix_s();
             assert_eq!(prefix, (r.name == "time").then_some(0.5), "{}", r.name);
-            assert!((r.extra_inputs)(&defaults).is_empty(), "{}", r.name);
+            assert!(configured.extra_inputs().is_empty(), "{}", r.name);
         }
-        let agc = ParamMap::from([("pp_bNormalizeRMS".into(), serde_json::json!(true))]);
-        assert!(!(find_request("time").expect("time").chunk_invariant)(&agc));
-        let hilbert = ParamMap::from([("ihc_method".into(), serde_json::json!("hilbert"))]);
-        let ihc = find_request("innerhaircell").expect("ihc");
-        assert!(!(ihc.chunk_invariant)(&hilbert));
-        let floor = ParamMap::from([("trm_minValuedB".into(), serde_json::json!(-80.0))]);
-        let onset_map = find_request("onsetMap").expect("onsetMap");
-        assert_eq!((onset_map.extra_inputs)(&floor), ["ratemap"]);
+        let configure = |name: &str, key: &str, value: serde_json::Value| {
+            let map = ParamMap::from([(key.to_string(), value)]);
+            (find_request(name).expect("registered").configure)(&map).expect("valid")
+        };
+        let agc = configure("time", "pp_bNormalizeRMS", serde_json::json!(true));
+        assert!(!agc.chunk_invariant());
+        let hilbert = configure("innerhaircell", "ihc_method", serde_json::json!("hilbert"));
+        assert!(!hilbert.chunk_invariant());
+        let floor = configure("onsetMap", "trm_minValuedB", serde_json::json!(-80.0));
+        assert_eq!(floor.extra_inputs(), ["ratemap"]);
     }
 
     #[test]
