@@ -17,6 +17,15 @@ pub enum Error {
         /// Comma-separated list of the accepted names.
         known: String,
     },
+    /// A request definition that the registry refuses (name taken, dependency or extra
+    /// input not registered, a parameter name declared elsewhere with another meaning).
+    #[error("cannot register request '{name}': {reason}")]
+    RegistrationRefused {
+        /// The request's name.
+        name: String,
+        /// Why, and what to change.
+        reason: String,
+    },
     /// A parameter name that no processor declares.
     #[error("unknown parameter '{name}'{hint}")]
     UnknownParameter {

@@ -2,7 +2,10 @@
 //! the processor modules declare (each module implements [`afe_core::Descriptor`] for
 //! its processor and exports the type-erased [`RequestDef`] the graph works with as
 //! `REQUEST`, or one per request where a module serves two, e.g. `ONSET_REQUEST` and
-//! `OFFSET_REQUEST`).
+//! `OFFSET_REQUEST`), and the requests that code outside this crate adds at run time
+//! with [`register`].
+
+use std::sync::{PoisonError, RwLock};
 
 use afe_core::{Error, RequestDef, Result};
 
@@ -12,8 +15,8 @@ use crate::{
     transient, transient_map,
 };
 
-/// Every request, in dependency order: one line per processor module.
-static REQUESTS: &[&RequestDef] = &[
+/// The requests this crate computes, in dependency order: one line per processor module.
+static BUILT_IN: &[&RequestDef] = &[
     &pre_proc::REQUEST,
     &butterworth::REQUEST,
     &filterbank::REQUEST,
@@ -39,25 +42,100 @@ static REQUESTS: &[&RequestDef] = &[
     &duet::REQUEST,
 ];
 
-/// Every request this build knows, in dependency order.
+/// Every known request: the built-in ones, then those registered at run time in the
+/// order they were. A registration replaces the list rather than changing it, so that a
+/// reader iterates a consistent `'static` list without holding the lock; each replaced
+/// list stays allocated (one pointer per request, a handful of registrations a process).
+static KNOWN: RwLock<&'static [&'static RequestDef]> = RwLock::new(BUILT_IN);
+
+/// Every request this build knows, in dependency order: the built-in ones, then those
+/// registered with [`register`].
 pub fn requests() -> &'static [&'static RequestDef] {
-    REQUESTS
+    *KNOWN.read().unwrap_or_else(PoisonError::into_inner)
 }
 
 /// The definition of request `name`, or an error listing the known names.
 pub fn find_request(name: &str) -> Result<&'static RequestDef> {
-    REQUESTS
+    let known = requests();
+    known
         .iter()
         .find(|r| r.name == name)
         .copied()
         .ok_or_else(|| Error::UnknownRequest {
             name: name.to_string(),
-            known: REQUESTS
-                .iter()
-                .map(|r| r.name)
-                .collect::<Vec<_>>()
-                .join(", "),
+            known: names(known),
         })
+}
+
+/// Adds `def` to the known requests, after those known so far: from then on
+/// [`find_request`], [`requests`] and so every graph see it. A processor module outside
+/// this crate implements [`afe_core::Descriptor`] and registers
+/// `afe_core::request_def::<Its>()` kept in a `static`.
+///
+/// Refused, with the reason, when the name is taken (or is `input`), when its dependency
+/// or an extra input it reads at its defaults is not known yet (register those first),
+/// when its defaults do not configure, or when a parameter name it declares is declared
+/// by another request with another kind, unit or meaning.
+pub fn register(def: &'static RequestDef) -> Result<()> {
+    let mut known = KNOWN.write().unwrap_or_else(PoisonError::into_inner);
+    check_registration(def, &known)?;
+    let mut list = known.to_vec();
+    list.push(def);
+    *known = Vec::leak(list);
+    Ok(())
+}
+
+/// Why `def` cannot follow the requests `known`, if it cannot.
+fn check_registration(def: &RequestDef, known: &[&RequestDef]) -> Result<()> {
+    let refuse = |reason: String| Error::RegistrationRefused {
+        name: def.name.to_string(),
+        reason,
+    };
+    let is_known = |name: &str| known.iter().any(|r| r.name == name);
+    if def.name == "input" || is_known(def.name) {
+        return Err(refuse(
+            "a request of that name is already registered; choose another name".into(),
+        ));
+    }
+    let missing = |what: &str, name: &str| {
+        refuse(format!(
+            "{what} '{name}' is not registered; register it first (known requests: {})",
+            names(known)
+        ))
+    };
+    if def.dependency != "input" && !is_known(def.dependency) {
+        return Err(missing("its dependency", def.dependency));
+    }
+    let configured = (def.configure)(&(def.defaults)())
+        .map_err(|e| refuse(format!("its defaults do not configure: {e}")))?;
+    if let Some(extra) = configured.extra_inputs().iter().find(|e| !is_known(e)) {
+        return Err(missing("the extra input", extra));
+    }
+    for p in def.params {
+        let other = known
+            .iter()
+            .flat_map(|r| r.params.iter().map(move |q| (r.name, q)))
+            .find(|(_, q)| q.name == p.name);
+        if let Some((owner, q)) = other {
+            if (q.kind, q.unit, q.description) != (p.kind, p.unit, p.description) {
+                return Err(refuse(format!(
+                    "parameter '{}' is declared by '{owner}' with another kind, unit or \
+                     meaning; rename it or declare it as '{owner}' does",
+                    p.name
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The names of `requests`, comma-separated.
+fn names(requests: &[&RequestDef]) -> String {
+    requests
+        .iter()
+        .map(|r| r.name)
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 #[cfg(test)]
@@ -133,6 +211,41 @@ mod tests {
         assert!(!hilbert.chunk_invariant());
         let floor = configure("onsetMap", "trm_minValuedB", serde_json::json!(-80.0));
         assert_eq!(floor.extra_inputs(), ["ratemap"]);
+    }
+
+    /// A registration is checked against the requests known before it: its name, its
+    /// dependency, and the meaning of each parameter name it shares with them.
+    #[test]
+    fn registrations_are_checked_against_the_known_requests() {
+        use afe_core::{request_def, ParamKind};
+        let refused = |def: &RequestDef| {
+            check_registration(def, BUILT_IN)
+                .expect_err("refused")
+                .to_string()
+        };
+        let fresh = RequestDef {
+            name: "testCue",
+            ..request_def::<crate::itd::Itd>()
+        };
+        assert_eq!(check_registration(&fresh, BUILT_IN), Ok(()));
+        assert!(refused(&request_def::<crate::itd::Itd>()).contains("already registered"));
+        let input = RequestDef {
+            name: "input",
+            ..request_def::<crate::itd::Itd>()
+        };
+        assert!(refused(&input).contains("already registered"));
+        let conflicting = RequestDef {
+            name: "testCue",
+            params: &[ParamSpec {
+                name: "rm_wSizeSec",
+                kind: ParamKind::Number,
+                unit: "ms",
+                description: "window length",
+            }],
+            ..request_def::<crate::itd::Itd>()
+        };
+        let e = refused(&conflicting);
+        assert!(e.contains("'rm_wSizeSec' is declared by 'ratemap'"), "{e}");
     }
 
     #[test]
