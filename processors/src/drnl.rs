@@ -15,11 +15,11 @@ use std::f64::consts::{LN_2, PI, SQRT_2};
 use afe_core::filter::Df2t;
 use afe_core::lanes::vector_start;
 use afe_core::params::per_channel;
-use afe_core::{Block, ParamMap, Processor, Result, SignalInfo};
+use afe_core::{Block, Error, ParamMap, Processor, Result, SignalInfo};
 use serde_json::json;
 
 pub use crate::filterbank_params::DrnlModel;
-use crate::filterbank_params::{invalid, FilterbankParams};
+use crate::filterbank_params::FilterbankParams;
 
 /// The DRNL's verified parameters (the AFE's map after preparation): the grid, the model
 /// and both MOC gains expanded to one per channel.
@@ -653,9 +653,9 @@ impl Drnl {
         let nc = self.channels;
         for (name, v) in [("fb_mocIpsi", ipsi), ("fb_mocContra", contra)] {
             if v.len() != nc {
-                return Err(invalid(
+                return Err(Error::invalid(
                     name,
-                    v,
+                    format_args!("{v:?}"),
                     format!("expected {nc} values (one per channel), got {}", v.len()),
                 ));
             }

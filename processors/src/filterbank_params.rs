@@ -180,16 +180,6 @@ impl Params for FilterbankParams {
     ];
 }
 
-/// An invalid-parameter error; the value is printed in Debug form (a float in its
-/// shortest form, `1e308` rather than 309 digits).
-pub(crate) fn invalid(name: &str, value: impl std::fmt::Debug, reason: impl Into<String>) -> Error {
-    Error::InvalidParameter {
-        name: name.into(),
-        value: format!("{value:?}"),
-        reason: reason.into(),
-    }
-}
-
 /// Highest `fb_highFreqHz` accepted, Hz: far above any sampling rate's Nyquist frequency,
 /// low enough that the ERB grid up to it stays countable.
 const MAX_HIGH_FREQ_HZ: f64 = 1e7;
@@ -247,9 +237,9 @@ impl CfGrid {
             } else {
                 ""
             };
-            invalid(
+            Error::invalid(
                 "fb_highFreqHz",
-                params.high_freq_hz,
+                format_args!("{:?}", params.high_freq_hz),
                 format!(
                     "{}{which} puts {channels} above the Nyquist frequency ({nyquist} Hz) of \
                      the {fs} Hz input: set fb_highFreqHz to at most {nyquist} Hz",
@@ -257,9 +247,9 @@ impl CfGrid {
                 ),
             )
         } else {
-            invalid(
+            Error::invalid(
                 "fb_cfHz",
-                bad,
+                format_args!("{bad:?}"),
                 format!(
                     "centre frequencies must not exceed the Nyquist frequency ({nyquist} Hz) \
                      of the {fs} Hz input"
@@ -275,10 +265,14 @@ impl FilterbankParams {
     pub fn grid(&self) -> Result<CfGrid> {
         if !self.cf_hz.is_empty() {
             if let Some(bad) = self.cf_hz.iter().find(|f| **f <= 0.0) {
-                return Err(invalid("fb_cfHz", bad, "centre frequencies must be > 0 Hz"));
+                return Err(Error::invalid(
+                    "fb_cfHz",
+                    format_args!("{bad:?}"),
+                    "centre frequencies must be > 0 Hz",
+                ));
             }
             if self.cf_hz.len() > MAX_CHANNELS {
-                return Err(invalid(
+                return Err(Error::invalid(
                     "fb_cfHz",
                     format_args!("[{} values]", self.cf_hz.len()),
                     format!("at most {MAX_CHANNELS} channels are supported"),
@@ -292,27 +286,31 @@ impl FilterbankParams {
             });
         }
         if self.low_freq_hz <= 0.0 {
-            return Err(invalid("fb_lowFreqHz", self.low_freq_hz, "must be > 0 Hz"));
+            return Err(Error::invalid(
+                "fb_lowFreqHz",
+                format_args!("{:?}", self.low_freq_hz),
+                "must be > 0 Hz",
+            ));
         }
         if self.high_freq_hz.is_nan() || self.high_freq_hz > MAX_HIGH_FREQ_HZ {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "fb_highFreqHz",
-                self.high_freq_hz,
+                format_args!("{:?}", self.high_freq_hz),
                 "must be a frequency in Hz below the Nyquist frequency of the input",
             ));
         }
         if self.high_freq_hz < self.low_freq_hz {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "fb_highFreqHz",
-                self.high_freq_hz,
+                format_args!("{:?}", self.high_freq_hz),
                 format!("must be ≥ fb_lowFreqHz ({} Hz)", self.low_freq_hz),
             ));
         }
         let (elo, ehi) = (freq2erb(self.low_freq_hz), freq2erb(self.high_freq_hz));
         let (cf_hz, n_erbs): (Vec<f64>, f64) = match self.n_channels {
-            Some(0) => return Err(invalid("fb_nChannels", 0, "must be at least 1")),
+            Some(0) => return Err(Error::invalid("fb_nChannels", 0, "must be at least 1")),
             Some(n) if n as usize > MAX_CHANNELS => {
-                return Err(invalid(
+                return Err(Error::invalid(
                     "fb_nChannels",
                     n,
                     format!("at most {MAX_CHANNELS} channels are supported"),
@@ -326,9 +324,9 @@ impl FilterbankParams {
             None => {
                 let count = (ehi - elo) / self.n_erbs;
                 if self.n_erbs <= 0.0 || count >= MAX_CHANNELS as f64 {
-                    return Err(invalid(
+                    return Err(Error::invalid(
                         "fb_nERBs",
-                        self.n_erbs,
+                        format_args!("{:?}", self.n_erbs),
                         format!(
                             "must be > 0 and give at most {MAX_CHANNELS} channels between \
                              fb_lowFreqHz and fb_highFreqHz"
@@ -361,10 +359,8 @@ pub fn fb_type_of(map: &ParamMap) -> Result<FbType> {
     };
     match FB_TYPE.normalize(given)? {
         None => Ok(FbType::Gammatone),
-        Some(v) => serde_json::from_value(v).map_err(|e| Error::InvalidParameter {
-            name: FB_TYPE.name.into(),
-            value: given.to_string(),
-            reason: format!("not a filterbank type ({e})"),
+        Some(v) => serde_json::from_value(v).map_err(|e| {
+            Error::invalid(FB_TYPE.name, given, format!("not a filterbank type ({e})"))
         }),
     }
 }

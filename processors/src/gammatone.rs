@@ -11,10 +11,10 @@ use std::f64::consts::PI;
 
 use afe_core::cpu::has_avx512;
 use afe_core::lanes::vector_start;
-use afe_core::{Block, ParamMap, Processor, Result, SignalInfo};
+use afe_core::{Block, Error, ParamMap, Processor, Result, SignalInfo};
 use serde_json::json;
 
-use crate::filterbank_params::{invalid, CfGrid, FilterbankParams};
+use crate::filterbank_params::{CfGrid, FilterbankParams};
 
 /// The gammatone's verified parameters (the AFE's verify step): the grid, order,
 /// bandwidth, alignment and the informational per-channel delay `fb_delaySec`.
@@ -33,7 +33,11 @@ pub(crate) fn verified(params: &FilterbankParams) -> Result<ParamMap> {
 /// the constant 3 whatever the order, as in the AFE).
 fn grid_and_delays(params: &FilterbankParams) -> Result<(CfGrid, Vec<f64>)> {
     if params.bw_erbs <= 0.0 {
-        return Err(invalid("fb_bwERBs", params.bw_erbs, "must be > 0"));
+        return Err(Error::invalid(
+            "fb_bwERBs",
+            format_args!("{:?}", params.bw_erbs),
+            "must be > 0",
+        ));
     }
     let grid = params.grid()?;
     let delay_s = grid
@@ -226,7 +230,7 @@ impl Gammatone {
         grid.check_below_nyquist(params, fs)?;
         let order = params.n_gamma as usize;
         if order > MAX_ORDER {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "fb_nGamma",
                 order,
                 format!("orders up to {MAX_ORDER} are supported"),

@@ -74,14 +74,6 @@ impl Params for MocParams {
 /// Cubic fit of attenuation (dB) against ratemap level (dB), highest power first.
 const FIT: [f64; 4] = [-0.00012411, -0.051322, -6.3528, -206.11];
 
-fn invalid(name: &str, value: impl std::fmt::Debug, reason: &str) -> Error {
-    Error::InvalidParameter {
-        name: name.into(),
-        value: format!("{value:?}"),
-        reason: reason.into(),
-    }
-}
-
 /// The MOC of one ear: ratemap `[frame][channel]` in; attenuation `[frame][channel]` (dB)
 /// and the feedback factors out.
 #[derive(Debug, Clone)]
@@ -98,9 +90,9 @@ impl Moc {
     pub fn new(params: &MocParams, input: &SignalInfo) -> Result<(Self, [SignalInfo; 2])> {
         let nc = input.channels();
         if params.max_attenuation_db < 0.0 {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "moc_maxAttenuationdB",
-                params.max_attenuation_db,
+                format_args!("{:?}", params.max_attenuation_db),
                 "must be >= 0 dB",
             ));
         }

@@ -173,20 +173,12 @@ const REF_SPL_DB_RANGE: (f64, f64) = (-300.0, 500.0);
 /// Largest `|pp_coefPreEmphasis|` accepted.
 const MAX_PRE_EMPHASIS: f64 = 1e3;
 
-fn invalid(name: &str, value: impl std::fmt::Display, reason: impl Into<String>) -> Error {
-    Error::InvalidParameter {
-        name: name.into(),
-        value: value.to_string(),
-        reason: reason.into(),
-    }
-}
-
 impl PreProc {
     /// Builds the pre-processor for `ears` (1 or 2) input signals at `fs` Hz.
     pub fn new(params: &PreProcParams, fs: f64, ears: usize) -> Result<(Self, Vec<SignalInfo>)> {
         let p = params;
         if p.remove_dc && !(p.cutoff_hz_dc > 0.0 && p.cutoff_hz_dc < fs / 2.0) {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "pp_cutoffHzDC",
                 p.cutoff_hz_dc,
                 format!(
@@ -196,7 +188,7 @@ impl PreProc {
             ));
         }
         if p.middle_ear_filtering && fs < MIN_MIDDLE_EAR_FS {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "pp_bMiddleEarFiltering",
                 "true",
                 format!(
@@ -205,14 +197,14 @@ impl PreProc {
             ));
         }
         if p.normalize_rms && p.int_time_sec_rms <= 0.0 {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "pp_intTimeSecRMS",
                 p.int_time_sec_rms,
                 "must be > 0 s",
             ));
         }
         if !(1..=2).contains(&p.ref_spl_db.len()) {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "pp_refSPLdB",
                 format!("{:?}", p.ref_spl_db),
                 "expected one value or two ([left, right])",
@@ -220,7 +212,7 @@ impl PreProc {
         }
         let (lo, hi) = REF_SPL_DB_RANGE;
         if let Some(db) = p.ref_spl_db.iter().find(|db| !(lo..=hi).contains(*db)) {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "pp_refSPLdB",
                 format!("{:?}", p.ref_spl_db),
                 format!(
@@ -232,7 +224,7 @@ impl PreProc {
             ));
         }
         if p.coef_pre_emphasis.is_nan() || p.coef_pre_emphasis.abs() > MAX_PRE_EMPHASIS {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "pp_coefPreEmphasis",
                 p.coef_pre_emphasis,
                 format!(
