@@ -21,6 +21,7 @@ pub mod params;
 pub mod power;
 pub mod processor;
 pub mod sgolay;
+pub mod simd;
 pub mod window;
 
 pub use block::{Block, DrawAs, SignalInfo, SignalKind};

@@ -41,42 +41,36 @@ pub fn frame_power(win: &[f64], frame: Frame<'_>, out: &mut [f64]) {
 /// Channels per vector of [`frame_power`].
 const LANES: usize = 8;
 
-/// `Σ (win·x)²` over the frame for the `V` vectors of channels starting at `starts`,
-/// written (not yet divided by the length) into `out`; each channel's terms are added
-/// in time order, as on the scalar path.
-#[cfg_attr(
-    not(feature = "no-avx512"),
-    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
-)]
-#[cfg_attr(
-    feature = "no-avx512",
-    multiversion::multiversion(targets("x86_64+avx2"))
-)]
-fn power_lanes<'a, const V: usize>(
-    win: &[f64],
-    frame: Frame<'a>,
-    starts: [usize; V],
-    out: &mut [f64],
-) {
-    let nc = out.len();
-    let mut acc = [[0.0; LANES]; V];
-    let mut n0 = 0;
-    for part in [frame.head, frame.tail] {
-        for (row, &w) in part.chunks_exact(nc).zip(&win[n0..]) {
-            for (a, &c) in acc.iter_mut().zip(&starts) {
-                let z: [f64; LANES] = row[c..c + LANES].try_into().unwrap_or_default();
-                for l in 0..LANES {
-                    let x = w * z[l];
-                    a[l] += x * x;
+crate::simd_kernel!(
+    /// `Σ (win·x)²` over the frame for the `V` vectors of channels starting at `starts`,
+    /// written (not yet divided by the length) into `out`; each channel's terms are added
+    /// in time order, as on the scalar path.
+    fn power_lanes<'a, const V: usize>(
+        win: &[f64],
+        frame: Frame<'a>,
+        starts: [usize; V],
+        out: &mut [f64],
+    ) {
+        let nc = out.len();
+        let mut acc = [[0.0; LANES]; V];
+        let mut n0 = 0;
+        for part in [frame.head, frame.tail] {
+            for (row, &w) in part.chunks_exact(nc).zip(&win[n0..]) {
+                for (a, &c) in acc.iter_mut().zip(&starts) {
+                    let z: [f64; LANES] = row[c..c + LANES].try_into().unwrap_or_default();
+                    for l in 0..LANES {
+                        let x = w * z[l];
+                        a[l] += x * x;
+                    }
                 }
             }
+            n0 += part.len() / nc;
         }
-        n0 += part.len() / nc;
+        for (a, &c) in acc.iter().zip(&starts) {
+            out[c..c + LANES].copy_from_slice(a);
+        }
     }
-    for (a, &c) in acc.iter().zip(&starts) {
-        out[c..c + LANES].copy_from_slice(a);
-    }
-}
+);
 
 #[cfg(test)]
 mod tests {

@@ -288,21 +288,16 @@ impl HopSums {
     }
 }
 
-/// `acc += |w·row|`, element by element: one row of a frame's sums, weighted by its
-/// window value (the hop sums add whole rows with `w = 1`, which changes no bit).
-#[cfg_attr(
-    not(feature = "no-avx512"),
-    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2+fma"))
-)]
-#[cfg_attr(
-    feature = "no-avx512",
-    multiversion::multiversion(targets("x86_64+avx2+fma"))
-)]
-fn add_abs(acc: &mut [f64], w: f64, row: &[f64]) {
-    for (a, v) in acc.iter_mut().zip(row) {
-        *a += (w * v).abs();
+afe_core::simd_kernel!(
+    fma,
+    /// `acc += |w·row|`, element by element: one row of a frame's sums, weighted by its
+    /// window value (the hop sums add whole rows with `w = 1`, which changes no bit).
+    fn add_abs(acc: &mut [f64], w: f64, row: &[f64]) {
+        for (a, v) in acc.iter_mut().zip(row) {
+            *a += (w * v).abs();
+        }
     }
-}
+);
 
 impl std::fmt::Debug for AmsFeatures {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {

@@ -254,30 +254,25 @@ fn clip(f: &[f64], method: ClipMethod, alpha: f64, g: &mut [f64]) {
     }
 }
 
-/// Windows each complete frame of `input` into columns and correlates every channel,
-/// into `out` (`[frame][channel][lag]`).
-#[cfg_attr(
-    not(feature = "no-avx512"),
-    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2+fma"))
-)]
-#[cfg_attr(
-    feature = "no-avx512",
-    multiversion::multiversion(targets("x86_64+avx2+fma"))
-)]
-fn correlate_frames(ac: &mut Autocorrelation, input: &Block, out: &mut [f64]) {
-    let nc = input.width();
-    let w = ac.win.len();
-    for (k, frame_out) in out.chunks_exact_mut((nc * (w - 1)).max(1)).enumerate() {
-        window_columns(
-            &ac.frames.frame(input.as_slice(), k),
-            &ac.win,
-            &mut ac.columns,
-        );
-        for (c, o) in frame_out.chunks_exact_mut(w - 1).enumerate() {
-            ac.correlate(c, o);
+afe_core::simd_kernel!(
+    fma,
+    /// Windows each complete frame of `input` into columns and correlates every channel,
+    /// into `out` (`[frame][channel][lag]`).
+    fn correlate_frames(ac: &mut Autocorrelation, input: &Block, out: &mut [f64]) {
+        let nc = input.width();
+        let w = ac.win.len();
+        for (k, frame_out) in out.chunks_exact_mut((nc * (w - 1)).max(1)).enumerate() {
+            window_columns(
+                &ac.frames.frame(input.as_slice(), k),
+                &ac.win,
+                &mut ac.columns,
+            );
+            for (c, o) in frame_out.chunks_exact_mut(w - 1).enumerate() {
+                ac.correlate(c, o);
+            }
         }
     }
-}
+);
 
 /// Writes the windowed rows of `frame` (`[time][channel]`) into `columns`
 /// (`[channel][time]`), four rows at a time so that each column gets four adjacent

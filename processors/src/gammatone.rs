@@ -264,60 +264,54 @@ impl Gammatone {
     }
 }
 
-/// The complex DF2T recursion of one channel group of order `M` over a chunk, state in
-/// registers. Per channel, the operations and their order are the reference's
-/// (`y = z0 + b0·x`, `z[k] = z[k+1] − a[k+1]·y`, textbook complex products, no FMA,
-/// output `2·Re y`), so the output is bit-identical to a channel-by-channel evaluation,
-/// signed zeros and subnormals included. Compiled for AVX-512 and AVX2 too, chosen at
-/// run time.
-#[cfg_attr(
-    not(feature = "no-avx512"),
-    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
-)]
-#[cfg_attr(
-    feature = "no-avx512",
-    multiversion::multiversion(targets("x86_64+avx2"))
-)]
-fn run_group<const M: usize, const W: usize>(
-    g: &mut Group<W>,
-    x: &[f64],
-    out: &mut [f64],
-    stride: usize,
-) {
-    let mut zr = [[0.0; W]; M];
-    let mut zi = [[0.0; W]; M];
-    let mut ar = [[0.0; W]; M];
-    let mut ai = [[0.0; W]; M];
-    zr.copy_from_slice(&g.z_re[..M]);
-    zi.copy_from_slice(&g.z_im[..M]);
-    ar.copy_from_slice(&g.a_re[..M]);
-    ai.copy_from_slice(&g.a_im[..M]);
-    let (br, bi) = (g.b_re, g.b_im);
-    for (t, &xin) in x.iter().enumerate() {
-        let mut yr = [0.0; W];
-        let mut yi = [0.0; W];
-        for l in 0..W {
-            yr[l] = zr[0][l] + br[l] * xin;
-            yi[l] = zi[0][l] + bi[l] * xin;
-        }
-        for k in 0..M - 1 {
+afe_core::simd_kernel!(
+    /// The complex DF2T recursion of one channel group of order `M` over a chunk, state in
+    /// registers. Per channel, the operations and their order are the reference's
+    /// (`y = z0 + b0·x`, `z[k] = z[k+1] − a[k+1]·y`, textbook complex products, no FMA,
+    /// output `2·Re y`), so the output is bit-identical to a channel-by-channel evaluation,
+    /// signed zeros and subnormals included. Compiled for AVX-512 and AVX2 too, chosen at
+    /// run time.
+    fn run_group<const M: usize, const W: usize>(
+        g: &mut Group<W>,
+        x: &[f64],
+        out: &mut [f64],
+        stride: usize,
+    ) {
+        let mut zr = [[0.0; W]; M];
+        let mut zi = [[0.0; W]; M];
+        let mut ar = [[0.0; W]; M];
+        let mut ai = [[0.0; W]; M];
+        zr.copy_from_slice(&g.z_re[..M]);
+        zi.copy_from_slice(&g.z_im[..M]);
+        ar.copy_from_slice(&g.a_re[..M]);
+        ai.copy_from_slice(&g.a_im[..M]);
+        let (br, bi) = (g.b_re, g.b_im);
+        for (t, &xin) in x.iter().enumerate() {
+            let mut yr = [0.0; W];
+            let mut yi = [0.0; W];
             for l in 0..W {
-                zr[k][l] = zr[k + 1][l] - (ar[k][l] * yr[l] - ai[k][l] * yi[l]);
-                zi[k][l] = zi[k + 1][l] - (ar[k][l] * yi[l] + ai[k][l] * yr[l]);
+                yr[l] = zr[0][l] + br[l] * xin;
+                yi[l] = zi[0][l] + bi[l] * xin;
             }
+            for k in 0..M - 1 {
+                for l in 0..W {
+                    zr[k][l] = zr[k + 1][l] - (ar[k][l] * yr[l] - ai[k][l] * yi[l]);
+                    zi[k][l] = zi[k + 1][l] - (ar[k][l] * yi[l] + ai[k][l] * yr[l]);
+                }
+            }
+            for l in 0..W {
+                zr[M - 1][l] = -(ar[M - 1][l] * yr[l] - ai[M - 1][l] * yi[l]);
+                zi[M - 1][l] = -(ar[M - 1][l] * yi[l] + ai[M - 1][l] * yr[l]);
+            }
+            for y in &mut yr {
+                *y *= 2.0;
+            }
+            out[t * stride..t * stride + W].copy_from_slice(&yr);
         }
-        for l in 0..W {
-            zr[M - 1][l] = -(ar[M - 1][l] * yr[l] - ai[M - 1][l] * yi[l]);
-            zi[M - 1][l] = -(ar[M - 1][l] * yi[l] + ai[M - 1][l] * yr[l]);
-        }
-        for y in &mut yr {
-            *y *= 2.0;
-        }
-        out[t * stride..t * stride + W].copy_from_slice(&yr);
+        g.z_re[..M].copy_from_slice(&zr);
+        g.z_im[..M].copy_from_slice(&zi);
     }
-    g.z_re[..M].copy_from_slice(&zr);
-    g.z_im[..M].copy_from_slice(&zi);
-}
+);
 
 impl Processor for Gammatone {
     fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
