@@ -17,6 +17,15 @@ pub enum Error {
         /// Comma-separated list of the accepted names.
         known: String,
     },
+    /// A request definition that the registry refuses (name taken, dependency or extra
+    /// input not registered, a parameter name declared elsewhere with another meaning).
+    #[error("cannot register request '{name}': {reason}")]
+    RegistrationRefused {
+        /// The request's name.
+        name: String,
+        /// Why, and what to change.
+        reason: String,
+    },
     /// A parameter name that no processor declares.
     #[error("unknown parameter '{name}'{hint}")]
     UnknownParameter {
@@ -77,5 +86,38 @@ pub enum Error {
     Interrupted,
 }
 
+impl Error {
+    /// An [`Error::InvalidParameter`] for parameter `name` (its AFE name): `value` as the
+    /// caller renders it (a number, a list, or a short account such as `[2000 values]`)
+    /// and `reason`, what is accepted instead.
+    pub fn invalid(
+        name: impl Into<String>,
+        value: impl std::fmt::Display,
+        reason: impl Into<String>,
+    ) -> Self {
+        Error::InvalidParameter {
+            name: name.into(),
+            value: value.to_string(),
+            reason: reason.into(),
+        }
+    }
+}
+
 /// Shorthand for results carrying [`enum@Error`].
 pub type Result<T> = std::result::Result<T, Error>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn invalid_names_the_parameter_the_value_and_what_is_accepted() {
+        let e = Error::invalid("fb_nChannels", 0, "must be at least 1");
+        assert_eq!(
+            e.to_string(),
+            "invalid value 0 for parameter 'fb_nChannels': must be at least 1"
+        );
+        let shortest = Error::invalid("x", format_args!("{:?}", 1e308), String::from("r"));
+        assert!(matches!(shortest, Error::InvalidParameter { value, .. } if value == "1e308"));
+    }
+}

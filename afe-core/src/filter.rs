@@ -278,32 +278,28 @@ fn run_lanes<const M: usize>(
     }
 }
 
-#[cfg_attr(
-    not(feature = "no-avx512"),
-    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
-)]
-#[cfg_attr(
-    feature = "no-avx512",
-    multiversion::multiversion(targets("x86_64+avx2"))
-)]
-fn lanes_kernel<const M: usize, const V: usize>(
-    filter: (&[f64], &[f64]),
-    state: (&mut [f64], usize, usize),
-    (input, data): (Source<'_>, &mut [f64]),
-    strides: (usize, usize),
-    starts: [usize; V],
-) {
-    // One row loop per source, so that the loop itself carries no branch on it.
-    match input {
-        Source::InPlace => lanes_loop::<M, V, false>(filter, state, None, data, strides, starts),
-        Source::Input(i) => {
-            lanes_loop::<M, V, false>(filter, state, Some(i), data, strides, starts);
-        }
-        Source::Rectified(i) => {
-            lanes_loop::<M, V, true>(filter, state, Some(i), data, strides, starts);
+crate::simd_kernel!(
+    fn lanes_kernel<const M: usize, const V: usize>(
+        filter: (&[f64], &[f64]),
+        state: (&mut [f64], usize, usize),
+        (input, data): (Source<'_>, &mut [f64]),
+        strides: (usize, usize),
+        starts: [usize; V],
+    ) {
+        // One row loop per source, so that the loop itself carries no branch on it.
+        match input {
+            Source::InPlace => {
+                lanes_loop::<M, V, false>(filter, state, None, data, strides, starts)
+            }
+            Source::Input(i) => {
+                lanes_loop::<M, V, false>(filter, state, Some(i), data, strides, starts);
+            }
+            Source::Rectified(i) => {
+                lanes_loop::<M, V, true>(filter, state, Some(i), data, strides, starts);
+            }
         }
     }
-}
+);
 
 /// The row loop of [`lanes_kernel`]: rows from `input` (half-wave rectified if
 /// `RECTIFY`), or from `data` itself when `input` is `None`.

@@ -1,11 +1,13 @@
-//! Core types of `afe`: time-major signal blocks, the [`Processor`] contract, AFE
-//! parameters, the error type, and the DSP primitives the processors are built from
+//! Core types of `afe`: time-major signal blocks, the [`Processor`] contract, the
+//! [`Descriptor`] a processor module declares for its request, AFE parameters, the error
+//! type, and the DSP primitives the processors are built from
 //! (DF2T filtering, Butterworth and `fir2` design, windows, the ERB scale, framing, the
 //! analytic signal, Savitzky–Golay smoothing). Nothing here knows a processor by name.
 
 pub mod block;
 pub mod butter;
 pub mod cpu;
+pub mod descriptor;
 pub mod erb;
 pub mod error;
 pub mod filter;
@@ -15,11 +17,14 @@ pub mod hilbert;
 mod huge_pages;
 pub mod lanes;
 pub mod params;
+pub mod power;
 pub mod processor;
 pub mod sgolay;
+pub mod simd;
 pub mod window;
 
 pub use block::{Block, DrawAs, SignalInfo, SignalKind};
+pub use descriptor::{request_def, Built, Configured, Descriptor, Ears, RequestDef};
 pub use error::{Error, Result};
 pub use params::{NoParams, ParamKind, ParamMap, ParamSpec, Params};
 pub use processor::{Part, Processor};

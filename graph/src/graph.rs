@@ -1,6 +1,8 @@
 //! The processor DAG and its sequential executor (the reference for every scheduler).
 
-use afe_core::{Block, ParamMap, Processor, SignalInfo};
+use std::sync::Arc;
+
+use afe_core::{Block, Configured, ParamMap, Processor, SignalInfo};
 use afe_processors::RequestDef;
 
 /// Which ear a node output belongs to, named as in the AFE's output signals.
@@ -44,8 +46,13 @@ pub(crate) struct Node {
     pub name: &'static str,
     /// What the node computes (`None` for the source node).
     pub def: Option<&'static RequestDef>,
-    /// The request parameters the node was built from (to rebuild it after an edit).
-    pub build_params: ParamMap,
+    /// The node's parameters, parsed once from the request's map into the processor's
+    /// typed parameters (`None` for the source node); the nodes that one request places
+    /// side by side (left and right ear) share it.
+    pub config: Option<Arc<dyn Configured>>,
+    /// The request's parameter map the node was configured from, kept only to configure
+    /// it again with one parameter changed (see `Graph::modify`).
+    pub request_params: ParamMap,
     /// 1-based instance number among the nodes of the same name and channel.
     pub instance: usize,
     /// Canonical own parameters (used to share nodes between requests).
@@ -82,7 +89,8 @@ impl Graph {
         let input = Node {
             name: "input",
             def: None,
-            build_params: ParamMap::new(),
+            config: None,
+            request_params: ParamMap::new(),
             instance: 1,
             params: ParamMap::new(),
             parents: Vec::new(),
@@ -166,9 +174,7 @@ impl Graph {
     pub fn invariant_nodes(&self) -> Vec<bool> {
         let mut invariant = vec![true; self.nodes.len()];
         for (i, node) in self.nodes.iter().enumerate().skip(1) {
-            invariant[i] = node
-                .def
-                .is_none_or(|d| (d.chunk_invariant)(&node.build_params))
+            invariant[i] = node.config.as_ref().is_none_or(|c| c.chunk_invariant())
                 && node.feedback_from.is_none()
                 && node.parents.iter().all(|p| invariant[p.node]);
         }
@@ -183,11 +189,10 @@ impl Graph {
         let fs = self.nodes[0].infos.first().map_or(0.0, |i| i.fs_hz);
         let mut prefix = 0;
         for node in self.nodes.iter().skip(1) {
-            let own = match node.def {
-                Some(d) if !(d.chunk_invariant)(&node.build_params) => {
-                    (d.one_call_prefix_s)(&node.build_params)
-                        .map(|s| ((s.max(0.0) * fs).ceil() as usize).saturating_add(1))
-                }
+            let own = match &node.config {
+                Some(c) if !c.chunk_invariant() => c
+                    .one_call_prefix_s()
+                    .map(|s| ((s.max(0.0) * fs).ceil() as usize).saturating_add(1)),
                 _ => Some(0),
             };
             match own {

@@ -805,7 +805,7 @@ impl Manager {
             });
         }
         self.edit(|m| {
-            for n in m.graph.modify(&chain, name, &params)? {
+            for n in m.graph.modify(&chain, name, &params[name])? {
                 m.restart_clocks(n);
             }
             if let Some(Some(req)) = m.requests.get_mut(handle.0) {

@@ -4,7 +4,9 @@
 //! the processors that declare it and everything computed from them. Execution lives in
 //! [`crate::manager`] and the executors; nothing here runs a processor.
 
-use afe_core::{Block, Error, ParamMap, Result, SignalInfo};
+use std::sync::Arc;
+
+use afe_core::{Block, Configured, Error, ParamMap, Result, SignalInfo};
 use afe_processors::{find_request, Ears, RequestDef};
 
 use crate::graph::{Channel, Graph, Node, OutputRef, MAX_INPUTS};
@@ -34,9 +36,10 @@ impl Graph {
             .map(|output| OutputRef { node: 0, output })
             .collect();
         for def in chain.iter().rev() {
-            let own = (def.canonical)(params)?;
+            let config: Arc<dyn Configured> = (def.configure)(params)?.into();
+            let own = config.canonical();
             let mut extras: Vec<Vec<OutputRef>> = Vec::new();
-            for extra in (def.extra_inputs)(params) {
+            for extra in config.extra_inputs() {
                 extras.push(self.resolve(ears, &chain_of(extra)?, params, request)?);
             }
             let groups: Vec<Vec<OutputRef>> = match def.ears {
@@ -59,12 +62,12 @@ impl Graph {
                     vec![g]
                 }
             };
-            let instance = self.instance_for(def.name, &own, &groups);
+            let instance = self.instance_for(def.name, own, &groups);
             let mut next = Vec::new();
             for parents in groups {
-                let node = match self.find_node(def.name, &own, &parents) {
+                let node = match self.find_node(def.name, own, &parents) {
                     Some(n) => n,
-                    None => self.add_node(def, params, own.clone(), parents, instance)?,
+                    None => self.add_node(def, params, &config, parents, instance)?,
                 };
                 if let Some(target) = def.feeds_back_to {
                     self.connect_feedback(node, target)?;
@@ -146,12 +149,12 @@ impl Graph {
             .unwrap_or(0)
     }
 
-    /// Builds a node from the request's `params`; `own` is its canonical parameter map.
+    /// Builds a node from `config`, the request's `params` parsed for `def`.
     fn add_node(
         &mut self,
         def: &'static RequestDef,
         params: &ParamMap,
-        own: ParamMap,
+        config: &Arc<dyn Configured>,
         parents: Vec<OutputRef>,
         instance: usize,
     ) -> Result<usize> {
@@ -166,7 +169,7 @@ impl Graph {
             .iter()
             .map(|p| self.nodes[p.node].infos[p.output].clone())
             .collect();
-        let built = (def.build)(params, &inputs)?;
+        let built = config.build(&inputs)?;
         let channels = match def.ears {
             Ears::All => parents
                 .iter()
@@ -185,9 +188,10 @@ impl Graph {
         self.nodes.push(Node {
             name: def.name,
             def: Some(def),
-            build_params: params.clone(),
+            config: Some(Arc::clone(config)),
+            request_params: params.clone(),
             instance,
-            params: own,
+            params: config.canonical().clone(),
             parents,
             feedback_from: None,
             processor: Some(built.processor),
@@ -252,27 +256,28 @@ impl Graph {
         (0..seen.len()).filter(|i| seen[*i]).collect()
     }
 
-    /// Sets parameter `name` to `params[name]` in the nodes of `chain` that declare it and
-    /// rebuilds them and every node computed from them (fresh state). Every replacement is
-    /// built before any is installed, so a rejected value changes nothing.
-    /// Returns the nodes rebuilt.
+    /// Sets parameter `name` to `value` in the nodes of `chain` that declare it (each
+    /// configured again from the request map it was configured from, with the new value)
+    /// and rebuilds them and every node computed from them (fresh state; the others keep
+    /// their typed parameters). Every replacement is built before any is installed, so a
+    /// rejected value changes nothing. Returns the nodes rebuilt.
     pub(crate) fn modify(
         &mut self,
         chain: &[usize],
         name: &str,
-        params: &ParamMap,
+        value: &serde_json::Value,
     ) -> Result<Vec<usize>> {
         let n = self.nodes.len();
         let mut dirty = vec![false; n];
-        let mut rebuilt: Vec<(usize, ParamMap, ParamMap)> = Vec::new();
+        let mut reconfigured: Vec<(usize, ParamMap, Arc<dyn Configured>)> = Vec::new();
         for &i in chain {
             let node = &self.nodes[i];
             if let Some(def) = node.def {
                 if def.params.iter().any(|p| p.name == name) {
-                    let own = (def.canonical)(params)?;
-                    let mut build = node.build_params.clone();
-                    build.insert(name.to_string(), params[name].clone());
-                    rebuilt.push((i, build, own));
+                    let mut request = node.request_params.clone();
+                    request.insert(name.to_string(), value.clone());
+                    let config = (def.configure)(&request)?.into();
+                    reconfigured.push((i, request, config));
                     dirty[i] = true;
                 }
             }
@@ -286,24 +291,26 @@ impl Graph {
         let mut built = Vec::new();
         for i in (1..n).filter(|i| dirty[*i]) {
             let node = &self.nodes[i];
-            let def = node
-                .def
-                .ok_or_else(|| Error::InvalidInput("the input node cannot be rebuilt".into()))?;
-            let (build, own) = match rebuilt.iter().find(|r| r.0 == i) {
-                Some((_, b, o)) => (b.clone(), Some(o.clone())),
-                None => (node.build_params.clone(), None),
+            let (request, config) = match reconfigured.iter().find(|r| r.0 == i) {
+                Some((_, request, config)) => (Some(request.clone()), Arc::clone(config)),
+                None => (
+                    None,
+                    node.config.clone().ok_or_else(|| {
+                        Error::InvalidInput("the input node cannot be rebuilt".into())
+                    })?,
+                ),
             };
             let inputs: Vec<SignalInfo> = node
                 .parents
                 .iter()
                 .map(|p| infos[p.node][p.output].clone())
                 .collect();
-            let b = (def.build)(&build, &inputs)?;
+            let b = config.build(&inputs)?;
             infos[i] = b.outputs.clone();
-            built.push((i, b, build, own));
+            built.push((i, b, request, config));
         }
         let rebuilt_nodes = built.iter().map(|b| b.0).collect();
-        for (i, b, build, own) in built {
+        for (i, b, request, config) in built {
             let node = &mut self.nodes[i];
             node.outputs = b
                 .outputs
@@ -312,10 +319,11 @@ impl Graph {
                 .collect();
             node.infos = b.outputs;
             node.processor = Some(b.processor);
-            node.build_params = build;
-            if let Some(own) = own {
-                node.params = own;
+            if let Some(request) = request {
+                node.params = config.canonical().clone();
+                node.request_params = request;
             }
+            node.config = Some(config);
         }
         Ok(rebuilt_nodes)
     }

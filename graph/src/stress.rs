@@ -177,7 +177,8 @@ fn random_graph(seed: u64, nodes: usize) -> Graph {
         g.nodes.push(Node {
             name: "mix",
             def: None,
-            build_params: ParamMap::new(),
+            config: None,
+            request_params: ParamMap::new(),
             instance: i,
             params: ParamMap::new(),
             parents,

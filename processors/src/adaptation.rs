@@ -5,12 +5,12 @@
 //! stationary input and passes fast changes: the output is in model units, 0 at the
 //! level floor. Exactly chunk-invariant: the loop states carry over between chunks.
 
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::erb::linspace;
 use afe_core::{Block, DrawAs, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
 
 use crate::exp::exp;
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// A named parameter preset of the AFE (`adpt_model`), which overrides `adpt_lim`,
 /// `adpt_mindB` and `adpt_tau`.
@@ -311,83 +311,79 @@ struct Limit {
     off: Vec<f64>,
 }
 
-/// Runs the loops over `input` (`[time][channel]`) into `out`, eight lanes at a time so
-/// that the divisions, state updates and the overshoot limitation (computed for the eight
-/// lanes where one of them is above 1, kept where the value is) vectorise.
-///
-/// The loops are staggered: at step `t`, loop `j` works on sample `t − j`, taking what
-/// loop `j − 1` gave at step `t − 1`. The loops of one step are then independent, so
-/// their divisions and limitations overlap instead of each waiting on the one before;
-/// every sample still sees the same operations in the same order.
-#[cfg_attr(
-    not(feature = "no-avx512"),
-    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2+fma"))
-)]
-#[cfg_attr(
-    feature = "no-avx512",
-    multiversion::multiversion(targets("x86_64+avx2+fma"))
-)]
-fn adapt(a: &mut Adaptation, input: &[f64], out: &mut [f64]) {
-    let (nc, lanes, loops) = (a.channels.max(1), a.lanes, a.a1.len());
-    let n = input.len() / nc;
-    for t in 0..(n + loops).saturating_sub(1) {
-        if let Some(x) = input.get(t * nc..(t + 1) * nc) {
-            for ((v, &x), &m) in a.row.iter_mut().zip(x).zip(&a.min_level) {
-                *v = x.max(m);
-            }
-        }
-        // last loop first, so that each reads its predecessor's value of the step before
-        for j in (0..loops).rev().filter(|j| (*j..n + j).contains(&t)) {
-            let (before, from_j) = a.stages.split_at_mut(j * lanes);
-            let src = if j == 0 {
-                &a.row[..]
-            } else {
-                &before[(j - 1) * lanes..]
-            };
-            let (a1, b0) = (a.a1[j], a.b0[j]);
-            for (k, (src, dst)) in src
-                .chunks_exact(STEP)
-                .zip(from_j[..lanes].chunks_exact_mut(STEP))
-                .enumerate()
-            {
-                let at = j * lanes + k * STEP..j * lanes + (k + 1) * STEP;
-                let (mut v, mut s) = ([0.0; STEP], [0.0; STEP]);
-                v.copy_from_slice(src);
-                s.copy_from_slice(&a.state[at.clone()]);
-                for (v, s) in v.iter_mut().zip(&s) {
-                    *v /= s;
+afe_core::simd_kernel!(
+    fma,
+    /// Runs the loops over `input` (`[time][channel]`) into `out`, eight lanes at a time so
+    /// that the divisions, state updates and the overshoot limitation (computed for the eight
+    /// lanes where one of them is above 1, kept where the value is) vectorise.
+    ///
+    /// The loops are staggered: at step `t`, loop `j` works on sample `t − j`, taking what
+    /// loop `j − 1` gave at step `t − 1`. The loops of one step are then independent, so
+    /// their divisions and limitations overlap instead of each waiting on the one before;
+    /// every sample still sees the same operations in the same order.
+    fn adapt(a: &mut Adaptation, input: &[f64], out: &mut [f64]) {
+        let (nc, lanes, loops) = (a.channels.max(1), a.lanes, a.a1.len());
+        let n = input.len() / nc;
+        for t in 0..(n + loops).saturating_sub(1) {
+            if let Some(x) = input.get(t * nc..(t + 1) * nc) {
+                for ((v, &x), &m) in a.row.iter_mut().zip(x).zip(&a.min_level) {
+                    *v = x.max(m);
                 }
-                if let Some(l) = &a.limit {
-                    if v.iter().fold(false, |any, v| any | (*v > 1.0)) {
-                        let (mut f, mut ex, mut off) = ([0.0; STEP], [0.0; STEP], [0.0; STEP]);
-                        f.copy_from_slice(&l.f[at.clone()]);
-                        ex.copy_from_slice(&l.ex[at.clone()]);
-                        off.copy_from_slice(&l.off[at.clone()]);
-                        for (v, ((f, ex), off)) in v.iter_mut().zip(f.iter().zip(&ex).zip(&off)) {
-                            let limited = f / (1.0 + exp(ex * (*v - 1.0))) - off;
-                            *v = if *v > 1.0 { limited } else { *v };
+            }
+            // last loop first, so that each reads its predecessor's value of the step before
+            for j in (0..loops).rev().filter(|j| (*j..n + j).contains(&t)) {
+                let (before, from_j) = a.stages.split_at_mut(j * lanes);
+                let src = if j == 0 {
+                    &a.row[..]
+                } else {
+                    &before[(j - 1) * lanes..]
+                };
+                let (a1, b0) = (a.a1[j], a.b0[j]);
+                for (k, (src, dst)) in src
+                    .chunks_exact(STEP)
+                    .zip(from_j[..lanes].chunks_exact_mut(STEP))
+                    .enumerate()
+                {
+                    let at = j * lanes + k * STEP..j * lanes + (k + 1) * STEP;
+                    let (mut v, mut s) = ([0.0; STEP], [0.0; STEP]);
+                    v.copy_from_slice(src);
+                    s.copy_from_slice(&a.state[at.clone()]);
+                    for (v, s) in v.iter_mut().zip(&s) {
+                        *v /= s;
+                    }
+                    if let Some(l) = &a.limit {
+                        if v.iter().fold(false, |any, v| any | (*v > 1.0)) {
+                            let (mut f, mut ex, mut off) = ([0.0; STEP], [0.0; STEP], [0.0; STEP]);
+                            f.copy_from_slice(&l.f[at.clone()]);
+                            ex.copy_from_slice(&l.ex[at.clone()]);
+                            off.copy_from_slice(&l.off[at.clone()]);
+                            for (v, ((f, ex), off)) in v.iter_mut().zip(f.iter().zip(&ex).zip(&off))
+                            {
+                                let limited = f / (1.0 + exp(ex * (*v - 1.0))) - off;
+                                *v = if *v > 1.0 { limited } else { *v };
+                            }
                         }
                     }
+                    for (s, v) in s.iter_mut().zip(&v) {
+                        *s = a1 * *s + b0 * v;
+                    }
+                    a.state[at].copy_from_slice(&s);
+                    dst.copy_from_slice(&v);
                 }
-                for (s, v) in s.iter_mut().zip(&v) {
-                    *s = a1 * *s + b0 * v;
-                }
-                a.state[at].copy_from_slice(&s);
-                dst.copy_from_slice(&v);
             }
-        }
-        // the last loop has just finished sample t − (loops − 1)
-        if let Some(y) = (t + 1)
-            .checked_sub(loops)
-            .and_then(|s| out.get_mut(s * nc..(s + 1) * nc))
-        {
-            let last = &a.stages[(loops - 1) * lanes..];
-            for (((y, v), c), m) in y.iter_mut().zip(last).zip(&a.corr).zip(&a.mult) {
-                *y = (v - c) * m;
+            // the last loop has just finished sample t − (loops − 1)
+            if let Some(y) = (t + 1)
+                .checked_sub(loops)
+                .and_then(|s| out.get_mut(s * nc..(s + 1) * nc))
+            {
+                let last = &a.stages[(loops - 1) * lanes..];
+                for (((y, v), c), m) in y.iter_mut().zip(last).zip(&a.corr).zip(&a.mult) {
+                    *y = (v - c) * m;
+                }
             }
         }
     }
-}
+);
 
 impl Descriptor for Adaptation {
     type Params = AdaptationParams;

@@ -6,6 +6,7 @@
 use std::sync::Arc;
 
 use afe_core::butter::{butter, ButterType};
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::erb::linspace;
 use afe_core::filter::Df2t;
 use afe_core::framing::{Frame, FrameBuffer};
@@ -18,8 +19,6 @@ use realfft::{RealFftPlanner, RealToComplex};
 use serde::{Deserialize, Serialize};
 
 use crate::framed::MAX_WINDOW;
-
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// How the modulation bands are computed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -149,14 +148,6 @@ impl Params for AmsParams {
 /// Most modulation filters (the AFE uses 9 to 15): beyond, the features of every
 /// channel and band would not fit in memory (fuzzing asked for 2^32 filters).
 const MAX_FILTERS: usize = 1000;
-
-fn invalid(name: &str, value: impl ToString, reason: impl Into<String>) -> Error {
-    Error::InvalidParameter {
-        name: name.into(),
-        value: value.to_string(),
-        reason: reason.into(),
-    }
-}
 
 /// Keeps the stream samples whose global index is a multiple of the ratio, whatever the
 /// chunking (spec 31-downSampler).
@@ -297,21 +288,16 @@ impl HopSums {
     }
 }
 
-/// `acc += |w·row|`, element by element: one row of a frame's sums, weighted by its
-/// window value (the hop sums add whole rows with `w = 1`, which changes no bit).
-#[cfg_attr(
-    not(feature = "no-avx512"),
-    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2+fma"))
-)]
-#[cfg_attr(
-    feature = "no-avx512",
-    multiversion::multiversion(targets("x86_64+avx2+fma"))
-)]
-fn add_abs(acc: &mut [f64], w: f64, row: &[f64]) {
-    for (a, v) in acc.iter_mut().zip(row) {
-        *a += (w * v).abs();
+afe_core::simd_kernel!(
+    fma,
+    /// `acc += |w·row|`, element by element: one row of a frame's sums, weighted by its
+    /// window value (the hop sums add whole rows with `w = 1`, which changes no bit).
+    fn add_abs(acc: &mut [f64], w: f64, row: &[f64]) {
+        for (a, v) in acc.iter_mut().zip(row) {
+            *a += (w * v).abs();
+        }
     }
-}
+);
 
 impl std::fmt::Debug for AmsFeatures {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -333,7 +319,7 @@ fn log_bank(p: &AmsParams, fs_ds: f64, channels: usize) -> Result<(Vec<f64>, Vec
             .collect()
     } else {
         if p.cf_hz.iter().any(|f| *f <= 0.0) {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "ams_cfHz",
                 format!("{:?}", p.cf_hz),
                 "centre frequencies must be > 0 Hz",
@@ -360,7 +346,7 @@ fn log_bank(p: &AmsParams, fs_ds: f64, channels: usize) -> Result<(Vec<f64>, Vec
             ("ams_cfHz", f, String::new())
         };
         let fs = fs_ds * p.ds_ratio as f64;
-        invalid(
+        Error::invalid(
             name,
             value,
             format!(
@@ -438,27 +424,35 @@ impl AmsFeatures {
     pub fn new(params: &AmsParams, input: &SignalInfo) -> Result<(Self, SignalInfo)> {
         let p = params;
         if p.ds_ratio == 0 {
-            return Err(invalid("ams_dsRatio", 0, "must be a positive integer"));
+            return Err(Error::invalid(
+                "ams_dsRatio",
+                0,
+                "must be a positive integer",
+            ));
         }
         if p.cf_hz.len() > MAX_FILTERS {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "ams_cfHz",
                 format!("{} frequencies", p.cf_hz.len()),
                 format!("at most {MAX_FILTERS} modulation centre frequencies"),
             ));
         }
         if p.n_filters == 0 || p.n_filters > MAX_FILTERS {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "ams_nFilters",
                 p.n_filters,
                 format!("must be a positive integer, at most {MAX_FILTERS}"),
             ));
         }
         if p.low_freq_hz <= 0.0 {
-            return Err(invalid("ams_lowFreqHz", p.low_freq_hz, "must be > 0 Hz"));
+            return Err(Error::invalid(
+                "ams_lowFreqHz",
+                p.low_freq_hz,
+                "must be > 0 Hz",
+            ));
         }
         if p.high_freq_hz <= p.low_freq_hz {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "ams_highFreqHz",
                 p.high_freq_hz,
                 format!("must be above ams_lowFreqHz = {} Hz", p.low_freq_hz),
@@ -467,7 +461,7 @@ impl AmsFeatures {
         let fs_ds = input.fs_hz / p.ds_ratio as f64;
         let w = (2.0 * (p.w_size_sec * fs_ds / 2.0).round()).max(0.0) as usize;
         if p.w_size_sec <= 0.0 || !(2..=MAX_WINDOW).contains(&w) {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "ams_wSizeSec",
                 p.w_size_sec,
                 format!(
@@ -478,7 +472,7 @@ impl AmsFeatures {
         }
         let h = (w as f64 / (p.w_size_sec / p.h_size_sec)).round();
         if p.h_size_sec <= 0.0 || !(1.0..=MAX_WINDOW as f64).contains(&h) {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "ams_hSizeSec",
                 p.h_size_sec,
                 format!(
@@ -499,7 +493,7 @@ impl AmsFeatures {
             }
             AmsFbType::Lin => {
                 if !p.cf_hz.is_empty() {
-                    return Err(invalid(
+                    return Err(Error::invalid(
                         "ams_cfHz",
                         format!("{:?}", p.cf_hz),
                         "explicit centre frequencies need ams_fbType = 'log'",

@@ -6,6 +6,7 @@
 //! "unbiased" divisor and normalised by lag 0. Chunk-invariant: only un-framed samples
 //! carry over.
 
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::framing::FrameBuffer;
 use afe_core::window::{window, WINDOW_NAMES};
 use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
@@ -14,8 +15,6 @@ use serde::{Deserialize, Serialize};
 use crate::even_inverse::EvenInverse;
 use crate::framed::check_framing;
 use crate::real_fft::RealFft;
-
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// How a frame is centre-clipped (AFE `ac_clipMethod`): samples between the thresholds
 /// become 0, the others are kept as below.
@@ -255,30 +254,25 @@ fn clip(f: &[f64], method: ClipMethod, alpha: f64, g: &mut [f64]) {
     }
 }
 
-/// Windows each complete frame of `input` into columns and correlates every channel,
-/// into `out` (`[frame][channel][lag]`).
-#[cfg_attr(
-    not(feature = "no-avx512"),
-    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2+fma"))
-)]
-#[cfg_attr(
-    feature = "no-avx512",
-    multiversion::multiversion(targets("x86_64+avx2+fma"))
-)]
-fn correlate_frames(ac: &mut Autocorrelation, input: &Block, out: &mut [f64]) {
-    let nc = input.width();
-    let w = ac.win.len();
-    for (k, frame_out) in out.chunks_exact_mut((nc * (w - 1)).max(1)).enumerate() {
-        window_columns(
-            &ac.frames.frame(input.as_slice(), k),
-            &ac.win,
-            &mut ac.columns,
-        );
-        for (c, o) in frame_out.chunks_exact_mut(w - 1).enumerate() {
-            ac.correlate(c, o);
+afe_core::simd_kernel!(
+    fma,
+    /// Windows each complete frame of `input` into columns and correlates every channel,
+    /// into `out` (`[frame][channel][lag]`).
+    fn correlate_frames(ac: &mut Autocorrelation, input: &Block, out: &mut [f64]) {
+        let nc = input.width();
+        let w = ac.win.len();
+        for (k, frame_out) in out.chunks_exact_mut((nc * (w - 1)).max(1)).enumerate() {
+            window_columns(
+                &ac.frames.frame(input.as_slice(), k),
+                &ac.win,
+                &mut ac.columns,
+            );
+            for (c, o) in frame_out.chunks_exact_mut(w - 1).enumerate() {
+                ac.correlate(c, o);
+            }
         }
     }
-}
+);
 
 /// Writes the windowed rows of `frame` (`[time][channel]`) into `columns`
 /// (`[channel][time]`), four rows at a time so that each column gets four adjacent

@@ -2,11 +2,10 @@
 //! free order on the time-domain signal of each ear, with the design shared with the IHC.
 
 use afe_core::butter::{butter, butter_sos, Biquad, ButterType};
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::filter::Df2t;
 use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
-
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// Parameters of the Butterworth filter (`bw_` prefix, in the AFE naming style).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -6,6 +6,7 @@ use std::ops::Range;
 use std::sync::Arc;
 
 use afe_core::cpu::has_avx512;
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::framing::Frame;
 use afe_core::lanes::vector_start;
 use afe_core::window::{window, WINDOW_NAMES};
@@ -15,8 +16,6 @@ use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use serde::{Deserialize, Serialize};
 
 use crate::framed::{check_framing, EarFrames};
-
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// Parameters of the cross-correlation, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -343,131 +342,120 @@ const BATCH: usize = 4;
 /// Per-group energies `Σ (win·x)²` of the left and right frames.
 type Energy = ([f64; LANES], [f64; LANES]);
 
-/// Windows the frame pair (`[time][channel]`) into the polyphase rows of `G` groups
-/// (first input channels `starts`; `left` and `right` laid out as in [`Direct`]), with
-/// the frames' energies into `energy`, summed in time order in registers. Row `n` of the
-/// left frame is row `p = n + maxLag` of `L`: row `p / 2` of `L_even` or `L_odd`, and of
-/// the differences with its neighbour (`L[p−1] − L[p]` at row `p/2 − 1` for an even `p`,
-/// `r[n−1] − r[n]` at row `n / 2` for an odd `n`). `WIDE`: at least `LANES` channels
-/// (else the frame's channels fill the first lanes, the others stay zero).
-#[cfg_attr(
-    not(feature = "no-avx512"),
-    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
-)]
-#[cfg_attr(
-    feature = "no-avx512",
-    multiversion::multiversion(targets("x86_64+avx2"))
-)]
-fn window_frames<'a, const G: usize, const WIDE: bool>(
-    win: &[f64],
-    (frame_l, frame_r): (Frame<'a>, Frame<'a>),
-    max_lag: usize,
-    starts: &[usize],
-    left: &mut [Lanes],
-    right: &mut [Lanes],
-    energy: &mut [Energy],
-) {
-    let (rows_l, half) = (left.len() / (3 * G), right.len() / (3 * G));
-    let mut el = [[0.0; LANES]; G];
-    let mut er = [[0.0; LANES]; G];
-    // the previous row of each group (zero before the frame)
-    let mut prev_l = [[0.0; LANES]; G];
-    let mut prev_r = [[0.0; LANES]; G];
-    let (nc, first) = (frame_l.width(), frame_l.first_column());
-    let mut n = 0;
-    let segments = frame_l.segments().into_iter().zip(frame_r.segments());
-    for ((part_l, stride, at), (part_r, _, _)) in segments {
-        let rows = part_l.chunks_exact(stride).zip(part_r.chunks_exact(stride));
-        for ((row_l, row_r), &w) in rows.zip(&win[n..]) {
-            let p = n + max_lag;
-            let at_l = (p % 2) * rows_l + p / 2;
-            let at_r = (n % 2) * half + n / 2;
-            for g in 0..G {
-                let (mut xl, mut xr) = ([0.0; LANES], [0.0; LANES]);
-                if WIDE {
-                    let c0 = at + starts[g] - first;
-                    xl.copy_from_slice(&row_l[c0..c0 + LANES]);
-                    xr.copy_from_slice(&row_r[c0..c0 + LANES]);
-                } else {
-                    xl[..nc].copy_from_slice(&row_l[at..at + nc]);
-                    xr[..nc].copy_from_slice(&row_r[at..at + nc]);
-                }
-                for l in 0..LANES {
-                    xl[l] *= w;
-                    xr[l] *= w;
-                    el[g][l] += xl[l] * xl[l];
-                    er[g][l] += xr[l] * xr[l];
-                }
-                let (gl, gr) = (3 * rows_l * g, 3 * half * g);
-                left[gl + at_l].0 = xl;
-                right[gr + at_r].0 = xr;
-                if p % 2 == 0 && p >= 2 {
-                    let s = &mut left[gl + 2 * rows_l + p / 2 - 1].0;
-                    for l in 0..LANES {
-                        s[l] = prev_l[g][l] - xl[l];
+afe_core::simd_kernel!(
+    /// Windows the frame pair (`[time][channel]`) into the polyphase rows of `G` groups
+    /// (first input channels `starts`; `left` and `right` laid out as in [`Direct`]), with
+    /// the frames' energies into `energy`, summed in time order in registers. Row `n` of the
+    /// left frame is row `p = n + maxLag` of `L`: row `p / 2` of `L_even` or `L_odd`, and of
+    /// the differences with its neighbour (`L[p−1] − L[p]` at row `p/2 − 1` for an even `p`,
+    /// `r[n−1] − r[n]` at row `n / 2` for an odd `n`). `WIDE`: at least `LANES` channels
+    /// (else the frame's channels fill the first lanes, the others stay zero).
+    fn window_frames<'a, const G: usize, const WIDE: bool>(
+        win: &[f64],
+        (frame_l, frame_r): (Frame<'a>, Frame<'a>),
+        max_lag: usize,
+        starts: &[usize],
+        left: &mut [Lanes],
+        right: &mut [Lanes],
+        energy: &mut [Energy],
+    ) {
+        let (rows_l, half) = (left.len() / (3 * G), right.len() / (3 * G));
+        let mut el = [[0.0; LANES]; G];
+        let mut er = [[0.0; LANES]; G];
+        // the previous row of each group (zero before the frame)
+        let mut prev_l = [[0.0; LANES]; G];
+        let mut prev_r = [[0.0; LANES]; G];
+        let (nc, first) = (frame_l.width(), frame_l.first_column());
+        let mut n = 0;
+        let segments = frame_l.segments().into_iter().zip(frame_r.segments());
+        for ((part_l, stride, at), (part_r, _, _)) in segments {
+            let rows = part_l.chunks_exact(stride).zip(part_r.chunks_exact(stride));
+            for ((row_l, row_r), &w) in rows.zip(&win[n..]) {
+                let p = n + max_lag;
+                let at_l = (p % 2) * rows_l + p / 2;
+                let at_r = (n % 2) * half + n / 2;
+                for g in 0..G {
+                    let (mut xl, mut xr) = ([0.0; LANES], [0.0; LANES]);
+                    if WIDE {
+                        let c0 = at + starts[g] - first;
+                        xl.copy_from_slice(&row_l[c0..c0 + LANES]);
+                        xr.copy_from_slice(&row_r[c0..c0 + LANES]);
+                    } else {
+                        xl[..nc].copy_from_slice(&row_l[at..at + nc]);
+                        xr[..nc].copy_from_slice(&row_r[at..at + nc]);
                     }
-                }
-                if n % 2 == 1 {
-                    let s = &mut right[gr + 2 * half + n / 2].0;
                     for l in 0..LANES {
-                        s[l] = prev_r[g][l] - xr[l];
+                        xl[l] *= w;
+                        xr[l] *= w;
+                        el[g][l] += xl[l] * xl[l];
+                        er[g][l] += xr[l] * xr[l];
                     }
+                    let (gl, gr) = (3 * rows_l * g, 3 * half * g);
+                    left[gl + at_l].0 = xl;
+                    right[gr + at_r].0 = xr;
+                    if p % 2 == 0 && p >= 2 {
+                        let s = &mut left[gl + 2 * rows_l + p / 2 - 1].0;
+                        for l in 0..LANES {
+                            s[l] = prev_l[g][l] - xl[l];
+                        }
+                    }
+                    if n % 2 == 1 {
+                        let s = &mut right[gr + 2 * half + n / 2].0;
+                        for l in 0..LANES {
+                            s[l] = prev_r[g][l] - xr[l];
+                        }
+                    }
+                    (prev_l[g], prev_r[g]) = (xl, xr);
                 }
-                (prev_l[g], prev_r[g]) = (xl, xr);
+                n += 1;
             }
-            n += 1;
+        }
+        // a last row of odd parity: its difference with the zero after the frame (row `p`)
+        let p = n + max_lag;
+        for g in 0..G {
+            if p % 2 == 0 {
+                left[3 * rows_l * g + 2 * rows_l + p / 2 - 1].0 = prev_l[g];
+            }
+            energy[g] = (el[g], er[g]);
         }
     }
-    // a last row of odd parity: its difference with the zero after the frame (row `p`)
-    let p = n + max_lag;
-    for g in 0..G {
-        if p % 2 == 0 {
-            left[3 * rows_l * g + 2 * rows_l + p / 2 - 1].0 = prev_l[g];
-        }
-        energy[g] = (el[g], er[g]);
-    }
-}
+);
 
-/// `acc[i] = Σ_n left[n + i] · right[n]` for every row `i` of `acc`, lanes apart, with
-/// `B` accumulators in registers per pass. Fused multiply-adds: one rounding per term,
-/// the same on every machine (a library call where the CPU lacks FMA).
-#[cfg_attr(
-    not(feature = "no-avx512"),
-    multiversion::multiversion(targets("x86_64+avx512f+avx512vl+fma", "x86_64+avx2+fma"))
-)]
-#[cfg_attr(
-    feature = "no-avx512",
-    multiversion::multiversion(targets("x86_64+avx2+fma"))
-)]
-fn dot_lags<const B: usize>(left: &[Lanes], right: &[Lanes], acc: &mut [Lanes]) {
-    let w = right.len();
-    for (j, out) in acc.chunks_exact_mut(B).enumerate() {
-        let rows = &left[j * B..j * B + w + B - 1];
-        let mut a = [Lanes::default(); B];
-        // Two samples per step share B − 1 of their B + 1 left rows (fewer loads); each
-        // accumulator still adds its terms in sample order.
-        let pairs = right.chunks_exact(2);
-        let odd = pairs.remainder();
-        for (n, r) in pairs.enumerate() {
-            let win = &rows[2 * n..2 * n + B + 1];
-            for i in 0..B {
-                for l in 0..LANES {
-                    let t = win[i].0[l].mul_add(r[0].0[l], a[i].0[l]);
-                    a[i].0[l] = win[i + 1].0[l].mul_add(r[1].0[l], t);
+afe_core::simd_kernel!(
+    fma,
+    /// `acc[i] = Σ_n left[n + i] · right[n]` for every row `i` of `acc`, lanes apart, with
+    /// `B` accumulators in registers per pass. Fused multiply-adds: one rounding per term,
+    /// the same on every machine (a library call where the CPU lacks FMA).
+    fn dot_lags<const B: usize>(left: &[Lanes], right: &[Lanes], acc: &mut [Lanes]) {
+        let w = right.len();
+        for (j, out) in acc.chunks_exact_mut(B).enumerate() {
+            let rows = &left[j * B..j * B + w + B - 1];
+            let mut a = [Lanes::default(); B];
+            // Two samples per step share B − 1 of their B + 1 left rows (fewer loads); each
+            // accumulator still adds its terms in sample order.
+            let pairs = right.chunks_exact(2);
+            let odd = pairs.remainder();
+            for (n, r) in pairs.enumerate() {
+                let win = &rows[2 * n..2 * n + B + 1];
+                for i in 0..B {
+                    for l in 0..LANES {
+                        let t = win[i].0[l].mul_add(r[0].0[l], a[i].0[l]);
+                        a[i].0[l] = win[i + 1].0[l].mul_add(r[1].0[l], t);
+                    }
                 }
             }
-        }
-        if let [r] = odd {
-            let win = &rows[w - 1..w - 1 + B];
-            for i in 0..B {
-                for l in 0..LANES {
-                    a[i].0[l] = win[i].0[l].mul_add(r.0[l], a[i].0[l]);
+            if let [r] = odd {
+                let win = &rows[w - 1..w - 1 + B];
+                for i in 0..B {
+                    for l in 0..LANES {
+                        a[i].0[l] = win[i].0[l].mul_add(r.0[l], a[i].0[l]);
+                    }
                 }
             }
+            out.copy_from_slice(&a);
         }
-        out.copy_from_slice(&a);
     }
-}
+);
 
 impl FftEngine {
     fn new(win: Vec<f64>, max_lag: usize) -> Self {

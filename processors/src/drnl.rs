@@ -2,7 +2,8 @@
 //! filterbank (spec 12-drnl), per channel the sum of a linear path and a compressive
 //! non-linear path, each a cascade of second-order sections run as DF2T in f64 with the
 //! reference's operation order. Two parameter sets: CASP (Jepsen et al. 2008, default)
-//! and MAP 1.14h. The request and the grid are [`crate::filterbank`]'s.
+//! and MAP 1.14h. The request is [`crate::filterbank`]'s, the parameters and the grid
+//! [`crate::filterbank_params`]'s.
 //!
 //! Reproduced as the AFE computes them: the gammatone-like sections take the low-pass
 //! cut-offs as centre frequencies, CASP's compression constants jump at 1000 Hz, MAP
@@ -14,24 +15,11 @@ use std::f64::consts::{LN_2, PI, SQRT_2};
 use afe_core::filter::Df2t;
 use afe_core::lanes::vector_start;
 use afe_core::params::per_channel;
-use afe_core::{Block, ParamMap, Processor, Result, SignalInfo};
-use serde::{Deserialize, Serialize};
+use afe_core::{Block, Error, ParamMap, Processor, Result, SignalInfo};
 use serde_json::json;
 
-use crate::filterbank::{invalid, FilterbankParams};
-
-/// DRNL parameter set (AFE `fb_model`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub enum DrnlModel {
-    /// Lopez-Poveda & Meddis (2001) as used in CASP (Jepsen et al. 2008): low-pass
-    /// sections on both paths, broken-stick compression.
-    #[serde(rename = "CASP")]
-    Casp,
-    /// MAP 1.14h: middle-ear (tympanic membrane and stapes) stage, no low-pass sections,
-    /// compression above a threshold.
-    #[serde(rename = "MAP")]
-    Map,
-}
+pub use crate::filterbank_params::DrnlModel;
+use crate::filterbank_params::FilterbankParams;
 
 /// The DRNL's verified parameters (the AFE's map after preparation): the grid, the model
 /// and both MOC gains expanded to one per channel.
@@ -404,96 +392,85 @@ struct Paths<const W: usize> {
     nl: Vec<[f64; W]>,
 }
 
-/// CASP: `lin = LP⁴(GT²(g·x))`, `nlin = LP(GT²(compress(GT²(moc·x))))`, out `lin + nlin`,
-/// for one group over one time block (at most the paths' length), `stride` values per
-/// output row. Section by section over the block, so that each recursion keeps its
-/// state in registers and the lanes' independent recursions hide each other's latency.
-/// Compiled for AVX-512 and AVX2 + FMA too, chosen at run time; every lane does the
-/// scalar operations in order, so the numbers depend neither on the instruction set nor
-/// on the lane. The filters fuse no multiply-add (they keep the reference's roundings);
-/// only [`ln_rough`] does, whose result is scaled by `delta` (about 5e−9) far below
-/// the output's last bit.
-#[cfg_attr(
-    not(feature = "no-avx512"),
-    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2+fma"))
-)]
-#[cfg_attr(
-    feature = "no-avx512",
-    multiversion::multiversion(targets("x86_64+avx2+fma"))
-)]
-fn run_casp<const W: usize>(
-    g: &mut Group<W>,
-    delta: f64,
-    x: &[f64],
-    paths: &mut Paths<W>,
-    out: &mut [f64],
-    stride: usize,
-) {
-    let lin = &mut paths.lin[..x.len()];
-    let nl = &mut paths.nl[..x.len()];
-    let z = &mut g.z;
-    g.gt_lin.run_from(&mut z[0], x, &g.lin_gain, lin);
-    g.gt_lin.run(&mut z[1], lin);
-    for zs in &mut z[2..6] {
-        g.lp_lin.run(zs, lin);
-    }
-    g.gt_nl.run_from(&mut z[6], x, &g.moc, nl);
-    let [ca, cb] = g.comp;
-    g.gt_nl.run_then(&mut z[7], nl, |v| {
-        for l in 0..W {
-            v[l] = casp_compress(v[l], ca[l], cb[l], delta);
+afe_core::simd_kernel!(
+    fma,
+    /// CASP: `lin = LP⁴(GT²(g·x))`, `nlin = LP(GT²(compress(GT²(moc·x))))`, out `lin + nlin`,
+    /// for one group over one time block (at most the paths' length), `stride` values per
+    /// output row. Section by section over the block, so that each recursion keeps its
+    /// state in registers and the lanes' independent recursions hide each other's latency.
+    /// Compiled for AVX-512 and AVX2 + FMA too, chosen at run time; every lane does the
+    /// scalar operations in order, so the numbers depend neither on the instruction set nor
+    /// on the lane. The filters fuse no multiply-add (they keep the reference's roundings);
+    /// only [`ln_rough`] does, whose result is scaled by `delta` (about 5e−9) far below
+    /// the output's last bit.
+    fn run_casp<const W: usize>(
+        g: &mut Group<W>,
+        delta: f64,
+        x: &[f64],
+        paths: &mut Paths<W>,
+        out: &mut [f64],
+        stride: usize,
+    ) {
+        let lin = &mut paths.lin[..x.len()];
+        let nl = &mut paths.nl[..x.len()];
+        let z = &mut g.z;
+        g.gt_lin.run_from(&mut z[0], x, &g.lin_gain, lin);
+        g.gt_lin.run(&mut z[1], lin);
+        for zs in &mut z[2..6] {
+            g.lp_lin.run(zs, lin);
         }
-    });
-    for zs in &mut z[8..10] {
-        g.gt_nl.run(zs, nl);
+        g.gt_nl.run_from(&mut z[6], x, &g.moc, nl);
+        let [ca, cb] = g.comp;
+        g.gt_nl.run_then(&mut z[7], nl, |v| {
+            for l in 0..W {
+                v[l] = casp_compress(v[l], ca[l], cb[l], delta);
+            }
+        });
+        for zs in &mut z[8..10] {
+            g.gt_nl.run(zs, nl);
+        }
+        let lp = &g.lp_nl;
+        sum_into(&mut z[10], nl, lin, out, stride, |zs, l, x| {
+            lp.step(zs, l, x)
+        });
     }
-    let lp = &g.lp_nl;
-    sum_into(&mut z[10], nl, lin, out, stride, |zs, l, x| {
-        lp.step(zs, l, x)
-    });
-}
+);
 
-/// MAP: `lin = GT³(500·x)`, `nlin = GT³(compress(GT³(moc·x)))`, out `lin + nlin`, for
-/// one group over one time block of the middle-ear output (see [`run_casp`]).
-#[cfg_attr(
-    not(feature = "no-avx512"),
-    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
-)]
-#[cfg_attr(
-    feature = "no-avx512",
-    multiversion::multiversion(targets("x86_64+avx2"))
-)]
-fn run_map<const W: usize>(
-    g: &mut Group<W>,
-    ct_bm: f64,
-    x: &[f64],
-    paths: &mut Paths<W>,
-    out: &mut [f64],
-    stride: usize,
-) {
-    let lin = &mut paths.lin[..x.len()];
-    let nl = &mut paths.nl[..x.len()];
-    let z = &mut g.z;
-    g.gt_lin.run_from(&mut z[0], x, &g.lin_gain, lin);
-    for zs in &mut z[1..3] {
-        g.gt_lin.run(zs, lin);
-    }
-    g.gt_nl.run_from(&mut z[3], x, &g.moc, nl);
-    g.gt_nl.run(&mut z[4], nl);
-    let [ca, cts] = g.comp;
-    g.gt_nl.run_then(&mut z[5], nl, |v| {
-        for l in 0..W {
-            v[l] = map_compress(v[l], ca[l], cts[l], ct_bm);
+afe_core::simd_kernel!(
+    /// MAP: `lin = GT³(500·x)`, `nlin = GT³(compress(GT³(moc·x)))`, out `lin + nlin`, for
+    /// one group over one time block of the middle-ear output (see [`run_casp`]).
+    fn run_map<const W: usize>(
+        g: &mut Group<W>,
+        ct_bm: f64,
+        x: &[f64],
+        paths: &mut Paths<W>,
+        out: &mut [f64],
+        stride: usize,
+    ) {
+        let lin = &mut paths.lin[..x.len()];
+        let nl = &mut paths.nl[..x.len()];
+        let z = &mut g.z;
+        g.gt_lin.run_from(&mut z[0], x, &g.lin_gain, lin);
+        for zs in &mut z[1..3] {
+            g.gt_lin.run(zs, lin);
         }
-    });
-    for zs in &mut z[6..8] {
-        g.gt_nl.run(zs, nl);
+        g.gt_nl.run_from(&mut z[3], x, &g.moc, nl);
+        g.gt_nl.run(&mut z[4], nl);
+        let [ca, cts] = g.comp;
+        g.gt_nl.run_then(&mut z[5], nl, |v| {
+            for l in 0..W {
+                v[l] = map_compress(v[l], ca[l], cts[l], ct_bm);
+            }
+        });
+        for zs in &mut z[6..8] {
+            g.gt_nl.run(zs, nl);
+        }
+        let gt = &g.gt_nl;
+        sum_into(&mut z[8], nl, lin, out, stride, |zs, l, x| {
+            gt.step(zs, l, x)
+        });
     }
-    let gt = &g.gt_nl;
-    sum_into(&mut z[8], nl, lin, out, stride, |zs, l, x| {
-        gt.step(zs, l, x)
-    });
-}
+);
 
 /// MAP's middle-ear stage shared by all channels: `x1 = 20e−5·10^5·x`, tympanic-membrane
 /// one-pole low-pass (50 Hz), stapes one-pole high-pass (1 kHz), times 45e−9.
@@ -665,9 +642,9 @@ impl Drnl {
         let nc = self.channels;
         for (name, v) in [("fb_mocIpsi", ipsi), ("fb_mocContra", contra)] {
             if v.len() != nc {
-                return Err(invalid(
+                return Err(Error::invalid(
                     name,
-                    v,
+                    format_args!("{v:?}"),
                     format!("expected {nc} values (one per channel), got {}", v.len()),
                 ));
             }

@@ -18,6 +18,7 @@
 use std::f64::consts::PI;
 use std::sync::Arc;
 
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::framing::{window_samples, FrameBuffer};
 use afe_core::sgolay::SavitzkyGolay;
 use afe_core::window::hamming_periodic;
@@ -29,7 +30,6 @@ use realfft::{RealFftPlanner, RealToComplex};
 use serde::{Deserialize, Serialize};
 
 use crate::framed::{EarFrames, MAX_WINDOW};
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// Parameters of the DUET histogram, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -163,14 +163,6 @@ impl std::fmt::Debug for Duet {
     }
 }
 
-fn invalid(name: &str, value: impl ToString, reason: String) -> Error {
-    Error::InvalidParameter {
-        name: name.into(),
-        value: value.to_string(),
-        reason,
-    }
-}
-
 impl Duet {
     /// Builds the histogram for the pre-processed time signal `input` (both ears alike).
     ///
@@ -181,7 +173,7 @@ impl Duet {
         let fs = input.fs_hz;
         let ws = window_samples(p.w_stft_sec, fs);
         if p.w_stft_sec <= 0.0 || !(2..=MAX_WINDOW).contains(&ws) {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "duet_wSTFTSec",
                 p.w_stft_sec,
                 format!("the STFT window must span between 2 and {MAX_WINDOW} samples at {fs} Hz"),
@@ -193,7 +185,7 @@ impl Duet {
         let hd = frames_of(p.h_duet_sec);
         let max_frames = (MAX_WINDOW / (ws / 2)) as f64;
         if !(1.0..=max_frames).contains(&wd) {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "duet_wDUETSec",
                 p.w_duet_sec,
                 format!(
@@ -203,7 +195,7 @@ impl Duet {
             ));
         }
         if !(1.0..=max_frames).contains(&hd) {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "duet_hDUETSec",
                 p.h_duet_sec,
                 format!(
@@ -218,7 +210,7 @@ impl Duet {
             ("duet_binsDelta", p.bins_delta),
         ] {
             if bins < sgolay.frame() {
-                return Err(invalid(
+                return Err(Error::invalid(
                     name,
                     bins,
                     format!(
@@ -231,7 +223,7 @@ impl Duet {
         }
         let n_cells = p.bins_alpha.saturating_mul(p.bins_delta);
         if n_cells > MAX_CELLS {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "duet_binsAlpha",
                 p.bins_alpha,
                 format!("duet_binsAlpha·duet_binsDelta must be at most {MAX_CELLS}"),
@@ -242,7 +234,7 @@ impl Duet {
             ("duet_maxDelta", p.max_delta),
         ] {
             if max <= 0.0 {
-                return Err(invalid(name, max, "the range limit must be above 0".into()));
+                return Err(Error::invalid(name, max, "the range limit must be above 0"));
             }
         }
         let nfft = (2 * ws - 1).next_power_of_two();

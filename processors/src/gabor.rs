@@ -7,11 +7,10 @@
 
 use std::f64::consts::PI;
 
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use rustfft::num_complex::Complex64;
 use serde::{Deserialize, Serialize};
-
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// Parameters of the Gabor features, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -259,87 +258,82 @@ impl Gabor {
     }
 }
 
-/// Kept row `r` of filter `f`'s 'same' convolution over the padded log spectrogram of `k`
-/// channels, for `acc_real.len()` frames: `out[t] = Σ G[a, b]·S[r + half_k − a, t + half_n − b]`
-/// with `Re G` into `acc_real` and, where the filter has them, the DC weights into `acc_dc`.
-#[cfg_attr(
-    not(feature = "no-avx512"),
-    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2+fma"))
-)]
-#[cfg_attr(
-    feature = "no-avx512",
-    multiversion::multiversion(targets("x86_64+avx2+fma"))
-)]
-fn convolve_row(
-    spectrogram: &[f64],
-    k: usize,
-    f: &Filter,
-    r: usize,
-    acc_real: &mut [f64],
-    acc_dc: &mut [f64],
-) {
-    let frames = acc_real.len();
-    let padded = spectrogram.len() / k;
-    let ln = 2 * f.half_n + 1;
-    acc_real.fill(0.0);
-    acc_dc.fill(0.0);
-    for a in 0..2 * f.half_k + 1 {
-        let Some(src) = (r + f.half_k)
-            .checked_sub(a)
-            .filter(|s| *s < k)
-            .map(|s| &spectrogram[s * padded..(s + 1) * padded])
-        else {
-            continue;
-        };
-        let taps = &f.real[a * ln..(a + 1) * ln];
-        let dc = f.dc_weights.as_ref().map(|w| &w[a * ln..(a + 1) * ln]);
-        // Four taps per pass over the frames, the sums held in registers between them:
-        // each sum still adds its terms tap by tap, with a quarter of the accumulator loads
-        // and stores.
-        let mut b = 0;
-        while b + 4 <= ln {
-            let start = CONTEXT + f.half_n - b;
-            let x: [&[f64]; 4] = std::array::from_fn(|i| &src[start - i..start - i + frames]);
-            let g: [f64; 4] = std::array::from_fn(|i| taps[b + i]);
-            let xs = x[0].iter().zip(x[1]).zip(x[2].iter().zip(x[3]));
-            match dc {
-                Some(dc) => {
-                    let w: [f64; 4] = std::array::from_fn(|i| dc[b + i]);
-                    let accs = acc_real.iter_mut().zip(acc_dc.iter_mut());
-                    for ((ar, ad), ((x0, x1), (x2, x3))) in accs.zip(xs) {
-                        *ar = (((*ar + g[0] * x0) + g[1] * x1) + g[2] * x2) + g[3] * x3;
-                        *ad = (((*ad + w[0] * x0) + w[1] * x1) + w[2] * x2) + w[3] * x3;
+afe_core::simd_kernel!(
+    fma,
+    /// Kept row `r` of filter `f`'s 'same' convolution over the padded log spectrogram of `k`
+    /// channels, for `acc_real.len()` frames: `out[t] = Σ G[a, b]·S[r + half_k − a, t + half_n − b]`
+    /// with `Re G` into `acc_real` and, where the filter has them, the DC weights into `acc_dc`.
+    fn convolve_row(
+        spectrogram: &[f64],
+        k: usize,
+        f: &Filter,
+        r: usize,
+        acc_real: &mut [f64],
+        acc_dc: &mut [f64],
+    ) {
+        let frames = acc_real.len();
+        let padded = spectrogram.len() / k;
+        let ln = 2 * f.half_n + 1;
+        acc_real.fill(0.0);
+        acc_dc.fill(0.0);
+        for a in 0..2 * f.half_k + 1 {
+            let Some(src) = (r + f.half_k)
+                .checked_sub(a)
+                .filter(|s| *s < k)
+                .map(|s| &spectrogram[s * padded..(s + 1) * padded])
+            else {
+                continue;
+            };
+            let taps = &f.real[a * ln..(a + 1) * ln];
+            let dc = f.dc_weights.as_ref().map(|w| &w[a * ln..(a + 1) * ln]);
+            // Four taps per pass over the frames, the sums held in registers between them:
+            // each sum still adds its terms tap by tap, with a quarter of the accumulator loads
+            // and stores.
+            let mut b = 0;
+            while b + 4 <= ln {
+                let start = CONTEXT + f.half_n - b;
+                let x: [&[f64]; 4] = std::array::from_fn(|i| &src[start - i..start - i + frames]);
+                let g: [f64; 4] = std::array::from_fn(|i| taps[b + i]);
+                let xs = x[0].iter().zip(x[1]).zip(x[2].iter().zip(x[3]));
+                match dc {
+                    Some(dc) => {
+                        let w: [f64; 4] = std::array::from_fn(|i| dc[b + i]);
+                        let accs = acc_real.iter_mut().zip(acc_dc.iter_mut());
+                        for ((ar, ad), ((x0, x1), (x2, x3))) in accs.zip(xs) {
+                            *ar = (((*ar + g[0] * x0) + g[1] * x1) + g[2] * x2) + g[3] * x3;
+                            *ad = (((*ad + w[0] * x0) + w[1] * x1) + w[2] * x2) + w[3] * x3;
+                        }
+                    }
+                    None => {
+                        for (ar, ((x0, x1), (x2, x3))) in acc_real.iter_mut().zip(xs) {
+                            *ar = (((*ar + g[0] * x0) + g[1] * x1) + g[2] * x2) + g[3] * x3;
+                        }
                     }
                 }
-                None => {
-                    for (ar, ((x0, x1), (x2, x3))) in acc_real.iter_mut().zip(xs) {
-                        *ar = (((*ar + g[0] * x0) + g[1] * x1) + g[2] * x2) + g[3] * x3;
-                    }
-                }
+                b += 4;
             }
-            b += 4;
-        }
-        for b in b..ln {
-            let start = CONTEXT + f.half_n - b;
-            let s = &src[start..start + frames];
-            let g = taps[b];
-            match dc {
-                Some(dc) => {
-                    let w = dc[b];
-                    for ((ar, ad), x) in acc_real.iter_mut().zip(acc_dc.iter_mut()).zip(s) {
-                        *ar += g * x;
-                        *ad += w * x;
+            for b in b..ln {
+                let start = CONTEXT + f.half_n - b;
+                let s = &src[start..start + frames];
+                let g = taps[b];
+                match dc {
+                    Some(dc) => {
+                        let w = dc[b];
+                        for ((ar, ad), x) in acc_real.iter_mut().zip(acc_dc.iter_mut()).zip(s) {
+                            *ar += g * x;
+                            *ad += w * x;
+                        }
                     }
-                }
-                None => {
-                    for (ar, x) in acc_real.iter_mut().zip(s) {
-                        *ar += g * x;
+                    None => {
+                        for (ar, x) in acc_real.iter_mut().zip(s) {
+                            *ar += g * x;
+                        }
                     }
                 }
             }
         }
     }
-}
+);
 
 impl Processor for Gabor {
     fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {

@@ -4,17 +4,17 @@
 //! The coefficients follow the reference recipe operation by operation (component-wise
 //! division by fs, convolution as `a[k] + (−p)·a[k−1]`, textbook complex products, no FMA):
 //! the expanded polynomial is ill-conditioned at low centre frequencies, and this recipe
-//! reproduces the MATLAB AFE bit for bit. The request and the grid are
-//! [`crate::filterbank`]'s.
+//! reproduces the MATLAB AFE bit for bit. The request is [`crate::filterbank`]'s, the
+//! parameters and the grid [`crate::filterbank_params`]'s.
 
 use std::f64::consts::PI;
 
 use afe_core::cpu::has_avx512;
 use afe_core::lanes::vector_start;
-use afe_core::{Block, ParamMap, Processor, Result, SignalInfo};
+use afe_core::{Block, Error, ParamMap, Processor, Result, SignalInfo};
 use serde_json::json;
 
-use crate::filterbank::{invalid, CfGrid, FilterbankParams};
+use crate::filterbank_params::{CfGrid, FilterbankParams};
 
 /// The gammatone's verified parameters (the AFE's verify step): the grid, order,
 /// bandwidth, alignment and the informational per-channel delay `fb_delaySec`.
@@ -33,7 +33,11 @@ pub(crate) fn verified(params: &FilterbankParams) -> Result<ParamMap> {
 /// the constant 3 whatever the order, as in the AFE).
 fn grid_and_delays(params: &FilterbankParams) -> Result<(CfGrid, Vec<f64>)> {
     if params.bw_erbs <= 0.0 {
-        return Err(invalid("fb_bwERBs", params.bw_erbs, "must be > 0"));
+        return Err(Error::invalid(
+            "fb_bwERBs",
+            format_args!("{:?}", params.bw_erbs),
+            "must be > 0",
+        ));
     }
     let grid = params.grid()?;
     let delay_s = grid
@@ -226,7 +230,7 @@ impl Gammatone {
         grid.check_below_nyquist(params, fs)?;
         let order = params.n_gamma as usize;
         if order > MAX_ORDER {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "fb_nGamma",
                 order,
                 format!("orders up to {MAX_ORDER} are supported"),
@@ -260,60 +264,54 @@ impl Gammatone {
     }
 }
 
-/// The complex DF2T recursion of one channel group of order `M` over a chunk, state in
-/// registers. Per channel, the operations and their order are the reference's
-/// (`y = z0 + b0·x`, `z[k] = z[k+1] − a[k+1]·y`, textbook complex products, no FMA,
-/// output `2·Re y`), so the output is bit-identical to a channel-by-channel evaluation,
-/// signed zeros and subnormals included. Compiled for AVX-512 and AVX2 too, chosen at
-/// run time.
-#[cfg_attr(
-    not(feature = "no-avx512"),
-    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
-)]
-#[cfg_attr(
-    feature = "no-avx512",
-    multiversion::multiversion(targets("x86_64+avx2"))
-)]
-fn run_group<const M: usize, const W: usize>(
-    g: &mut Group<W>,
-    x: &[f64],
-    out: &mut [f64],
-    stride: usize,
-) {
-    let mut zr = [[0.0; W]; M];
-    let mut zi = [[0.0; W]; M];
-    let mut ar = [[0.0; W]; M];
-    let mut ai = [[0.0; W]; M];
-    zr.copy_from_slice(&g.z_re[..M]);
-    zi.copy_from_slice(&g.z_im[..M]);
-    ar.copy_from_slice(&g.a_re[..M]);
-    ai.copy_from_slice(&g.a_im[..M]);
-    let (br, bi) = (g.b_re, g.b_im);
-    for (t, &xin) in x.iter().enumerate() {
-        let mut yr = [0.0; W];
-        let mut yi = [0.0; W];
-        for l in 0..W {
-            yr[l] = zr[0][l] + br[l] * xin;
-            yi[l] = zi[0][l] + bi[l] * xin;
-        }
-        for k in 0..M - 1 {
+afe_core::simd_kernel!(
+    /// The complex DF2T recursion of one channel group of order `M` over a chunk, state in
+    /// registers. Per channel, the operations and their order are the reference's
+    /// (`y = z0 + b0·x`, `z[k] = z[k+1] − a[k+1]·y`, textbook complex products, no FMA,
+    /// output `2·Re y`), so the output is bit-identical to a channel-by-channel evaluation,
+    /// signed zeros and subnormals included. Compiled for AVX-512 and AVX2 too, chosen at
+    /// run time.
+    fn run_group<const M: usize, const W: usize>(
+        g: &mut Group<W>,
+        x: &[f64],
+        out: &mut [f64],
+        stride: usize,
+    ) {
+        let mut zr = [[0.0; W]; M];
+        let mut zi = [[0.0; W]; M];
+        let mut ar = [[0.0; W]; M];
+        let mut ai = [[0.0; W]; M];
+        zr.copy_from_slice(&g.z_re[..M]);
+        zi.copy_from_slice(&g.z_im[..M]);
+        ar.copy_from_slice(&g.a_re[..M]);
+        ai.copy_from_slice(&g.a_im[..M]);
+        let (br, bi) = (g.b_re, g.b_im);
+        for (t, &xin) in x.iter().enumerate() {
+            let mut yr = [0.0; W];
+            let mut yi = [0.0; W];
             for l in 0..W {
-                zr[k][l] = zr[k + 1][l] - (ar[k][l] * yr[l] - ai[k][l] * yi[l]);
-                zi[k][l] = zi[k + 1][l] - (ar[k][l] * yi[l] + ai[k][l] * yr[l]);
+                yr[l] = zr[0][l] + br[l] * xin;
+                yi[l] = zi[0][l] + bi[l] * xin;
             }
+            for k in 0..M - 1 {
+                for l in 0..W {
+                    zr[k][l] = zr[k + 1][l] - (ar[k][l] * yr[l] - ai[k][l] * yi[l]);
+                    zi[k][l] = zi[k + 1][l] - (ar[k][l] * yi[l] + ai[k][l] * yr[l]);
+                }
+            }
+            for l in 0..W {
+                zr[M - 1][l] = -(ar[M - 1][l] * yr[l] - ai[M - 1][l] * yi[l]);
+                zi[M - 1][l] = -(ar[M - 1][l] * yi[l] + ai[M - 1][l] * yr[l]);
+            }
+            for y in &mut yr {
+                *y *= 2.0;
+            }
+            out[t * stride..t * stride + W].copy_from_slice(&yr);
         }
-        for l in 0..W {
-            zr[M - 1][l] = -(ar[M - 1][l] * yr[l] - ai[M - 1][l] * yi[l]);
-            zi[M - 1][l] = -(ar[M - 1][l] * yi[l] + ai[M - 1][l] * yr[l]);
-        }
-        for y in &mut yr {
-            *y *= 2.0;
-        }
-        out[t * stride..t * stride + W].copy_from_slice(&yr);
+        g.z_re[..M].copy_from_slice(&zr);
+        g.z_im[..M].copy_from_slice(&zi);
     }
-    g.z_re[..M].copy_from_slice(&zr);
-    g.z_im[..M].copy_from_slice(&zi);
-}
+);
 
 impl Processor for Gammatone {
     fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {

@@ -1,11 +1,10 @@
 //! `ic`: interaural coherence per channel and frame, the parabola-interpolated maximum of
 //! the cross-correlation (spec 20-ic).
 
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::{Block, Processor, Result, SignalInfo};
 
-use crate::itd::{correlation_input, parabolic_peak};
-
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
+use crate::correlation_peak::{correlation_input, parabolic_peak};
 
 /// The IC extractor: `[frame][channel][lag]` in, `[frame][channel]` out.
 #[derive(Debug, Clone)]

@@ -5,12 +5,11 @@
 //! chunk-invariant.
 
 use afe_core::butter::{butter, ButterType};
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::filter::Df2t;
 use afe_core::hilbert::Hilbert;
 use afe_core::{Block, DrawAs, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
-
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// The accepted `ihc_method` names.
 pub const IHC_METHODS: &[&str] = &[

@@ -1,5 +1,6 @@
 //! The Two!Ears AFE processors, one module each, and the registry that maps a request
-//! name to its processor, dependency, parameters and constructor.
+//! name to its processor, dependency, parameters and constructor (to which code outside
+//! this crate can add its own processors with [`register`]).
 //!
 //! Each module holds the processor's parameter struct (AFE names, AFE defaults), its
 //! design code and its tests; nothing here knows about graphs or threads.
@@ -8,12 +9,14 @@ pub mod adaptation;
 pub mod ams_features;
 pub mod autocorrelation;
 pub mod butterworth;
+mod correlation_peak;
 pub mod crosscorrelation;
 pub mod drnl;
 pub mod duet;
 mod even_inverse;
 mod exp;
 pub mod filterbank;
+pub mod filterbank_params;
 mod framed;
 pub mod gabor;
 pub mod gammatone;
@@ -36,4 +39,5 @@ mod testing;
 pub mod transient;
 pub mod transient_map;
 
-pub use registry::{find_request, requests, Built, Ears, RequestDef};
+pub use afe_core::descriptor::{Built, Ears, RequestDef};
+pub use registry::{find_request, register, requests};

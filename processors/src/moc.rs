@@ -8,11 +8,10 @@
 //! attenuation of chunk k first shows in the filterbank output of chunk k+1, as in the AFE.
 //! A gammatone filterbank ignores it, as the AFE's does.
 
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::params::per_channel;
 use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
-
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// Parameters of the MOC, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -75,14 +74,6 @@ impl Params for MocParams {
 /// Cubic fit of attenuation (dB) against ratemap level (dB), highest power first.
 const FIT: [f64; 4] = [-0.00012411, -0.051322, -6.3528, -206.11];
 
-fn invalid(name: &str, value: impl std::fmt::Debug, reason: &str) -> Error {
-    Error::InvalidParameter {
-        name: name.into(),
-        value: format!("{value:?}"),
-        reason: reason.into(),
-    }
-}
-
 /// The MOC of one ear: ratemap `[frame][channel]` in; attenuation `[frame][channel]` (dB)
 /// and the feedback factors out.
 #[derive(Debug, Clone)]
@@ -99,9 +90,9 @@ impl Moc {
     pub fn new(params: &MocParams, input: &SignalInfo) -> Result<(Self, [SignalInfo; 2])> {
         let nc = input.channels();
         if params.max_attenuation_db < 0.0 {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "moc_maxAttenuationdB",
-                params.max_attenuation_db,
+                format_args!("{:?}", params.max_attenuation_db),
                 "must be >= 0 dB",
             ));
         }

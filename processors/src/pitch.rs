@@ -9,12 +9,11 @@
 use std::cmp::Ordering;
 use std::collections::VecDeque;
 
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::{
     Block, DrawAs, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
 };
 use serde::{Deserialize, Serialize};
-
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// Parameters of the pitch estimator, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -72,28 +71,23 @@ pub const PITCH_FEATURES: [&str; 3] = ["pitch", "rawPitch", "confidence"];
 /// Seconds of past confidences the threshold looks at.
 const CONFIDENCE_MEMORY_SEC: f64 = 5.0;
 
-/// The summary autocorrelation of one frame (`row`, one run of `lags` values per
-/// channel): the mean over channels of lags `first..first + sacf.len()`, into `sacf`.
-#[cfg_attr(
-    not(feature = "no-avx512"),
-    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2+fma"))
-)]
-#[cfg_attr(
-    feature = "no-avx512",
-    multiversion::multiversion(targets("x86_64+avx2+fma"))
-)]
-fn summary(sacf: &mut [f64], row: &[f64], lags: usize, first: usize) {
-    sacf.fill(0.0);
-    let channels = row.len() / lags;
-    for acf in row.chunks_exact(lags) {
-        for (s, v) in sacf.iter_mut().zip(&acf[first..]) {
-            *s += v;
+afe_core::simd_kernel!(
+    fma,
+    /// The summary autocorrelation of one frame (`row`, one run of `lags` values per
+    /// channel): the mean over channels of lags `first..first + sacf.len()`, into `sacf`.
+    fn summary(sacf: &mut [f64], row: &[f64], lags: usize, first: usize) {
+        sacf.fill(0.0);
+        let channels = row.len() / lags;
+        for acf in row.chunks_exact(lags) {
+            for (s, v) in sacf.iter_mut().zip(&acf[first..]) {
+                *s += v;
+            }
+        }
+        for s in sacf.iter_mut() {
+            *s /= channels as f64;
         }
     }
-    for s in sacf.iter_mut() {
-        *s /= channels as f64;
-    }
-}
+);
 
 /// The pitch estimator of one ear: autocorrelation `[frame][channel][lag]` in,
 /// `[frame][pitch, rawPitch, confidence]` out.

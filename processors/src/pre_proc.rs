@@ -4,16 +4,15 @@
 //! One instance serves both ears, because the AGC can link their gains.
 
 use afe_core::butter::{butter, ButterType};
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::filter::Df2t;
 use afe_core::{
     Block, DrawAs, Error, ParamKind, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo,
 };
 use serde::{Deserialize, Serialize};
 
-use crate::filterbank::{fb_type_of, FbType};
+use crate::filterbank_params::{fb_type_of, FbType};
 use crate::middle_ear;
-
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// Parameters of the pre-processor, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -174,20 +173,12 @@ const REF_SPL_DB_RANGE: (f64, f64) = (-300.0, 500.0);
 /// Largest `|pp_coefPreEmphasis|` accepted.
 const MAX_PRE_EMPHASIS: f64 = 1e3;
 
-fn invalid(name: &str, value: impl std::fmt::Display, reason: impl Into<String>) -> Error {
-    Error::InvalidParameter {
-        name: name.into(),
-        value: value.to_string(),
-        reason: reason.into(),
-    }
-}
-
 impl PreProc {
     /// Builds the pre-processor for `ears` (1 or 2) input signals at `fs` Hz.
     pub fn new(params: &PreProcParams, fs: f64, ears: usize) -> Result<(Self, Vec<SignalInfo>)> {
         let p = params;
         if p.remove_dc && !(p.cutoff_hz_dc > 0.0 && p.cutoff_hz_dc < fs / 2.0) {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "pp_cutoffHzDC",
                 p.cutoff_hz_dc,
                 format!(
@@ -197,7 +188,7 @@ impl PreProc {
             ));
         }
         if p.middle_ear_filtering && fs < MIN_MIDDLE_EAR_FS {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "pp_bMiddleEarFiltering",
                 "true",
                 format!(
@@ -206,14 +197,14 @@ impl PreProc {
             ));
         }
         if p.normalize_rms && p.int_time_sec_rms <= 0.0 {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "pp_intTimeSecRMS",
                 p.int_time_sec_rms,
                 "must be > 0 s",
             ));
         }
         if !(1..=2).contains(&p.ref_spl_db.len()) {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "pp_refSPLdB",
                 format!("{:?}", p.ref_spl_db),
                 "expected one value or two ([left, right])",
@@ -221,7 +212,7 @@ impl PreProc {
         }
         let (lo, hi) = REF_SPL_DB_RANGE;
         if let Some(db) = p.ref_spl_db.iter().find(|db| !(lo..=hi).contains(*db)) {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "pp_refSPLdB",
                 format!("{:?}", p.ref_spl_db),
                 format!(
@@ -233,7 +224,7 @@ impl PreProc {
             ));
         }
         if p.coef_pre_emphasis.is_nan() || p.coef_pre_emphasis.abs() > MAX_PRE_EMPHASIS {
-            return Err(invalid(
+            return Err(Error::invalid(
                 "pp_coefPreEmphasis",
                 p.coef_pre_emphasis,
                 format!(
@@ -387,7 +378,7 @@ impl Descriptor for PreProc {
     /// e.g. `stft`, given `fb_type = 'drnl'` is affected too, where the AFE would not be.)
     fn params(map: &ParamMap) -> Result<PreProcParams> {
         let mut params = PreProcParams::from_map(map)?;
-        if fb_type_of(map) == FbType::Drnl {
+        if fb_type_of(map)? == FbType::Drnl {
             params.unity_comp = false;
         }
         Ok(params)
@@ -439,8 +430,11 @@ mod tests {
         assert!(!drnl.unity_comp);
         let gammatone = <PreProc as Descriptor>::params(&map("gammatone")).expect("valid");
         assert!(gammatone.unity_comp);
-        let canonical = (REQUEST.canonical)(&map("drnl")).expect("valid");
-        assert_eq!(canonical["pp_bUnityComp"], serde_json::json!(false));
+        let configured = (REQUEST.configure)(&map("drnl")).expect("valid");
+        assert_eq!(
+            configured.canonical()["pp_bUnityComp"],
+            serde_json::json!(false)
+        );
     }
 
     #[test]

@@ -12,6 +12,7 @@
 
 use std::sync::Arc;
 
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::erb::linspace;
 use afe_core::framing::Frame;
 use afe_core::window::window;
@@ -21,7 +22,6 @@ use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use serde::{Deserialize, Serialize};
 
 use crate::framed::{check_framing, check_work, EarFrames};
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// Parameters of the precedence model, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -275,142 +275,112 @@ fn dot_lanes(a: &[f64], b: &[f64]) -> f64 {
     acc.iter().sum::<f64>() + tail
 }
 
-/// `Σ a[i]·b[i]` over the shorter length.
-#[cfg_attr(
-    not(feature = "no-avx512"),
-    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
-)]
-#[cfg_attr(
-    feature = "no-avx512",
-    multiversion::multiversion(targets("x86_64+avx2"))
-)]
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    dot_lanes(a, b)
-}
+afe_core::simd_kernel!(
+    /// `Σ a[i]·b[i]` over the shorter length.
+    fn dot(a: &[f64], b: &[f64]) -> f64 {
+        dot_lanes(a, b)
+    }
+);
 
-/// The frame's autocorrelation at lags `k·τ`, `k = 0..5` (0 from lag `len(x)` on).
-#[cfg_attr(
-    not(feature = "no-avx512"),
-    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
-)]
-#[cfg_attr(
-    feature = "no-avx512",
-    multiversion::multiversion(targets("x86_64+avx2"))
-)]
-fn lag_products(x: &[f64], tau: usize) -> [f64; TAPS] {
-    let mut r = [0.0; TAPS];
-    for (k, rk) in r.iter_mut().enumerate() {
-        let d = k * tau;
-        if d < x.len() {
-            *rk = dot_lanes(&x[d..], &x[..x.len() - d]);
+afe_core::simd_kernel!(
+    /// The frame's autocorrelation at lags `k·τ`, `k = 0..5` (0 from lag `len(x)` on).
+    fn lag_products(x: &[f64], tau: usize) -> [f64; TAPS] {
+        let mut r = [0.0; TAPS];
+        for (k, rk) in r.iter_mut().enumerate() {
+            let d = k * tau;
+            if d < x.len() {
+                *rk = dot_lanes(&x[d..], &x[..x.len() - d]);
+            }
+        }
+        r
+    }
+);
+
+afe_core::simd_kernel!(
+    /// `out[m + maxLag] = Σ_j a[j + m]·b[j]` for `m = −maxLag..maxLag`, `out` being
+    /// `2·maxLag + 1` long (calcXCorr with `'none'` scaling; zero where the signals do not
+    /// overlap).
+    fn xcorr(a: &[f64], b: &[f64], out: &mut [f64]) {
+        let max_lag = (out.len() / 2) as isize;
+        let (la, lb) = (a.len() as isize, b.len() as isize);
+        for (i, o) in out.iter_mut().enumerate() {
+            let m = i as isize - max_lag;
+            let lo = (-m).max(0);
+            let hi = lb.min(la - m);
+            *o = if hi > lo {
+                dot_lanes(
+                    &a[(lo + m) as usize..(hi + m) as usize],
+                    &b[lo as usize..hi as usize],
+                )
+            } else {
+                0.0
+            };
         }
     }
-    r
-}
-
-/// `out[m + maxLag] = Σ_j a[j + m]·b[j]` for `m = −maxLag..maxLag`, `out` being
-/// `2·maxLag + 1` long (calcXCorr with `'none'` scaling; zero where the signals do not
-/// overlap).
-#[cfg_attr(
-    not(feature = "no-avx512"),
-    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
-)]
-#[cfg_attr(
-    feature = "no-avx512",
-    multiversion::multiversion(targets("x86_64+avx2"))
-)]
-fn xcorr(a: &[f64], b: &[f64], out: &mut [f64]) {
-    let max_lag = (out.len() / 2) as isize;
-    let (la, lb) = (a.len() as isize, b.len() as isize);
-    for (i, o) in out.iter_mut().enumerate() {
-        let m = i as isize - max_lag;
-        let lo = (-m).max(0);
-        let hi = lb.min(la - m);
-        *o = if hi > lo {
-            dot_lanes(
-                &a[(lo + m) as usize..(hi + m) as usize],
-                &b[lo as usize..hi as usize],
-            )
-        } else {
-            0.0
-        };
-    }
-}
+);
 
 /// Rows of a frame windowed and transposed per pass of [`window_columns`]: one cache
 /// line of each channel's column.
 const TILE: usize = 8;
 
-/// Windows the frame (`[time][channel]`, `nc` wide) into `cols` (`[channel][time]`) and
-/// each channel's largest windowed value into `peaks` (NaN ignored, as MATLAB's `max`).
-#[cfg_attr(
-    not(feature = "no-avx512"),
-    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
-)]
-#[cfg_attr(
-    feature = "no-avx512",
-    multiversion::multiversion(targets("x86_64+avx2"))
-)]
-fn window_columns<'a>(win: &[f64], frame: Frame<'a>, cols: &mut [f64], peaks: &mut [f64]) {
-    let (nc, w) = (peaks.len(), win.len());
-    peaks.fill(f64::NAN);
-    let mut n0 = 0;
-    for part in [frame.head, frame.tail] {
-        let rows = part.len() / nc.max(1);
-        // Peaks row by row: independent lanes.
-        for (row, wt) in part.chunks_exact(nc).zip(&win[n0..]) {
-            for (p, v) in peaks.iter_mut().zip(row) {
-                *p = p.max(wt * v);
-            }
-        }
-        // Transposition by tiles of TILE rows, read from the L1 cache.
-        for t0 in (0..rows).step_by(TILE) {
-            let t1 = (t0 + TILE).min(rows);
-            let tile = &part[t0 * nc..t1 * nc];
-            let wins = &win[n0 + t0..n0 + t1];
-            for c in 0..nc {
-                let col = &mut cols[c * w + n0 + t0..c * w + n0 + t1];
-                for (i, (d, wt)) in col.iter_mut().zip(wins).enumerate() {
-                    *d = wt * tile[i * nc + c];
+afe_core::simd_kernel!(
+    /// Windows the frame (`[time][channel]`, `nc` wide) into `cols` (`[channel][time]`) and
+    /// each channel's largest windowed value into `peaks` (NaN ignored, as MATLAB's `max`).
+    fn window_columns<'a>(win: &[f64], frame: Frame<'a>, cols: &mut [f64], peaks: &mut [f64]) {
+        let (nc, w) = (peaks.len(), win.len());
+        peaks.fill(f64::NAN);
+        let mut n0 = 0;
+        for part in [frame.head, frame.tail] {
+            let rows = part.len() / nc.max(1);
+            // Peaks row by row: independent lanes.
+            for (row, wt) in part.chunks_exact(nc).zip(&win[n0..]) {
+                for (p, v) in peaks.iter_mut().zip(row) {
+                    *p = p.max(wt * v);
                 }
             }
+            // Transposition by tiles of TILE rows, read from the L1 cache.
+            for t0 in (0..rows).step_by(TILE) {
+                let t1 = (t0 + TILE).min(rows);
+                let tile = &part[t0 * nc..t1 * nc];
+                let wins = &win[n0 + t0..n0 + t1];
+                for c in 0..nc {
+                    let col = &mut cols[c * w + n0 + t0..c * w + n0 + t1];
+                    for (i, (d, wt)) in col.iter_mut().zip(wins).enumerate() {
+                        *d = wt * tile[i * nc + c];
+                    }
+                }
+            }
+            n0 += rows;
         }
-        n0 += rows;
     }
-}
+);
 
-/// Adds a channel's power spectrum `|x|²` to its cumulative weighted one
-/// (`power += |x|²·weight`, or `=` on the first frame) and to the summary spectrum
-/// (the raw power on the first frame, the cumulative weighted one after).
-#[cfg_attr(
-    not(feature = "no-avx512"),
-    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
-)]
-#[cfg_attr(
-    feature = "no-avx512",
-    multiversion::multiversion(targets("x86_64+avx2"))
-)]
-fn accumulate_power(
-    x: &[Complex64],
-    power: &mut [f64],
-    summary: &mut [f64],
-    weight: f64,
-    first: bool,
-) {
-    if first {
-        for ((s, p), x) in summary.iter_mut().zip(power.iter_mut()).zip(x) {
-            let pw = x.re * x.re + x.im * x.im;
-            *p = pw * weight;
-            *s += pw;
-        }
-    } else {
-        for ((s, p), x) in summary.iter_mut().zip(power.iter_mut()).zip(x) {
-            let pw = x.re * x.re + x.im * x.im;
-            *p += pw * weight;
-            *s += *p;
+afe_core::simd_kernel!(
+    /// Adds a channel's power spectrum `|x|²` to its cumulative weighted one
+    /// (`power += |x|²·weight`, or `=` on the first frame) and to the summary spectrum
+    /// (the raw power on the first frame, the cumulative weighted one after).
+    fn accumulate_power(
+        x: &[Complex64],
+        power: &mut [f64],
+        summary: &mut [f64],
+        weight: f64,
+        first: bool,
+    ) {
+        if first {
+            for ((s, p), x) in summary.iter_mut().zip(power.iter_mut()).zip(x) {
+                let pw = x.re * x.re + x.im * x.im;
+                *p = pw * weight;
+                *s += pw;
+            }
+        } else {
+            for ((s, p), x) in summary.iter_mut().zip(power.iter_mut()).zip(x) {
+                let pw = x.re * x.re + x.im * x.im;
+                *p += pw * weight;
+                *s += *p;
+            }
         }
     }
-}
+);
 
 /// The first largest value and its index, skipping NaN (MATLAB's `max`); `(NaN, 0)`
 /// when every value is NaN.
@@ -843,54 +813,42 @@ impl FftBuffers {
     }
 }
 
-/// `out[k] = fa[k]·conj(fb[k])`: the spectrum of the cross-correlation.
-#[cfg_attr(
-    not(feature = "no-avx512"),
-    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
-)]
-#[cfg_attr(
-    feature = "no-avx512",
-    multiversion::multiversion(targets("x86_64+avx2"))
-)]
-fn conj_product(fa: &[Complex64], fb: &[Complex64], out: &mut [Complex64]) {
-    for ((s, a), b) in out.iter_mut().zip(fa).zip(fb) {
-        *s = Complex64::new(a.re * b.re + a.im * b.im, a.im * b.re - a.re * b.im);
+afe_core::simd_kernel!(
+    /// `out[k] = fa[k]·conj(fb[k])`: the spectrum of the cross-correlation.
+    fn conj_product(fa: &[Complex64], fb: &[Complex64], out: &mut [Complex64]) {
+        for ((s, a), b) in out.iter_mut().zip(fa).zip(fb) {
+            *s = Complex64::new(a.re * b.re + a.im * b.im, a.im * b.re - a.re * b.im);
+        }
     }
-}
+);
 
-/// `xcorr(S_l, S_r)` over lags `±(out.len()/2)` into `out`, from the full
-/// cross-correlation `r` of the frames (lags `−(W−1)..W−1`): as `S` is a sum of shifted
-/// copies of its frame, `xcorr(S_l, S_r)[m] = Σ_{q,p} c_q·d_p·R[m − qτ_l + pτ_r]`.
-#[cfg_attr(
-    not(feature = "no-avx512"),
-    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
-)]
-#[cfg_attr(
-    feature = "no-avx512",
-    multiversion::multiversion(targets("x86_64+avx2"))
-)]
-fn short_xcorr(r: &[f64], ll: &LagRemoval, lr: &LagRemoval, out: &mut [f64]) {
-    let span = r.len() as isize;
-    // `r` holds 2W − 1 lags, lag 0 at W − 1
-    let (half, nl) = (span / 2, out.len() as isize);
-    let max_lag = nl / 2;
-    out.fill(0.0);
-    for q in 0..TAPS {
-        for p in 0..TAPS {
-            let coef = ll.short[q] * lr.short[p];
-            // out[i] += coef·R[i − maxLag − qτ_l + pτ_r], lag k at index k + W − 1
-            let shift = half - max_lag - (q * ll.tau) as isize + (p * lr.tau) as isize;
-            let lo = (-shift).max(0);
-            let hi = nl.min(span - shift);
-            if hi > lo {
-                let src = &r[(lo + shift) as usize..(hi + shift) as usize];
-                for (o, v) in out[lo as usize..hi as usize].iter_mut().zip(src) {
-                    *o += coef * v;
+afe_core::simd_kernel!(
+    /// `xcorr(S_l, S_r)` over lags `±(out.len()/2)` into `out`, from the full
+    /// cross-correlation `r` of the frames (lags `−(W−1)..W−1`): as `S` is a sum of shifted
+    /// copies of its frame, `xcorr(S_l, S_r)[m] = Σ_{q,p} c_q·d_p·R[m − qτ_l + pτ_r]`.
+    fn short_xcorr(r: &[f64], ll: &LagRemoval, lr: &LagRemoval, out: &mut [f64]) {
+        let span = r.len() as isize;
+        // `r` holds 2W − 1 lags, lag 0 at W − 1
+        let (half, nl) = (span / 2, out.len() as isize);
+        let max_lag = nl / 2;
+        out.fill(0.0);
+        for q in 0..TAPS {
+            for p in 0..TAPS {
+                let coef = ll.short[q] * lr.short[p];
+                // out[i] += coef·R[i − maxLag − qτ_l + pτ_r], lag k at index k + W − 1
+                let shift = half - max_lag - (q * ll.tau) as isize + (p * lr.tau) as isize;
+                let lo = (-shift).max(0);
+                let hi = nl.min(span - shift);
+                if hi > lo {
+                    let src = &r[(lo + shift) as usize..(hi + shift) as usize];
+                    for (o, v) in out[lo as usize..hi as usize].iter_mut().zip(src) {
+                        *o += coef * v;
+                    }
                 }
             }
         }
     }
-}
+);
 
 impl Processor for Precedence {
     fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {

@@ -1,16 +1,15 @@
 //! `ratemap`: leaky-integrated IHC envelope averaged over overlapping windows, in power
 //! or magnitude (spec 16-ratemap).
 
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::filter::Df2t;
 use afe_core::framing::FrameBuffer;
+use afe_core::power::frame_power;
 use afe_core::window::{window, WINDOW_NAMES};
 use afe_core::{Block, DrawAs, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
 
 use crate::framed::check_framing;
-use crate::ild::frame_power;
-
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// Parameters of the ratemap, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -113,40 +113,35 @@ impl RealFft {
     }
 }
 
-/// The split pass over the pairs `(k, M − k)`, `0 < k < M/2`, in `realfft`'s order of
-/// operations: `low` holds `Z[k]` from `k = 1` on, `high` `Z[M − k]` ending at `k = 1`,
-/// as real and imaginary parts, and both get `X` in their place. A function of its own,
-/// with a version per vector width, so that its slices are known apart and the loop
-/// vectorises although `high` runs backwards.
-#[cfg_attr(
-    not(feature = "no-avx512"),
-    multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2+fma"))
-)]
-#[cfg_attr(
-    feature = "no-avx512",
-    multiversion::multiversion(targets("x86_64+avx2+fma"))
-)]
-fn split(
-    (re_low, im_low): (&mut [f64], &mut [f64]),
-    (re_high, im_high): (&mut [f64], &mut [f64]),
-    (tw_re, tw_im): (&[f64], &[f64]),
-) {
-    let pairs = re_high.len();
-    let (re_low, im_low) = (&mut re_low[..pairs], &mut im_low[..pairs]);
-    let (im_high, tw_re, tw_im) = (&mut im_high[..pairs], &tw_re[..pairs], &tw_im[..pairs]);
-    for i in 0..pairs {
-        let j = pairs - 1 - i;
-        let (xr, xi, yr, yi) = (re_low[i], im_low[i], re_high[j], im_high[j]);
-        let (sum_re, sum_im) = (xr + yr, xi + yi);
-        let (diff_re, diff_im) = (xr - yr, xi - yi);
-        let half_sum_re = 0.5 * sum_re;
-        let half_diff_im = 0.5 * diff_im;
-        let t_re = sum_im * tw_re[i] + diff_re * tw_im[i];
-        let t_im = sum_im * tw_im[i] - diff_re * tw_re[i];
-        (re_low[i], im_low[i]) = (half_sum_re + t_re, half_diff_im + t_im);
-        (re_high[j], im_high[j]) = (half_sum_re - t_re, t_im - half_diff_im);
+afe_core::simd_kernel!(
+    fma,
+    /// The split pass over the pairs `(k, M − k)`, `0 < k < M/2`, in `realfft`'s order of
+    /// operations: `low` holds `Z[k]` from `k = 1` on, `high` `Z[M − k]` ending at `k = 1`,
+    /// as real and imaginary parts, and both get `X` in their place. A function of its own,
+    /// with a version per vector width, so that its slices are known apart and the loop
+    /// vectorises although `high` runs backwards.
+    fn split(
+        (re_low, im_low): (&mut [f64], &mut [f64]),
+        (re_high, im_high): (&mut [f64], &mut [f64]),
+        (tw_re, tw_im): (&[f64], &[f64]),
+    ) {
+        let pairs = re_high.len();
+        let (re_low, im_low) = (&mut re_low[..pairs], &mut im_low[..pairs]);
+        let (im_high, tw_re, tw_im) = (&mut im_high[..pairs], &tw_re[..pairs], &tw_im[..pairs]);
+        for i in 0..pairs {
+            let j = pairs - 1 - i;
+            let (xr, xi, yr, yi) = (re_low[i], im_low[i], re_high[j], im_high[j]);
+            let (sum_re, sum_im) = (xr + yr, xi + yi);
+            let (diff_re, diff_im) = (xr - yr, xi - yi);
+            let half_sum_re = 0.5 * sum_re;
+            let half_diff_im = 0.5 * diff_im;
+            let t_re = sum_im * tw_re[i] + diff_re * tw_im[i];
+            let t_im = sum_im * tw_im[i] - diff_re * tw_re[i];
+            (re_low[i], im_low[i]) = (half_sum_re + t_re, half_diff_im + t_im);
+            (re_high[j], im_high[j]) = (half_sum_re - t_re, t_im - half_diff_im);
+        }
     }
-}
+);
 
 #[cfg(test)]
 mod tests {

@@ -1,9 +1,13 @@
 //! The registry: every request this build computes, as a list of the descriptors that
-//! the processor modules declare (each module implements [`Descriptor`] for its processor
-//! and exports the type-erased [`RequestDef`] the graph works with as `REQUEST`, or one
-//! per request where a module serves two, e.g. `ONSET_REQUEST` and `OFFSET_REQUEST`).
+//! the processor modules declare (each module implements [`afe_core::Descriptor`] for
+//! its processor and exports the type-erased [`RequestDef`] the graph works with as
+//! `REQUEST`, or one per request where a module serves two, e.g. `ONSET_REQUEST` and
+//! `OFFSET_REQUEST`), and the requests that code outside this crate adds at run time
+//! with [`register`].
 
-use afe_core::{Error, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo};
+use std::sync::{PoisonError, RwLock};
+
+use afe_core::{Error, RequestDef, Result};
 
 use crate::{
     adaptation, ams_features, autocorrelation, butterworth, crosscorrelation, duet, filterbank,
@@ -11,190 +15,8 @@ use crate::{
     transient, transient_map,
 };
 
-/// How a processor relates to the ears (the AFE's binaural flag).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Ears {
-    /// One instance takes every ear and has one output per ear (preProc, flag 2).
-    All,
-    /// One instance per ear (flag 0).
-    PerEar,
-    /// One instance combining the left and right parents, or the single binaural parent
-    /// (flag 1).
-    Binaural,
-}
-
-/// A processor made for a graph node: the processor, its outputs and its parameters.
-pub struct Built {
-    /// The processor, ready to run.
-    pub processor: Box<dyn Processor>,
-    /// One description per output (one per ear for preProc, one otherwise).
-    pub outputs: Vec<SignalInfo>,
-}
-
-/// Everything the graph needs to know about one request name.
-pub struct RequestDef {
-    /// The AFE request name, e.g. `ratemap`.
-    pub name: &'static str,
-    /// The request this one is computed from (`input` for the raw ear signals).
-    pub dependency: &'static str,
-    /// Ear handling.
-    pub ears: Ears,
-    /// One-line meaning, for listings.
-    pub description: &'static str,
-    /// Unit of the output values, for listings.
-    pub output_unit: &'static str,
-    /// The parameters this processor declares.
-    pub params: &'static [ParamSpec],
-    /// The AFE defaults of those parameters.
-    pub defaults: fn() -> ParamMap,
-    /// The processor's own parameters after defaults and verification; two nodes with
-    /// equal maps (and equal parents) compute the same thing and are shared.
-    pub canonical: fn(&ParamMap) -> Result<ParamMap>,
-    /// Builds the processor for parent outputs `inputs` (one per ear for preProc).
-    pub build: fn(&ParamMap, &[SignalInfo]) -> Result<Built>,
-    /// Whether, with these request parameters, any chunking gives the output of one call
-    /// (false where the AFE itself depends on chunk boundaries).
-    pub chunk_invariant: fn(&ParamMap) -> bool,
-    /// Where not chunk-invariant: the seconds of input a whole signal's first chunk must
-    /// hold (or be the whole signal) for chunks of any size after it to give one call's
-    /// output (the AGC seeds from a fixed prefix); `None` when one call is needed.
-    pub one_call_prefix_s: fn(&ParamMap) -> Option<f64>,
-    /// Requests read beside the dependency, with these request parameters (resolved with
-    /// the same parameters, so they are the nodes of the chain below when it has them).
-    /// Per-ear processors get the same ear's output after their dependency's; binaural
-    /// ones get left and right after theirs.
-    pub extra_inputs: fn(&ParamMap) -> &'static [&'static str],
-    /// Parameters that cannot change at run time (as in the AFE): they fix what every
-    /// representation above is laid out on.
-    pub fixed: &'static [&'static str],
-    /// The request lower in the chain (same ear) that takes this processor's feedback
-    /// output from the next chunk on (the MOC feeds the filterbank), if any.
-    pub feeds_back_to: Option<&'static str>,
-}
-
-impl std::fmt::Debug for RequestDef {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("RequestDef")
-            .field("name", &self.name)
-            .finish_non_exhaustive()
-    }
-}
-
-impl Built {
-    /// A built processor with one description per output.
-    pub fn new(processor: impl Processor + 'static, outputs: Vec<SignalInfo>) -> Self {
-        Built {
-            processor: Box::new(processor),
-            outputs,
-        }
-    }
-}
-
-/// What a processor module declares about the request it computes: its name, where its
-/// input comes from, its typed parameters and how to build it. The registry turns it into
-/// a [`RequestDef`] with [`request_def`]; parameters are parsed from the request's map
-/// once per use, into `Self::Params`.
-pub trait Descriptor {
-    /// The typed parameters (AFE names and defaults).
-    type Params: Params;
-    /// The AFE request name, e.g. `ratemap`.
-    const NAME: &'static str;
-    /// The request this one is computed from (`input` for the raw ear signals).
-    const DEPENDENCY: &'static str;
-    /// Ear handling.
-    const EARS: Ears;
-    /// One-line meaning, for listings.
-    const DESCRIPTION: &'static str;
-    /// Unit of the output values, for listings (`""` when dimensionless).
-    const OUTPUT_UNIT: &'static str;
-    /// Parameters that cannot change at run time (as in the AFE).
-    const FIXED: &'static [&'static str] = &[];
-    /// The request lower in the chain that takes this processor's feedback output
-    /// (see [`RequestDef::feeds_back_to`]).
-    const FEEDS_BACK_TO: Option<&'static str> = None;
-
-    /// This processor's parameters in a request's map (defaults filled, values checked).
-    /// A processor whose parameters another processor of the chain changes (the DRNL
-    /// turns off the pre-processing's unity compensation) applies that here, so that its
-    /// node, its sharing and its listed parameters say what it computes.
-    fn params(map: &ParamMap) -> Result<Self::Params> {
-        Self::Params::from_map(map)
-    }
-
-    /// Builds the processor for the parents' outputs `inputs` (the dependency's, then
-    /// those of the extra inputs).
-    fn build(params: &Self::Params, inputs: &[SignalInfo]) -> Result<Built>;
-
-    /// The parameters that decide what the processor computes; two nodes with equal maps
-    /// (and equal parents) are shared.
-    fn canonical(params: &Self::Params) -> Result<ParamMap> {
-        Ok(params.to_map())
-    }
-
-    /// Whether any chunking gives the output of one call (false where the AFE itself
-    /// depends on chunk boundaries).
-    fn chunk_invariant(_: &Self::Params) -> bool {
-        true
-    }
-
-    /// Where not chunk-invariant, the prefix of a whole signal (seconds) after which
-    /// any chunking gives one call's output (see [`RequestDef::one_call_prefix_s`]).
-    fn one_call_prefix_s(_: &Self::Params) -> Option<f64> {
-        None
-    }
-
-    /// Requests read beside the dependency (see [`RequestDef::extra_inputs`]).
-    fn extra_inputs(_: &Self::Params) -> &'static [&'static str] {
-        &[]
-    }
-}
-
-/// The type-erased registry entry of the processor described by `D`.
-pub const fn request_def<D: Descriptor>() -> RequestDef {
-    RequestDef {
-        name: D::NAME,
-        dependency: D::DEPENDENCY,
-        ears: D::EARS,
-        description: D::DESCRIPTION,
-        output_unit: D::OUTPUT_UNIT,
-        params: D::Params::SPECS,
-        defaults: defaults::<D>,
-        canonical: canonical::<D>,
-        build: build::<D>,
-        chunk_invariant: chunk_invariant::<D>,
-        one_call_prefix_s: one_call_prefix_s::<D>,
-        extra_inputs: extra_inputs::<D>,
-        fixed: D::FIXED,
-        feeds_back_to: D::FEEDS_BACK_TO,
-    }
-}
-
-fn defaults<D: Descriptor>() -> ParamMap {
-    D::Params::default().to_map()
-}
-
-fn canonical<D: Descriptor>(map: &ParamMap) -> Result<ParamMap> {
-    D::canonical(&D::params(map)?)
-}
-
-fn build<D: Descriptor>(map: &ParamMap, inputs: &[SignalInfo]) -> Result<Built> {
-    D::build(&D::params(map)?, inputs)
-}
-
-fn chunk_invariant<D: Descriptor>(map: &ParamMap) -> bool {
-    D::params(map).is_ok_and(|p| D::chunk_invariant(&p))
-}
-
-fn one_call_prefix_s<D: Descriptor>(map: &ParamMap) -> Option<f64> {
-    D::params(map).ok().and_then(|p| D::one_call_prefix_s(&p))
-}
-
-fn extra_inputs<D: Descriptor>(map: &ParamMap) -> &'static [&'static str] {
-    D::params(map).map_or(&[], |p| D::extra_inputs(&p))
-}
-
-/// Every request, in dependency order: one line per processor module.
-static REQUESTS: &[&RequestDef] = &[
+/// The requests this crate computes, in dependency order: one line per processor module.
+static BUILT_IN: &[&RequestDef] = &[
     &pre_proc::REQUEST,
     &butterworth::REQUEST,
     &filterbank::REQUEST,
@@ -220,30 +42,106 @@ static REQUESTS: &[&RequestDef] = &[
     &duet::REQUEST,
 ];
 
-/// Every request this build knows, in dependency order.
+/// Every known request: the built-in ones, then those registered at run time in the
+/// order they were. A registration replaces the list rather than changing it, so that a
+/// reader iterates a consistent `'static` list without holding the lock; each replaced
+/// list stays allocated (one pointer per request, a handful of registrations a process).
+static KNOWN: RwLock<&'static [&'static RequestDef]> = RwLock::new(BUILT_IN);
+
+/// Every request this build knows, in dependency order: the built-in ones, then those
+/// registered with [`register`].
 pub fn requests() -> &'static [&'static RequestDef] {
-    REQUESTS
+    *KNOWN.read().unwrap_or_else(PoisonError::into_inner)
 }
 
 /// The definition of request `name`, or an error listing the known names.
 pub fn find_request(name: &str) -> Result<&'static RequestDef> {
-    REQUESTS
+    let known = requests();
+    known
         .iter()
         .find(|r| r.name == name)
         .copied()
         .ok_or_else(|| Error::UnknownRequest {
             name: name.to_string(),
-            known: REQUESTS
-                .iter()
-                .map(|r| r.name)
-                .collect::<Vec<_>>()
-                .join(", "),
+            known: names(known),
         })
+}
+
+/// Adds `def` to the known requests, after those known so far: from then on
+/// [`find_request`], [`requests`] and so every graph see it. A processor module outside
+/// this crate implements [`afe_core::Descriptor`] and registers
+/// `afe_core::request_def::<Its>()` kept in a `static`.
+///
+/// Refused, with the reason, when the name is taken (or is `input`), when its dependency
+/// or an extra input it reads at its defaults is not known yet (register those first),
+/// when its defaults do not configure, or when a parameter name it declares is declared
+/// by another request with another kind, unit or meaning.
+pub fn register(def: &'static RequestDef) -> Result<()> {
+    let mut known = KNOWN.write().unwrap_or_else(PoisonError::into_inner);
+    check_registration(def, &known)?;
+    let mut list = known.to_vec();
+    list.push(def);
+    *known = Vec::leak(list);
+    Ok(())
+}
+
+/// Why `def` cannot follow the requests `known`, if it cannot.
+fn check_registration(def: &RequestDef, known: &[&RequestDef]) -> Result<()> {
+    let refuse = |reason: String| Error::RegistrationRefused {
+        name: def.name.to_string(),
+        reason,
+    };
+    let is_known = |name: &str| known.iter().any(|r| r.name == name);
+    if def.name == "input" || is_known(def.name) {
+        return Err(refuse(
+            "a request of that name is already registered; choose another name".into(),
+        ));
+    }
+    let missing = |what: &str, name: &str| {
+        refuse(format!(
+            "{what} '{name}' is not registered; register it first (known requests: {})",
+            names(known)
+        ))
+    };
+    if def.dependency != "input" && !is_known(def.dependency) {
+        return Err(missing("its dependency", def.dependency));
+    }
+    let configured = (def.configure)(&(def.defaults)())
+        .map_err(|e| refuse(format!("its defaults do not configure: {e}")))?;
+    if let Some(extra) = configured.extra_inputs().iter().find(|e| !is_known(e)) {
+        return Err(missing("the extra input", extra));
+    }
+    for p in def.params {
+        let other = known
+            .iter()
+            .flat_map(|r| r.params.iter().map(move |q| (r.name, q)))
+            .find(|(_, q)| q.name == p.name);
+        if let Some((owner, q)) = other {
+            if (q.kind, q.unit, q.description) != (p.kind, p.unit, p.description) {
+                return Err(refuse(format!(
+                    "parameter '{}' is declared by '{owner}' with another kind, unit or \
+                     meaning; rename it or declare it as '{owner}' does",
+                    p.name
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The names of `requests`, comma-separated.
+fn names(requests: &[&RequestDef]) -> String {
+    requests
+        .iter()
+        .map(|r| r.name)
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use afe_core::{ParamMap, ParamSpec};
 
     /// Dependencies and extra inputs resolve to earlier requests (the list is in
     /// dependency order); a parameter name declared by several requests (`trm_*` of the
@@ -258,8 +156,8 @@ mod tests {
                 "{}",
                 r.name
             );
-            let defaults = (r.defaults)();
-            for extra in (r.extra_inputs)(&defaults) {
+            let configured = (r.configure)(&(r.defaults)()).expect("defaults are valid");
+            for extra in configured.extra_inputs() {
                 assert!(earlier(extra), "{} reads {extra}", r.name);
             }
             for p in r.params {
@@ -272,7 +170,6 @@ mod tests {
                     );
                 }
             }
-            assert!((r.canonical)(&defaults).is_ok(), "{}", r.name);
             assert!(requests().iter().filter(|d| d.name == r.name).count() == 1);
         }
     }
@@ -293,24 +190,62 @@ mod tests {
                 "{}",
                 r.name
             );
+            let configured = (r.configure)(&defaults).expect("defaults are valid");
             assert_eq!(
-                (r.chunk_invariant)(&defaults),
+                configured.chunk_invariant(),
                 !per_chunk.contains(&r.name),
                 "{}",
                 r.name
             );
-            let prefix = (r.one_call_prefix_s)(&defaults);
+            let prefix = configured.one_call_prefix_s();
             assert_eq!(prefix, (r.name == "time").then_some(0.5), "{}", r.name);
-            assert!((r.extra_inputs)(&defaults).is_empty(), "{}", r.name);
+            assert!(configured.extra_inputs().is_empty(), "{}", r.name);
         }
-        let agc = ParamMap::from([("pp_bNormalizeRMS".into(), serde_json::json!(true))]);
-        assert!(!(find_request("time").expect("time").chunk_invariant)(&agc));
-        let hilbert = ParamMap::from([("ihc_method".into(), serde_json::json!("hilbert"))]);
-        let ihc = find_request("innerhaircell").expect("ihc");
-        assert!(!(ihc.chunk_invariant)(&hilbert));
-        let floor = ParamMap::from([("trm_minValuedB".into(), serde_json::json!(-80.0))]);
-        let onset_map = find_request("onsetMap").expect("onsetMap");
-        assert_eq!((onset_map.extra_inputs)(&floor), ["ratemap"]);
+        let configure = |name: &str, key: &str, value: serde_json::Value| {
+            let map = ParamMap::from([(key.to_string(), value)]);
+            (find_request(name).expect("registered").configure)(&map).expect("valid")
+        };
+        let agc = configure("time", "pp_bNormalizeRMS", serde_json::json!(true));
+        assert!(!agc.chunk_invariant());
+        let hilbert = configure("innerhaircell", "ihc_method", serde_json::json!("hilbert"));
+        assert!(!hilbert.chunk_invariant());
+        let floor = configure("onsetMap", "trm_minValuedB", serde_json::json!(-80.0));
+        assert_eq!(floor.extra_inputs(), ["ratemap"]);
+    }
+
+    /// A registration is checked against the requests known before it: its name, its
+    /// dependency, and the meaning of each parameter name it shares with them.
+    #[test]
+    fn registrations_are_checked_against_the_known_requests() {
+        use afe_core::{request_def, ParamKind};
+        let refused = |def: &RequestDef| {
+            check_registration(def, BUILT_IN)
+                .expect_err("refused")
+                .to_string()
+        };
+        let fresh = RequestDef {
+            name: "testCue",
+            ..request_def::<crate::itd::Itd>()
+        };
+        assert_eq!(check_registration(&fresh, BUILT_IN), Ok(()));
+        assert!(refused(&request_def::<crate::itd::Itd>()).contains("already registered"));
+        let input = RequestDef {
+            name: "input",
+            ..request_def::<crate::itd::Itd>()
+        };
+        assert!(refused(&input).contains("already registered"));
+        let conflicting = RequestDef {
+            name: "testCue",
+            params: &[ParamSpec {
+                name: "rm_wSizeSec",
+                kind: ParamKind::Number,
+                unit: "ms",
+                description: "window length",
+            }],
+            ..request_def::<crate::itd::Itd>()
+        };
+        let e = refused(&conflicting);
+        assert!(e.contains("'rm_wSizeSec' is declared by 'ratemap'"), "{e}");
     }
 
     #[test]

@@ -1,10 +1,9 @@
 //! `spectralFeatures`: frame-wise scalar descriptors of the ratemap across its auditory
 //! channels (centroid, crest, ..., variation; spec 26-spectralFeatures).
 
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
-
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// One spectral feature, or `all` of them (AFE names).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

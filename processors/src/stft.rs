@@ -4,6 +4,7 @@
 use std::f64::consts::PI;
 use std::sync::Arc;
 
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::framing::{window_samples, FrameBuffer};
 use afe_core::{
     Block, DrawAs, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
@@ -11,8 +12,6 @@ use afe_core::{
 use realfft::num_complex::Complex64;
 use realfft::{RealFftPlanner, RealToComplex};
 use serde::{Deserialize, Serialize};
-
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// Parameters of the STFT, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

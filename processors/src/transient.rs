@@ -4,10 +4,9 @@
 //! The two requests differ only in the sign of the change they keep and in their
 //! parameter, so one processor computes both.
 
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
-
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// Parameters of the onset strength, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

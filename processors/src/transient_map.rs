@@ -5,12 +5,11 @@
 //! Both requests run the same processor on their strength; they share the `trm_*`
 //! parameters.
 
+use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::{
     Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
 };
 use serde::{Deserialize, Serialize};
-
-use crate::registry::{request_def, Built, Descriptor, Ears, RequestDef};
 
 /// Parameters of the transient maps, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
