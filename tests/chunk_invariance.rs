@@ -85,7 +85,11 @@ fn params(pairs: &[(&str, serde_json::Value)]) -> ParamMap {
 fn invariant_requests() -> Vec<&'static str> {
     afe::requests()
         .iter()
-        .filter(|r| (r.chunk_invariant)(&(r.defaults)()))
+        .filter(|r| {
+            (r.configure)(&(r.defaults)())
+                .expect("defaults are valid")
+                .chunk_invariant()
+        })
         .map(|r| r.name)
         .collect()
 }

@@ -1027,7 +1027,7 @@ fn parameter_json() {
             let params = random_params(rng, &name, entries);
             // the parser alone, for every processor (the resolver stops at the first error)
             for def in afe::requests() {
-                if let Err(e) = (def.canonical)(&params) {
+                if let Err(e) = (def.configure)(&params) {
                     check_error(&e)?;
                 }
             }

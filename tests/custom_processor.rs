@@ -1,0 +1,155 @@
+//! A representation added from outside the workspace's crates: a processor defined in
+//! this file (its own module) and one registration. Its metadata, its figure and its
+//! live-view panel come from its own description, with nothing in the facade taught
+//! about it.
+#![cfg(all(feature = "plot", feature = "view"))]
+
+use std::time::Duration;
+
+use afe::extract::{run_with, Job};
+use afe::stream::{run, StreamJob};
+use afe::{Manager, ParamMap};
+use afe_bass_source::{Pacing, Synth};
+use afe_plot::{render, Format, Layout};
+use afe_view::View;
+use serde_json::{json, Value};
+use tungstenite::Message;
+
+/// The ratemap of each frame in dB about the frame's mean over channels: a signed cue.
+mod centred {
+    use afe_core::{
+        request_def, Block, Built, Descriptor, DrawAs, Ears, NoParams, Processor, RequestDef,
+        Result, SignalInfo,
+    };
+
+    /// Each frame's channels in dB, minus their mean.
+    pub struct Centred;
+
+    impl Processor for Centred {
+        fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
+            let x = inputs[0];
+            let width = x.width();
+            let out = outputs[0].resize_to(x.frames());
+            for (o, row) in out.chunks_exact_mut(width).zip(x.rows()) {
+                let db: Vec<f64> = row.iter().map(|v| 10.0 * v.max(1e-30).log10()).collect();
+                let mean = db.iter().sum::<f64>() / width as f64;
+                for (o, d) in o.iter_mut().zip(db) {
+                    *o = d - mean;
+                }
+            }
+        }
+
+        fn reset(&mut self) {}
+    }
+
+    impl Descriptor for Centred {
+        type Params = NoParams;
+        const NAME: &'static str = "testCentred";
+        const DEPENDENCY: &'static str = "ratemap";
+        const EARS: Ears = Ears::PerEar;
+        const DESCRIPTION: &'static str = "each ratemap frame in dB about its mean";
+        const OUTPUT_UNIT: &'static str = "dB";
+
+        fn build(_: &NoParams, inputs: &[SignalInfo]) -> Result<Built> {
+            let info = inputs[0]
+                .clone()
+                .with_unit(Self::OUTPUT_UNIT)
+                .drawn_as(DrawAs::Signed);
+            Ok(Built::new(Centred, vec![info]))
+        }
+    }
+
+    /// Its registry entry: the one line a new representation adds.
+    pub static REQUEST: RequestDef = request_def::<Centred>();
+}
+
+fn tone(fs: f64, seconds: f64) -> Vec<Vec<f64>> {
+    let left: Vec<f64> = (0..(fs * seconds) as usize)
+        .map(|n| (2.0 * std::f64::consts::PI * 500.0 * n as f64 / fs).sin() * 0.1)
+        .collect();
+    let right = left.iter().map(|v| 0.5 * v).collect();
+    vec![left, right]
+}
+
+#[test]
+fn a_processor_defined_here_gets_metadata_a_figure_and_a_panel() {
+    afe_processors::register(&centred::REQUEST).expect("a new request");
+    let params: ParamMap = [("fb_nChannels".to_string(), json!(8))]
+        .into_iter()
+        .collect();
+
+    // metadata: its unit, its framing (the ratemap's) and how it is drawn
+    let fs = 16000.0;
+    let audio = tone(fs, 0.5);
+    let refs: Vec<&[f64]> = audio.iter().map(Vec::as_slice).collect();
+    let mut mgr = Manager::new(fs, 2).expect("manager");
+    let job = Job {
+        requests: vec!["testCentred".into()],
+        params: params.clone(),
+        ..Job::default()
+    };
+    let rec = run_with(&mut mgr, &job, &refs).expect("computed");
+    let s = rec.get("testCentred_left").expect("recorded");
+    let d = &s.description;
+    assert_eq!(d["unit"], "dB");
+    assert_eq!(d["window_s"], 0.02);
+    assert_eq!(d["hop_s"], 0.01);
+    assert_eq!(d["display"], json!({"draw": "signed"}));
+    assert_eq!(d["processors"][0], "testCentred");
+    assert_eq!(s.data.width(), 8);
+
+    // its figure: a PNG with one panel per ear
+    let png = render(&rec, Format::Png, &Layout::default()).expect("drawn");
+    assert!(png.starts_with(b"\x89PNG"), "not a PNG");
+    let header = png::Decoder::new(png.as_slice())
+        .read_info()
+        .expect("decodes")
+        .info()
+        .clone();
+    assert_eq!(header.width, Layout::default().width);
+    assert!(header.height >= 2 * Layout::default().panel_height);
+
+    // its live-view panel: listed in the page's catalogue, described, and streamed
+    let (view, tap) = View::start("127.0.0.1:0".parse().expect("addr"), 10.0).expect("view");
+    let (mut ws, _) =
+        tungstenite::connect(format!("ws://{}/ws", view.addr())).expect("a WebSocket");
+    if let tungstenite::stream::MaybeTlsStream::Plain(s) = ws.get_ref() {
+        s.set_read_timeout(Some(Duration::from_secs(5)))
+            .expect("timeout");
+    }
+    let stream_job = StreamJob {
+        requests: vec!["testCentred".into()],
+        params,
+        duration_s: Some(0.5),
+        pacing: Pacing::Realtime,
+        ..StreamJob::default()
+    };
+    let synth = Synth::parse("fs=16000,tone=500,seed=1").expect("synth");
+    let streamer = std::thread::spawn(move || run(synth, &stream_job, tap).expect("stream"));
+    let mut layout: Option<Value> = None;
+    let mut batches = 0;
+    while let Ok(msg) = ws.read() {
+        match msg {
+            Message::Text(t) => {
+                let v: Value = serde_json::from_str(t.as_str()).expect("json");
+                if v["type"] == "layout" {
+                    layout = Some(v);
+                } else if v["type"] == "end" {
+                    break;
+                }
+            }
+            Message::Binary(_) => batches += 1,
+            Message::Close(_) => break,
+            _ => {}
+        }
+    }
+    streamer.join().expect("stream thread");
+    drop(view);
+    let layout = layout.expect("a layout");
+    let listed = layout["catalogue"].as_array().expect("catalogue");
+    assert!(listed.iter().any(|r| r == "testCentred"), "{listed:?}");
+    let panel = &layout["signals"]["testCentred_right"];
+    assert_eq!(panel["display"], json!({"draw": "signed"}), "{layout}");
+    assert_eq!(panel["unit"], "dB");
+    assert!(batches > 0, "no frames reached the page");
+}
