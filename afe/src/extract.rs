@@ -113,7 +113,7 @@ fn record_known_length(
 }
 
 /// Where a run's output goes as it is computed: kept in memory ([`Recorder`]) or written
-/// out as it comes (the corpus store of [`crate::batch`]).
+/// out as it comes (the corpus store of `afe-batch`).
 pub trait Sink {
     /// What can go wrong in the sink; the graph's own errors convert into it.
     type Error: From<Error>;
