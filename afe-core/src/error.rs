@@ -10,10 +10,12 @@ use thiserror::Error;
 #[non_exhaustive]
 pub enum Error {
     /// A request name that no processor produces.
-    #[error("unknown request '{name}' (known requests: {known})")]
+    #[error("unknown request '{name}'{hint} (known requests: {known})")]
     UnknownRequest {
         /// The name as given.
         name: String,
+        /// Either empty or ` (did you mean 'x'?)` ([`crate::params::did_you_mean`]).
+        hint: String,
         /// Comma-separated list of the accepted names.
         known: String,
     },

@@ -80,6 +80,88 @@ pub struct ParamSpec {
     pub description: &'static str,
 }
 
+/// The name among `known` that `given` most likely misspells: the closest by edit
+/// distance, case aside (`ITD` → `itd`, `rm_wSizeSecs` → `rm_wSizeSec`), if within
+/// 2 + len/4 edits; `None` when nothing is that close. The one did-you-mean of the
+/// workspace: request names, parameter names and string values all go through it.
+///
+/// ```
+/// use afe_core::params::closest;
+/// assert_eq!(closest("ITD", ["ild", "itd", "ic"]), Some("itd"));
+/// assert_eq!(closest("Dau", ["halfwave", "dau", "hilbert"]), Some("dau"));
+/// assert_eq!(closest("spectrogram", ["ild", "itd"]), None);
+/// ```
+pub fn closest<'a>(given: &str, known: impl IntoIterator<Item = &'a str>) -> Option<&'a str> {
+    let given_lower = given.to_lowercase();
+    known
+        .into_iter()
+        .map(|k| (edit_distance(&k.to_lowercase(), &given_lower), k))
+        .min()
+        .filter(|(d, _)| *d <= 2 + given.len() / 4)
+        .map(|(_, k)| k)
+}
+
+/// ` (did you mean 'x'?)` for the [`closest`] name, or an empty string.
+pub fn did_you_mean<'a>(given: &str, known: impl IntoIterator<Item = &'a str>) -> String {
+    closest(given, known)
+        .map(|k| format!(" (did you mean '{k}'?)"))
+        .unwrap_or_default()
+}
+
+/// Levenshtein distance between `a` and `b`, in characters.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut prev = row[0];
+        row[0] = i + 1;
+        for (j, cb) in b.iter().enumerate() {
+            let cur = row[j + 1];
+            row[j + 1] = (prev + usize::from(ca != *cb)).min(row[j] + 1).min(cur + 1);
+            prev = cur;
+        }
+    }
+    row[b.len()]
+}
+
+/// What a message adds after a value equal to the parameter's default. A processor sees
+/// only its typed parameters, defaults filled in, so it cannot tell a default from the
+/// same value set on purpose; [`unless_set`], applied where the request's map is at hand
+/// (the graph), takes the note back for a value the request set.
+pub const DEFAULT_NOTE: &str = " (the default)";
+
+/// `e` with [`DEFAULT_NOTE`] taken out of an [`Error::InvalidParameter`] whose parameter
+/// `request` sets (to a value other than the AFE's "use the default" markers): a value the
+/// user set is never called the default, even when it equals it (`fb_highFreqHz = 8000`
+/// at 11025 Hz).
+///
+/// ```
+/// use afe_core::params::{unless_set, DEFAULT_NOTE};
+/// use afe_core::{Error, ParamMap};
+/// let e = || Error::invalid("fb_highFreqHz", 8000.0, format!("8000{DEFAULT_NOTE} is too high"));
+/// let set: ParamMap = [("fb_highFreqHz".to_string(), serde_json::json!(8000))].into_iter().collect();
+/// assert_eq!(unless_set(e(), &set).to_string(), "invalid value 8000 for parameter 'fb_highFreqHz': 8000 is too high");
+/// assert!(unless_set(e(), &ParamMap::new()).to_string().contains("8000 (the default) is"));
+/// ```
+pub fn unless_set(e: Error, request: &ParamMap) -> Error {
+    match e {
+        Error::InvalidParameter {
+            name,
+            value,
+            reason,
+        } if reason.contains(DEFAULT_NOTE)
+            && request.get(&name).is_some_and(|v| !is_default_marker(v)) =>
+        {
+            Error::InvalidParameter {
+                reason: reason.replace(DEFAULT_NOTE, ""),
+                name,
+                value,
+            }
+        }
+        e => e,
+    }
+}
+
 /// True for the values the AFE treats as "use the default": `[]`, `""`, `null`, `'n-a'`.
 fn is_default_marker(v: &Value) -> bool {
     match v {
@@ -97,10 +179,25 @@ impl ParamSpec {
         if is_default_marker(value) {
             return Ok(None);
         }
-        let bad = || Error::InvalidParameter {
-            name: self.name.to_string(),
-            value: value.to_string(),
-            reason: format!("expected {}", self.kind.describe()),
+        let bad = || {
+            // a string that misspells a choice ("Dau" for 'dau') is named with it
+            let hint = match (self.kind, value) {
+                (ParamKind::Choice(c) | ParamKind::Choices(c), Value::String(s)) => {
+                    did_you_mean(s, c.iter().copied())
+                }
+                (ParamKind::Choices(c), Value::Array(items)) => items
+                    .iter()
+                    .filter_map(Value::as_str)
+                    .find(|s| !c.contains(s))
+                    .map(|s| did_you_mean(s, c.iter().copied()))
+                    .unwrap_or_default(),
+                _ => String::new(),
+            };
+            Error::InvalidParameter {
+                name: self.name.to_string(),
+                value: value.to_string(),
+                reason: format!("expected {}{hint}", self.kind.describe()),
+            }
         };
         let finite = |v: &Value| v.as_f64().filter(|x| x.is_finite());
         let out = match self.kind {
@@ -275,6 +372,84 @@ mod tests {
             err.contains("ihc_method") && err.contains("'dau', 'none'"),
             "{err}"
         );
+    }
+
+    /// issue 46: a string value that misspells a choice is named with it; one far from
+    /// every choice gets no guess.
+    #[test]
+    fn a_misspelt_choice_says_what_was_meant() {
+        let spec = ParamSpec {
+            name: "ihc_method",
+            kind: ParamKind::Choice(&["halfwave", "dau", "hilbert"]),
+            unit: "",
+            description: "",
+        };
+        assert_eq!(
+            spec.normalize(&json!("Dau")).unwrap_err().to_string(),
+            "invalid value \"Dau\" for parameter 'ihc_method': expected one of 'halfwave', \
+             'dau', 'hilbert' (did you mean 'dau'?)"
+        );
+        let far = spec
+            .normalize(&json!("spectrogram"))
+            .unwrap_err()
+            .to_string();
+        assert!(!far.contains("did you mean"), "{far}");
+        let list = ParamSpec {
+            name: "sf_requests",
+            kind: ParamKind::Choices(&["all", "crest", "centroid"]),
+            unit: "",
+            description: "",
+        };
+        let e = list.normalize(&json!(["crest", "Centroid"])).unwrap_err();
+        assert!(
+            e.to_string().ends_with(" (did you mean 'centroid'?)"),
+            "{e}"
+        );
+    }
+
+    /// issue 46: "the default" is said only of a value the request did not set.
+    #[test]
+    fn a_value_set_is_not_called_the_default() {
+        let e = || {
+            Error::invalid(
+                "fb_highFreqHz",
+                "8000.0",
+                format!("8000{DEFAULT_NOTE} puts a channel above Nyquist"),
+            )
+        };
+        let set: ParamMap = [("fb_highFreqHz".to_string(), json!(8000))]
+            .into_iter()
+            .collect();
+        assert_eq!(
+            unless_set(e(), &set).to_string(),
+            "invalid value 8000.0 for parameter 'fb_highFreqHz': 8000 puts a channel above Nyquist"
+        );
+        // not set, or set to a "use the default" marker: the default it is
+        for request in [
+            ParamMap::new(),
+            [("fb_highFreqHz".to_string(), json!([]))]
+                .into_iter()
+                .collect(),
+        ] {
+            assert_eq!(
+                unless_set(e(), &request).to_string(),
+                "invalid value 8000.0 for parameter 'fb_highFreqHz': 8000 (the default) puts a \
+                 channel above Nyquist"
+            );
+        }
+    }
+
+    #[test]
+    fn closest_names_ignore_case_and_refuse_far_guesses() {
+        assert_eq!(closest("ITD", ["ild", "itd"]), Some("itd"));
+        assert_eq!(closest("ratemapp", ["ratemap", "ild"]), Some("ratemap"));
+        assert_eq!(
+            closest("rm_wSizeSecs", ["rm_wSizeSec", "rm_scaling"]),
+            Some("rm_wSizeSec")
+        );
+        assert_eq!(closest("xyz", ["ratemap"]), None);
+        assert_eq!(did_you_mean("Dau", ["dau"]), " (did you mean 'dau'?)");
+        assert_eq!(did_you_mean("xyz", ["ratemap"]), "");
     }
 
     #[test]

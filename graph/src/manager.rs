@@ -199,35 +199,13 @@ pub fn check_parameter_names(params: &ParamMap) -> Result<()> {
         .collect();
     for name in params.keys() {
         if !known.contains(&name.as_str()) {
-            let hint = known
-                .iter()
-                .map(|k| (edit_distance(&k.to_lowercase(), &name.to_lowercase()), *k))
-                .min()
-                .filter(|(d, _)| *d <= 2 + name.len() / 4)
-                .map(|(_, k)| format!(" (did you mean '{k}'?)"))
-                .unwrap_or_default();
             return Err(Error::UnknownParameter {
                 name: name.clone(),
-                hint,
+                hint: afe_core::params::did_you_mean(name, known.iter().copied()),
             });
         }
     }
     Ok(())
-}
-
-fn edit_distance(a: &str, b: &str) -> usize {
-    let b: Vec<char> = b.chars().collect();
-    let mut row: Vec<usize> = (0..=b.len()).collect();
-    for (i, ca) in a.chars().enumerate() {
-        let mut prev = row[0];
-        row[0] = i + 1;
-        for (j, cb) in b.iter().enumerate() {
-            let cur = row[j + 1];
-            row[j + 1] = (prev + usize::from(ca != *cb)).min(row[j] + 1).min(cur + 1);
-            prev = cur;
-        }
-    }
-    row[b.len()]
 }
 
 impl Manager {
@@ -453,6 +431,7 @@ impl Manager {
     pub fn add_request(&mut self, name: &str, params: &ParamMap) -> Result<RequestHandle> {
         check_parameter_names(params)?;
         self.edit(|m| m.add_request_now(name, params))
+            .map_err(|e| afe_core::params::unless_set(e, params))
     }
 
     fn add_request_now(&mut self, name: &str, params: &ParamMap) -> Result<RequestHandle> {
@@ -813,6 +792,7 @@ impl Manager {
             }
             Ok(())
         })
+        .map_err(|e| afe_core::params::unless_set(e, &params))
     }
 
     /// The output signals of a request: one per ear for per-ear representations, one
@@ -1137,6 +1117,40 @@ mod tests {
             .add_request("duet", &ParamMap::new())
             .expect_err("mono");
         assert!(matches!(e, Error::BinauralOnMono(ref r) if r == "duet"));
+    }
+
+    /// issue 46: a value the request set is never called "(the default)", even when it
+    /// equals the default (`fb_highFreqHz = 8000` at 11025 Hz); left unset, it is.
+    #[test]
+    fn a_value_set_is_not_called_the_default() {
+        let mut m = Manager::new(11025.0, 2).expect("valid");
+        let e = m
+            .add_request("ratemap", &params(&[("fb_highFreqHz", json!(8000))]))
+            .expect_err("above Nyquist")
+            .to_string();
+        assert!(
+            e.starts_with("invalid value 8000.0 for parameter 'fb_highFreqHz': 8000 puts "),
+            "{e}"
+        );
+        assert!(!e.contains("the default"), "{e}");
+        let e = m
+            .add_request("ratemap", &ParamMap::new())
+            .expect_err("above Nyquist")
+            .to_string();
+        assert!(e.contains(": 8000 (the default) puts "), "{e}");
+        // modify_parameter too: ams_highFreqHz set to its default at 8 kHz
+        let mut m = Manager::new(8000.0, 1).expect("valid");
+        let h = m
+            .add_request("amsFeatures", &params(&[("ams_highFreqHz", json!(256))]))
+            .expect("fits");
+        let e = m
+            .modify_parameter(h, "ams_highFreqHz", json!(1024))
+            .expect_err("above Nyquist")
+            .to_string();
+        assert!(
+            e.contains("with ams_highFreqHz = 1024, the modulation band"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -63,6 +63,7 @@ pub fn find_request(name: &str) -> Result<&'static RequestDef> {
         .copied()
         .ok_or_else(|| Error::UnknownRequest {
             name: name.to_string(),
+            hint: afe_core::params::did_you_mean(name, known.iter().map(|r| r.name)),
             known: names(known),
         })
 }
@@ -142,6 +143,25 @@ fn names(requests: &[&RequestDef]) -> String {
 mod tests {
     use super::*;
     use afe_core::{ParamMap, ParamSpec};
+
+    /// issue 46: a request name given in the wrong case or with a typo is named with the
+    /// request meant; the known names follow either way.
+    #[test]
+    fn an_unknown_request_says_which_was_meant() {
+        let e = find_request("ITD").map(|_| ()).unwrap_err().to_string();
+        assert!(
+            e.starts_with("unknown request 'ITD' (did you mean 'itd'?) (known requests: time, "),
+            "{e}"
+        );
+        let e = find_request("zzzzzzzzzz")
+            .map(|_| ())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("unknown request 'zzzzzzzzzz' (known requests: time, "),
+            "{e}"
+        );
+    }
 
     /// Dependencies and extra inputs resolve to earlier requests (the list is in
     /// dependency order); a parameter name declared by several requests (`trm_*` of the

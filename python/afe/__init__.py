@@ -32,6 +32,7 @@ from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from . import _afe
+from .frames import Requests, request_items as _request_items
 from .signal import Signal, signals as _signals
 
 __all__ = [
@@ -46,13 +47,16 @@ __all__ = [
     "Subscription",
     "batch",
     "connect",
+    "load",
     "open_store",
     "parameters",
     "plot",
     "process",
     "read_wav",
     "requests",
+    "save",
     "stream",
+    "summary",
     "__version__",
 ]
 
@@ -127,12 +131,21 @@ def _as_channels(signal: Audio, channels: Optional[int] = None) -> np.ndarray:
     if x.ndim == 1:
         x = x[:, None]
     if x.ndim != 2 or x.shape[1] not in (1, 2):
+        hint = ""
+        if x.ndim == 2 and x.shape[0] in (1, 2):
+            # MATLAB's column-major files come out of h5py (v7.3) as [channels, samples]
+            hint = f": it looks like [channels, samples]; pass x.T (shape {x.shape[::-1]})"
         raise ValueError(
-            f"signal of shape {x.shape}: expected [samples] (mono) or [samples, 2] (left, right)"
+            f"signal of shape {x.shape}: expected [samples] (mono) or [samples, 2] (left, right){hint}"
         )
     if channels is not None and x.shape[1] != channels:
+        hint = ""
+        if channels == 2 and raw.ndim == 1:
+            hint = ": give [samples, 2] (left, right), e.g. np.column_stack([left, right])"
+        elif channels == 1:
+            hint = ": give [samples] (or make the manager with channels=2)"
         raise ValueError(
-            f"signal has {x.shape[1]} channel(s), but this manager was made for {channels}"
+            f"signal has {x.shape[1]} channel(s), but this manager was made for {channels}{hint}"
         )
     return np.ascontiguousarray(x)
 
@@ -195,6 +208,8 @@ class Manager:
         keep_history: bool = True,
     ) -> None:
         self._m = _afe.Manager(float(fs), int(channels), int(threads or 0), bool(keep_history))
+        # request handle → name, for summaries
+        self._names: Dict[int, str] = {}
         # the outputs' descriptions, rebuilt after any change of the graph
         self._described: Optional[Dict[str, Dict[str, Any]]] = None
 
@@ -232,6 +247,7 @@ class Manager:
         value (the message lists what is accepted), or a binaural request on mono input.
         """
         handle = self._m.add_request(str(name), _params_json(params))
+        self._names[handle] = str(name)
         self._described = None
         return handle
 
@@ -262,6 +278,7 @@ class Manager:
         Raises ``KeyError`` for an unknown handle."""
         self._described = None
         self._m.remove_request(int(handle))
+        self._names.pop(int(handle), None)
 
     def modify_parameter(self, name: str, value: Any, handle: Optional[int] = None) -> None:
         """Changes AFE parameter ``name`` between chunks, as the AFE's ``modifyParameter``:
@@ -329,13 +346,18 @@ class Manager:
         return json.loads(self._m.info_json())
 
     def __repr__(self) -> str:
-        return repr(self._m)
+        """``afe.Manager(fs=..., channels=..., threads=...): N requests`` and the
+        :func:`afe.summary` of its graph (each request's chain with the parameters that
+        are not the defaults)."""
+        from .summary import manager_text
+
+        return manager_text(self, repr(self._m))
 
 
 def process(
     signal: Audio,
     fs: Optional[float],
-    requests: Union[str, Sequence[str]],
+    requests: Requests,
     params: Optional[Mapping[str, Any]] = None,
     chunk: Optional[int] = None,
     threads: Optional[int] = None,
@@ -344,7 +366,13 @@ def process(
     """Computes ``requests`` on a whole signal and returns ``{name: Signal}``.
 
     ``signal``: ``[samples]`` (mono), ``[samples, 2]`` (left, right), or the path of a WAV
-    file (then ``fs`` may be ``None``; if given it must match the file's). ``params``:
+    file (then ``fs`` may be ``None``; if given it must match the file's). ``requests``:
+    request names (a list, or one comma-separated string), or ``(name, params)`` pairs
+    whose own parameters go over ``params`` (as :func:`afe.stream` takes them), so that
+    one call holds, e.g., two ratemaps with different parameters
+    (``[("ratemap", {"fb_nChannels": 16}), ("ratemap", {"fb_nChannels": 8}), "ild"]``:
+    ``ratemap_left``, ``ratemap_2_left``, ... as :meth:`Manager.request_outputs` names
+    them); an error about one item names it (``requests[1]: ...``). ``params``:
     AFE parameter names to values, shared by every request. ``chunk``: feed the signal in
     chunks of this many samples, as a stream would (same result wherever the AFE is
     chunk-invariant). ``threads``: scheduler threads, the caller among them
@@ -358,12 +386,16 @@ def process(
     """
     if keep not in ("requested", "all"):
         raise ValueError(f"keep must be 'requested' or 'all', got {keep!r}")
-    if isinstance(requests, str):
-        requests = [r for r in requests.split(",") if r.strip()]
+    items = []
+    for i, (name, own) in enumerate(_request_items(requests)):
+        try:
+            items.append((name, _params_json(own)))
+        except ValueError as e:
+            raise ValueError(f"requests[{i}] ({name!r}): {e}") from None
     if chunk is not None and int(chunk) < 1:
         raise ValueError(f"chunk = {chunk}: expected a positive number of samples")
     settings = (
-        [str(r).strip() for r in requests],
+        items,
         _params_json(params),
         None if chunk is None else int(chunk),
         int(threads or 0),
@@ -385,6 +417,8 @@ def process(
 
 
 from .corpus import Store, batch, open_store  # noqa: E402  (uses _params_json above)
+from .saving import load, save  # noqa: E402
+from .summary import summary  # noqa: E402  (uses Manager and _catalog above)
 from .plot import plot  # noqa: E402  (calls process above)
 from .frames import Frames, stream  # noqa: E402  (uses Manager and read_wav above)
 from .remote import Audio, AudioBlock, Remote, RemoteError, Subscription, connect  # noqa: E402  (uses _params_json)

@@ -196,6 +196,9 @@ class Store:
 
     def __init__(self, path: PathLike):
         self.path = os.fspath(path)
+        if os.path.isfile(self.path) and self.path.endswith(".npz"):
+            self._open_npz()
+            return
         status = json.loads(_afe.store_status(self.path))
         self.format: str = status["format"]
         self.requests: List[str] = status["requests"]
@@ -206,6 +209,25 @@ class Store:
         self.done: Dict[str, Dict[str, Any]] = {r["id"]: r for r in latest if r["status"] == "done"}
         #: file id → error of the files that failed
         self.failed: Dict[str, str] = {r["id"]: r["error"] for r in latest if r["status"] == "failed"}
+
+    def _open_npz(self) -> None:
+        """One ``.npz`` (``afe extract``'s or :func:`afe.save`'s) as a read-only store of
+        one file, whose id is the file's name without ``.npz``."""
+        from .saving import read_npz
+
+        _, meta = read_npz(self.path)
+        self.format = "npz-file"
+        requests: List[str] = []
+        for m in meta.values():
+            chain = m.get("processors") or [m.get("name", "")]
+            if chain[0] not in requests:
+                requests.append(chain[0])
+        self.requests = requests
+        self.params = {}
+        self.param_hash = ""
+        file_id = os.path.basename(self.path)[: -len(".npz")]
+        self.done = {file_id: {"id": file_id, "path": self.path, "status": "done"}}
+        self.failed = {}
 
     def ids(self) -> List[str]:
         """The ids of the files done, sorted."""
@@ -234,6 +256,10 @@ class Store:
         if file_id not in self.done:
             why = f" (it failed: {self.failed[file_id]})" if file_id in self.failed else ""
             raise KeyError(f"the store holds no file '{file_id}'{why}")
+        if self.format == "npz-file":
+            from .saving import read_npz
+
+            return read_npz(self.path)
         if self.format == "npz":
             with np.load(os.path.join(self.path, file_id + ".npz")) as z:
                 meta = json.loads(str(z["afe_metadata"]))
@@ -250,5 +276,8 @@ class Store:
 
 def open_store(path: PathLike) -> Store:
     """Opens a store written by ``afe.batch`` or ``afe batch`` (``ValueError`` if the
-    folder is not one)."""
+    folder is not one), or a single ``.npz`` of ``afe extract`` or :func:`afe.save` as a
+    read-only store of one file (``format`` ``"npz-file"``, its id the file's name
+    without ``.npz``, ``requests`` from its signals' descriptions, ``params`` empty:
+    each signal's :attr:`afe.Signal.parameters` has its own)."""
     return Store(path)

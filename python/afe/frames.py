@@ -40,34 +40,47 @@ from .signal import Signal
 Requests = Union[str, Sequence[str], Sequence[Tuple[str, Optional[Mapping[str, Any]]]]]
 
 
+def request_items(requests: Requests) -> List[Tuple[str, Optional[Dict[str, Any]]]]:
+    """``[(name, own params or None)]`` from request names (a list, or one comma-separated
+    string) or ``(name, params)`` pairs. Raises ``ValueError`` naming the item that is
+    wrong (``requests[1]: ...``), or when no request is given."""
+    if isinstance(requests, str):
+        requests = requests.split(",")
+    elif isinstance(requests, tuple) and len(requests) == 2 and isinstance(requests[0], str) and (
+        requests[1] is None or isinstance(requests[1], Mapping)
+    ):
+        requests = [requests]  # one (name, params) pair on its own
+    out: List[Tuple[str, Optional[Dict[str, Any]]]] = []
+    for i, r in enumerate(requests):
+        if isinstance(r, str):
+            name, own = r, None
+        elif isinstance(r, (tuple, list)) and len(r) == 2 and isinstance(r[0], str):
+            name, own = r[0], r[1]
+            if own is not None and not isinstance(own, Mapping):
+                raise ValueError(
+                    f"requests[{i}] ({name!r}): its parameters must be a dict, got {own!r}"
+                )
+        else:
+            raise ValueError(
+                f"requests[{i}] = {r!r}: give a request name or a (name, params) pair, e.g. "
+                "'ratemap' or ('ratemap', {'fb_nChannels': 16})"
+            )
+        name = name.strip()
+        if not name:
+            continue
+        out.append((name, None if own is None else dict(own)))
+    if not out:
+        raise ValueError("no request given, e.g. ['ratemap', 'ild']")
+    return out
+
+
 def request_list(
     requests: Requests, params: Optional[Mapping[str, Any]] = None
 ) -> List[Tuple[str, Dict[str, Any]]]:
     """``[(name, params)]`` from names (a list or a comma-separated string), all with
     ``params``, or from ``(name, params)`` pairs (their own parameters over ``params``).
     Raises ``ValueError`` when no request is given or an entry is neither."""
-    if isinstance(requests, str):
-        requests = requests.split(",")
-    out: List[Tuple[str, Dict[str, Any]]] = []
-    for r in requests:
-        if isinstance(r, str):
-            name, own = r, None
-        elif isinstance(r, (tuple, list)) and len(r) == 2 and isinstance(r[0], str):
-            name, own = r[0], r[1]
-            if own is not None and not isinstance(own, Mapping):
-                raise ValueError(f"request {name!r}: its parameters must be a dict, got {own!r}")
-        else:
-            raise ValueError(
-                f"request {r!r}: give a request name or a (name, params) pair, e.g. 'ratemap' "
-                "or ('ratemap', {'fb_nChannels': 16})"
-            )
-        name = name.strip()
-        if not name:
-            continue
-        out.append((name, {**dict(params or {}), **dict(own or {})}))
-    if not out:
-        raise ValueError("no request given, e.g. ['ratemap', 'ild']")
-    return out
+    return [(name, {**dict(params or {}), **(own or {})}) for name, own in request_items(requests)]
 
 
 class Frames:

@@ -383,21 +383,49 @@ impl PyManager {
     }
 }
 
-/// The job of `process` and `process_file`.
+/// The job of `process` and `process_file`: no request of its own (they are placed on the
+/// manager first, by [`place`]), the shared parameters for the record.
 fn job(
-    requests: Vec<String>,
     params_json: &str,
     chunk: Option<usize>,
     threads: usize,
     all: bool,
 ) -> PyResult<afe::extract::Job> {
     Ok(afe::extract::Job {
-        requests,
+        requests: Vec::new(),
         params: parse_params(params_json)?,
         chunk,
         all,
         threads,
     })
+}
+
+/// One item of `afe.process`'s requests: its name and its own parameters as JSON text.
+type Item = (String, String);
+
+/// Places each item on `mgr` with the shared `params` under its own. An error about the
+/// item (its name, its own parameters, a binaural request on mono input) names it,
+/// `requests[i]: ...`; one about a shared parameter names the parameter alone.
+fn place(mgr: &mut Manager, items: &[Item], params: &afe::ParamMap) -> PyResult<()> {
+    for (i, (name, own_json)) in items.iter().enumerate() {
+        let own = parse_params(own_json)?;
+        let mut merged = params.clone();
+        merged.extend(own.clone());
+        if let Err(e) = mgr.add_request(name, &merged) {
+            let shared = match &e {
+                afe::Error::UnknownParameter { name, .. }
+                | afe::Error::InvalidParameter { name, .. } => {
+                    !name.split('/').any(|n| own.contains_key(n))
+                }
+                _ => false,
+            };
+            if shared {
+                return Err(to_py(e));
+            }
+            return Err(PyValueError::new_err(format!("requests[{i}]: {e}")));
+        }
+    }
+    Ok(())
 }
 
 /// Computes `requests` on a whole signal (`afe extract`'s code path): `{name: array}`
@@ -409,17 +437,19 @@ fn process<'py>(
     py: Python<'py>,
     x: PyReadonlyArray2<'py, f64>,
     fs: f64,
-    requests: Vec<String>,
+    requests: Vec<Item>,
     params_json: &str,
     chunk: Option<usize>,
     threads: usize,
     all: bool,
 ) -> PyResult<(Bound<'py, PyDict>, String)> {
-    let job = job(requests, params_json, chunk, threads, all)?;
+    let job = job(params_json, chunk, threads, all)?;
+    let mut mgr = Manager::with_threads(fs, x.shape()[1], threads).map_err(to_py)?;
+    place(&mut mgr, &requests, &job.params)?;
     let ears = columns(&x);
     let rec = interrupt::interruptible(py, || {
         let refs: Vec<&[f64]> = ears.iter().map(Vec::as_slice).collect();
-        afe::extract::run(&job, fs, &refs)
+        afe::extract::run_with(&mut mgr, &job, &refs)
     })?
     .map_err(to_py)?;
     drop(ears);
@@ -435,13 +465,13 @@ fn process_file<'py>(
     py: Python<'py>,
     path: PathBuf,
     fs: Option<f64>,
-    requests: Vec<String>,
+    requests: Vec<Item>,
     params_json: &str,
     chunk: Option<usize>,
     threads: usize,
     all: bool,
 ) -> PyResult<(Bound<'py, PyDict>, String)> {
-    let job = job(requests, params_json, chunk, threads, all)?;
+    let job = job(params_json, chunk, threads, all)?;
     let mut wav = afe::wav::WavBlocks::open(&path).map_err(wav_error)?;
     if let Some(fs) = fs.filter(|f| *f != wav.fs()) {
         return Err(PyValueError::new_err(format!(
@@ -450,12 +480,11 @@ fn process_file<'py>(
             wav.fs()
         )));
     }
-    let rec = interrupt::interruptible(py, || {
-        afe::wav::check_input(&path, &wav)?;
-        let mut mgr = afe::Manager::with_threads(wav.fs(), wav.channels(), threads)?;
-        afe::extract::run_wav(&mut mgr, &job, &mut wav)
-    })?
-    .map_err(to_py)?;
+    afe::wav::check_input(&path, &wav).map_err(to_py)?;
+    let mut mgr = Manager::with_threads(wav.fs(), wav.channels(), threads).map_err(to_py)?;
+    place(&mut mgr, &requests, &job.params)?;
+    let rec = interrupt::interruptible(py, || afe::extract::run_wav(&mut mgr, &job, &mut wav))?
+        .map_err(to_py)?;
     recorded(py, rec)
 }
 

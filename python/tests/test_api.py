@@ -47,7 +47,7 @@ def test_catalogue_matches_the_afe_names():
 def test_dir_shows_the_public_api_only():
     assert dir(afe) == sorted(
         ["Audio", "AudioBlock", "Frames", "Manager", "Remote", "RemoteError", "Signal", "Store", "Subscription", "batch", "connect",
-         "open_store", "parameters", "plot", "process", "read_wav", "requests", "stream", "__version__"]
+         "load", "open_store", "parameters", "plot", "process", "read_wav", "requests", "save", "stream", "summary", "__version__"]
     )
 
 
@@ -531,3 +531,204 @@ def test_a_hop_longer_than_the_window_leaves_gaps_as_in_the_afe():
         np.testing.assert_array_equal(sparse, dense[::5][: len(sparse)])
     with pytest.raises(ValueError, match="rm_hSizeSec"):
         afe.process(x, fs, "ratemap", {"rm_hSizeSec": 0})
+
+
+# issue 46: per-request parameters in afe.process, messages, summaries, save and load
+
+
+def _raises(call, exc=ValueError):
+    with pytest.raises(exc) as e:
+        call()
+    return str(e.value)
+
+
+def test_process_takes_requests_with_their_own_parameters():
+    fs = 16000
+    x = signal(fs)
+    out = afe.process(x, fs, [("ratemap", {"fb_nChannels": 16}), ("ratemap", {"fb_nChannels": 8}), "ild"],
+                      {"ihc_method": "halfwave"})
+    assert list(out) == ["ratemap_left", "ratemap_right", "ratemap_2_left", "ratemap_2_right", "ild_mono"]
+    assert out["ratemap_left"].shape[1] == 16 and out["ratemap_2_left"].shape[1] == 8
+    assert out["ild_mono"].shape[1] == 31 and out["ild_mono"].parameters["ihc_method"] == "halfwave"
+    # each equals the request computed on its own, bit for bit
+    alone = lambda n: afe.process(x, fs, ["ratemap"], {"ihc_method": "halfwave", "fb_nChannels": n})["ratemap_left"]
+    np.testing.assert_array_equal(out["ratemap_left"], alone(16))
+    np.testing.assert_array_equal(out["ratemap_2_left"], alone(8))
+    assert out["ratemap_2_left"].meta["instance"] == 2
+    # a pair's own parameters go over the shared ones; a WAV path takes the same list
+    own = afe.process(x, fs, [("ratemap", {"fb_nChannels": 8, "ihc_method": "dau"})], {"ihc_method": "halfwave"})
+    assert own["ratemap_left"].parameters["ihc_method"] == "dau"
+    # one pair on its own is a list of one
+    assert list(afe.process(x, fs, ("ild", {"fb_nChannels": 8}))) == ["ild_mono"]
+
+
+def test_process_names_the_request_that_is_wrong(tmp_path):
+    fs = 16000
+    x = signal(1600)
+    assert _raises(lambda: afe.process(x, fs, ["ratemap", 5])) == (
+        "requests[1] = 5: give a request name or a (name, params) pair, e.g. 'ratemap' or "
+        "('ratemap', {'fb_nChannels': 16})"
+    )
+    assert _raises(lambda: afe.process(x, fs, [("ratemap", 16)])) == (
+        "requests[0] ('ratemap'): its parameters must be a dict, got 16"
+    )
+    assert _raises(lambda: afe.process(x, fs, ["ild", ("ratemap", {"rm_wSizeSec": float("nan")})])) == (
+        "requests[1] ('ratemap'): parameter 'rm_wSizeSec' is nan: AFE parameters take finite numbers"
+    )
+    assert _raises(lambda: afe.process(x, fs, ["ratemap", ("ild", {"fb_nChannels": 0})])) == (
+        "requests[1]: invalid value 0 for parameter 'fb_nChannels': expected a positive integer"
+    )
+    assert _raises(lambda: afe.process(x[:, 0], fs, ["ratemap", "itd"])) == (
+        "requests[1]: request 'itd' needs a binaural (two-channel) input, but the input is mono"
+    )
+    # an unknown request, in any case, is named with the one meant
+    assert _raises(lambda: afe.process(x, fs, ["ratemap", "ITD"])).startswith(
+        "requests[1]: unknown request 'ITD' (did you mean 'itd'?) (known requests: time, "
+    )
+    # a shared parameter is named by itself, not by the first request that read it
+    assert _raises(lambda: afe.process(x, fs, ["ratemap", "ild"], {"rm_wSizeSecs": 1})) == (
+        "unknown parameter 'rm_wSizeSecs' (did you mean 'rm_wSizeSec'?)"
+    )
+    # the same from a WAV file
+    path = tmp_path / "x.wav"
+    with wave.open(str(path), "wb") as w:
+        w.setnchannels(2)
+        w.setsampwidth(2)
+        w.setframerate(fs)
+        w.writeframes((x * 32767).astype("<i2").tobytes())
+    assert _raises(lambda: afe.process(path, None, ["ild", "ratemapp"])).startswith(
+        "requests[1]: unknown request 'ratemapp' (did you mean 'ratemap'?) (known requests: "
+    )
+    two = afe.process(path, None, [("ratemap", {"fb_nChannels": 16}), ("ratemap", {"fb_nChannels": 8})])
+    assert two["ratemap_left"].shape[1] == 16 and two["ratemap_2_left"].shape[1] == 8
+
+
+def test_messages_guess_the_value_meant_and_say_the_default_only_when_it_is():
+    x = signal(1600)
+    msg = _raises(lambda: afe.process(x, 16000, ["ratemap"], {"ihc_method": "Dau"}))
+    assert msg.startswith("invalid value \"Dau\" for parameter 'ihc_method': expected one of ")
+    assert msg.endswith(" (did you mean 'dau'?)")
+    msg = _raises(lambda: afe.Manager(16000).add_request("ITD"))
+    assert msg.startswith("unknown request 'ITD' (did you mean 'itd'?) (known requests: ")
+    # MATLAB v7.3 files come out of h5py as [channels, samples]
+    assert _raises(lambda: afe.process(x.T, 16000, ["ild"])) == (
+        "signal of shape (2, 1600): expected [samples] (mono) or [samples, 2] (left, right): "
+        "it looks like [channels, samples]; pass x.T (shape (1600, 2))"
+    )
+    assert _raises(lambda: afe.Manager(16000, 2).process_chunk(x[:, 0])) == (
+        "signal has 1 channel(s), but this manager was made for 2: give [samples, 2] (left, right), "
+        "e.g. np.column_stack([left, right])"
+    )
+    # fb_highFreqHz = 8000 set at 11025 Hz is the user's value, not "the default"
+    y = signal(1103, 11025)
+    msg = _raises(lambda: afe.process(y, 11025, ["ratemap"], {"fb_highFreqHz": 8000}))
+    assert msg.startswith("invalid value 8000.0 for parameter 'fb_highFreqHz': 8000 puts ") and "default" not in msg
+    msg = _raises(lambda: afe.process(y, 11025, ["ratemap"]))
+    assert msg.startswith("invalid value 8000.0 for parameter 'fb_highFreqHz': 8000 (the default) puts ")
+
+
+def test_summary_shows_each_processor_with_its_changed_parameters():
+    fs = 16000
+    x = signal(1600)
+    out = afe.process(x, fs, [("ratemap", {"fb_nChannels": 16}), ("ratemap", {"fb_nChannels": 8}), "ild"])
+    text = afe.summary(out)
+    assert text == SUMMARY_TEXT, text
+    # the same from a manager, in print(m) and repr(m)
+    m = afe.Manager(fs, 2)
+    for name, p in [("ratemap", {"fb_nChannels": 16}), ("ratemap", {"fb_nChannels": 8}), ("ild", None)]:
+        m.add_request(name, p)
+    assert afe.summary(m) == text
+    assert repr(m) == str(m) == "afe.Manager(fs=16000, channels=2, threads=0): 3 requests\n" + text
+    assert repr(afe.Manager(fs, 2)) == "afe.Manager(fs=16000, channels=2, threads=0): 0 requests"
+    # intermediate signals (keep="all") are the chains' tails: not listed again
+    assert afe.summary(afe.process(x, fs, [("ratemap", {"fb_nChannels": 16})], keep="all")) == text.split("\nratemap_2")[0]
+    with pytest.raises(ValueError, match="give an afe.Manager or signals"):
+        afe.summary(42)
+
+
+def test_summary_abbreviates_vectors():
+    from afe.summary import value_text
+
+    assert value_text(list(np.linspace(80, 8000, 32))) == "[80, 335.484, 590.968, ..., 8000] (32 values)"
+    assert value_text([1, 2.5, 3]) == "[1, 2.5, 3]"
+    assert value_text("dau") == "'dau'" and value_text(True) == "true" and value_text(0.02) == "0.02"
+
+
+def test_save_and_load_round_trip_signals_with_their_metadata(tmp_path, cli):
+    fs = 16000
+    x = signal(4000)
+    out = afe.process(x, fs, [("ratemap", {"fb_nChannels": 8}), "ild", "stft"])
+    path = tmp_path / "cues"  # no suffix added: the file is written where asked
+    afe.save(path, out)
+    back = afe.load(path)
+    assert list(back) == list(out)
+    for k, s in out.items():
+        assert isinstance(back[k], afe.Signal) and back[k].dtype == s.dtype
+        assert np.array_equal(np.asarray(back[k]).view(np.uint8), np.asarray(s).view(np.uint8)), k
+        assert back[k].meta == s.meta, k
+    # one Signal saves under its key
+    afe.save(tmp_path / "one.npz", out["ild_mono"])
+    assert list(afe.load(tmp_path / "one.npz")) == ["ild_mono"]
+    # the CLI's npz loads into Signals, the same as afe.process gives them
+    wav = tmp_path / "x.wav"
+    with wave.open(str(wav), "wb") as w:
+        w.setnchannels(2)
+        w.setsampwidth(2)
+        w.setframerate(fs)
+        w.writeframes((x * 32767).astype("<i2").tobytes())
+    subprocess.run([cli, "extract", str(wav), "-r", "ratemap,ild", "-o", str(tmp_path / "cli.npz")],
+                   check=True, capture_output=True)
+    from_cli = afe.load(tmp_path / "cli.npz")
+    mine = afe.process(wav, None, ["ratemap", "ild"])
+    assert list(from_cli) == list(mine)
+    for k, s in mine.items():
+        np.testing.assert_array_equal(from_cli[k], s)
+        assert from_cli[k].meta == s.meta, k
+    # afe.open_store reads one npz as a store of one file
+    store = afe.open_store(tmp_path / "cli.npz")
+    assert store.ids() == ["cli"] and store.format == "npz-file" and store.requests == ["ratemap", "ild"]
+    assert store["cli"]["ild_mono"].meta == from_cli["ild_mono"].meta
+    afe.save(tmp_path / "mine.npz", out)
+    assert afe.open_store(tmp_path / "mine.npz").requests == ["ratemap", "ild", "stft"]
+    # errors
+    assert _raises(lambda: afe.save(tmp_path / "p.npz", {"a": np.zeros(3)})) == (
+        "signals['a'] is a ndarray, not an afe.Signal: it has no description to save (np.savez saves plain arrays)"
+    )
+    np.savez(tmp_path / "plain.npz", a=np.zeros(3))
+    assert _raises(lambda: afe.load(tmp_path / "plain.npz")) == (
+        f"'{tmp_path / 'plain.npz'}' has no 'afe_metadata' entry: not written by afe (np.load reads its arrays)"
+    )
+    with pytest.raises(FileNotFoundError):
+        afe.load(tmp_path / "missing.npz")
+
+
+SUMMARY_TEXT = """\
+ratemap -> ratemap_left, ratemap_right
+    ratemap
+    innerhaircell
+    filterbank
+        fb_nERBs                 1.90081 ERB
+        fb_nChannels             16
+        fb_cfHz                  [80, 155.553, 249.587, ..., 8000] (16 values) Hz
+    time
+ratemap_2 -> ratemap_2_left, ratemap_2_right
+    ratemap
+    innerhaircell
+    filterbank
+        fb_nERBs                 3.80161 ERB
+        fb_nChannels             8
+        fb_cfHz                  [80, 264.781, 560.114, ..., 8000] (8 values) Hz
+    time                         (shared with ratemap)
+ild -> ild_mono
+    ild
+    innerhaircell
+    filterbank
+    time                         (shared with ratemap)"""
+
+
+def test_the_examples_of_summary_and_saving_run():
+    import doctest
+
+    for name in ("afe.summary", "afe.saving"):
+        failed, tried = doctest.testmod(sys.modules[name], optionflags=doctest.NORMALIZE_WHITESPACE)
+        assert tried > 0 and failed == 0, name
