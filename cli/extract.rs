@@ -7,7 +7,7 @@ use afe::Manager;
 
 use crate::args::{Requests, Threads};
 use crate::error::CliError;
-use crate::files::{checked_output, open_input, save};
+use crate::files::{checked_output, open_input, report_saved};
 
 /// `afe extract IN.wav -r ... -o OUT.npz`.
 #[derive(clap::Args)]
@@ -73,9 +73,12 @@ fn extract(input: &Path, job: Job, trace: Option<&Path>, output: &Path) -> Resul
         Some(_) => Some(mgr.trace()?.unwrap_or_default()),
         None => None,
     };
-    save(&rec, &output)?;
-    if let (Some(t), Some(events)) = (trace, events) {
-        t.write(|file| file.write_all(events.to_string().as_bytes()))?;
+    // both outputs or neither: a trace that cannot be written leaves no .npz either
+    let mut staged = vec![output.stage(|file| rec.write_npz(file))?];
+    if let (Some(t), Some(events)) = (&trace, events) {
+        staged.push(t.stage(|file| file.write_all(events.to_string().as_bytes()))?);
     }
+    afe::output::commit_all(staged)?;
+    report_saved(&rec, &output);
     Ok(())
 }

@@ -29,6 +29,12 @@ pub(crate) fn checked_output(path: &Path, input: &Path) -> Result<OutputFile, Cl
 /// their descriptions in its `afe_metadata` entry.
 pub(crate) fn save(rec: &afe::Recorder, output: &OutputFile) -> Result<(), CliError> {
     output.write(|file| rec.write_npz(file))?;
+    report_saved(rec, output);
+    Ok(())
+}
+
+/// Says on stderr which arrays went to `output`.
+pub(crate) fn report_saved(rec: &afe::Recorder, output: &OutputFile) {
     eprintln!(
         "wrote {} array(s) to {}: {}",
         rec.signals().len(),
@@ -39,5 +45,4 @@ pub(crate) fn save(rec: &afe::Recorder, output: &OutputFile) -> Result<(), CliEr
             .collect::<Vec<_>>()
             .join(", ")
     );
-    Ok(())
 }

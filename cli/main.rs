@@ -128,6 +128,8 @@ fn main() -> ExitCode {
 fn install_interrupt_handler() {
     let installed = ctrlc::set_handler(|| {
         if afe::interrupt::requested() {
+            // quitting at once, in the middle of a write perhaps: no .partial file stays
+            afe::output::remove_partial_files();
             std::process::exit(130);
         }
         afe::interrupt::request();

@@ -33,6 +33,18 @@ pub enum PlotError {
         /// Time after the last frame, in s.
         end: f64,
     },
+    /// A signal drawn one frame at a time has no frame: the input is shorter than its
+    /// first window.
+    #[error(
+        "{key} has no frame to draw: the input is shorter than its first window{}",
+        window_s.map_or(String::new(), |w| format!(" ({w} s)"))
+    )]
+    NoFrame {
+        /// The signal.
+        key: String,
+        /// Its window, in s.
+        window_s: Option<f64>,
+    },
     /// Nothing to draw.
     #[error("no signal to draw: the run produced no output")]
     Empty,
@@ -292,11 +304,9 @@ fn frame_at(s: &Recorded, at: Option<f64>) -> Result<(usize, f64), PlotError> {
     let (start, end) = span(s);
     let frames = s.data.frames();
     if frames == 0 {
-        return Err(PlotError::At {
+        return Err(PlotError::NoFrame {
             key: s.key.clone(),
-            at: at.unwrap_or(0.0),
-            start,
-            end: start,
+            window_s: s.info.window_s,
         });
     }
     let k = match at {

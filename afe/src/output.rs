@@ -138,24 +138,32 @@ impl OutputFile {
         &self,
         write: impl FnOnce(&mut dyn WriteSeek) -> std::io::Result<()>,
     ) -> Result<(), OutputError> {
-        let failed = |source| OutputError::Write {
-            path: self.given.clone(),
-            source,
-        };
+        self.stage(write)?.commit()
+    }
+
+    /// Writes the file's contents with `write` without putting them in place: a regular
+    /// file into its temporary file, a device or FIFO into memory. [`Staged::commit`]
+    /// puts them in place; dropped uncommitted, they leave nothing. A run with several
+    /// outputs stages them all, then commits them with [`commit_all`], so that a failure
+    /// of one leaves none of them written.
+    pub fn stage(
+        &self,
+        write: impl FnOnce(&mut dyn WriteSeek) -> std::io::Result<()>,
+    ) -> Result<Staged<'_>, OutputError> {
         if self.in_place {
             let mut buf = Cursor::new(Vec::new());
-            write(&mut buf).map_err(failed)?;
-            let mut file = std::fs::OpenOptions::new()
-                .write(true)
-                .open(&self.target)
-                .map_err(failed)?;
-            return file
-                .write_all(buf.get_ref())
-                .and_then(|()| file.flush())
-                .map_err(failed);
+            write(&mut buf).map_err(|e| self.failed(e))?;
+            return Ok(Staged {
+                out: self,
+                content: Content::Memory(buf.into_inner()),
+            });
         }
         let tmp = self.temporary();
-        let result = std::fs::OpenOptions::new()
+        let staged = Staged {
+            out: self,
+            content: Content::Temporary(tmp.clone()),
+        };
+        std::fs::OpenOptions::new()
             .write(true)
             .create_new(true)
             .open(&tmp)
@@ -164,11 +172,15 @@ impl OutputFile {
                 write(&mut w)?;
                 w.into_inner().map_err(|e| e.into_error())?.sync_all()
             })
-            .and_then(|()| std::fs::rename(&tmp, &self.target));
-        result.map_err(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            failed(e)
-        })
+            .map_err(|e| self.failed(e))?;
+        Ok(staged)
+    }
+
+    fn failed(&self, source: std::io::Error) -> OutputError {
+        OutputError::Write {
+            path: self.given.clone(),
+            source,
+        }
     }
 
     /// A name beside the target that no other run or output of this run uses.
@@ -179,7 +191,96 @@ impl OutputFile {
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
         let n = TEMPORARIES.fetch_add(1, Ordering::Relaxed);
-        directory_of(&self.target).join(format!(".{name}.{}.{n}.partial", std::process::id()))
+        let tmp =
+            directory_of(&self.target).join(format!(".{name}.{}.{n}.partial", std::process::id()));
+        partial_files().push(tmp.clone());
+        tmp
+    }
+}
+
+/// An output's contents, complete, waiting to be put in place.
+pub struct Staged<'a> {
+    out: &'a OutputFile,
+    content: Content,
+}
+
+/// Where staged contents wait.
+enum Content {
+    /// A temporary file beside the target, renamed onto it.
+    Temporary(PathBuf),
+    /// Bytes for a device or FIFO, written to it in place.
+    Memory(Vec<u8>),
+    /// Put in place already.
+    Committed,
+}
+
+impl Staged<'_> {
+    /// Puts the contents in place: renames the temporary file onto the target, or writes
+    /// the bytes to the device.
+    pub fn commit(mut self) -> Result<(), OutputError> {
+        match std::mem::replace(&mut self.content, Content::Committed) {
+            Content::Temporary(tmp) => {
+                let renamed = std::fs::rename(&tmp, &self.out.target);
+                forget_partial(&tmp);
+                renamed.map_err(|e| {
+                    let _ = std::fs::remove_file(&tmp);
+                    self.out.failed(e)
+                })
+            }
+            Content::Memory(bytes) => {
+                let mut file = std::fs::OpenOptions::new()
+                    .write(true)
+                    .open(&self.out.target)
+                    .map_err(|e| self.out.failed(e))?;
+                file.write_all(&bytes)
+                    .and_then(|()| file.flush())
+                    .map_err(|e| self.out.failed(e))
+            }
+            Content::Committed => Ok(()),
+        }
+    }
+}
+
+impl Drop for Staged<'_> {
+    fn drop(&mut self) {
+        if let Content::Temporary(tmp) = &self.content {
+            let _ = std::fs::remove_file(tmp);
+            forget_partial(tmp);
+        }
+    }
+}
+
+/// Commits the outputs of one run: those written in place first (a device is the one
+/// that can still fail: a full one refuses the bytes), then the regular files, whose
+/// renames do not fail once their temporary files are written beside them. On the first
+/// failure, the outputs not yet committed are dropped, leaving nothing.
+pub fn commit_all(staged: Vec<Staged<'_>>) -> Result<(), OutputError> {
+    let (devices, files): (Vec<_>, Vec<_>) = staged
+        .into_iter()
+        .partition(|s| matches!(s.content, Content::Memory(_)));
+    for s in devices.into_iter().chain(files) {
+        s.commit()?;
+    }
+    Ok(())
+}
+
+/// The temporary files of this process not yet renamed or removed.
+fn partial_files() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    static PARTIAL: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+    PARTIAL
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+fn forget_partial(tmp: &Path) {
+    partial_files().retain(|p| p != tmp);
+}
+
+/// Removes every temporary file this process is writing: for a process that quits at
+/// once (a second Ctrl-C) in the middle of a write, so that no `.partial` file stays.
+pub fn remove_partial_files() {
+    for tmp in partial_files().drain(..) {
+        let _ = std::fs::remove_file(tmp);
     }
 }
 

@@ -7,6 +7,10 @@ use crate::error::{Error, Result};
 use crate::port::PortFormat;
 use crate::source::{Clock, Source};
 
+/// Largest |`ild_db`| accepted: a gain of 10^10 (or its inverse) on the right ear; more
+/// would not be a level difference but an overflow to infinity.
+pub const MAX_ILD_DB: f64 = 200.0;
+
 /// What to synthesise, parsed from `key=value` pairs separated by commas, e.g.
 /// `fs=44100,tone=440,noise=0.1,itd_ms=0.4,ild_db=-6,seed=1`.
 ///
@@ -124,7 +128,15 @@ impl FromStr for SynthSpec {
                         )));
                     }
                 }
-                "ild_db" => spec.ild_db = number()?,
+                "ild_db" => {
+                    spec.ild_db = number()?;
+                    if spec.ild_db.abs() > MAX_ILD_DB {
+                        return Err(fail(format!(
+                            "ild_db={value}: interaural level differences beyond ±{MAX_ILD_DB} dB \
+                             are not supported"
+                        )));
+                    }
+                }
                 other => {
                     return Err(fail(format!(
                         "unknown key '{other}' (keys: fs, tone, amp, noise, seed, itd_ms, ild_db, silence)"

@@ -223,9 +223,15 @@ impl Duet {
         }
         let n_cells = p.bins_alpha.saturating_mul(p.bins_delta);
         if n_cells > MAX_CELLS {
+            // named after the larger of the two: the one to bring down
+            let (name, value) = if p.bins_delta > p.bins_alpha {
+                ("duet_binsDelta", p.bins_delta)
+            } else {
+                ("duet_binsAlpha", p.bins_alpha)
+            };
             return Err(Error::invalid(
-                "duet_binsAlpha",
-                p.bins_alpha,
+                name,
+                value,
                 format!("duet_binsAlpha·duet_binsDelta must be at most {MAX_CELLS}"),
             ));
         }
