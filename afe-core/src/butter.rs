@@ -35,6 +35,33 @@ pub fn butter(order: usize, wn: &[f64], kind: ButterType) -> (Vec<f64>, Vec<f64>
     (b0.iter().map(|v| v * gain).collect(), a)
 }
 
+/// [`butter`]'s design as filters `(b, a)` to run in series: its transfer function
+/// alone where that is stable and accurate, its second-order sections ([`butter_sos`])
+/// elsewhere.
+///
+/// The transfer function is the AFE's form (MATLAB runs `filter(b, a)`; the oracle's
+/// DC-removal high-pass, 4th order at 20 Hz, is reproduced by it and the DF2T to a few
+/// 1e−7, spec zz-numerics N3). Its expanded denominator loses clustered poles to
+/// round-off: a 4th-order high-pass at 1 Hz (44.1 kHz) has computed roots outside the
+/// unit circle. It is kept when its computed denominator has every root within half
+/// the designed poles' distance to the unit circle (Schur–Cohn,
+/// [`crate::filter::roots_within`]), which holds for the AFE's designs at the usual
+/// rates; the sections, which keep each pole pair in its own quadratic, replace it
+/// otherwise.
+pub fn butter_filters(order: usize, wn: &[f64], kind: ButterType) -> Vec<(Vec<f64>, Vec<f64>)> {
+    let (b, a) = butter(order, wn, kind);
+    let (_, poles, _) = butter_zpk(order, wn, kind);
+    let rho = (1.0 + radius(&poles)) / 2.0;
+    let denominator: Vec<Complex64> = a[1..].iter().map(|v| Complex64::new(*v, 0.0)).collect();
+    if crate::filter::roots_within(&denominator, rho) {
+        return vec![(b, a)];
+    }
+    butter_sos(order, wn, kind)
+        .into_iter()
+        .map(|(b, a)| (b.to_vec(), a.to_vec()))
+        .collect()
+}
+
 /// `∏(1 − r·e^{−iw})` over `roots`: a monic polynomial's response at `w` rad/sample.
 fn response_from_roots(roots: &[Complex64], w: f64) -> Complex64 {
     let e = Complex64::new(0.0, -w).exp();
@@ -47,29 +74,81 @@ fn response_from_roots(roots: &[Complex64], w: f64) -> Complex64 {
 /// `b2` and `a2`).
 pub type Biquad = ([f64; 3], [f64; 3]);
 
-/// The same design as [`butter`] as a cascade of second-order sections, each with a
-/// conjugate pole pair (or real poles) and unit gain where the whole filter has it:
-/// stable at any order, where the expanded transfer function of a narrow band or a
-/// low cut-off at high order is not (its coefficients lose the poles to round-off).
+/// The same design as [`butter`] as a cascade of second-order sections, designed as
+/// scipy's `zpk2sos` does: stable at any order, where the expanded transfer function
+/// of a narrow band or a low cut-off at high order is not (its coefficients lose the
+/// poles to round-off).
+///
+/// Each section holds a conjugate pole pair (or two real poles, or a lone real one) and
+/// the zeros nearest to them, taken by the poles closest to the unit circle first; the
+/// sections run in the order of their poles' radius, the closest to the circle last;
+/// each has unit gain where the whole filter has it (DC, Nyquist or the band centre).
+/// Pairing the zeros with their nearest poles keeps every section's gain near the
+/// filter's. Sections that each took one zero at DC and one at Nyquist (the pairing
+/// before issue 44) had, in a wide band-pass, large gains near one band edge and small
+/// ones near the other, and their product amplified the round-off of the first
+/// sections: the output of [20, 20000] Hz at order 12 peaked at 2.4e4 where scipy's
+/// sections give 0.46, [1, 22049] Hz at order 32 at 1.2e92.
 pub fn butter_sos(order: usize, wn: &[f64], kind: ButterType) -> Vec<Biquad> {
     let (zeros, poles, w_norm) = butter_zpk(order, wn, kind);
-    let (zeros, poles) = (pairs(zeros), pairs(poles));
+    let whole = response_from_roots(&poles, w_norm) / response_from_roots(&zeros, w_norm);
+    let mut poles = pairs(poles);
+    poles.sort_by(|a, b| radius(a).total_cmp(&radius(b)));
+    let mut zeros_left = zeros;
+    let mut zeros: Vec<Vec<Complex64>> = vec![Vec::new(); poles.len()];
+    for (p, z) in poles.iter().zip(&mut zeros).rev() {
+        while z.len() < p.len() && !zeros_left.is_empty() {
+            let nearest = (0..zeros_left.len())
+                .min_by(|&i, &j| {
+                    (zeros_left[i] - p[0])
+                        .norm()
+                        .total_cmp(&(zeros_left[j] - p[0]).norm())
+                })
+                .expect("a zero is left");
+            let zero = zeros_left.swap_remove(nearest);
+            if !is_real(&zero) {
+                let conj = (0..zeros_left.len())
+                    .min_by(|&i, &j| {
+                        (zeros_left[i] - zero.conj())
+                            .norm()
+                            .total_cmp(&(zeros_left[j] - zero.conj()).norm())
+                    })
+                    .expect("complex zeros come in conjugate pairs");
+                z.push(zeros_left.swap_remove(conj));
+            }
+            z.push(zero);
+        }
+    }
+    // the sections' unit gains multiply to ±1 where the whole filter is +1 ([`butter`])
+    let sign = if whole.re < 0.0 { -1.0 } else { 1.0 };
     zeros
         .iter()
         .zip(&poles)
-        .map(|(z, p)| {
+        .enumerate()
+        .map(|(k, (z, p))| {
             let gain = (response_from_roots(p, w_norm) / response_from_roots(z, w_norm)).norm();
+            let gain = if k == 0 { sign * gain } else { gain };
             let (b, a) = (quadratic(z), quadratic(p));
             ([b[0] * gain, b[1] * gain, b[2] * gain], a)
         })
         .collect()
 }
 
+/// The largest modulus of `roots`.
+fn radius(roots: &[Complex64]) -> f64 {
+    roots.iter().fold(0.0, |m, r| m.max(r.norm()))
+}
+
+/// Whether `r` is real up to an imaginary part of 1e-12 relative to its norm (or 1).
+fn is_real(r: &Complex64) -> bool {
+    r.im.abs() <= 1e-12 * r.norm().max(1.0)
+}
+
 /// Groups conjugate-symmetric `roots` into pairs: each complex root with its conjugate,
 /// the real ones smallest with largest (a lone real root last, on its own).
 fn pairs(roots: Vec<Complex64>) -> Vec<Vec<Complex64>> {
-    let tiny = |r: &Complex64| r.im.abs() <= 1e-12 * r.norm().max(1.0);
-    let (mut real, complex): (Vec<Complex64>, Vec<Complex64>) = roots.into_iter().partition(tiny);
+    let (mut real, complex): (Vec<Complex64>, Vec<Complex64>) =
+        roots.into_iter().partition(is_real);
     let mut out: Vec<Vec<Complex64>> = complex
         .iter()
         .filter(|r| r.im > 0.0)
@@ -290,6 +369,49 @@ mod tests {
             vec![c(0.2, 0.0)],
         ];
         assert_eq!(pairs(roots), want);
+    }
+
+    /// The transfer function where the oracle uses it (the 20-Hz DC-removal high-pass at
+    /// 16 and 44.1 kHz, the IHC low-passes), sections where its computed roots leave the
+    /// unit circle: 4th order at 1 Hz and 1 Hz below Nyquist, and an order-12 low-pass
+    /// at 50 Hz; those keep the Butterworth magnitude.
+    #[test]
+    fn filters_keep_the_transfer_function_where_it_is_stable() {
+        for (order, wn, kind) in [
+            (4, 20.0 / 22050.0, ButterType::High),
+            (4, 20.0 / 8000.0, ButterType::High),
+            (2, 1000.0 / 22050.0, ButterType::Low),
+            (1, 150.0 / 8000.0, ButterType::Low),
+        ] {
+            assert_eq!(
+                butter_filters(order, &[wn], kind),
+                vec![butter(order, &[wn], kind)],
+                "{order} {wn} {kind:?}"
+            );
+        }
+        for (order, wn, kind) in [
+            (4, 1.0 / 22050.0, ButterType::High),
+            (4, 22049.0 / 22050.0, ButterType::High),
+            (12, 50.0 / 22050.0, ButterType::Low),
+        ] {
+            let (_, a) = butter(order, &[wn], kind);
+            let a: Vec<Complex64> = a[1..].iter().map(|v| Complex64::new(*v, 0.0)).collect();
+            assert!(
+                !crate::filter::roots_within(&a, 1.0),
+                "{order} {wn}: unstable"
+            );
+            let filters = butter_filters(order, &[wn], kind);
+            assert_eq!(filters.len(), order.div_ceil(2));
+            let sections: Vec<Biquad> = butter_sos(order, &[wn], kind);
+            for (f, s) in filters.iter().zip(&sections) {
+                assert_eq!((f.0.as_slice(), f.1.as_slice()), (&s.0[..], &s.1[..]));
+            }
+            for k in 1..64 {
+                let w = PI * k as f64 / 64.0;
+                let (got, want) = (sos_response(&sections, w), ideal(order, &[wn], kind, w));
+                assert!((got - want).abs() <= 1e-9 * want.max(1e-6), "{w}: {got}");
+            }
+        }
     }
 
     #[test]

@@ -4,6 +4,29 @@
 //! `y = z0 + b0·x`, `z[i] = (z[i+1] − a[i+1]·y) + b[i+1]·x`, `z[m−1] = b[m]·x − a[m]·y`.
 //! The order matters bit for bit on pole-clustered designs, so keep it.
 
+use rustfft::num_complex::Complex64;
+
+/// Whether the denominator `1 + a[0]·z⁻¹ + … + a[n−1]·z⁻ⁿ` has all its roots inside
+/// radius `rho`: the Schur–Cohn (step-down) test on the coefficients of the polynomial
+/// with its roots divided by `rho` (`a[k]/ρ^{k+1}`), whose reflection coefficients are
+/// then all of modulus below 1. With `rho` below 1, a filter that passes keeps a margin
+/// of stability; the designs use it to tell whether an expanded (pole-clustered)
+/// denominator, as computed, still has the poles it was designed with.
+pub fn roots_within(a: &[Complex64], rho: f64) -> bool {
+    let mut c: Vec<Complex64> = a.iter().zip(1..).map(|(v, k)| v / rho.powi(k)).collect();
+    while let Some(&k) = c.last() {
+        let kk = k.norm_sqr();
+        if !(kk < 1.0) {
+            return false;
+        }
+        let m = c.len();
+        c = (0..m - 1)
+            .map(|i| (c[i] - k * c[m - 2 - i].conj()) / (1.0 - kk))
+            .collect();
+    }
+    true
+}
+
 /// Channels per SIMD vector of the multichannel path.
 const LANES: usize = 8;
 /// Vectors per pass of the multichannel path: their independent recursions hide each
@@ -358,6 +381,22 @@ fn lanes_loop<const M: usize, const V: usize, const RECTIFY: bool>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The Schur–Cohn test on polynomials with known roots: 0.5 and 0.9 (real), and
+    /// 0.8i with 0.3 (complex coefficients).
+    #[test]
+    fn roots_within_finds_the_largest_root() {
+        let c = |re, im| Complex64::new(re, im);
+        // (1 − 0.5z⁻¹)(1 − 0.9z⁻¹) = 1 − 1.4z⁻¹ + 0.45z⁻²
+        let real = [c(-1.4, 0.0), c(0.45, 0.0)];
+        assert!(roots_within(&real, 0.95) && roots_within(&real, 0.91));
+        assert!(!roots_within(&real, 0.89) && !roots_within(&real, 0.5));
+        // (1 − 0.8i·z⁻¹)(1 − 0.3z⁻¹) = 1 − (0.3 + 0.8i)z⁻¹ + 0.24i·z⁻²
+        let complex = [c(-0.3, -0.8), c(0.0, 0.24)];
+        assert!(roots_within(&complex, 0.81));
+        assert!(!roots_within(&complex, 0.79));
+        assert!(roots_within(&[], 0.1));
+    }
 
     /// Direct evaluation of the difference equation, as an independent check.
     fn difference_equation(b: &[f64], a: &[f64], x: &[f64]) -> Vec<f64> {

@@ -18,7 +18,7 @@ use realfft::num_complex::Complex64;
 use realfft::{RealFftPlanner, RealToComplex};
 use serde::{Deserialize, Serialize};
 
-use crate::framed::MAX_WINDOW;
+use crate::framed::{check_frame_values, MAX_WINDOW};
 
 /// How the modulation bands are computed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -485,6 +485,15 @@ impl AmsFeatures {
         let win = window(&p.wname, w, "ams_wname")?;
         let ones_over_two_hops = w == 2 * h && win.iter().all(|v| *v == 1.0);
         let channels = input.channels();
+        // the frame buffer's row: every band of every channel ('log') or every channel
+        // ('lin'); the sums over two rectangular hops replace it
+        let framed_width = match p.fb_type {
+            AmsFbType::Log if ones_over_two_hops => 0,
+            AmsFbType::Log if p.cf_hz.is_empty() => channels * p.n_filters,
+            AmsFbType::Log => channels * p.cf_hz.len(),
+            AmsFbType::Lin => channels,
+        };
+        check_frame_values(("ams_wSizeSec", p.w_size_sec), w, framed_width)?;
         let (mod_cf_hz, kind, width) = match p.fb_type {
             AmsFbType::Log => {
                 let (mf, filters) = log_bank(p, fs_ds, channels)?;
@@ -849,6 +858,47 @@ mod tests {
             msg.starts_with("invalid value 900 for parameter 'ams_cfHz'"),
             "{msg}"
         );
+    }
+
+    /// Issue 44, item 4: a window of 1500 s over 32 channels and 15 bands asked for 61.5 GB;
+    /// it is refused before anything is allocated, in the words of the other framed
+    /// processors. The sums over two rectangular hops (no frame buffer) take any window
+    /// the sample count allows, and a frame buffer up to the bound is accepted.
+    #[test]
+    fn a_window_whose_frame_buffer_exceeds_the_bound_is_refused() {
+        let info = ihc(44100.0, 32);
+        let long = AmsParams {
+            w_size_sec: 1500.0,
+            ..AmsParams::default()
+        };
+        let msg = AmsFeatures::new(&long, &info)
+            .expect_err("61.5 GB")
+            .to_string();
+        assert!(
+            msg.starts_with("invalid value 1500 for parameter 'ams_wSizeSec'")
+                && msg.contains("over 480 channels would buffer")
+                && msg.contains("shorten the window or use fewer channels"),
+            "{msg}"
+        );
+        let lin = AmsParams {
+            fb_type: AmsFbType::Lin,
+            ..long.clone()
+        };
+        let msg = AmsFeatures::new(&lin, &info).expect_err("lin").to_string();
+        assert!(msg.contains("over 32 channels would buffer"), "{msg}");
+        let two_hops = AmsParams {
+            h_size_sec: 750.0,
+            ..long
+        };
+        assert!(AmsFeatures::new(&two_hops, &info).is_ok());
+        // 4 channels × 15 bands × 2^19 samples (47.6 s at 11025 Hz) = 2^24 · 1.875: over;
+        // a window of 2^18 samples (2^24 · 0.94) fits
+        let at = |samples: f64| AmsParams {
+            w_size_sec: samples / 11025.0,
+            ..AmsParams::default()
+        };
+        assert!(AmsFeatures::new(&at(524_288.0), &ihc(44100.0, 4)).is_err());
+        assert!(AmsFeatures::new(&at(262_144.0), &ihc(44100.0, 4)).is_ok());
     }
 
     #[test]

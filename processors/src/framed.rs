@@ -35,6 +35,23 @@ pub fn check_work(w: (&str, f64), values: usize, channels: usize) -> Result<()> 
     })
 }
 
+/// Refuses a frame buffer of `ws` rows of `width` values beyond [`MAX_FRAME_VALUES`],
+/// naming the window parameter `w` (AFE name, value in s).
+pub fn check_frame_values(w: (&str, f64), ws: usize, width: usize) -> Result<()> {
+    if ws.saturating_mul(width.max(1)) <= MAX_FRAME_VALUES {
+        return Ok(());
+    }
+    Err(Error::InvalidParameter {
+        name: w.0.into(),
+        value: w.1.to_string(),
+        reason: format!(
+            "a window of {ws} samples over {width} channels would buffer {} MiB (at most {} MiB): shorten the window or use fewer channels",
+            ws.saturating_mul(width) / (1 << 17),
+            MAX_FRAME_VALUES / (1 << 17)
+        ),
+    })
+}
+
 /// Window and hop lengths in samples at `fs`, checked: `0 < W, H ≤ MAX_WINDOW`. A hop
 /// longer than the window is accepted, as by the AFE: frames then leave gaps.
 ///
@@ -54,17 +71,7 @@ pub fn check_framing(
             reason: format!("the window must span between 2 and {MAX_WINDOW} samples at {fs} Hz"),
         });
     }
-    if ws.saturating_mul(width.max(1)) > MAX_FRAME_VALUES {
-        return Err(Error::InvalidParameter {
-            name: w.0.into(),
-            value: w.1.to_string(),
-            reason: format!(
-                "a window of {ws} samples over {width} channels would buffer {} MiB (at most {} MiB): shorten the window or use fewer channels",
-                ws.saturating_mul(width) / (1 << 17),
-                MAX_FRAME_VALUES / (1 << 17)
-            ),
-        });
-    }
+    check_frame_values(w, ws, width)?;
     if h.1 <= 0.0 || !(1..=MAX_WINDOW).contains(&hs) {
         return Err(Error::InvalidParameter {
             name: h.0.into(),

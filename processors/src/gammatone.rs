@@ -10,8 +10,10 @@
 use std::f64::consts::PI;
 
 use afe_core::cpu::has_avx512;
+use afe_core::filter::roots_within;
 use afe_core::lanes::vector_start;
 use afe_core::{Block, Error, ParamMap, Processor, Result, SignalInfo};
+use realfft::num_complex::Complex64;
 use serde_json::json;
 
 use crate::filterbank_params::{CfGrid, FilterbankParams};
@@ -55,6 +57,11 @@ struct ChannelDesign {
     b0: (f64, f64),
     /// Denominator `a[1..=n]`, `(re, im)` each (`a[0] = 1`).
     a: Vec<(f64, f64)>,
+    /// The pole `p`, of radius `e^{−β}`, `β = 2π·bw/fs`.
+    pole: (f64, f64),
+    /// Whether the expanded denominator `a`, as computed, keeps all its roots within
+    /// `e^{−β/2}`: at most half the design's distance to the unit circle.
+    expanded_stable: bool,
 }
 
 fn design_channel(cf: f64, bw_erbs: f64, n: usize, fs: f64, align: bool) -> ChannelDesign {
@@ -90,16 +97,20 @@ fn design_channel(cf: f64, bw_erbs: f64, n: usize, fs: f64, align: bool) -> Chan
     } else {
         (g, 0.0)
     };
+    let denominator: Vec<Complex64> = a[1..].iter().map(|&(r, i)| Complex64::new(r, i)).collect();
+    let expanded_stable = roots_within(&denominator, (re / 2.0).exp());
     ChannelDesign {
         b0,
         a: a[1..].to_vec(),
+        pole: p,
+        expanded_stable,
     }
 }
 
 /// Samples filtered per pass over the groups, so that a long input's output rows stay
 /// in cache while every group writes its lanes of them (a 32-channel block is 128 KiB).
 const TIME_BLOCK: usize = 512;
-/// Largest supported `fb_nGamma` (the expanded polynomial is numerically useless beyond).
+/// Largest supported `fb_nGamma`.
 pub const MAX_ORDER: usize = 8;
 
 /// Coefficients and state of `W` channels, lane-major so that every operation of the
@@ -112,6 +123,10 @@ struct Group<const W: usize> {
     /// `a[1..=order]`.
     a_re: [[f64; W]; MAX_ORDER],
     a_im: [[f64; W]; MAX_ORDER],
+    /// The pole `p` (the cascade's coefficient).
+    p_re: [f64; W],
+    p_im: [f64; W],
+    /// The expanded filter's state, or each one-pole section's in the cascade.
     z_re: [[f64; W]; MAX_ORDER],
     z_im: [[f64; W]; MAX_ORDER],
 }
@@ -127,6 +142,8 @@ struct Bank<const W: usize> {
     /// Full-width output rows of a bank narrower than `W` channels (`TIME_BLOCK` × `W`,
     /// copied out in part; empty otherwise).
     partial: Vec<f64>,
+    /// Whether the channels run as cascades of one-pole sections (see [`Gammatone`]).
+    cascade: bool,
 }
 
 impl<const W: usize> Bank<W> {
@@ -136,6 +153,8 @@ impl<const W: usize> Bank<W> {
             b_im: [0.0; W],
             a_re: [[0.0; W]; MAX_ORDER],
             a_im: [[0.0; W]; MAX_ORDER],
+            p_re: [0.0; W],
+            p_im: [0.0; W],
             z_re: [[0.0; W]; MAX_ORDER],
             z_im: [[0.0; W]; MAX_ORDER],
         };
@@ -148,6 +167,8 @@ impl<const W: usize> Bank<W> {
             for (l, d) in designs[c0..].iter().take(W).enumerate() {
                 g.b_re[l] = d.b0.0;
                 g.b_im[l] = d.b0.1;
+                g.p_re[l] = d.pole.0;
+                g.p_im[l] = d.pole.1;
                 for (k, ak) in d.a.iter().enumerate() {
                     g.a_re[k][l] = ak.0;
                     g.a_im[k][l] = ak.1;
@@ -163,19 +184,28 @@ impl<const W: usize> Bank<W> {
             groups,
             starts,
             partial,
+            cascade: !designs.iter().all(|d| d.expanded_stable),
         }
     }
 
     fn filter(&mut self, order: usize, x: &[f64], out: &mut [f64], nc: usize) {
-        let run = match order {
-            1 => run_group::<1, W>,
-            2 => run_group::<2, W>,
-            3 => run_group::<3, W>,
-            4 => run_group::<4, W>,
-            5 => run_group::<5, W>,
-            6 => run_group::<6, W>,
-            7 => run_group::<7, W>,
-            _ => run_group::<8, W>,
+        let run = match (self.cascade, order) {
+            (false, 1) => run_group::<1, W>,
+            (false, 2) => run_group::<2, W>,
+            (false, 3) => run_group::<3, W>,
+            (false, 4) => run_group::<4, W>,
+            (false, 5) => run_group::<5, W>,
+            (false, 6) => run_group::<6, W>,
+            (false, 7) => run_group::<7, W>,
+            (false, _) => run_group::<8, W>,
+            (true, 1) => run_cascade::<1, W>,
+            (true, 2) => run_cascade::<2, W>,
+            (true, 3) => run_cascade::<3, W>,
+            (true, 4) => run_cascade::<4, W>,
+            (true, 5) => run_cascade::<5, W>,
+            (true, 6) => run_cascade::<6, W>,
+            (true, 7) => run_cascade::<7, W>,
+            (true, _) => run_cascade::<8, W>,
         };
         for (x, out) in x.chunks(TIME_BLOCK).zip(out.chunks_mut(TIME_BLOCK * nc)) {
             for (g, &c0) in self.groups.iter_mut().zip(&self.starts) {
@@ -210,6 +240,26 @@ enum Banks {
 }
 
 /// The gammatone filterbank of one ear: time-domain in, `[time][channel]` out.
+///
+/// Each channel runs as the AFE runs it, one DF2T filter on the expanded denominator
+/// `(1 − p z⁻¹)^n`, whenever that is stable for every channel; otherwise the whole bank
+/// runs each channel as a cascade of `n` one-pole sections `1/(1 − p z⁻¹)`, the gain
+/// `b0` on the first, which is stable at every order.
+///
+/// Rounding the expanded coefficients splits the n-fold pole into n roots about
+/// `(2ⁿ·ε)^{1/n}` apart (ε = 2⁻⁵²): 2e−4 for order 4, 1e−2 for order 7 and 2e−2 for order
+/// 8, against a distance to the unit circle of `β = 2π·bw/fs`, 4.8e−3 for the 80-Hz channel
+/// at 44.1 kHz. Measured on the default grid (80 Hz to 8 kHz, 1.018 ERB): orders 1 to 4
+/// (the AFE's 4 and the 2 that the oracle checks bit for bit) keep their computed roots
+/// within `e^{−β/2}` in every channel at 16, 44.1, 48, 96 and 192 kHz, so they run as the
+/// AFE runs them. Order 5 leaves that margin in the 80-Hz channel at 44.1 kHz; orders 6
+/// to 8 put roots outside the unit circle (order 8: the 14 channels up to 1 kHz at
+/// 44.1 kHz, where the expanded form grows without bound, 9.5e246 in the issue's
+/// example). The test is made per channel on the computed coefficients (Schur–Cohn,
+/// [`roots_within`], radius `e^{−β/2}`), so a narrow bandwidth (`fb_bwERBs`), a low
+/// centre frequency or a high rate that destabilises a low order selects the cascade
+/// too. The cascade differs from the expanded form by its rounding only (3e−7 relative
+/// at 80 Hz, 6e−10 at 1 kHz for order 4 at 44.1 kHz, spec zz-numerics N1).
 #[derive(Debug, Clone)]
 pub struct Gammatone {
     channels: usize,
@@ -229,11 +279,11 @@ impl Gammatone {
         let (grid, _) = grid_and_delays(params)?;
         grid.check_below_nyquist(params, fs)?;
         let order = params.n_gamma as usize;
-        if order > MAX_ORDER {
+        if !(1..=MAX_ORDER).contains(&order) {
             return Err(Error::invalid(
                 "fb_nGamma",
                 order,
-                format!("orders up to {MAX_ORDER} are supported"),
+                format!("the gammatone order must be between 1 and {MAX_ORDER}"),
             ));
         }
         let designs: Vec<ChannelDesign> = grid
@@ -307,6 +357,48 @@ afe_core::simd_kernel!(
                 *y *= 2.0;
             }
             out[t * stride..t * stride + W].copy_from_slice(&yr);
+        }
+        g.z_re[..M].copy_from_slice(&zr);
+        g.z_im[..M].copy_from_slice(&zi);
+    }
+);
+
+afe_core::simd_kernel!(
+    /// [`run_group`] for channels run as cascades of `M` one-pole sections: per sample,
+    /// `v = b0·x`, then for each section `y = z + v`, `z = p·y`, `v = y` (textbook
+    /// complex products, no FMA); output `2·Re v`.
+    fn run_cascade<const M: usize, const W: usize>(
+        g: &mut Group<W>,
+        x: &[f64],
+        out: &mut [f64],
+        stride: usize,
+    ) {
+        let mut zr = [[0.0; W]; M];
+        let mut zi = [[0.0; W]; M];
+        zr.copy_from_slice(&g.z_re[..M]);
+        zi.copy_from_slice(&g.z_im[..M]);
+        let (br, bi, pr, pi) = (g.b_re, g.b_im, g.p_re, g.p_im);
+        for (t, &xin) in x.iter().enumerate() {
+            let mut vr = [0.0; W];
+            let mut vi = [0.0; W];
+            for l in 0..W {
+                vr[l] = br[l] * xin;
+                vi[l] = bi[l] * xin;
+            }
+            for k in 0..M {
+                for l in 0..W {
+                    let yr = zr[k][l] + vr[l];
+                    let yi = zi[k][l] + vi[l];
+                    zr[k][l] = pr[l] * yr - pi[l] * yi;
+                    zi[k][l] = pr[l] * yi + pi[l] * yr;
+                    vr[l] = yr;
+                    vi[l] = yi;
+                }
+            }
+            for v in &mut vr {
+                *v *= 2.0;
+            }
+            out[t * stride..t * stride + W].copy_from_slice(&vr);
         }
         g.z_re[..M].copy_from_slice(&zr);
         g.z_im[..M].copy_from_slice(&zi);
@@ -492,6 +584,30 @@ mod tests {
         out
     }
 
+    /// The cascade of one-pole sections of one channel, written plainly.
+    fn cascade_channel(d: &ChannelDesign, x: &[f64]) -> Vec<f64> {
+        let p = d.pole;
+        let mut z = vec![(0.0f64, 0.0f64); d.a.len()];
+        x.iter()
+            .map(|&xin| {
+                let mut v = (d.b0.0 * xin, d.b0.1 * xin);
+                for zk in &mut z {
+                    let y = (zk.0 + v.0, zk.1 + v.1);
+                    *zk = (p.0 * y.0 - p.1 * y.1, p.0 * y.1 + p.1 * y.0);
+                    v = y;
+                }
+                2.0 * v.0
+            })
+            .collect()
+    }
+
+    fn runs_cascade(gt: &Gammatone) -> bool {
+        match &gt.banks {
+            Banks::Wide(b) => b.cascade,
+            Banks::Narrow(b) => b.cascade,
+        }
+    }
+
     #[test]
     fn channels_match_the_plain_recursion_bit_for_bit_through_silence() {
         // A burst, then 1 s of zeros (the state decays into subnormals) and negative zeros.
@@ -513,6 +629,8 @@ mod tests {
             let grid = p.grid().expect("valid");
             for wide in [false, true] {
                 let (mut gt, _) = Gammatone::with_width(&p, fs, wide).expect("valid");
+                // order 8 reaches 80 Hz: the expanded form is unstable there
+                assert_eq!(runs_cascade(&gt), order == 8, "order {order}");
                 let nc = n_channels as usize;
                 let mut y = vec![0.0; x.len() * nc];
                 let (head, tail) = x.split_at(1000);
@@ -520,7 +638,11 @@ mod tests {
                 gt.filter(tail, &mut y[1000 * nc..]);
                 for (c, &cf) in grid.cf_hz.iter().enumerate() {
                     let d = design_channel(cf, p.bw_erbs, order as usize, fs, align);
-                    let want = reference_channel(&d, &x);
+                    let want = if runs_cascade(&gt) {
+                        cascade_channel(&d, &x)
+                    } else {
+                        reference_channel(&d, &x)
+                    };
                     for (t, w) in want.iter().enumerate() {
                         let got = y[t * nc + c];
                         assert_eq!(
@@ -531,6 +653,79 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    /// Issue 44, item 2: orders 7 and 8 gave 9.5e246 in the default grid at 44.1 kHz (the
+    /// expanded denominators of the low channels have roots outside the unit circle).
+    /// Those banks run as cascades: every channel's impulse response is the closed form
+    /// `2·g·C(t+n−1, n−1)·r^t·cos(2π·cf·t/fs)`, bounded. Orders 1 to 4 on the default
+    /// grid at 16 and 44.1 kHz, and order 2 with 1.5 ERB (the oracle's cases), stay in
+    /// the AFE's expanded form; a narrow bandwidth at order 4 turns to the cascade.
+    #[test]
+    fn unstable_expanded_orders_run_as_stable_cascades() {
+        let built = |n_gamma: u32, bw_erbs: f64, fs: f64| {
+            let p = FilterbankParams {
+                n_gamma,
+                bw_erbs,
+                ..Default::default()
+            };
+            let grid = p.grid().expect("valid");
+            (Gammatone::new(&p, fs).expect("valid").0, grid.cf_hz)
+        };
+        for fs in [16000.0, 44100.0] {
+            for n in 1..=4 {
+                assert!(
+                    !runs_cascade(&built(n, 1.018, fs).0),
+                    "order {n} at {fs} Hz"
+                );
+            }
+            assert!(!runs_cascade(&built(2, 1.5, fs).0));
+        }
+        let len = 20000;
+        let mut x = vec![0.0; len];
+        x[0] = 1.0;
+        for (n, bw_erbs) in [(7, 1.018), (8, 1.018), (4, 0.01)] {
+            let (mut gt, cf_hz) = built(n, bw_erbs, 44100.0);
+            assert!(runs_cascade(&gt), "order {n}, {bw_erbs} ERB");
+            let nc = cf_hz.len();
+            let mut y = vec![0.0; len * nc];
+            gt.filter(&x, &mut y);
+            for (c, cf) in cf_hz.iter().enumerate() {
+                let bw = bw_erbs * (24.7 + 0.108 * cf);
+                let beta = 2.0 * PI * bw / 44100.0;
+                let g = (1.0 - (-beta).exp()).powi(n as i32);
+                let want: Vec<f64> = (0..len)
+                    .map(|t| {
+                        let binom = (1..n).fold(1.0, |b, k| b * (t as f64 + k as f64) / k as f64);
+                        let carrier = (2.0 * PI * cf * t as f64 / 44100.0).cos();
+                        2.0 * g * binom * (-beta * t as f64).exp() * carrier
+                    })
+                    .collect();
+                let peak = want.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                for (t, w) in want.iter().enumerate() {
+                    let got = y[t * nc + c];
+                    assert!(
+                        (got - w).abs() <= 1e-9 * peak,
+                        "order {n}, {cf} Hz, t={t}: {got:e} vs {w:e}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn orders_outside_1_to_8_are_refused_naming_fb_ngamma() {
+        for n_gamma in [0, 9] {
+            let p = FilterbankParams {
+                n_gamma,
+                ..Default::default()
+            };
+            let msg = Gammatone::new(&p, 44100.0).expect_err("order").to_string();
+            assert!(
+                msg.contains("parameter 'fb_nGamma'") && msg.contains("between 1 and 8"),
+                "{msg}"
+            );
         }
     }
 

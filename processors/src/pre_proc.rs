@@ -3,7 +3,7 @@
 //!
 //! One instance serves both ears, because the AGC can link their gains.
 
-use afe_core::butter::{butter, ButterType};
+use afe_core::butter::{butter_filters, ButterType};
 use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::filter::Df2t;
 use afe_core::{
@@ -145,7 +145,8 @@ const MIN_MIDDLE_EAR_FS: f64 = 2000.0;
 /// The per-ear state of the pre-processor.
 #[derive(Debug, Clone)]
 struct Ear {
-    dc: Option<Df2t>,
+    /// The DC-removal high-pass, filters in series (none when off).
+    dc: Vec<Df2t>,
     emphasis: Option<Df2t>,
     agc: Df2t,
     agc_seeded: bool,
@@ -234,10 +235,14 @@ impl PreProc {
                 ),
             ));
         }
-        let dc = p.remove_dc.then(|| {
-            let (b, a) = butter(4, &[p.cutoff_hz_dc / (fs / 2.0)], ButterType::High);
-            Df2t::new(&b, &a, 1)
-        });
+        let dc: Vec<Df2t> = if p.remove_dc {
+            butter_filters(4, &[p.cutoff_hz_dc / (fs / 2.0)], ButterType::High)
+                .iter()
+                .map(|(b, a)| Df2t::new(b, a, 1))
+                .collect()
+        } else {
+            Vec::new()
+        };
         let emphasis = p
             .pre_emphasis
             .then(|| Df2t::new(&[1.0, -p.coef_pre_emphasis.abs()], &[1.0], 1));
@@ -308,7 +313,7 @@ impl Processor for PreProc {
             out.extend_from(inputs[e]);
             let x = out.as_mut_slice();
             let ear = &mut self.ears[e];
-            if let Some(f) = &mut ear.dc {
+            for f in &mut ear.dc {
                 f.process(x);
             }
             if let Some(f) = &mut ear.emphasis {
@@ -349,9 +354,10 @@ impl Processor for PreProc {
     /// documented choice, where MATLAB would start a re-used manager's AGC from zero).
     fn reset(&mut self) {
         for ear in &mut self.ears {
-            for f in [&mut ear.dc, &mut ear.emphasis, &mut ear.middle_ear]
+            for f in [&mut ear.emphasis, &mut ear.middle_ear]
                 .into_iter()
                 .flatten()
+                .chain(&mut ear.dc)
             {
                 f.reset();
             }
@@ -517,6 +523,38 @@ mod tests {
         };
         assert!(!<PreProc as Descriptor>::chunk_invariant(&agc));
         assert_eq!(<PreProc as Descriptor>::one_call_prefix_s(&agc), Some(0.3));
+    }
+
+    /// Issue 44, item 3: a DC-removal cut-off whose 4th-order transfer function is
+    /// unstable (1 Hz, and 1 Hz below Nyquist, at 44.1 kHz) runs as second-order
+    /// sections: white noise stays bounded, and a 1-Hz high-pass keeps its energy. The 20-Hz default keeps the AFE's transfer function (one filter).
+    #[test]
+    fn dc_removal_at_any_cut_off_is_stable() {
+        let fs = 44100.0;
+        let x = crate::testing::noise(88200, 3);
+        let at = |cutoff_hz_dc: f64| PreProcParams {
+            remove_dc: true,
+            cutoff_hz_dc,
+            ..Default::default()
+        };
+        assert_eq!(
+            PreProc::new(&at(20.0), fs, 1).expect("valid").0.ears[0]
+                .dc
+                .len(),
+            1
+        );
+        for cutoff in [1.0, 22049.0] {
+            let (pre, _) = PreProc::new(&at(cutoff), fs, 1).expect("valid");
+            assert_eq!(pre.ears[0].dc.len(), 2, "{cutoff} Hz as two sections");
+            let y = run(&at(cutoff), std::slice::from_ref(&x), fs).remove(0);
+            let peak = y.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            assert!(peak.is_finite() && peak < 2.0, "{cutoff} Hz: peak {peak}");
+            if cutoff == 1.0 {
+                let energy = |v: &[f64]| v.iter().map(|e| e * e).sum::<f64>();
+                let ratio = energy(&y[44100..]) / energy(&x[44100..]);
+                assert!((ratio - 1.0).abs() < 0.01, "a 1-Hz high-pass passes noise: {ratio}");
+            }
+        }
     }
 
     #[test]
