@@ -202,6 +202,9 @@ fn run_request(case: &Value, fs: f64, x: &[f64]) -> Vec<f64> {
 ///   `sosfilt` over its first 64 samples to 1e-6 of its peak.
 /// * Half a second of white noise of peak 1 gives a finite output of peak below 4
 ///   through every design (the wide band-passes peaked at 2.4e4 to 1.2e92).
+/// * The designs refused are band-stops whose sections would amplify their round-off
+///   beyond the bound (scipy's sections give 2 % to 1e42 errors on them), refused
+///   naming `bw_order`; at least 200 designs are compared.
 #[test]
 fn every_design_matches_scipy_sections_and_stays_bounded() {
     let cases = sos_fixture();
@@ -213,10 +216,22 @@ fn every_design_matches_scipy_sections_and_stays_bounded() {
     };
     let x: Vec<f64> = (0..22050).map(|_| noise()).collect();
     let mut worst = (0.0f64, 0.0f64);
+    let mut refused = Vec::new();
     for case in &cases {
         let p = ButterworthParams::from_map(&params_of(case)).expect("valid params");
         let fs = case["fs"].as_f64().expect("fs");
-        let sections = p.sections(fs).expect("design");
+        let sections = match p.sections(fs) {
+            Ok(sections) => sections,
+            Err(e) => {
+                let msg = e.to_string();
+                assert!(
+                    case["bw_type"] == "stop" && msg.contains("parameter 'bw_order'"),
+                    "{msg}"
+                );
+                refused.push(format!("{} {}", case["bw_order"], case["bw_cutoffHz"]));
+                continue;
+            }
+        };
         for (f, want) in numbers(&case["response_hz"])
             .iter()
             .zip(numbers(&case["response_mag"]))
@@ -246,5 +261,11 @@ fn every_design_matches_scipy_sections_and_stays_bounded() {
     println!(
         "worst relative errors: response {:e}, impulse {:e}",
         worst.0, worst.1
+    );
+    println!("refused band-stops: {refused:?}");
+    assert!(
+        cases.len() - refused.len() >= 200,
+        "{} designs compared",
+        cases.len() - refused.len()
     );
 }

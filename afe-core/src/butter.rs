@@ -134,6 +134,46 @@ pub fn butter_sos(order: usize, wn: &[f64], kind: ButterType) -> Vec<Biquad> {
         .collect()
 }
 
+/// How much a cascade of `sections` can amplify the round-off of its intermediate
+/// signals, relative to its peak gain: the largest, over the points between two
+/// sections, of `max|P(w)|·max|S(w)|` (`P` the sections before the point, `S` those
+/// after, maxima over 0, π, the cut-offs `wn` (normalised to Nyquist) and 200
+/// log-spaced frequencies from 1e−7·π to π), divided by the cascade's `max|H(w)|`.
+///
+/// Round-off of relative size ε (2⁻⁵³) in an intermediate signal reaches the output at
+/// up to ε times this figure. Low- and high-passes and band-passes stay below 1e6 at
+/// every order up to 32; wide or high-order band-stops reach 1e88 (their sections
+/// normalised at DC have gains near Nyquist that differ by 20 orders of magnitude).
+pub fn round_off_gain(sections: &[Biquad], wn: &[f64]) -> f64 {
+    let mut w: Vec<f64> = (0..200)
+        .map(|k| PI * 10f64.powf(-7.0 + 7.0 * k as f64 / 199.0))
+        .collect();
+    w.extend([0.0, PI]);
+    w.extend(wn.iter().map(|v| PI * v));
+    let gains: Vec<Vec<f64>> = sections
+        .iter()
+        .map(|(b, a)| {
+            w.iter()
+                .map(|&w| {
+                    let e = Complex64::new(0.0, -w).exp();
+                    let ev = |c: &[f64; 3]| c[0] + e * (c[1] + e * c[2]);
+                    (ev(b) / ev(a)).norm()
+                })
+                .collect()
+        })
+        .collect();
+    let product = |range: &[Vec<f64>]| -> f64 {
+        (0..w.len())
+            .map(|i| range.iter().map(|g| g[i]).product::<f64>())
+            .fold(0.0, f64::max)
+    };
+    let peak = product(&gains);
+    (1..gains.len())
+        .map(|k| product(&gains[..k]) * product(&gains[k..]))
+        .fold(1.0, f64::max)
+        / peak
+}
+
 /// The largest modulus of `roots`.
 fn radius(roots: &[Complex64]) -> f64 {
     roots.iter().fold(0.0, |m, r| m.max(r.norm()))

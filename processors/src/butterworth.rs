@@ -1,7 +1,7 @@
 //! `butterworth` (not in the AFE): a Butterworth low/high/band-pass/band-stop filter of
 //! free order on the time-domain signal of each ear, with the design shared with the IHC.
 
-use afe_core::butter::{butter, butter_sos, Biquad, ButterType};
+use afe_core::butter::{butter, butter_sos, round_off_gain, Biquad, ButterType};
 use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::filter::Df2t;
 use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
@@ -109,11 +109,43 @@ impl ButterworthParams {
 
     /// The design at `fs` Hz as second-order sections, which the filter runs: stable
     /// at every accepted order and band, where the transfer function is not.
+    ///
+    /// A design whose sections would amplify their round-off by more than
+    /// [`MAX_ROUND_OFF_GAIN`] ([`round_off_gain`]: only wide or high-order band-stops,
+    /// e.g. [20, 20000] Hz from order 8 at 44.1 kHz, whose output scipy's sections too
+    /// get wrong by 2 % to 1e42) is refused, naming `bw_order` and the highest order
+    /// accepted for the band.
     pub fn sections(&self, fs: f64) -> Result<Vec<Biquad>> {
         let (order, wn, kind) = self.checked(fs)?;
-        Ok(butter_sos(order, &wn, kind))
+        let sections = butter_sos(order, &wn, kind);
+        let gain = round_off_gain(&sections, &wn);
+        if gain <= MAX_ROUND_OFF_GAIN {
+            return Ok(sections);
+        }
+        let highest = (1..order)
+            .rev()
+            .find(|&n| round_off_gain(&butter_sos(n, &wn, kind), &wn) <= MAX_ROUND_OFF_GAIN);
+        let fix = match highest {
+            Some(n) => format!("give an order of at most {n} for this band, or narrow it"),
+            None => "narrow the band".into(),
+        };
+        Err(Error::invalid(
+            "bw_order",
+            self.order,
+            format!(
+                "a '{}' design of order {} over {:?} Hz at {fs} Hz cannot be computed in double \
+                 precision: its second-order sections would amplify their round-off by \
+                 {gain:.1e} (at most {MAX_ROUND_OFF_GAIN:e} is accepted, an error of 1e-5 of \
+                 the peak gain); {fix}",
+                self.kind, self.order, self.cutoff_hz
+            ),
+        ))
     }
 }
+
+/// Largest [`round_off_gain`] of an accepted design: its round-off reaches the output at
+/// up to 1e−5 of the peak gain (ε = 2⁻⁵³ times 1e11).
+pub const MAX_ROUND_OFF_GAIN: f64 = 1e11;
 
 /// The Butterworth filter of one ear: time-domain in and out, through a cascade of
 /// second-order sections.
@@ -248,6 +280,43 @@ mod tests {
         }
         bw.reset();
         assert_eq!(feed(&mut bw, &x, 1, 1, [300]), &got[..300]);
+    }
+
+    /// Issue 44, item 3: the wide band-passes of the issue are accepted; a band-stop
+    /// over the same band from order 8 cannot be computed (scipy's sections miss its
+    /// output by 2 %) and is refused naming `bw_order` and the highest order accepted.
+    #[test]
+    fn band_stops_whose_sections_amplify_round_off_are_refused() {
+        let fs = 44100.0;
+        for (order, band) in [
+            (12, [20.0, 20000.0]),
+            (8, [5.0, 22000.0]),
+            (32, [1.0, 22049.0]),
+        ] {
+            assert!(
+                params("bandpass", order, &band).sections(fs).is_ok(),
+                "{band:?}"
+            );
+        }
+        let msg = params("stop", 8, &[20.0, 20000.0])
+            .sections(fs)
+            .expect_err("round-off")
+            .to_string();
+        assert!(
+            msg.starts_with("invalid value 8 for parameter 'bw_order'")
+                && msg.contains("cannot be computed in double precision")
+                && msg.contains("give an order of at most"),
+            "{msg}"
+        );
+        let highest: u32 = msg
+            .split("at most ")
+            .nth(2)
+            .and_then(|rest| rest.split(' ').next())
+            .and_then(|n| n.parse().ok())
+            .expect("the highest order");
+        assert!(params("stop", highest, &[20.0, 20000.0])
+            .sections(fs)
+            .is_ok());
     }
 
     #[test]

@@ -552,7 +552,10 @@ mod tests {
             if cutoff == 1.0 {
                 let energy = |v: &[f64]| v.iter().map(|e| e * e).sum::<f64>();
                 let ratio = energy(&y[44100..]) / energy(&x[44100..]);
-                assert!((ratio - 1.0).abs() < 0.01, "a 1-Hz high-pass passes noise: {ratio}");
+                assert!(
+                    (ratio - 1.0).abs() < 0.01,
+                    "a 1-Hz high-pass passes noise: {ratio}"
+                );
             }
         }
     }
