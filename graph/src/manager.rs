@@ -1140,9 +1140,11 @@ mod tests {
         assert!(e.contains(": 8000 (the default) puts "), "{e}");
         // modify_parameter too: ams_highFreqHz set to its default at 8 kHz
         let mut m = Manager::new(8000.0, 1).expect("valid");
-        let h = m
-            .add_request("amsFeatures", &params(&[("ams_highFreqHz", json!(256))]))
-            .expect("fits");
+        let fits = params(&[
+            ("fb_highFreqHz", json!(3000)),
+            ("ams_highFreqHz", json!(256)),
+        ]);
+        let h = m.add_request("amsFeatures", &fits).expect("fits");
         let e = m
             .modify_parameter(h, "ams_highFreqHz", json!(1024))
             .expect_err("above Nyquist")
