@@ -336,7 +336,8 @@ fn log_bank(p: &AmsParams, fs_ds: f64, channels: usize) -> Result<(Vec<f64>, Vec
         let (name, value, given) = if p.cf_hz.is_empty() {
             let default = AmsParams::default().high_freq_hz;
             let which = if p.high_freq_hz == default {
-                " (the default)"
+                // taken back by the graph if the request set it (afe_core::params::unless_set)
+                afe_core::params::DEFAULT_NOTE
             } else {
                 ""
             };

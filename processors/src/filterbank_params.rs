@@ -233,7 +233,8 @@ impl CfGrid {
         Err(if params.cf_hz.is_empty() {
             let default = FilterbankParams::default().high_freq_hz;
             let which = if params.high_freq_hz == default {
-                " (the default)"
+                // taken back by the graph if the request set it (afe_core::params::unless_set)
+                afe_core::params::DEFAULT_NOTE
             } else {
                 ""
             };
