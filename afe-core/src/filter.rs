@@ -16,7 +16,7 @@ pub fn roots_within(a: &[Complex64], rho: f64) -> bool {
     let mut c: Vec<Complex64> = a.iter().zip(1..).map(|(v, k)| v / rho.powi(k)).collect();
     while let Some(&k) = c.last() {
         let kk = k.norm_sqr();
-        if !(kk < 1.0) {
+        if kk >= 1.0 || kk.is_nan() {
             return false;
         }
         let m = c.len();
