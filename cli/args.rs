@@ -4,6 +4,7 @@
 use std::io::Read as _;
 use std::path::{Path, PathBuf};
 
+use afe::extract::Job;
 use afe::ParamMap;
 use serde_json::Value;
 
@@ -61,6 +62,26 @@ impl Requests {
             return Err("no request given: -r takes request names, e.g. -r ratemap,ild".into());
         }
         Ok((names, params))
+    }
+}
+
+impl Requests {
+    /// A job over a WAV file of these requests: fed in chunks of `chunk` samples (one
+    /// call when `None`), every intermediate signal kept with `all`, on `threads`.
+    pub(crate) fn job(
+        self,
+        chunk: Option<u64>,
+        all: bool,
+        threads: usize,
+    ) -> Result<Job, CliError> {
+        let (requests, params) = self.load()?;
+        Ok(Job {
+            requests,
+            params,
+            chunk: chunk.map(|n| n as usize),
+            all,
+            threads,
+        })
     }
 }
 

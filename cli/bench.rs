@@ -40,14 +40,7 @@ pub(crate) struct BenchArgs {
 
 impl BenchArgs {
     pub(crate) fn run(self) -> Result<(), CliError> {
-        let (requests, params) = self.requests.load()?;
-        let job = Job {
-            requests,
-            params,
-            chunk: self.chunk.map(|n| n as usize),
-            all: false,
-            threads: self.threads.count(),
-        };
+        let job = self.requests.job(self.chunk, false, self.threads.count())?;
         bench(
             &self.input,
             &job,

@@ -34,14 +34,9 @@ pub(crate) struct ExtractArgs {
 
 impl ExtractArgs {
     pub(crate) fn run(self) -> Result<(), CliError> {
-        let (requests, params) = self.requests.load()?;
-        let job = Job {
-            requests,
-            params,
-            chunk: self.chunk.map(|n| n as usize),
-            all: self.all,
-            threads: self.threads.count(),
-        };
+        let job = self
+            .requests
+            .job(self.chunk, self.all, self.threads.count())?;
         extract(&self.input, job, self.trace.as_deref(), &self.output)
     }
 }
