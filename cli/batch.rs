@@ -57,7 +57,8 @@ impl BatchArgs {
 /// The options of `afe batch` as given.
 #[derive(clap::Args)]
 struct BatchFlags {
-    /// Files computed at once (default: the number of cores).
+    /// Files computed at once (default: the number of cores). Cores left free are shared
+    /// by each file's concurrent scheduler (`-j 1` on two cores: each file on both).
     #[arg(short = 'j', long = "jobs", value_name = "N", value_parser = clap::value_parser!(u64).range(1..=1024))]
     jobs: Option<u64>,
     /// Compute only shard I of N (0-based), chosen by a hash of the file ids, so N

@@ -169,8 +169,8 @@ impl std::str::FromStr for OnError {
 /// How a batch runs.
 #[derive(Debug, Clone)]
 pub struct BatchOptions {
-    /// Files computed at once, each by one worker with the sequential executor (0: one
-    /// per core).
+    /// Files computed at once (0: one per core). Where they leave cores free, each file
+    /// is computed on the concurrent scheduler with its share of them (the same numbers).
     pub workers: usize,
     /// `(I, N)`: compute only shard I of N (0-based).
     pub shard: Option<(u64, u64)>,
@@ -330,6 +330,12 @@ pub fn run(
         n => n,
     }
     .min(files.len().max(1));
+    let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
+    // each file's share of the cores the workers leave free (one: the sequential executor)
+    let threads = match cores / workers {
+        0 | 1 => 0,
+        n => n,
+    };
     let audio_s: f64 = files.iter().map(|f| f.audio_s).sum();
     let progress = Mutex::new(Progress::start(
         options.progress,
@@ -354,7 +360,7 @@ pub fn run(
                         break;
                     };
                     // an interrupted file is not recorded: the next run redoes it
-                    let Some(record) = compute(&store, file) else {
+                    let Some(record) = compute(&store, file, threads) else {
                         break;
                     };
                     if let Err(e) = ledger.append(&record) {
@@ -413,10 +419,11 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 
 /// Computes one file into `store` (first removing what a killed run left of it) and
 /// returns its record, for the caller to append to a ledger; failures are in the record.
-/// `None`: interrupted (see [`afe::interrupt`]), nothing to record.
-pub fn compute(store: &Store, file: &InputFile) -> Option<Record> {
+/// `None`: interrupted (see [`afe::interrupt`]), nothing to record. `threads`: of the
+/// concurrent scheduler, the caller among them (0: the sequential executor).
+pub fn compute(store: &Store, file: &InputFile, threads: usize) -> Option<Record> {
     let start = Instant::now();
-    let result = compute_file(store, file);
+    let result = compute_file(store, file, threads);
     if result.is_err() {
         // a failed file leaves nothing half-written behind
         let _ = store.clear(&file.id);
@@ -433,7 +440,7 @@ pub fn compute(store: &Store, file: &InputFile) -> Option<Record> {
     ))
 }
 
-fn compute_file(store: &Store, file: &InputFile) -> Result<(), BatchError> {
+fn compute_file(store: &Store, file: &InputFile, threads: usize) -> Result<(), BatchError> {
     store.clear(&file.id)?;
     let mut wav = open_input(&file.path)?;
     let spec = store.spec();
@@ -442,7 +449,7 @@ fn compute_file(store: &Store, file: &InputFile) -> Result<(), BatchError> {
         params: spec.params.clone(),
         ..Job::default()
     };
-    let mut mgr = Manager::with_threads(wav.fs(), wav.channels(), 0)?;
+    let mut mgr = Manager::with_threads(wav.fs(), wav.channels(), threads)?;
     let mut writer = store.writer(file, wav.fs(), wav.channels())?;
     writer.expect_input(wav.frames());
     let ears = wav.channels();

@@ -74,6 +74,9 @@ struct NodeRt {
     /// Where the node's processor is split: the table entries of its parts (after the
     /// graph's nodes), whose outputs it joins (see [`Processor::split`]).
     parts: Box<[usize]>,
+    /// Whether the node takes each chunk with [`Processor::absorb`] (a whole signal's
+    /// node that finishes once at its end) rather than processing it.
+    absorbs: bool,
     claimed_at_ns: AtomicU64,
     /// Whether a child's home is another thread: the node then claims its output's cache
     /// lines before writing them (see [`claim_lines`]).
@@ -237,6 +240,7 @@ impl Shared {
                     }
                     let inputs = &inputs[..rt.inputs.len()];
                     match rt.parts.len() {
+                        _ if rt.absorbs => p.absorb(inputs),
                         0 => p.process(inputs, outputs),
                         n => p.join(inputs, &parts[..n], outputs),
                     }
@@ -527,6 +531,30 @@ impl Engine {
     /// (readable through [`Engine::block`] until the next collect) and returns the
     /// caller's reader tokens at once, so that no node waits for the caller.
     pub fn collect(&mut self) -> Result<u64> {
+        self.collect_with(|_, _, _| false)
+    }
+
+    /// As [`Engine::collect`], appending each output of the `nodes` marked for which
+    /// `whole` holds a block straight onto it (a whole signal's joined output: one copy,
+    /// not two) instead of copying it for [`Engine::block`].
+    pub fn collect_appending(
+        &mut self,
+        whole: &mut [Vec<Option<Block>>],
+        nodes: &[bool],
+    ) -> Result<u64> {
+        self.collect_with(|n, o, src| {
+            let acc = whole
+                .get_mut(n)
+                .filter(|_| nodes.get(n).copied().unwrap_or(false))
+                .and_then(|w| w.get_mut(o))
+                .and_then(Option::as_mut);
+            acc.map(|acc| acc.extend_from(src)).is_some()
+        })
+    }
+
+    /// [`Engine::collect`], offering each published output to `sink` (node, output,
+    /// block) first: what it takes (returns true for) is not copied again.
+    fn collect_with(&mut self, mut sink: impl FnMut(usize, usize, &Block) -> bool) -> Result<u64> {
         if self.collected == self.submitted {
             return Err(Error::Scheduler("no chunk in flight to collect".into()));
         }
@@ -553,7 +581,7 @@ impl Engine {
             for (o, (dst, src)) in view.iter_mut().zip(published).enumerate() {
                 frames[o] = src.frames();
                 dst.clear();
-                if copied.get(o).copied().unwrap_or(true) {
+                if !sink(n, o, src) && copied.get(o).copied().unwrap_or(true) {
                     dst.extend_from(src);
                 }
             }
@@ -615,6 +643,12 @@ impl Engine {
     /// Moves the processors of `graph` into a freshly compiled table (the pool must be
     /// quiescent: call [`Engine::quiesce`] first). Chunk counting restarts at 0.
     pub(crate) fn install(&mut self, graph: &mut Graph) {
+        self.install_absorbing(graph, &[]);
+    }
+
+    /// As [`Engine::install`], the nodes marked in `absorbs` taking each chunk with
+    /// [`Processor::absorb`] (a whole signal run in blocks; see [`Graph::run_whole`]).
+    pub(crate) fn install_absorbing(&mut self, graph: &mut Graph, absorbs: &[bool]) {
         let n = graph.nodes.len();
         // a heavy node whose processor splits runs as parts, one per worker, appended
         // after the graph's nodes; the node joins them
@@ -692,7 +726,8 @@ impl Engine {
             .nodes
             .iter_mut()
             .zip(&part_entries)
-            .map(|(node, parts)| NodeRt {
+            .enumerate()
+            .map(|(i, (node, parts))| NodeRt {
                 label: format!("{}#{}", node.name, node.instance),
                 processor: UnsafeCell::new(node.processor.take()),
                 // slot 1 stands for chunk −1: a feedback source's last output before
@@ -713,6 +748,7 @@ impl Engine {
                 inputs: node.parents.clone().into(),
                 feedback: node.feedback_from,
                 parts: parts.clone().into(),
+                absorbs: absorbs.get(i).copied().unwrap_or(false),
                 claimed_at_ns: AtomicU64::new(0),
                 claims: false,
             })
@@ -740,6 +776,7 @@ impl Engine {
                     inputs: graph.nodes[i].parents.clone().into(),
                     feedback: None,
                     parts: Box::new([]),
+                    absorbs: false,
                     claimed_at_ns: AtomicU64::new(0),
                     claims: false,
                 });

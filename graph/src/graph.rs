@@ -127,12 +127,16 @@ impl Graph {
     }
 
     /// Runs node `i` on its parents' new output.
-    fn run_node(&mut self, i: usize) {
+    pub(crate) fn run_node(&mut self, i: usize) {
         self.feed_node(i, |p, inputs, outputs| p.process(inputs, outputs));
     }
 
     /// Calls `f` with node `i`'s processor, its parents' new output and its outputs.
-    fn feed_node(&mut self, i: usize, f: impl FnOnce(&mut dyn Processor, &[&Block], &mut [Block])) {
+    pub(crate) fn feed_node(
+        &mut self,
+        i: usize,
+        f: impl FnOnce(&mut dyn Processor, &[&Block], &mut [Block]),
+    ) {
         let (before, rest) = self.nodes.split_at_mut(i);
         let node = &mut rest[0];
         let first = node.parents[0];
@@ -201,72 +205,6 @@ impl Graph {
             }
         }
         Some(prefix)
-    }
-
-    /// Processes a whole signal (one slice per ear) as one call would, putting every
-    /// node's output into `whole` (per node and output; empty blocks, those of invariant
-    /// nodes sized for the signal) where it has a block, which it
-    /// must for every input of a node that is not chunk-invariant and does not absorb
-    /// (see [`Graph::absorbing_nodes`]; those take the blocks as they come and finish
-    /// once): the nodes whose whole chain is
-    /// chunk-invariant run in blocks of `block` samples (bit-identical to one call, with
-    /// the intermediate signals in cache), then every other node runs once, in order, on
-    /// its parents' joined outputs, as the AFE's `processSignal` calls it. The invariant
-    /// nodes write the outputs that `whole` joins in place, block after block (see
-    /// [`Graph::lend_buffers`]); each block of their other outputs goes to `each_block`.
-    pub fn run_whole(
-        &mut self,
-        signal: &[&[f64]],
-        block: usize,
-        whole: &mut [Vec<Option<Block>>],
-        each_block: &mut dyn FnMut(OutputRef, &Block),
-    ) {
-        let invariant = self.invariant_nodes();
-        let absorbing = self.absorbing_nodes(&invariant);
-        let len = signal.first().map_or(0, |c| c.len());
-        let lent = self.lend_buffers(whole, &invariant);
-        for start in (0..len).step_by(block.max(1)) {
-            let end = (start + block).min(len);
-            let part: Vec<&[f64]> = signal.iter().map(|c| &c[start..end]).collect();
-            self.seal_lent(&lent);
-            self.load_input(&part);
-            for i in 0..self.nodes.len() {
-                if absorbing[i] {
-                    self.feed_node(i, |p, inputs, _| p.absorb(inputs));
-                } else if invariant[i] {
-                    if i > 0 {
-                        self.run_node(i);
-                    }
-                    let outputs = whole[i].iter().zip(&self.nodes[i].outputs);
-                    for (output, (acc, out)) in outputs.enumerate() {
-                        // a joined output is written in place (lent)
-                        if acc.is_none() {
-                            each_block(OutputRef { node: i, output }, out);
-                        }
-                    }
-                }
-            }
-        }
-        self.return_buffers(whole, &lent);
-        for i in (0..self.nodes.len()).filter(|&i| !invariant[i]) {
-            let node = &mut self.nodes[i];
-            let inputs: Option<Vec<&Block>> = node
-                .parents
-                .iter()
-                .map(|p| whole[p.node][p.output].as_ref())
-                .collect();
-            match (node.processor.as_mut(), inputs) {
-                (Some(proc_), _) if absorbing[i] => proc_.finish(&mut node.outputs),
-                (Some(proc_), Some(inputs)) => proc_.process(&inputs, &mut node.outputs),
-                _ => {}
-            }
-            // the whole output moves into its empty buffer rather than being copied
-            for (acc, out) in whole[i].iter_mut().zip(&mut node.outputs) {
-                if let Some(acc) = acc {
-                    std::mem::swap(acc, out);
-                }
-            }
-        }
     }
 
     /// Lends the joining buffers of the `nodes` (the blocks in `whole`, sized for a whole

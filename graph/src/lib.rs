@@ -14,6 +14,7 @@ mod stress;
 mod sync;
 mod trace;
 mod wakeup;
+mod whole_run;
 
 pub use block_input::BlockSource;
 pub use engine::{is_worker_thread, MAX_THREADS};

@@ -354,6 +354,14 @@ class Manager:
         return manager_text(self, repr(self._m))
 
 
+def _cores() -> int:
+    """The cores this process may run on: the default thread count of a whole signal."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not on Linux
+        return os.cpu_count() or 1
+
+
 def process(
     signal: Audio,
     fs: Optional[float],
@@ -375,8 +383,8 @@ def process(
     them); an error about one item names it (``requests[1]: ...``). ``params``:
     AFE parameter names to values, shared by every request. ``chunk``: feed the signal in
     chunks of this many samples, as a stream would (same result wherever the AFE is
-    chunk-invariant). ``threads``: scheduler threads, the caller among them
-    (``None``/0: sequential).
+    chunk-invariant). ``threads``: scheduler threads, the caller among them (``None``:
+    the machine's cores; 0: the sequential executor); every choice gives the same numbers.
     ``keep="all"`` also returns every intermediate signal the requests were computed
     through (``time_left``, ``filterbank_left``, ``innerhaircell_left``, ...), as the
     AFE's data object holds them and as ``afe extract --all`` saves them.
@@ -398,7 +406,7 @@ def process(
         items,
         _params_json(params),
         None if chunk is None else int(chunk),
-        int(threads or 0),
+        _cores() if threads is None else int(threads),
         keep == "all",
     )
     if isinstance(signal, (str, os.PathLike)):

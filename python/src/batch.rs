@@ -130,7 +130,8 @@ pub fn batch_compute(
 ) -> PyResult<String> {
     py.allow_threads(|| {
         let opened = Store::open(&store)?;
-        let record = afe_batch::compute(&opened, &InputFile { id, path, audio_s })
+        // one file per executor task: the executor's workers share the cores
+        let record = afe_batch::compute(&opened, &InputFile { id, path, audio_s }, 0)
             .ok_or(BatchError::Afe(afe::Error::Interrupted))?;
         let ledger = afe_batch::Ledger::open(&store).map_err(|e| BatchError::Store {
             path: store.clone(),

@@ -124,23 +124,35 @@ impl Manager {
         let Some(prefix) = self.graph.one_call_prefix() else {
             self.check_whole_signal(len)?;
             // The nodes that depend on chunk boundaries must see the signal in one call:
-            // the graph runs on this thread, its invariant part in blocks (and the
-            // processors are in the graph, which tells which nodes absorb blocks).
+            // the invariant part runs in blocks, then those nodes once each (on the
+            // workers where there are some), with the processors back in the graph.
             let invariant = self.graph.invariant_nodes();
             self.edit(|m| {
-                // with the processors back in the graph, which knows those that absorb
                 let shown = m.kept_outputs(&invariant, false);
                 let mut whole = m.whole_buffers(&invariant, len, stream.is_some());
-                // the graph hands on the blocks it does not join: those shown are streamed
+                // the invariant outputs not joined are handed on, those shown streamed
+                let streamed: Vec<Vec<bool>> = (whole.iter().zip(&shown).enumerate())
+                    .map(|(i, (acc, shown))| {
+                        let each = acc.iter().zip(shown);
+                        each.map(|(a, s)| invariant[i] && a.is_none() && *s && stream.is_some())
+                            .collect()
+                    })
+                    .collect();
                 let mut each = |r: OutputRef, b: &Block| {
-                    if let Some(f) = stream.as_mut().filter(|_| shown[r.node][r.output]) {
+                    if let Some(f) = stream.as_mut() {
                         f(r, b);
                     }
                 };
-                m.graph
-                    .run_whole(signal, WHOLE_SIGNAL_BLOCK, &mut whole, &mut each);
+                let ran = m.graph.run_whole(
+                    signal,
+                    WHOLE_SIGNAL_BLOCK,
+                    &mut whole,
+                    &streamed,
+                    &mut each,
+                    m.engine.as_mut(),
+                );
                 m.whole = whole;
-                Ok(())
+                ran
             })?;
             for (clocks, kept) in self.clocks.iter_mut().zip(&self.whole) {
                 for (c, w) in clocks.iter_mut().zip(kept) {
@@ -297,10 +309,11 @@ impl Manager {
         streamed: &[OutputRef],
         stream: &mut Option<&mut BlockSink<'_>>,
     ) -> Result<()> {
-        self.collect_chunk()?;
-        // the joined outputs are either all lent or all copied
+        // the joined outputs are either all lent or appended as the engine publishes them
         if lent.is_empty() {
-            self.append_outputs(whole);
+            self.collect_chunk_into(whole)?;
+        } else {
+            self.collect_chunk()?;
         }
         if let Some(f) = stream {
             for &r in streamed {
@@ -347,18 +360,6 @@ impl Manager {
             }
         }
         whole
-    }
-
-    /// Appends the new output of every kept signal to `whole` (per node and output).
-    fn append_outputs(&self, whole: &mut [Vec<Option<Block>>]) {
-        for (node, outputs) in whole.iter_mut().enumerate() {
-            for (output, acc) in outputs.iter_mut().enumerate() {
-                let r = OutputRef { node, output };
-                if let (Some(acc), Some(s)) = (acc, self.signal(r)) {
-                    acc.extend_from(s.new);
-                }
-            }
-        }
     }
 
     /// Which outputs `process_signal` joins, per node and output: the requested ones
