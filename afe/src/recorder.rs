@@ -18,12 +18,37 @@ pub struct Recorded {
     /// All values, time-major.
     pub data: Block,
     /// What the values are, as [`describe`] gives it when the recording starts (its
-    /// `first_time_s` is the time of the first recorded row).
+    /// `first_time_s` is the time of the first recorded row); after an edit of its
+    /// request, `segments` lists where each parameter setting's rows start.
     pub description: Value,
-    source: OutputRef,
+    /// The output it records; `None` once its request is gone (the rows are kept).
+    source: Option<OutputRef>,
 }
 
 impl Recorded {
+    /// Marks the next row as the start of a segment described by `now` (its output's
+    /// description after the edit: parameters and first time), the first segment being
+    /// the rows so far.
+    fn start_segment(&mut self, now: Value) {
+        let segment = |row: usize, d: &Value| {
+            serde_json::json!({
+                "first_row": row,
+                "first_time_s": d["first_time_s"],
+                "parameters": d["parameters"],
+            })
+        };
+        let first = segment(0, &self.description);
+        let next = segment(self.data.frames(), &now);
+        if let Value::Object(d) = &mut self.description {
+            let segments = d
+                .entry("segments")
+                .or_insert_with(|| Value::Array(vec![first]));
+            if let Value::Array(list) = segments {
+                list.push(next);
+            }
+        }
+    }
+
     /// Array shape: `[frames]`, `[frames, channels]` or `[frames, channels, lags]`.
     pub fn shape(&self) -> Vec<usize> {
         let mut s = vec![self.data.frames()];
@@ -66,7 +91,7 @@ impl Recorder {
     /// Appends what `manager` computed in its last chunk.
     pub fn record(&mut self, manager: &Manager) {
         for s in manager.signals(self.all) {
-            match self.signals.iter_mut().find(|r| r.source == s.source) {
+            match self.signals.iter_mut().find(|r| r.source == Some(s.source)) {
                 Some(r) => r.data.extend_from(s.new),
                 None => {
                     let mut data = Block::new(s.new.width());
@@ -81,7 +106,7 @@ impl Recorder {
                         info: s.info.clone(),
                         data,
                         description: describe(manager, &s),
-                        source: s.source,
+                        source: Some(s.source),
                     });
                 }
             }
@@ -100,15 +125,49 @@ impl Recorder {
             let Some(data) = manager.take_whole(source) else {
                 continue;
             };
-            match self.signals.iter_mut().find(|r| r.source == source) {
+            match self.signals.iter_mut().find(|r| r.source == Some(source)) {
                 Some(r) => r.data.extend_from(&data),
                 None => self.signals.push(Recorded {
                     key,
                     info,
                     data,
                     description,
-                    source,
+                    source: Some(source),
                 }),
+            }
+        }
+    }
+
+    /// Follows an edit of `manager`'s graph (a request added, removed or given a new
+    /// parameter value), keeping every row recorded so far, as the AFE's data object
+    /// does: each history goes on with the output of the same name, if it still has the
+    /// same frame shape. The outputs named in `modified` (the edited request's) start a
+    /// new segment, listed with its first row, time and parameters in the description's
+    /// `segments`. A history whose output is gone, or now has another shape, keeps its
+    /// rows under its name followed by `@` and the time (s, to the ms) where its next row
+    /// would have started, and a reshaped output starts a history of its own.
+    pub fn follow_edit(&mut self, manager: &Manager, modified: &[String]) {
+        let now: Vec<_> = manager.signals(self.all);
+        for r in &mut self.signals {
+            if r.source.is_none() {
+                continue;
+            }
+            let same = now
+                .iter()
+                .find(|s| s.key() == r.key && s.info.frame_shape() == r.info.frame_shape());
+            match same {
+                Some(s) => {
+                    r.source = Some(s.source);
+                    if modified.contains(&r.key) {
+                        r.start_segment(describe(manager, s));
+                    }
+                }
+                None => {
+                    r.source = None;
+                    let first = r.description["first_time_s"].as_f64().unwrap_or(0.0);
+                    let end = first + r.data.frames() as f64 / r.info.fs_hz;
+                    r.key = format!("{}@{end:.3}", r.key);
+                }
             }
         }
     }

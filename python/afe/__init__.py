@@ -323,9 +323,13 @@ class Manager:
         self._m.reset()
 
     def outputs(self, handle: Optional[int] = None) -> Dict[str, Signal]:
-        """Everything computed since creation, the last ``reset``, ``process_signal``,
-        ``remove_request`` or ``modify_parameter`` (edits that can renumber or reshape
-        the outputs restart the history). ``handle``: only that request's outputs
+        """Everything computed since creation, the last ``reset`` or ``process_signal``,
+        as the AFE's data object keeps it: editing one request never drops the frames
+        computed for the others. After ``modify_parameter`` the edited request's outputs go
+        on in the same arrays, their ``meta["segments"]`` listing each parameter
+        setting's first row, time and parameters; an output whose shape changed (e.g.
+        ``fb_nChannels``), or whose request was removed, keeps its earlier rows under
+        ``"<name>@<time>"`` (the time in s where its next row would have started). ``handle``: only that request's current outputs
         (``KeyError`` for an unknown handle)."""
         wanted = None if handle is None else set(self.request_outputs(handle))
         arrays, meta = self._m.outputs()

@@ -221,7 +221,9 @@ impl PyManager {
     fn add_request(&self, py: Python<'_>, name: &str, params_json: &str) -> PyResult<usize> {
         let params = parse_params(params_json)?;
         self.with(py, |st| {
-            st.manager.add_request(name, &params).map(|h| h.index())
+            let h = st.manager.add_request(name, &params)?;
+            st.history.follow_edit(&st.manager, &[]);
+            Ok(h.index())
         })
     }
 
@@ -229,8 +231,8 @@ impl PyManager {
         self.with(py, |st| {
             st.manager
                 .remove_request(RequestHandle::from_index(handle))?;
-            // outputs may be renumbered: the history restarts
-            st.history = Recorder::new(false);
+            // the other requests' histories go on; the removed one's rows are kept
+            st.history.follow_edit(&st.manager, &[]);
             Ok(())
         })
     }
@@ -245,10 +247,16 @@ impl PyManager {
         let value: serde_json::Value = serde_json::from_str(value_json)
             .map_err(|e| PyValueError::new_err(format!("value of {name}: {e}")))?;
         self.with(py, |st| {
-            st.manager
-                .modify_parameter(RequestHandle::from_index(handle), name, value)?;
-            // output shapes may change: the history restarts
-            st.history = Recorder::new(false);
+            let h = RequestHandle::from_index(handle);
+            st.manager.modify_parameter(h, name, value)?;
+            // the edited request's outputs start a new segment (or, reshaped, a new history)
+            let edited: Vec<String> = st
+                .manager
+                .request_signals(h)?
+                .iter()
+                .map(afe::Signal::key)
+                .collect();
+            st.history.follow_edit(&st.manager, &edited);
             Ok(())
         })
     }

@@ -281,10 +281,15 @@ def test_run_time_edits():
     m.remove_request(ild)
     out = m.process_chunk(x[3200:])
     assert set(out) == {"ratemap_left", "ratemap_right"}
-    # the history restarted at the edits and holds exactly what came after
+    # the history keeps what came before the edits: ratemap in two segments, the removed
+    # ild's rows under its name and the time they end
     hist = m.outputs()
-    assert set(hist) == {"ratemap_left", "ratemap_right"}
-    np.testing.assert_array_equal(hist["ratemap_left"], out["ratemap_left"])
+    assert set(hist) == {"ratemap_left", "ratemap_right", "ild_mono@0.190"}
+    np.testing.assert_array_equal(hist["ratemap_left"][-len(out["ratemap_left"]):], out["ratemap_left"])
+    segments = hist["ratemap_left"].meta["segments"]
+    assert [s["first_row"] for s in segments] == [0, len(hist["ratemap_left"]) - len(out["ratemap_left"])]
+    assert [s["parameters"]["rm_scaling"] for s in segments] == ["power", "magnitude"]
+    assert set(m.outputs(rm)) == {"ratemap_left", "ratemap_right"}
     with pytest.raises(KeyError):
         m.remove_request(ild)
     with pytest.raises(ValueError, match="cannot be changed at run time"):
@@ -293,6 +298,37 @@ def test_run_time_edits():
         m.modify_parameter("ild_wSizeSec", 0.04)
     with pytest.raises(ValueError, match="rm_scaling"):
         m.modify_parameter("rm_scaling", "loudness")
+
+
+def test_editing_one_request_keeps_every_other_requests_history():
+    """Removing a request and modifying another mid-stream (as the AFE's feedback demo
+    does) leaves every untouched request's history equal to its uninterrupted run, and
+    the edited ones' rows before the edit equal to theirs."""
+    x = signal(16000)
+    chunks = [x[s : s + 441] for s in range(0, len(x), 441)]
+
+    def run(edit):
+        m = afe.Manager(16000, 2, threads=2)
+        handles = {r: m.add_request(r) for r in ["ratemap", "ild", "itd", "ic"]}
+        for k, c in enumerate(chunks):
+            if k == 20 and edit:
+                m.remove_request(handles["itd"])
+                m.modify_parameter("ild_wSizeSec", 0.04, handle=handles["ild"])
+            m.process_chunk(c)
+        return m.outputs()
+
+    edited, plain = run(True), run(False)
+    for key in ["ratemap_left", "ratemap_right", "ic_mono"]:
+        np.testing.assert_array_equal(edited[key], plain[key], err_msg=key)
+        assert "segments" not in edited[key].meta
+    itd = [k for k in edited if k.startswith("itd_mono@")]
+    assert len(itd) == 1
+    np.testing.assert_array_equal(edited[itd[0]], plain["itd_mono"][: len(edited[itd[0]])])
+    assert 0 < len(edited[itd[0]]) < len(plain["itd_mono"])
+    ild = edited["ild_mono"]
+    split = ild.meta["segments"][1]["first_row"]
+    np.testing.assert_array_equal(ild[:split], plain["ild_mono"][:split])
+    assert ild.meta["segments"][1]["parameters"]["ild_wSizeSec"] == 0.04
 
 
 def test_errors_are_python_exceptions_with_clear_messages(tmp_path):
