@@ -15,6 +15,7 @@ pub mod fir2;
 pub mod framing;
 pub mod hilbert;
 mod huge_pages;
+pub mod interrupt;
 pub mod lanes;
 pub mod params;
 pub mod power;

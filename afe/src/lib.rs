@@ -25,7 +25,6 @@ pub mod block_times;
 pub mod catalog;
 pub mod extract;
 pub mod frames;
-pub mod interrupt;
 pub mod metadata;
 pub mod npy;
 pub mod output;
@@ -36,6 +35,8 @@ pub mod stream;
 pub mod wav;
 
 pub use afe_bass_source as bass_source;
+/// Stopping long work on request (SIGINT, Ctrl-C): see [`afe_core::interrupt`].
+pub use afe_core::interrupt;
 pub use afe_core::{Block, Error, ParamMap, Result, SignalInfo, SignalKind};
 pub use afe_graph::{Channel, Manager, RequestHandle, Signal};
 pub use afe_processors::{find_request, requests, RequestDef};

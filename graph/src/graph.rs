@@ -62,8 +62,12 @@ pub(crate) struct Node {
     /// The feedback output of a node above this one (a later node) that this node takes
     /// before each chunk from the previous chunk (the MOC feeding the filterbank).
     pub feedback_from: Option<OutputRef>,
-    /// The computation; `None` for the input node.
+    /// The computation; `None` for the input node (and while the concurrent executor
+    /// holds it).
     pub processor: Option<Box<dyn Processor>>,
+    /// Whether the processor takes a whole signal block by block (see
+    /// [`Processor::absorbs_whole_signal`]), known while the executor holds it.
+    pub absorbs: bool,
     /// New output of the last chunk, one block per output.
     pub outputs: Vec<Block>,
     /// Description of each output.
@@ -96,6 +100,7 @@ impl Graph {
             parents: Vec::new(),
             feedback_from: None,
             processor: None,
+            absorbs: false,
             outputs: vec![Block::new(1); ears],
             infos: vec![SignalInfo::time_domain(fs); ears],
             channels,
@@ -163,11 +168,7 @@ impl Graph {
             .iter()
             .zip(invariant)
             .map(|(node, inv)| {
-                !inv && node
-                    .processor
-                    .as_ref()
-                    .is_some_and(|p| p.absorbs_whole_signal())
-                    && node.parents.iter().all(|p| invariant[p.node])
+                !inv && node.absorbs && node.parents.iter().all(|p| invariant[p.node])
             })
             .collect()
     }

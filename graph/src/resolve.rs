@@ -194,6 +194,7 @@ impl Graph {
             params: config.canonical().clone(),
             parents,
             feedback_from: None,
+            absorbs: built.processor.absorbs_whole_signal(),
             processor: Some(built.processor),
             outputs,
             infos: built.outputs,
@@ -318,6 +319,7 @@ impl Graph {
                 .map(|info| Block::new(info.width()))
                 .collect();
             node.infos = b.outputs;
+            node.absorbs = b.processor.absorbs_whole_signal();
             node.processor = Some(b.processor);
             if let Some(request) = request {
                 node.params = config.canonical().clone();

@@ -183,6 +183,7 @@ fn random_graph(seed: u64, nodes: usize) -> Graph {
             params: ParamMap::new(),
             parents,
             feedback_from: None,
+            absorbs: processor.absorbs_whole_signal(),
             processor: Some(processor),
             outputs: vec![Block::new(width)],
             infos: vec![SignalInfo::time_domain(1000.0)],

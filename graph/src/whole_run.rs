@@ -8,7 +8,7 @@
 use std::panic::{catch_unwind, resume_unwind, AssertUnwindSafe};
 use std::sync::{Condvar, Mutex, RwLock};
 
-use afe_core::{Block, Processor, Result};
+use afe_core::{interrupt, Block, Error, Processor, Result};
 
 use crate::engine::Engine;
 use crate::graph::{Graph, OutputRef};
@@ -33,6 +33,8 @@ impl Graph {
     /// signals in cache), then every other node runs once on its parents' joined
     /// outputs. Each block of the invariant outputs marked in `streamed` goes to
     /// `each_block`. With an `engine`, both parts use its threads; without, this one.
+    /// An interrupt (see [`interrupt`]) stops it at the next block or node with
+    /// [`Error::Interrupted`].
     pub fn run_whole(
         &mut self,
         signal: &[&[f64]],
@@ -52,10 +54,9 @@ impl Graph {
         let threads = engine.as_ref().map_or(1, |e| e.threads());
         match engine {
             Some(engine) => self.blocks_on(engine, signal, block, whole, &plan, each_block)?,
-            None => self.blocks_here(signal, block, whole, &plan, each_block),
+            None => self.blocks_here(signal, block, whole, &plan, each_block)?,
         }
-        self.run_per_chunk_nodes(whole, &plan, threads);
-        Ok(())
+        self.run_per_chunk_nodes(whole, &plan, threads)
     }
 
     /// The invariant and absorbing nodes over the signal in blocks, on this thread; the
@@ -67,10 +68,14 @@ impl Graph {
         whole: &mut [Vec<Option<Block>>],
         plan: &Plan<'_>,
         each_block: &mut dyn FnMut(OutputRef, &Block),
-    ) {
+    ) -> Result<()> {
         let len = signal.first().map_or(0, |c| c.len());
         let lent = self.lend_buffers(whole, &plan.invariant);
         for start in (0..len).step_by(block.max(1)) {
+            if interrupt::requested() {
+                self.return_buffers(whole, &lent);
+                return Err(Error::Interrupted);
+            }
             let end = (start + block).min(len);
             let part: Vec<&[f64]> = signal.iter().map(|c| &c[start..end]).collect();
             self.seal_lent(&lent);
@@ -91,6 +96,7 @@ impl Graph {
             }
         }
         self.return_buffers(whole, &lent);
+        Ok(())
     }
 
     /// The invariant and absorbing nodes over the signal in blocks, on the `engine`'s
@@ -138,7 +144,10 @@ impl Graph {
             let end = (start + block).min(len);
             let part: Vec<&[f64]> = signal.iter().map(|c| &c[start..end]).collect();
             fed = fed
-                .and_then(|()| engine.submit(&part))
+                .and_then(|()| match interrupt::requested() {
+                    true => Err(Error::Interrupted),
+                    false => engine.submit(&part),
+                })
                 .and_then(|()| match engine.in_flight() {
                     2.. => collect(engine),
                     _ => Ok(()),
@@ -163,13 +172,14 @@ impl Graph {
     /// Runs every node that is not invariant once, on its parents' joined outputs in
     /// `whole` (an absorbing one finishes), and moves its outputs into their buffers in
     /// `whole`: in order on this thread, or on `threads` threads, each node as soon as
-    /// its parents are done. A processor's panic is raised again on this thread.
+    /// its parents are done. A processor's panic is raised again on this thread; an
+    /// interrupt stops it before the next node.
     fn run_per_chunk_nodes(
         &mut self,
         whole: &mut [Vec<Option<Block>>],
         plan: &Plan<'_>,
         threads: usize,
-    ) {
+    ) -> Result<()> {
         let order: Vec<usize> = (0..self.nodes.len())
             .filter(|&i| !plan.invariant[i])
             .collect();
@@ -204,11 +214,14 @@ impl Graph {
             whole.iter_mut().map(RwLock::new).collect();
         if threads <= 1 || order.len() <= 1 {
             for &i in &order {
+                if interrupt::requested() {
+                    return Err(Error::Interrupted);
+                }
                 if let Some(job) = jobs[i].as_mut() {
                     run_job(job.get_mut().unwrap_or_else(|e| e.into_inner()), i, &joined);
                 }
             }
-            return;
+            return Ok(());
         }
         let ready: Vec<usize> = order.iter().copied().filter(|&i| waiting[i] == 0).collect();
         let board = Board {
@@ -231,6 +244,10 @@ impl Graph {
         let state = board.state.into_inner().unwrap_or_else(|e| e.into_inner());
         if let Some(panic) = state.panic {
             resume_unwind(panic);
+        }
+        match state.left {
+            0 => Ok(()),
+            _ => Err(Error::Interrupted),
         }
     }
 }
@@ -303,7 +320,7 @@ impl Board {
             let i = {
                 let mut s = self.state.lock().unwrap_or_else(|e| e.into_inner());
                 loop {
-                    if s.left == 0 || s.panic.is_some() {
+                    if s.left == 0 || s.panic.is_some() || interrupt::requested() {
                         return;
                     }
                     if let Some(i) = s.ready.pop() {

@@ -422,7 +422,7 @@ x = 0.1 * np.random.default_rng(0).standard_normal((44100 * 120, 2))
 print("ready", flush=True)
 t = time.monotonic()
 try:
-    afe.process(x, 44100, ["ratemap", "ild", "itd", "ic"])
+    afe.process(x, 44100, sys.argv[1].split(","))
     print("finished", time.monotonic() - t, flush=True)
 except KeyboardInterrupt:
     print("interrupted", time.monotonic() - t, flush=True)
@@ -430,13 +430,17 @@ print("again", afe.process(x[:4410], 44100, ["ild"])["ild_mono"].shape, flush=Tr
 """
 
 
-def test_ctrl_c_interrupts_a_long_process_call_at_once():
+@pytest.mark.parametrize("requests", ["ratemap,ild,itd,ic", "pitch"])
+def test_ctrl_c_interrupts_a_long_process_call_at_once(requests):
+    """Blocks read in turn (the cues) and a whole signal whose pitch absorbs its
+    autocorrelation block by block (issue 44, item 9) both stop at the next block."""
     import signal
     import sys
     import time
 
     proc = subprocess.Popen(
-        [sys.executable, "-c", _CTRL_C_SCRIPT], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        [sys.executable, "-c", _CTRL_C_SCRIPT, requests], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True,
     )
     assert proc.stdout.readline().strip() == "ready"
     time.sleep(0.5)

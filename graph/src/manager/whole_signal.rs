@@ -274,6 +274,9 @@ impl Manager {
     ) -> Result<()> {
         let mut fed = 0;
         loop {
+            if afe_core::interrupt::requested() {
+                return Err(Error::Interrupted);
+            }
             let part = input.next(WHOLE_SIGNAL_BLOCK.max(prefix.saturating_sub(fed)))?;
             let got = part.first().map_or(0, |p| p.len());
             if got == 0 {

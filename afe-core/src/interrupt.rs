@@ -1,8 +1,8 @@
 //! Stopping long work cleanly on request: the CLI's SIGINT/SIGTERM handler, or Python's
-//! signal check, raises one process-wide flag. Extraction then stops at the next block
-//! with [`afe_core::Error::Interrupted`] and writes nothing; a stream ends as if its source
-//! had, so what it computed can be saved; a batch stops taking files and leaves the file
-//! it was computing unrecorded, for the next run to redo.
+//! signal check, raises one process-wide flag. A whole signal then stops at the next
+//! block or node with [`crate::Error::Interrupted`] (and an extraction writes nothing); a
+//! stream ends as if its source had, so what it computed can be saved; a batch stops
+//! taking files and leaves the file it was computing unrecorded, for the next run to redo.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
