@@ -424,6 +424,13 @@ impl Block {
         huge_pages::reserve(&mut self.data, values);
     }
 
+    /// Removes the first `frames` rows shown (all of them if there are fewer), keeping the
+    /// capacity: a bounded history drops its oldest rows.
+    pub fn drop_front(&mut self, frames: usize) {
+        let values = frames.saturating_mul(self.width).min(self.shown().len());
+        self.data.drain(self.sealed..self.sealed + values);
+    }
+
     /// Removes every row, keeping the capacity.
     pub fn clear(&mut self) {
         self.data.truncate(self.sealed);
@@ -456,6 +463,19 @@ impl Block {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn drop_front_removes_the_oldest_rows_only() {
+        let mut b = Block::from_vec((0..12).map(f64::from).collect(), 3);
+        b.drop_front(1);
+        assert_eq!(
+            b.as_slice(),
+            &[3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0, 11.0]
+        );
+        b.drop_front(10);
+        assert!(b.is_empty());
+        assert_eq!(b.width(), 3);
+    }
 
     #[test]
     fn rows_are_contiguous_and_reset_keeps_capacity() {

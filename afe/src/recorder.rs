@@ -26,6 +26,24 @@ pub struct Recorded {
 }
 
 impl Recorded {
+    /// Drops the oldest `frames` rows, moving the description's first row on.
+    fn drop_oldest(&mut self, frames: usize) {
+        self.data.drop_front(frames);
+        let d = &mut self.description;
+        if let Some(t) = d["first_time_s"].as_f64() {
+            d["first_time_s"] = serde_json::json!(t + frames as f64 / self.info.fs_hz);
+        }
+        if let Some(f) = d["first_frame"].as_u64() {
+            d["first_frame"] = serde_json::json!(f + frames as u64);
+        }
+        if let Some(list) = d.get_mut("segments").and_then(Value::as_array_mut) {
+            for seg in list {
+                let row = seg["first_row"].as_u64().unwrap_or(0) as usize;
+                seg["first_row"] = serde_json::json!(row.saturating_sub(frames));
+            }
+        }
+    }
+
     /// Marks the next row as the start of a segment described by `now` (its output's
     /// description after the edit: parameters and first time), the first segment being
     /// the rows so far.
@@ -64,6 +82,8 @@ pub struct Recorder {
     signals: Vec<Recorded>,
     /// Input samples the run will have in all, where known (a file's length).
     expected: Option<u64>,
+    /// Seconds of rows each history keeps (`None`: every row, as the AFE does).
+    keep_s: Option<f64>,
 }
 
 impl Recorder {
@@ -74,6 +94,28 @@ impl Recorder {
             all,
             signals: Vec::new(),
             expected: None,
+            keep_s: None,
+        }
+    }
+
+    /// Keeps only the last `seconds` of each history (at least one row), for long live
+    /// runs whose memory must stay bounded; `None` (the default) keeps every row, as the
+    /// AFE's data object does. The rows dropped move each description's `first_time_s`
+    /// and `first_frame` on (and its segments' first rows back).
+    pub fn keep_last(&mut self, seconds: Option<f64>) {
+        self.keep_s = seconds.filter(|s| s.is_finite() && *s > 0.0);
+        self.trim();
+    }
+
+    /// Drops the rows older than the bound, once a history holds twice as many (so that
+    /// each row is moved at most once on average).
+    fn trim(&mut self) {
+        let Some(keep_s) = self.keep_s else { return };
+        for r in &mut self.signals {
+            let keep = ((keep_s * r.info.fs_hz).ceil() as usize).max(1);
+            if r.data.frames() > 2 * keep {
+                r.drop_oldest(r.data.frames() - keep);
+            }
         }
     }
 
@@ -90,6 +132,11 @@ impl Recorder {
 
     /// Appends what `manager` computed in its last chunk.
     pub fn record(&mut self, manager: &Manager) {
+        self.record_chunk(manager);
+        self.trim();
+    }
+
+    fn record_chunk(&mut self, manager: &Manager) {
         for s in manager.signals(self.all) {
             match self.signals.iter_mut().find(|r| r.source == Some(s.source)) {
                 Some(r) => r.data.extend_from(s.new),

@@ -195,7 +195,9 @@ class Manager:
     ``fs``: input sampling rate in Hz. ``channels``: 1 (mono) or 2 (left, right).
     ``threads``: threads of the concurrent scheduler, the calling one among them
     (``None`` or 0: sequential; the numbers are the same either way). ``keep_history``:
-    keep every output for :meth:`outputs` (turn off for endless streams).
+    keep every output for :meth:`outputs`, as the AFE's data object does (turn off for
+    endless streams); ``history_seconds``: keep only the last that many seconds of each
+    output (a bounded history for long live runs; ``None``: everything).
 
     Processing releases the GIL, so managers in several Python threads run in parallel.
     """
@@ -206,8 +208,14 @@ class Manager:
         channels: int = 2,
         threads: Optional[int] = None,
         keep_history: bool = True,
+        history_seconds: Optional[float] = None,
     ) -> None:
-        self._m = _afe.Manager(float(fs), int(channels), int(threads or 0), bool(keep_history))
+        if history_seconds is not None and not float(history_seconds) > 0:
+            raise ValueError(f"history_seconds = {history_seconds}: expected a positive number of seconds, or None")
+        self._m = _afe.Manager(
+            float(fs), int(channels), int(threads or 0), bool(keep_history),
+            None if history_seconds is None else float(history_seconds),
+        )
         # request handle → name, for summaries
         self._names: Dict[int, str] = {}
         # the outputs' descriptions, rebuilt after any change of the graph

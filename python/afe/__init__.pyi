@@ -79,6 +79,7 @@ class Manager:
         channels: int = ...,
         threads: Optional[int] = ...,
         keep_history: bool = ...,
+        history_seconds: Optional[float] = ...,
     ) -> None: ...
     @property
     def fs(self) -> float: ...

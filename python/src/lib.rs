@@ -118,6 +118,17 @@ struct State {
     /// Everything computed since creation, the last reset or `process_signal`.
     history: Recorder,
     keep_history: bool,
+    /// Seconds of each output the history keeps (`None`: all).
+    history_seconds: Option<f64>,
+}
+
+impl State {
+    /// A fresh history, bounded as asked.
+    fn new_history(&self) -> Recorder {
+        let mut r = Recorder::new(false);
+        r.keep_last(self.history_seconds);
+        r
+    }
 }
 
 impl State {
@@ -176,7 +187,7 @@ impl PyManager {
             let refs: Vec<&[f64]> = ears.iter().map(Vec::as_slice).collect();
             if whole {
                 st.manager.process_signal(&refs)?;
-                st.history = Recorder::new(false);
+                st.history = st.new_history();
             } else {
                 st.manager.process_chunk(&refs)?;
             }
@@ -192,13 +203,22 @@ impl PyManager {
 #[pymethods]
 impl PyManager {
     #[new]
-    #[pyo3(signature = (fs, channels, threads, keep_history))]
-    fn new(fs: f64, channels: usize, threads: usize, keep_history: bool) -> PyResult<Self> {
+    #[pyo3(signature = (fs, channels, threads, keep_history, history_seconds))]
+    fn new(
+        fs: f64,
+        channels: usize,
+        threads: usize,
+        keep_history: bool,
+        history_seconds: Option<f64>,
+    ) -> PyResult<Self> {
+        let mut history = Recorder::new(false);
+        history.keep_last(history_seconds);
         Ok(PyManager {
             state: Mutex::new(State {
                 manager: Manager::with_threads(fs, channels, threads).map_err(to_py)?,
-                history: Recorder::new(false),
+                history,
                 keep_history,
+                history_seconds,
             }),
         })
     }
@@ -330,7 +350,7 @@ impl PyManager {
     fn reset(&self, py: Python<'_>) -> PyResult<()> {
         self.with(py, |st| {
             st.manager.reset()?;
-            st.history = Recorder::new(false);
+            st.history = st.new_history();
             Ok(())
         })
     }

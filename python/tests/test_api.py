@@ -331,6 +331,25 @@ def test_editing_one_request_keeps_every_other_requests_history():
     assert ild.meta["segments"][1]["parameters"]["ild_wSizeSec"] == 0.04
 
 
+def test_a_bounded_history_keeps_the_last_seconds_of_each_output():
+    """history_seconds keeps the newest rows (equal to the full history's last rows),
+    with first_time_s moved on to the first row kept; the default keeps everything."""
+    x = signal(16000)
+    full = afe.Manager(16000, 2)
+    short = afe.Manager(16000, 2, history_seconds=0.25)
+    for m in (full, short):
+        m.add_request("ratemap")
+        for s in range(0, len(x), 160):
+            m.process_chunk(x[s : s + 160])
+    a, b = full.outputs()["ratemap_left"], short.outputs()["ratemap_left"]
+    assert len(a) == 99 and 25 <= len(b) <= 50
+    np.testing.assert_array_equal(b, a[-len(b):])
+    assert b.first_time_s == pytest.approx(a.first_time_s + (len(a) - len(b)) / 100.0)
+    np.testing.assert_allclose(b.t_s, a.t_s[-len(b):])
+    with pytest.raises(ValueError, match="history_seconds = 0: expected a positive number"):
+        afe.Manager(16000, 2, history_seconds=0)
+
+
 def test_errors_are_python_exceptions_with_clear_messages(tmp_path):
     x = signal(1600)
     cases = [
