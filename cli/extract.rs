@@ -3,6 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use afe::extract::{run_wav, Job};
+use afe::npy::Dtype;
 use afe::Manager;
 
 use crate::args::{Requests, Threads};
@@ -24,6 +25,10 @@ pub(crate) struct ExtractArgs {
     all: bool,
     #[command(flatten)]
     threads: Threads,
+    /// How the values are stored: f64 as computed, or f32 (each value rounded; half the
+    /// memory and disk).
+    #[arg(long, value_enum, default_value_t = StoredType::F64)]
+    dtype: StoredType,
     /// Write the scheduler's per-node, per-chunk timing as a Chrome trace (Perfetto).
     #[arg(long, value_name = "trace.json")]
     trace: Option<PathBuf>,
@@ -37,11 +42,36 @@ impl ExtractArgs {
         let job = self
             .requests
             .job(self.chunk, self.all, self.threads.count())?;
-        extract(&self.input, job, self.trace.as_deref(), &self.output)
+        let dtype = self.dtype.into();
+        extract(&self.input, job, dtype, self.trace.as_deref(), &self.output)
     }
 }
 
-fn extract(input: &Path, job: Job, trace: Option<&Path>, output: &Path) -> Result<(), CliError> {
+/// The `--dtype` choices.
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub(crate) enum StoredType {
+    /// float64 (complex128), as computed.
+    F64,
+    /// float32 (complex64), rounded.
+    F32,
+}
+
+impl From<StoredType> for Dtype {
+    fn from(t: StoredType) -> Self {
+        match t {
+            StoredType::F64 => Dtype::Float64,
+            StoredType::F32 => Dtype::Float32,
+        }
+    }
+}
+
+fn extract(
+    input: &Path,
+    job: Job,
+    dtype: Dtype,
+    trace: Option<&Path>,
+    output: &Path,
+) -> Result<(), CliError> {
     if trace.is_some() && job.threads == 0 {
         return Err("--trace records the concurrent scheduler: use --threads 1 or more".into());
     }
@@ -69,7 +99,7 @@ fn extract(input: &Path, job: Job, trace: Option<&Path>, output: &Path) -> Resul
         None => None,
     };
     // both outputs or neither: a trace that cannot be written leaves no .npz either
-    let mut staged = vec![output.stage(|file| rec.write_npz(file))?];
+    let mut staged = vec![output.stage(|file| rec.write_npz_as(file, dtype))?];
     if let (Some(t), Some(events)) = (&trace, events) {
         staged.push(t.stage(|file| file.write_all(events.to_string().as_bytes()))?);
     }

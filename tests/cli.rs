@@ -719,3 +719,47 @@ fn outputs_are_checked_first_and_never_clobber() {
         "{err}"
     );
 }
+
+/// `--dtype f32` stores every value rounded to float32 (complex64 for the STFT), the
+/// float64 run's values exactly so rounded, and each description says so.
+#[test]
+fn extract_dtype_f32_stores_the_rounded_values() {
+    let dir = tmp("dtype-f32");
+    std::fs::create_dir_all(&dir).expect("dir");
+    let wav = dir.join("in.wav");
+    write_wav(&wav, 2, 16000, 8000, tone);
+    let run = |dtype: &str| {
+        let out = dir.join(format!("{dtype}.npz"));
+        let res = afe(&[
+            "extract",
+            wav.to_str().expect("utf-8"),
+            "-r",
+            "ratemap,ild,stft",
+            "--dtype",
+            dtype,
+            "-o",
+            out.to_str().expect("utf-8"),
+        ]);
+        assert!(
+            res.status.success(),
+            "{}",
+            String::from_utf8_lossy(&res.stderr)
+        );
+        out
+    };
+    let (wide, narrow) = (run("f64"), run("f32"));
+    let bytes = |p: &std::path::Path| std::fs::metadata(p).expect("size").len();
+    assert!(bytes(&narrow) < bytes(&wide) * 6 / 10);
+    let (a, b) = (npz_arrays(&wide), npz_arrays(&narrow));
+    assert_eq!(a.len(), b.len());
+    for ((ka, sa, va), (kb, sb, vb)) in a.iter().zip(&b) {
+        assert_eq!((ka, sa), (kb, sb));
+        let rounded: Vec<f64> = va.iter().map(|&v| f64::from(v as f32)).collect();
+        assert_eq!(&rounded, vb, "{ka}");
+    }
+    let meta = npz_metadata(&narrow);
+    assert_eq!(meta["ild_mono"]["dtype"], "float32");
+    assert_eq!(meta["stft_left"]["dtype"], "complex64");
+    assert_eq!(npz_metadata(&wide)["stft_left"]["dtype"], "complex128");
+    std::fs::remove_dir_all(&dir).expect("clean");
+}

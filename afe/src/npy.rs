@@ -28,6 +28,46 @@ pub enum NpyError {
     Format(String),
 }
 
+/// How values are stored: as computed (float64), or rounded to float32 (half the size).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Dtype {
+    /// Little-endian float64 (complex128 for complex signals).
+    #[default]
+    Float64,
+    /// Little-endian float32 (complex64), each value rounded to nearest.
+    Float32,
+}
+
+impl Dtype {
+    /// NumPy's name of the type, for real or complex values.
+    pub fn name(self, complex: bool) -> &'static str {
+        match (self, complex) {
+            (Dtype::Float64, false) => "float64",
+            (Dtype::Float64, true) => "complex128",
+            (Dtype::Float32, false) => "float32",
+            (Dtype::Float32, true) => "complex64",
+        }
+    }
+
+    /// The `.npy` header's type descriptor.
+    fn descr(self, complex: bool) -> &'static str {
+        match (self, complex) {
+            (Dtype::Float64, false) => "<f8",
+            (Dtype::Float64, true) => "<c16",
+            (Dtype::Float32, false) => "<f4",
+            (Dtype::Float32, true) => "<c8",
+        }
+    }
+
+    /// Bytes per stored value (a complex value is two).
+    fn size(self) -> usize {
+        match self {
+            Dtype::Float64 => 8,
+            Dtype::Float32 => 4,
+        }
+    }
+}
+
 /// Whether `data` holds the `(real, imaginary)` pairs of an array of `shape`.
 pub fn is_complex(shape: &[usize], data: &[f64]) -> bool {
     let count: usize = shape.iter().product();
@@ -40,24 +80,37 @@ pub fn is_complex(shape: &[usize], data: &[f64]) -> bool {
 /// # Panics
 /// If `data` holds neither one nor two values per element of `shape`.
 pub fn encode(shape: &[usize], data: &[f64]) -> Vec<u8> {
+    encode_as(shape, data, Dtype::Float64)
+}
+
+/// As [`encode`], storing the values as `dtype`.
+///
+/// # Panics
+/// As [`encode`].
+pub fn encode_as(shape: &[usize], data: &[f64], dtype: Dtype) -> Vec<u8> {
     let complex = is_complex(shape, data);
     assert!(
         complex || data.len() == shape.iter().product::<usize>(),
         "{} values for shape {shape:?}",
         data.len()
     );
-    let descr = if complex { "<c16" } else { "<f8" };
+    let descr = dtype.descr(complex);
     let dims: String = shape.iter().map(|d| format!("{d}, ")).collect();
     let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': ({dims}), }}");
     let unpadded = 10 + header.len() + 1;
     header.push_str(&" ".repeat((64 - unpadded % 64) % 64));
     header.push('\n');
-    let mut out = Vec::with_capacity(10 + header.len() + 8 * data.len());
+    let mut out = Vec::with_capacity(10 + header.len() + dtype.size() * data.len());
     out.extend_from_slice(b"\x93NUMPY\x01\x00");
     out.extend_from_slice(&(header.len() as u16).to_le_bytes());
     out.extend_from_slice(header.as_bytes());
-    for v in data {
-        out.extend_from_slice(&v.to_le_bytes());
+    match dtype {
+        Dtype::Float64 => data
+            .iter()
+            .for_each(|v| out.extend_from_slice(&v.to_le_bytes())),
+        Dtype::Float32 => data
+            .iter()
+            .for_each(|v| out.extend_from_slice(&(*v as f32).to_le_bytes())),
     }
     out
 }
@@ -91,8 +144,10 @@ pub fn decode(bytes: &[u8]) -> Result<Array, NpyError> {
         (4, 1)
     } else if header.contains("'<c16'") {
         (8, 2)
+    } else if header.contains("'<c8'") {
+        (4, 2)
     } else {
-        return Err(bad("dtype is not <f8, <f4 or <c16"));
+        return Err(bad("dtype is not <f8, <f4, <c16 or <c8"));
     };
     let shape_txt = header
         .split("'shape':")
@@ -175,6 +230,16 @@ pub fn write_npz<W: Write + Seek>(
     arrays: &[(String, Vec<usize>, &[f64])],
     metadata: Option<&str>,
 ) -> std::io::Result<()> {
+    write_npz_as(out, arrays, metadata, Dtype::Float64)
+}
+
+/// As [`write_npz`], storing the arrays' values as `dtype`.
+pub fn write_npz_as<W: Write + Seek>(
+    out: W,
+    arrays: &[(String, Vec<usize>, &[f64])],
+    metadata: Option<&str>,
+    dtype: Dtype,
+) -> std::io::Result<()> {
     let mut first_error = None;
     let result = (|| {
         let mut zip = zip::ZipWriter::new(FirstError {
@@ -186,9 +251,9 @@ pub fn write_npz<W: Write + Seek>(
         for (name, shape, data) in arrays {
             let options = zip::write::SimpleFileOptions::default()
                 .compression_method(zip::CompressionMethod::Stored)
-                .large_file(data.len() * 8 > u32::MAX as usize / 2);
+                .large_file(data.len() * dtype.size() > u32::MAX as usize / 2);
             zip.start_file(format!("{name}.npy"), options)?;
-            zip.write_all(&encode(shape, data))?;
+            zip.write_all(&encode_as(shape, data, dtype))?;
         }
         if let Some(text) = metadata {
             let options = zip::write::SimpleFileOptions::default()

@@ -7,6 +7,7 @@ use afe_graph::{Manager, OutputRef};
 use serde_json::Value;
 
 use crate::metadata::describe;
+use crate::npy::Dtype;
 
 /// One signal's output over every chunk processed so far.
 #[derive(Debug, Clone)]
@@ -243,12 +244,28 @@ impl Recorder {
     /// output, named by its key, and their descriptions as JSON text in the entry
     /// [`crate::npy::METADATA_ENTRY`].
     pub fn write_npz<W: Write + Seek>(&self, out: W) -> std::io::Result<()> {
+        self.write_npz_as(out, Dtype::Float64)
+    }
+
+    /// As [`Recorder::write_npz`], the values stored as `dtype` (each description's
+    /// `dtype` says which).
+    pub fn write_npz_as<W: Write + Seek>(&self, out: W, dtype: Dtype) -> std::io::Result<()> {
         let arrays: Vec<(String, Vec<usize>, &[f64])> = self
             .signals
             .iter()
             .map(|s| (s.key.clone(), s.shape(), s.data.as_slice()))
             .collect();
-        crate::npy::write_npz(out, &arrays, Some(&self.metadata().to_string()))
+        let meta = self.metadata_as(dtype).to_string();
+        crate::npy::write_npz_as(out, &arrays, Some(&meta), dtype)
+    }
+
+    /// [`Recorder::metadata`], each description's `dtype` that of values stored as `dtype`.
+    pub fn metadata_as(&self, dtype: Dtype) -> Value {
+        let mut meta = self.metadata();
+        for s in &self.signals {
+            meta[&s.key]["dtype"] = Value::from(dtype.name(s.info.is_complex()));
+        }
+        meta
     }
 
     /// The signal named `key`, if recorded.

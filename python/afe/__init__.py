@@ -382,6 +382,7 @@ def process(
     chunk: Optional[int] = None,
     threads: Optional[int] = None,
     keep: str = "requested",
+    dtype: str = "float64",
 ) -> Dict[str, Signal]:
     """Computes ``requests`` on a whole signal and returns ``{name: Signal}``.
 
@@ -397,6 +398,8 @@ def process(
     chunks of this many samples, as a stream would (same result wherever the AFE is
     chunk-invariant). ``threads``: scheduler threads, the caller among them (``None``:
     the machine's cores; 0: the sequential executor); every choice gives the same numbers.
+    ``dtype="float32"`` stores the values (computed in float64) rounded to float32
+    (complex64 for spectra): half the memory, as ``afe extract --dtype f32`` writes them.
     ``keep="all"`` also returns every intermediate signal the requests were computed
     through (``time_left``, ``filterbank_left``, ``innerhaircell_left``, ...), as the
     AFE's data object holds them and as ``afe extract --all`` saves them.
@@ -420,6 +423,7 @@ def process(
         None if chunk is None else int(chunk),
         _cores() if threads is None else int(threads),
         keep == "all",
+        str(dtype),
     )
     if isinstance(signal, (str, os.PathLike)):
         # decoded block by block in Rust: a long file is never held whole

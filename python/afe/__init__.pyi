@@ -70,6 +70,7 @@ def process(
     chunk: Optional[int] = ...,
     threads: Optional[int] = ...,
     keep: str = ...,
+    dtype: str = ...,
 ) -> Dict[str, Signal]: ...
 
 class Manager:

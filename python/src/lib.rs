@@ -10,8 +10,11 @@ mod wire;
 use std::path::PathBuf;
 use std::sync::Mutex;
 
+use afe::npy::Dtype;
 use afe::{Manager, ParamMap, Recorder, RequestHandle};
-use numpy::{Complex64, PyArray1, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{
+    Complex32, Complex64, PyArray1, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods,
+};
 use pyo3::exceptions::{PyFileNotFoundError, PyKeyError, PyOSError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -87,15 +90,48 @@ fn owned_array<'py>(
         .into_any())
 }
 
-/// A run's recorded outputs, moved into numpy arrays, and their descriptions as JSON text.
-fn recorded<'py>(py: Python<'py>, rec: afe::Recorder) -> PyResult<(Bound<'py, PyDict>, String)> {
-    let meta = rec.metadata().to_string();
+/// A run's recorded outputs, moved into numpy arrays of `dtype` (float32 arrays are
+/// rounded one output at a time, each float64 history freed once converted), and their
+/// descriptions as JSON text.
+fn recorded<'py>(
+    py: Python<'py>,
+    rec: afe::Recorder,
+    dtype: Dtype,
+) -> PyResult<(Bound<'py, PyDict>, String)> {
+    let meta = rec.metadata_as(dtype).to_string();
     let d = PyDict::new(py);
     for r in rec.into_signals() {
         let (shape, complex) = (r.shape(), r.info.is_complex());
-        d.set_item(r.key, owned_array(py, &shape, r.data.into_vec(), complex)?)?;
+        let values = r.data.into_vec();
+        let a = match dtype {
+            Dtype::Float64 => owned_array(py, &shape, values, complex)?,
+            Dtype::Float32 if complex => {
+                let pairs = values.chunks_exact(2);
+                let v: Vec<Complex32> = pairs
+                    .map(|c| Complex32::new(c[0] as f32, c[1] as f32))
+                    .collect();
+                PyArray1::from_vec(py, v).reshape(shape)?.into_any()
+            }
+            Dtype::Float32 => {
+                let v: Vec<f32> = values.iter().map(|&x| x as f32).collect();
+                drop(values);
+                PyArray1::from_vec(py, v).reshape(shape)?.into_any()
+            }
+        };
+        d.set_item(r.key, a)?;
     }
     Ok((d, meta))
+}
+
+/// The `dtype` asked for from Python: `"float64"` or `"float32"`.
+fn stored_type(dtype: &str) -> PyResult<Dtype> {
+    match dtype {
+        "float64" => Ok(Dtype::Float64),
+        "float32" => Ok(Dtype::Float32),
+        other => Err(PyValueError::new_err(format!(
+            "dtype = {other:?}: expected \"float64\" (as computed) or \"float32\" (rounded, half the memory)"
+        ))),
+    }
 }
 
 /// One output as handed to Python: its key, array shape, values and whether complex.
@@ -459,7 +495,7 @@ fn place(mgr: &mut Manager, items: &[Item], params: &afe::ParamMap) -> PyResult<
 /// Computes `requests` on a whole signal (`afe extract`'s code path): `{name: array}`
 /// and the arrays' descriptions as JSON text (see `afe::metadata::describe`).
 #[pyfunction]
-#[pyo3(signature = (x, fs, requests, params_json, chunk, threads, all))]
+#[pyo3(signature = (x, fs, requests, params_json, chunk, threads, all, dtype))]
 #[allow(clippy::too_many_arguments)]
 fn process<'py>(
     py: Python<'py>,
@@ -470,7 +506,9 @@ fn process<'py>(
     chunk: Option<usize>,
     threads: usize,
     all: bool,
+    dtype: &str,
 ) -> PyResult<(Bound<'py, PyDict>, String)> {
+    let dtype = stored_type(dtype)?;
     let job = job(params_json, chunk, threads, all)?;
     let mut mgr = Manager::with_threads(fs, x.shape()[1], threads).map_err(to_py)?;
     place(&mut mgr, &requests, &job.params)?;
@@ -481,13 +519,13 @@ fn process<'py>(
     })?
     .map_err(to_py)?;
     drop(ears);
-    recorded(py, rec)
+    recorded(py, rec, dtype)
 }
 
 /// As [`process`] on the WAV file at `path`, decoded block by block where the graph
 /// allows (the file is never held whole), with `fs` (if given) checked against the file's.
 #[pyfunction]
-#[pyo3(signature = (path, fs, requests, params_json, chunk, threads, all))]
+#[pyo3(signature = (path, fs, requests, params_json, chunk, threads, all, dtype))]
 #[allow(clippy::too_many_arguments)]
 fn process_file<'py>(
     py: Python<'py>,
@@ -498,7 +536,9 @@ fn process_file<'py>(
     chunk: Option<usize>,
     threads: usize,
     all: bool,
+    dtype: &str,
 ) -> PyResult<(Bound<'py, PyDict>, String)> {
+    let dtype = stored_type(dtype)?;
     let job = job(params_json, chunk, threads, all)?;
     let mut wav = afe::wav::WavBlocks::open(&path).map_err(wav_error)?;
     if let Some(fs) = fs.filter(|f| *f != wav.fs()) {
@@ -513,7 +553,7 @@ fn process_file<'py>(
     place(&mut mgr, &requests, &job.params)?;
     let rec = interrupt::interruptible(py, || afe::extract::run_wav(&mut mgr, &job, &mut wav))?
         .map_err(to_py)?;
-    recorded(py, rec)
+    recorded(py, rec, dtype)
 }
 
 /// The Python exception for a WAV file that cannot be read.

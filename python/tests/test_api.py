@@ -350,6 +350,22 @@ def test_a_bounded_history_keeps_the_last_seconds_of_each_output():
         afe.Manager(16000, 2, history_seconds=0)
 
 
+def test_float32_outputs_are_the_float64_values_rounded():
+    x = signal(8000)
+    wide = afe.process(x, 16000, ["ratemap", "ild", "stft"], threads=0)
+    narrow = afe.process(x, 16000, ["ratemap", "ild", "stft"], threads=0, dtype="float32")
+    assert set(wide) == set(narrow)
+    for k in wide:
+        want = np.complex64 if np.iscomplexobj(wide[k]) else np.float32
+        assert narrow[k].dtype == want, k
+        np.testing.assert_array_equal(narrow[k], wide[k].astype(want), err_msg=k)
+        assert narrow[k].meta["dtype"] == np.dtype(want).name
+        assert narrow[k].nbytes * 2 == wide[k].nbytes
+    with pytest.raises(ValueError) as e:
+        afe.process(x, 16000, ["ild"], dtype="f16")
+    assert str(e.value) == 'dtype = "f16": expected "float64" (as computed) or "float32" (rounded, half the memory)'
+
+
 def test_errors_are_python_exceptions_with_clear_messages(tmp_path):
     x = signal(1600)
     cases = [
