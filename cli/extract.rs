@@ -90,6 +90,18 @@ fn extract(
     // trace events preallocated per worker (48 bytes each): 12 MiB, ~5000 chunks of 11 nodes
     let capacity = if trace.is_some() { 1 << 18 } else { 0 };
     let mut mgr = Manager::with_engine(wav.fs(), wav.channels(), job.threads, capacity)?;
+    for r in &job.requests {
+        mgr.add_request(r, &job.params)?;
+    }
+    // before the computation: outputs that would not fit the memory
+    let bytes = afe::memory::output_bytes(&mut mgr, wav.frames(), job.all, dtype);
+    if let Some(warning) = afe::memory::check(bytes)? {
+        eprintln!("warning: {warning}");
+    }
+    let job = Job {
+        requests: Vec::new(),
+        ..job
+    };
     let rec = run_wav(&mut mgr, &job, &mut wav).map_err(|e| match e {
         afe::Error::Interrupted => CliError::Message(format!("{e}: nothing was written")),
         e => e.into(),

@@ -763,3 +763,44 @@ fn extract_dtype_f32_stores_the_rounded_values() {
     assert_eq!(npz_metadata(&wide)["stft_left"]["dtype"], "complex128");
     std::fs::remove_dir_all(&dir).expect("clean");
 }
+
+/// Outputs that would take more than half of the memory available get a warning before
+/// the work; more than all of it, a clear error and nothing written.
+#[test]
+fn extract_announces_outputs_too_large_for_the_memory() {
+    let dir = tmp("memory-check");
+    std::fs::create_dir_all(&dir).expect("dir");
+    let wav = dir.join("in.wav");
+    write_wav(&wav, 2, 16000, 16000, tone);
+    let out = dir.join("out.npz");
+    let run = |available: &str| {
+        common::afe_env(
+            &[
+                "extract",
+                wav.to_str().expect("utf-8"),
+                "-r",
+                "ratemap",
+                "-o",
+                out.to_str().expect("utf-8"),
+            ],
+            &[("AFE_MEMORY_AVAILABLE_GB", std::path::Path::new(available))],
+        )
+    };
+    let warned = run("0.00008");
+    let stderr = String::from_utf8_lossy(&warned.stderr);
+    assert!(warned.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("warning: the outputs will take 49.6 kB, more than half of the 80.0 kB of memory available: store them as float32"),
+        "{stderr}"
+    );
+    std::fs::remove_file(&out).expect("written");
+    let refused = run("0.00004");
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success());
+    assert!(
+        stderr.contains("keeping the outputs would take 49.6 kB, more than the 40.0 kB of memory available: store them as float32 (`dtype=\"float32\"`, `--dtype f32`), ask for fewer requests"),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+    std::fs::remove_dir_all(&dir).expect("clean");
+}

@@ -83,10 +83,25 @@ pub enum Error {
         /// The processors that need the whole input, e.g. `innerhaircell (ihc_method 'hilbert')`.
         what: String,
     },
+    /// The outputs of a whole signal would not fit the memory available (see
+    /// `afe::memory`).
+    #[error("keeping the outputs would take {need}, more than the {available} of memory available: {WAYS_OUT}")]
+    OutputsTooLarge {
+        /// Memory the outputs would take, e.g. `7.2 GB`.
+        need: String,
+        /// Memory available, e.g. `3.9 GB`.
+        available: String,
+    },
     /// Stopped on request (SIGINT or SIGTERM, Ctrl-C in Python) before the input's end.
     #[error("interrupted before the end of the input")]
     Interrupted,
 }
+
+/// What to do about outputs too large for the memory: the end of
+/// [`Error::OutputsTooLarge`]'s message and of `afe::memory`'s warning.
+pub const WAYS_OUT: &str = "store them as float32 (`dtype=\"float32\"`, `--dtype f32`), ask for \
+    fewer requests, write them to a store file by file (`afe.batch`, `afe batch`), or stream them \
+    (`afe.stream`, `afe stream`)";
 
 impl Error {
     /// An [`Error::InvalidParameter`] for parameter `name` (its AFE name): `value` as the

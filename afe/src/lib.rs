@@ -25,6 +25,7 @@ pub mod block_times;
 pub mod catalog;
 pub mod extract;
 pub mod frames;
+pub mod memory;
 pub mod metadata;
 pub mod npy;
 pub mod output;

@@ -24,7 +24,7 @@ fn to_py(e: afe::Error) -> PyErr {
     match e {
         afe::Error::UnknownHandle(_) => PyKeyError::new_err(e.to_string()),
         afe::Error::Interrupted => pyo3::exceptions::PyKeyboardInterrupt::new_err(e.to_string()),
-        afe::Error::WholeSignalTooLarge { .. } => {
+        afe::Error::WholeSignalTooLarge { .. } | afe::Error::OutputsTooLarge { .. } => {
             pyo3::exceptions::PyMemoryError::new_err(e.to_string())
         }
         afe::Error::WorkerPanicked | afe::Error::Stalled(_) | afe::Error::Scheduler(_) => {
@@ -121,6 +121,25 @@ fn recorded<'py>(
         d.set_item(r.key, a)?;
     }
     Ok((d, meta))
+}
+
+/// Before a whole signal is computed: a `ResourceWarning` when its outputs would take
+/// more than half of the memory available, a `MemoryError` when more than all of it
+/// (see `afe::memory`).
+fn check_memory(
+    py: Python<'_>,
+    mgr: &mut Manager,
+    samples: u64,
+    all: bool,
+    dtype: Dtype,
+) -> PyResult<()> {
+    let bytes = afe::memory::output_bytes(mgr, samples, all, dtype);
+    if let Some(warning) = afe::memory::check(bytes).map_err(to_py)? {
+        let category = py.get_type::<pyo3::exceptions::PyResourceWarning>();
+        let text = std::ffi::CString::new(warning).unwrap_or_default();
+        PyErr::warn(py, &category, &text, 2)?;
+    }
+    Ok(())
 }
 
 /// The `dtype` asked for from Python: `"float64"` or `"float32"`.
@@ -512,6 +531,7 @@ fn process<'py>(
     let job = job(params_json, chunk, threads, all)?;
     let mut mgr = Manager::with_threads(fs, x.shape()[1], threads).map_err(to_py)?;
     place(&mut mgr, &requests, &job.params)?;
+    check_memory(py, &mut mgr, x.shape()[0] as u64, all, dtype)?;
     let ears = columns(&x);
     let rec = interrupt::interruptible(py, || {
         let refs: Vec<&[f64]> = ears.iter().map(Vec::as_slice).collect();
@@ -551,6 +571,7 @@ fn process_file<'py>(
     afe::wav::check_input(&path, &wav).map_err(to_py)?;
     let mut mgr = Manager::with_threads(wav.fs(), wav.channels(), threads).map_err(to_py)?;
     place(&mut mgr, &requests, &job.params)?;
+    check_memory(py, &mut mgr, wav.frames(), all, dtype)?;
     let rec = interrupt::interruptible(py, || afe::extract::run_wav(&mut mgr, &job, &mut wav))?
         .map_err(to_py)?;
     recorded(py, rec, dtype)

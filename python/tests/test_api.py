@@ -6,6 +6,7 @@ import subprocess
 import sys
 import threading
 import time
+import warnings
 import wave
 
 import numpy as np
@@ -364,6 +365,35 @@ def test_float32_outputs_are_the_float64_values_rounded():
     with pytest.raises(ValueError) as e:
         afe.process(x, 16000, ["ild"], dtype="f16")
     assert str(e.value) == 'dtype = "f16": expected "float64" (as computed) or "float32" (rounded, half the memory)'
+
+
+_WAYS_OUT = (
+    'store them as float32 (`dtype="float32"`, `--dtype f32`), ask for fewer requests, write '
+    "them to a store file by file (`afe.batch`, `afe batch`), or stream them (`afe.stream`, "
+    "`afe stream`)"
+)
+
+
+def test_outputs_too_large_for_the_memory_are_announced_before_the_work(monkeypatch):
+    """Half of the memory available: a ResourceWarning; all of it: a MemoryError; both
+    name the size and the ways out. The estimate: 2 ears x 100 frames x 31 channels."""
+    x = signal(16000)
+    monkeypatch.setenv("AFE_MEMORY_AVAILABLE_GB", "0.00008")
+    with pytest.warns(ResourceWarning) as w:
+        out = afe.process(x, 16000, ["ratemap"])
+    assert str(w[0].message) == (
+        "the outputs will take 49.6 kB, more than half of the 80.0 kB of memory available: " + _WAYS_OUT
+    )
+    assert out["ratemap_left"].shape == (99, 31)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        afe.process(x, 16000, ["ratemap"], dtype="float32")  # 24.8 kB: no warning
+    monkeypatch.setenv("AFE_MEMORY_AVAILABLE_GB", "0.00004")
+    with pytest.raises(MemoryError) as e:
+        afe.process(x, 16000, ["ratemap"])
+    assert str(e.value) == (
+        "keeping the outputs would take 49.6 kB, more than the 40.0 kB of memory available: " + _WAYS_OUT
+    )
 
 
 def test_errors_are_python_exceptions_with_clear_messages(tmp_path):
