@@ -52,32 +52,34 @@ impl Graph {
             streamed,
         };
         let threads = engine.as_ref().map_or(1, |e| e.threads());
+        let len = signal.first().map_or(0, |c| c.len());
+        let blocks = (0..len).step_by(block.max(1)).map(|start| {
+            let end = (start + block).min(len);
+            signal.iter().map(|c| &c[start..end]).collect::<Vec<_>>()
+        });
         match engine {
-            Some(engine) => self.blocks_on(engine, signal, block, whole, &plan, each_block)?,
-            None => self.blocks_here(signal, block, whole, &plan, each_block)?,
+            Some(engine) => self.blocks_on(engine, blocks, whole, &plan, each_block)?,
+            None => self.blocks_here(blocks, whole, &plan, each_block)?,
         }
         self.run_per_chunk_nodes(whole, &plan, threads)
     }
 
-    /// The invariant and absorbing nodes over the signal in blocks, on this thread; the
-    /// joined outputs are written in place (see [`Graph::lend_buffers`]).
-    fn blocks_here(
+    /// The invariant and absorbing nodes over the signal's `blocks` (one slice per ear
+    /// each), on this thread; the joined outputs are written in place (see
+    /// [`Graph::lend_buffers`]).
+    fn blocks_here<'s>(
         &mut self,
-        signal: &[&[f64]],
-        block: usize,
+        blocks: impl Iterator<Item = Vec<&'s [f64]>>,
         whole: &mut [Vec<Option<Block>>],
         plan: &Plan<'_>,
         each_block: &mut dyn FnMut(OutputRef, &Block),
     ) -> Result<()> {
-        let len = signal.first().map_or(0, |c| c.len());
         let lent = self.lend_buffers(whole, &plan.invariant);
-        for start in (0..len).step_by(block.max(1)) {
+        for part in blocks {
             if interrupt::requested() {
                 self.return_buffers(whole, &lent);
                 return Err(Error::Interrupted);
             }
-            let end = (start + block).min(len);
-            let part: Vec<&[f64]> = signal.iter().map(|c| &c[start..end]).collect();
             self.seal_lent(&lent);
             self.load_input(&part);
             for i in 0..self.nodes.len() {
@@ -99,14 +101,13 @@ impl Graph {
         Ok(())
     }
 
-    /// The invariant and absorbing nodes over the signal in blocks, on the `engine`'s
+    /// The invariant and absorbing nodes over the signal's `blocks`, on the `engine`'s
     /// threads: the other nodes' processors wait aside, and each block's joined outputs
     /// are appended to `whole` as the engine publishes them.
-    fn blocks_on(
+    fn blocks_on<'s>(
         &mut self,
         engine: &mut Engine,
-        signal: &[&[f64]],
-        block: usize,
+        blocks: impl Iterator<Item = Vec<&'s [f64]>>,
         whole: &mut [Vec<Option<Block>>],
         plan: &Plan<'_>,
         each_block: &mut dyn FnMut(OutputRef, &Block),
@@ -138,11 +139,8 @@ impl Graph {
             }
             Ok(())
         };
-        let len = signal.first().map_or(0, |c| c.len());
         let mut fed = Ok(());
-        for start in (0..len).step_by(block.max(1)) {
-            let end = (start + block).min(len);
-            let part: Vec<&[f64]> = signal.iter().map(|c| &c[start..end]).collect();
+        for part in blocks {
             fed = fed
                 .and_then(|()| match interrupt::requested() {
                     true => Err(Error::Interrupted),
