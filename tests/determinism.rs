@@ -174,19 +174,25 @@ fn whole_signal_and_process_chunk_match_sequential() {
     }
 }
 
-/// A whole signal through every registered request, and through all but the MOC (whose
-/// feedback makes the whole chain take the signal in one call), with the invariant part
+/// A whole signal through every registered request, through all but the MOC (whose
+/// feedback makes the whole chain take the signal in one call), and through all with the
+/// AGC (whose pre-processing then reads the input in one call), with the invariant part
 /// in blocks on the workers, pitch absorbing them, and the nodes that take the signal
 /// in one call run on several threads as their parents finish: the sequential
 /// executor's outputs, every intermediate signal among them, bit for bit.
 #[test]
 fn every_registered_request_whole_signal_matches_sequential() {
     let (left, right) = signal(9000);
-    for skip in [None, Some("moc")] {
+    let agc = params(&[("pp_bNormalizeRMS", json!(true))]);
+    for (skip, p) in [
+        (None, ParamMap::new()),
+        (Some("moc"), ParamMap::new()),
+        (Some("moc"), agc),
+    ] {
         let run = |threads: usize| {
             let mut mgr = manager(threads);
             for r in afe::requests().iter().filter(|r| Some(r.name) != skip) {
-                mgr.add_request(r.name, &ParamMap::new())
+                mgr.add_request(r.name, &p)
                     .unwrap_or_else(|e| panic!("{}: {e}", r.name));
             }
             mgr.process_signal(&[&left, &right]).expect("process");
@@ -204,7 +210,7 @@ fn every_registered_request_whole_signal_matches_sequential() {
             assert_eq!(
                 identical(&reference, &run(threads)),
                 Ok(()),
-                "without {skip:?}, threads {threads}"
+                "without {skip:?}, {p:?}, threads {threads}"
             );
         }
     }

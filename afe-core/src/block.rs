@@ -413,6 +413,20 @@ impl Block {
         self.data.extend_from_slice(other.as_slice());
     }
 
+    /// Appends `values`, whole rows of `width()` values each.
+    ///
+    /// # Panics
+    /// If `values` does not hold whole rows.
+    pub fn extend_from_slice(&mut self, values: &[f64]) {
+        assert_eq!(
+            values.len() % self.width.max(1),
+            0,
+            "appending part of a row"
+        );
+        self.grow(values.len());
+        self.data.extend_from_slice(values);
+    }
+
     /// Makes room for `frames` more rows, so that appending them does not reallocate.
     pub fn reserve_frames(&mut self, frames: usize) {
         self.grow(frames.saturating_mul(self.width));

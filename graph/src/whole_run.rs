@@ -130,7 +130,7 @@ impl Graph {
                 outputs.map(move |(output, _)| OutputRef { node, output })
             })
             .collect();
-        let mut collect = |engine: &mut Engine| -> Result<()> {
+        let mut collect = |engine: &mut Engine, whole: &mut [Vec<Option<Block>>]| -> Result<()> {
             engine.collect_appending(whole, &plan.invariant)?;
             for &r in &streamed {
                 if let Some(b) = engine.block(r) {
@@ -141,13 +141,20 @@ impl Graph {
         };
         let mut fed = Ok(());
         for part in blocks {
+            // the input itself, where a node taking the signal in one call reads it (the
+            // engine's source is not collected)
+            for (acc, ear) in whole[0].iter_mut().zip(&part) {
+                if let Some(acc) = acc {
+                    acc.extend_from_slice(ear);
+                }
+            }
             fed = fed
                 .and_then(|()| match interrupt::requested() {
                     true => Err(Error::Interrupted),
                     false => engine.submit(&part),
                 })
                 .and_then(|()| match engine.in_flight() {
-                    2.. => collect(engine),
+                    2.. => collect(engine, whole),
                     _ => Ok(()),
                 });
             if fed.is_err() {
@@ -155,7 +162,7 @@ impl Graph {
             }
         }
         while fed.is_ok() && engine.in_flight() > 0 {
-            fed = collect(engine);
+            fed = collect(engine, whole);
         }
         let idle = engine.quiesce();
         engine.uninstall(self);
