@@ -8,6 +8,9 @@ use std::path::Path;
 
 use afe::raa::{raa, Raa, RaaConstants, RaaError};
 
+mod common;
+use common::{afe, assert_clear_error, npz_arrays, tmp, tone, write_wav};
+
 /// The reference arrays by name (shape, values as float64).
 fn reference() -> BTreeMap<String, (Vec<usize>, Vec<f64>)> {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/oracle_raa/raa_speech_16k.npz");
@@ -24,8 +27,13 @@ fn reference() -> BTreeMap<String, (Vec<usize>, Vec<f64>)> {
         .collect()
 }
 
+/// The reference input.
+fn input() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("data/raa_speech_16k.wav")
+}
+
 fn computed() -> Raa {
-    let wav = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/raa_speech_16k.wav");
+    let wav = input();
     let audio = afe::wav::read_wav(&wav).expect("wav");
     let ears: Vec<&[f64]> = audio.channels.iter().map(Vec::as_slice).collect();
     raa(&ears, audio.fs, &RaaConstants::default()).expect("raa")
@@ -266,4 +274,90 @@ fn the_direct_and_reverberant_streams_add_up_to_psi() {
     for f in out.par.fields().iter().filter(|f| f.name.starts_with('s')) {
         assert!((0.0..=1.0).contains(&f.value), "{}: {}", f.name, f.value);
     }
+}
+
+#[test]
+fn the_cli_prints_the_predictors_as_json_and_writes_psi() {
+    let out_file = tmp("raa.npz");
+    let input = input();
+    let out = afe(&[
+        "raa",
+        input.to_str().expect("path"),
+        "--json",
+        "-o",
+        out_file.to_str().expect("path"),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let printed: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    let lib = computed();
+    assert_eq!(printed, lib.to_json());
+    let r = reference();
+    for f in lib.par.fields() {
+        let cli = printed["par"][f.name].as_f64().expect("number");
+        let want = r[&format!("par_{}", f.name)].1[0];
+        assert!(
+            (cli - want).abs() <= 1e-6 * want.abs(),
+            "{}: {cli} vs {want}",
+            f.name
+        );
+    }
+    let saved: BTreeMap<String, (Vec<usize>, Vec<f64>)> = npz_arrays(&out_file)
+        .into_iter()
+        .map(|(name, shape, data)| (name, (shape, data)))
+        .collect();
+    for (name, shape, data) in lib.psi.arrays() {
+        assert_eq!(saved[name], (shape, data.to_vec()), "{name}");
+    }
+    assert_eq!(saved["itdNumFrames"], (vec![], vec![119.0]));
+    assert_eq!(saved["par_sLEV"].1, vec![lib.par.s_lev]);
+}
+
+#[test]
+fn the_cli_table_names_each_predictor_with_its_unit() {
+    let input = input();
+    let out = afe(&["raa", input.to_str().expect("path"), "-p", "T_min=0.0631"]);
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("sREV "))
+        .expect("sREV line");
+    assert!(
+        line.contains("0.993193419") && line.contains("reverberance"),
+        "{line}"
+    );
+    assert!(
+        text.lines()
+            .any(|l| l.starts_with("BL ") && l.contains(" MU ")),
+        "{text}"
+    );
+    assert!(text.contains("samples x 0.025 s"), "{text}");
+}
+
+#[test]
+fn the_cli_refuses_a_mono_file_and_a_misspelt_constant() {
+    let mono = tmp("raa_mono.wav");
+    write_wav(&mono, 1, 16000, 4000, tone);
+    let out_file = tmp("raa_refused.npz");
+    let o = out_file.to_str().expect("path");
+    let out = afe(&["raa", mono.to_str().expect("path"), "-o", o]);
+    assert_clear_error(&out, "two channels (left, right): got 1", &out_file);
+    let input = input();
+    let out = afe(&[
+        "raa",
+        input.to_str().expect("path"),
+        "-p",
+        "t_min=0.1",
+        "-o",
+        o,
+    ]);
+    assert_clear_error(
+        &out,
+        "unknown RAA constant 't_min' (did you mean 'T_min'?)",
+        &out_file,
+    );
 }
