@@ -81,6 +81,29 @@ pub fn itd(left: &Block, right: &Block, fs: f64) -> Block {
     out
 }
 
+/// The direct and reverberant parts of `itd` (`[frame][band]`): `ITDdir = ζ·ITD` with ζ
+/// the share of the ears (0, ½ or 1) whose direct-stream mask (`[sample][band]`) is set
+/// at the frame's [`Framing::centre`], and `ITDrev = ITD − ITDdir`.
+pub fn split(itd: &Block, mask_l: &[bool], mask_r: &[bool], fs: f64) -> (Block, Block) {
+    let framing = Framing::at(fs);
+    let bands = itd.width();
+    let mut direct = itd.clone();
+    for (k, row) in direct.as_mut_slice().chunks_exact_mut(bands).enumerate() {
+        let t = framing.centre(k);
+        for (band, v) in row.iter_mut().enumerate() {
+            let i = t * bands + band;
+            *v *= (f64::from(u8::from(mask_l[i])) + f64::from(u8::from(mask_r[i]))) / 2.0;
+        }
+    }
+    let reverberant = itd
+        .as_slice()
+        .iter()
+        .zip(direct.as_slice())
+        .map(|(a, d)| a - d)
+        .collect();
+    (direct, Block::from_vec(reverberant, bands))
+}
+
 /// `c[max_lag + l] = Σₙ wl[n + l]·wr[n]` for `l = −max_lag … max_lag`: the AFE's
 /// `real(ifft(fft(wl)·conj(fft(wr))))` at those lags, whose FFT length (at least
 /// `2·len − 1`) leaves no circular wrap, so the sum is the same correlation.
@@ -152,6 +175,21 @@ mod tests {
             let v = out.row(k)[0];
             assert!((v - 3.0 * HOP_S).abs() < 0.05 * HOP_S, "frame {k}: {v}");
         }
+    }
+
+    #[test]
+    fn the_direct_share_is_taken_at_each_frames_centre() {
+        let fs = 16000.0;
+        let itd = Block::from_vec(vec![0.2, -0.1, 0.2, -0.1], 2);
+        // frame 0's centre is sample 400, frame 1's 800; two bands
+        let (mut mask_l, mut mask_r) = (vec![false; 2 * 1200], vec![false; 2 * 1200]);
+        mask_l[400 * 2] = true; // frame 0, band 0: left only
+        mask_l[800 * 2 + 1] = true; // frame 1, band 1: both
+        mask_r[800 * 2 + 1] = true;
+        mask_r[401 * 2 + 1] = true; // frame 0, band 1, one sample past the centre: not taken
+        let (direct, reverberant) = split(&itd, &mask_l, &mask_r, fs);
+        assert_eq!(direct.as_slice(), &[0.1, 0.0, 0.0, -0.1]);
+        assert_eq!(reverberant.as_slice(), &[0.1, -0.1, 0.2, 0.0]);
     }
 
     #[test]

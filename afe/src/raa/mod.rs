@@ -306,25 +306,7 @@ pub fn raa(ears: &[&[f64]], fs: f64, constants: &RaaConstants) -> Result<Raa, Ra
     let mask_r = segment("right", &psi_r, &adapt_r)?;
     drop((adapt_l, adapt_r));
 
-    let framing = itd::Framing::at(fs);
-    let bands = f.len();
-    let mut itd_dir = itd.clone();
-    for (k, row) in itd_dir.as_mut_slice().chunks_exact_mut(bands).enumerate() {
-        let t = framing.centre(k);
-        for (band, v) in row.iter_mut().enumerate() {
-            let i = t * bands + band;
-            let zeta = (f64::from(u8::from(mask_l[i])) + f64::from(u8::from(mask_r[i]))) / 2.0;
-            *v *= zeta;
-        }
-    }
-    let itd_rev = Block::from_vec(
-        itd.as_slice()
-            .iter()
-            .zip(itd_dir.as_slice())
-            .map(|(a, d)| a - d)
-            .collect(),
-        bands,
-    );
+    let (itd_dir, itd_rev) = itd::split(&itd, &mask_l, &mask_r, fs);
     let num_samples = psi_l.frames();
     let itd_num_frames = itd.frames();
     let frame_rate = 1.0 / itd::HOP_S;
@@ -340,7 +322,7 @@ pub fn raa(ears: &[&[f64]], fs: f64, constants: &RaaConstants) -> Result<Raa, Ra
         itd_rev,
         t_psi: (1..=num_samples).map(|t| t as f64 / fs).collect(),
         t_itd: (0..itd_num_frames).map(|k| k as f64 / frame_rate).collect(),
-        num_bands: bands,
+        num_bands: f.len(),
         f,
         fs,
         num_samples,
