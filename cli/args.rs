@@ -145,7 +145,7 @@ fn read_params_file(path: &Path) -> Result<ParamMap, CliError> {
 }
 
 /// Parses `NAME=VALUE`: VALUE as JSON when it is JSON, else as a plain string.
-fn parse_param(arg: &str) -> Result<(String, Value), CliError> {
+pub(crate) fn parse_param(arg: &str) -> Result<(String, Value), CliError> {
     let (name, value) = arg
         .split_once('=')
         .ok_or_else(|| format!("parameter '{arg}' is not of the form NAME=VALUE"))?;

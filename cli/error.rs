@@ -7,6 +7,8 @@ pub(crate) enum CliError {
     #[error(transparent)]
     Afe(#[from] afe::Error),
     #[error(transparent)]
+    Raa(#[from] afe::raa::RaaError),
+    #[error(transparent)]
     Batch(#[from] afe_batch::BatchError),
     #[error(transparent)]
     Stream(#[from] afe::stream::StreamError),

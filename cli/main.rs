@@ -13,6 +13,7 @@ mod list;
 mod memory_reuse;
 #[cfg(feature = "plot")]
 mod plot;
+mod raa;
 #[cfg(feature = "view")]
 mod serve;
 mod stream;
@@ -58,6 +59,10 @@ enum Command {
     /// skipped, and a second run resumes where a killed one stopped.
     #[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
     Batch(batch::BatchArgs),
+    /// The AFE's Room Acoustic Analyzer (afeRAA) of a binaural WAV file: reverberance,
+    /// clarity, apparent source width and listener envelopment, unscaled and scaled, with
+    /// the levels and ITD fluctuations they come from.
+    Raa(raa::RaaArgs),
     /// List the ALSA capture devices (needs a build with `--features alsa`).
     Devices,
     /// Run requests on a live stream (BASS port and block reader): WAV replay, a
@@ -102,6 +107,7 @@ fn main() -> ExitCode {
         #[cfg(feature = "plot")]
         Command::Plot(a) => a.run(),
         Command::Bench(a) => a.run(),
+        Command::Raa(a) => a.run(),
         Command::Devices => devices::run(),
         Command::Batch(a) => a.run(),
         Command::Stream(a) => a.run(),

@@ -29,6 +29,7 @@ pub mod memory;
 pub mod metadata;
 pub mod npy;
 pub mod output;
+pub mod raa;
 pub mod realtime;
 mod recorder;
 pub mod rss;

@@ -52,6 +52,7 @@ __all__ = [
     "parameters",
     "plot",
     "process",
+    "raa",
     "read_wav",
     "requests",
     "save",
@@ -438,6 +439,59 @@ def process(
         raise ValueError("the signal is empty")
     arrays, meta = _afe.process(x, float(fs), *settings)
     return _signals(arrays, json.loads(meta))
+
+
+def raa(
+    ear_signals: Audio, fs: Optional[float] = None, **constants: float
+) -> Tuple[Dict[str, float], Dict[str, Any]]:
+    """The AFE's Room Acoustic Analyzer: ``[par, psi] = afeRAA(earSignals, fs, parConf)``.
+
+    van Dorp Schuitman's model of room-acoustic perception on the AFE's processors: the
+    headphone filter, the ``adaptation`` request (16 gammatone bands, 167.8 to 1836.4 Hz,
+    ``breebart`` hair cell, ``adt_vandorpschuitman`` loops), Psi (the adaptation output
+    low-passed over 20 ms) split per ear and band into a direct and a reverberant stream
+    by its peaks and dips, and the ITD per 50-ms frame.
+
+    ``ear_signals``: ``[samples, 2]`` (left, right; full scale 1), or the path of a
+    binaural WAV file (``fs`` then may be ``None``). ``constants``: afeRAA's ``parConf``
+    by name (``mu_psi``, ``mu_psi_dip``, ``T_min``, ``a_P_REV``, ``b_P_REV``, ``a_P_CLA``,
+    ``b_P_CLA``, ``mu_ASW``, ``nu_ASW``, ``a_P_ASW``, ``b_P_ASW``, ``mu_LEV``, ``nu_LEV``,
+    ``a_P_LEV``, ``b_P_LEV``), the AFE's values by default; an unknown name is a
+    ``ValueError`` naming the closest one.
+
+    Returns ``(par, psi)``. ``par``: each predictor as a float, under afeRAA's names:
+    ``BL`` and ``FL`` (levels of the background and foreground streams, MU = model
+    units), ``sREV`` (reverberance, scaled 0..1; ``BL`` is the unscaled one), ``pClar``
+    and ``sClar`` (clarity, ``FL/BL`` and scaled), ``Llow`` (level of the bands from 168
+    to 387 Hz, MU), ``ITDf`` and ``ITDb`` (ITD fluctuations of the foreground and the
+    background), ``pASW``/``sASW`` (apparent source width) and ``pLEV``/``sLEV``
+    (listener envelopment), unscaled and scaled. ``psi``: ``PsiL``, ``PsiR`` and their
+    streams ``PsiLdir``, ``PsiRdir``, ``PsiLrev``, ``PsiRrev`` (``[sample, band]``, MU),
+    ``ITD``, ``ITDdir``, ``ITDrev`` (``[frame, band]``), ``f`` (band centre frequencies,
+    Hz), ``t_psi`` (``(1..N)/fs``, s), ``t_itd`` (frame starts, s), ``fs`` (Hz),
+    ``numSamples``, ``numBands``, ``itdNumFrames``.
+
+    The ITD is in afeRAA's unit, the lag in samples times 0.025 s (``fs/40`` times the
+    delay in seconds, 400x at 16 kHz; positive when the right ear leads), and so are
+    ``ITDf`` and ``ITDb``. Raises ``ValueError`` for input afeRAA cannot take: not two
+    channels, empty, NaN, ``fs`` at most 8 kHz, shorter than 75 ms, or a band with no
+    sample beyond its peak or dip threshold (where afeRAA itself fails).
+    """
+    for name, value in constants.items():
+        if _non_finite(value):
+            raise ValueError(f"constant '{name}' is {value!r}: the RAA takes finite numbers")
+    if isinstance(ear_signals, (str, os.PathLike)):
+        x, file_fs = read_wav(ear_signals)
+        if fs is not None and float(fs) != file_fs:
+            raise ValueError(
+                f"fs = {fs} Hz, but '{os.fspath(ear_signals)}' is sampled at {file_fs} Hz"
+            )
+        fs = file_fs
+    elif fs is None:
+        raise ValueError("fs is required when the signal is an array")
+    else:
+        x = ear_signals
+    return _afe.raa(_as_channels(x), float(fs), _json(constants))
 
 
 from .corpus import Store, batch, open_store  # noqa: E402  (uses _params_json above)

@@ -62,6 +62,26 @@ __version__: str
 def requests() -> List[str]: ...
 def parameters(request: Optional[str] = ...) -> List[Dict[str, Any]]: ...
 def read_wav(path: Union[str, os.PathLike]) -> Tuple[np.ndarray, float]: ...
+def raa(
+    ear_signals: Audio,
+    fs: Optional[float] = ...,
+    *,
+    mu_psi: float = ...,
+    mu_psi_dip: float = ...,
+    T_min: float = ...,
+    a_P_REV: float = ...,
+    b_P_REV: float = ...,
+    a_P_CLA: float = ...,
+    b_P_CLA: float = ...,
+    mu_ASW: float = ...,
+    nu_ASW: float = ...,
+    a_P_ASW: float = ...,
+    b_P_ASW: float = ...,
+    mu_LEV: float = ...,
+    nu_LEV: float = ...,
+    a_P_LEV: float = ...,
+    b_P_LEV: float = ...,
+) -> Tuple[Dict[str, float], Dict[str, Any]]: ...
 def process(
     signal: Audio,
     fs: Optional[float],

@@ -5,6 +5,7 @@
 
 mod batch;
 mod interrupt;
+mod raa;
 mod wire;
 
 use std::path::PathBuf;
@@ -622,6 +623,7 @@ fn _afe(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(process, m)?)?;
     m.add_function(wrap_pyfunction!(process_file, m)?)?;
     m.add_function(wrap_pyfunction!(read_wav, m)?)?;
+    m.add_function(wrap_pyfunction!(raa::raa, m)?)?;
     m.add_function(wrap_pyfunction!(batch::batch_run, m)?)?;
     m.add_function(wrap_pyfunction!(batch::batch_plan, m)?)?;
     m.add_function(wrap_pyfunction!(batch::batch_compute, m)?)?;

@@ -243,6 +243,16 @@ def test_demo_duet(run):
         assert n[f"{source}_delta_samples"] == pytest.approx(delay, abs=n["delta_bin_samples"])
 
 
+def test_demo_raa(run):
+    n = run("demo_raa")
+    assert n["max_par_rel_error_vs_afe"] < 1e-6  # the AFE's afeRAA on the same file
+    for scaled in ("sREV", "sClar", "sASW", "sLEV"):
+        assert 0.0 <= n[scaled] <= 1.0
+    assert n["pClar"] == pytest.approx(n["FL"] / n["BL"], rel=1e-12)
+    # a reverberant room: the direct streams hold a minority of the samples
+    assert 0.0 < n["direct_fraction_left"] < 0.5 and 0.0 < n["direct_fraction_right"] < 0.5
+
+
 def test_demo_runs_as_a_script(tmp_path):
     """``python demo_x.py OUTDIR`` writes the figure there and prints the key numbers."""
     script = os.path.join(DEMOS_DIR, "demo_ild.py")

@@ -1,0 +1,56 @@
+//! `afe.raa`: the AFE's Room Acoustic Analyzer (`afeRAA`) on a binaural array.
+
+use afe::raa::{RaaConstants, RaaError};
+use numpy::{PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::{columns, interrupt, owned_array, parse_params, to_py};
+
+/// The Python exception for an RAA error: the AFE's own mapping for the processing
+/// under it (an interrupt is a KeyboardInterrupt), `ValueError` for the input and the
+/// constants.
+fn raa_error(e: RaaError) -> PyErr {
+    match e {
+        RaaError::Afe(e) => to_py(e),
+        e => PyValueError::new_err(e.to_string()),
+    }
+}
+
+/// `(par, psi)` of `afeRAA(x, fs, parConf)` for the `[samples, 2]` signal `x` at `fs`
+/// Hz, with the constants of `constants_json` (AFE names) over the AFE's: `par` maps each
+/// predictor to a float; `psi` maps each array to a numpy array and `fs` (float),
+/// `numSamples`, `numBands`, `itdNumFrames` (ints).
+#[pyfunction]
+pub fn raa<'py>(
+    py: Python<'py>,
+    x: PyReadonlyArray2<'py, f64>,
+    fs: f64,
+    constants_json: &str,
+) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
+    let constants = RaaConstants::from_params(&parse_params(constants_json)?).map_err(raa_error)?;
+    if x.shape()[1] != 2 {
+        return Err(raa_error(RaaError::NotBinaural(x.shape()[1])));
+    }
+    let ears = columns(&x);
+    let out = interrupt::interruptible(py, || {
+        let refs: Vec<&[f64]> = ears.iter().map(Vec::as_slice).collect();
+        afe::raa::raa(&refs, fs, &constants)
+    })?
+    .map_err(raa_error)?;
+    drop(ears);
+    let par = PyDict::new(py);
+    for f in out.par.fields() {
+        par.set_item(f.name, f.value)?;
+    }
+    let psi = PyDict::new(py);
+    for (name, shape, data) in out.psi.arrays() {
+        psi.set_item(name, owned_array(py, &shape, data.to_vec(), false)?)?;
+    }
+    psi.set_item("fs", out.psi.fs)?;
+    psi.set_item("numSamples", out.psi.num_samples)?;
+    psi.set_item("numBands", out.psi.num_bands)?;
+    psi.set_item("itdNumFrames", out.psi.itd_num_frames)?;
+    Ok((par, psi))
+}
