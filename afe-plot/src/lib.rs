@@ -90,7 +90,7 @@ impl Default for Layout {
     }
 }
 
-/// The AFE's `wavPlotZoom` default: the largest value of a stacked waveform lies half
+/// The AFE's `wavPlotZoom` default: the largest magnitude of a stacked waveform lies half
 /// this many channel spacings from its channel's line.
 const WAV_PLOT_ZOOM: f64 = 5.0;
 
@@ -351,7 +351,7 @@ fn is_waveform(s: &Recorded) -> bool {
 
 /// The channels of an audio-rate signal as the AFE's `waveplot` stacks them: each
 /// channel brought to zero mean and unit variance, all on one scale on which the largest
-/// value lies `WAV_PLOT_ZOOM / 2` channel spacings from its channel's line; each trace
+/// magnitude lies `WAV_PLOT_ZOOM / 2` channel spacings from its channel's line; each trace
 /// runs down and up every pixel column, from its smallest value to its largest.
 fn stacked(s: &Recorded, columns: usize) -> Content {
     let (frames, width) = (s.data.frames(), s.data.width());

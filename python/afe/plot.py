@@ -23,8 +23,8 @@ import numpy as np
 
 from .signal import Signal
 
-#: The AFE's ``wavPlotZoom`` default: the largest value of a stacked waveform reaches
-#: half this many channel spacings above its channel's line.
+#: The AFE's ``wavPlotZoom`` default: the largest magnitude of a stacked waveform lies
+#: half this many channel spacings from its channel's line.
 WAV_PLOT_ZOOM = 5.0
 
 
@@ -96,7 +96,7 @@ def _waveforms(fig: Any, ax: Any, s: Signal, values: np.ndarray, t: np.ndarray, 
         return
     if waveforms:
         # as the AFE's waveplot: each channel to zero mean and unit variance, then one
-        # scale for all, the largest value reaching zoom/2 channel spacings
+        # scale for all, the largest magnitude reaching zoom/2 channel spacings
         mean, std = values.mean(axis=0), values.std(axis=0)
         std = np.where(np.isfinite(std) & (std > 0), std, 1.0)
         lo, hi = (lo - mean) / std, (hi - mean) / std
@@ -248,7 +248,7 @@ def plot(
     Signals at the input's sampling rate (``fs_hz == audio_fs_hz``: the ear signals,
     filterbank, inner-hair-cell and adaptation outputs) are drawn as waveforms, one trace
     per channel stacked over the centre frequencies, each channel brought to zero mean
-    and unit variance and all on one scale, as the AFE's ``waveplot``: the largest value
+    and unit variance and all on one scale, as the AFE's ``waveplot``: the largest magnitude
     lies ``wavPlotZoom / 2`` channel spacings from its channel's line (the AFE's 5).
     ``waveforms=False`` draws them as images instead, of the largest magnitude per pixel
     column, in dB where the signal's ``display`` gives a range. Both keep each pixel
