@@ -8,6 +8,7 @@ use serde_json::json;
 
 use crate::args::Requests;
 use crate::error::CliError;
+use crate::extract::StoredType;
 use crate::outln;
 
 /// `afe batch INPUT... -r ... -o STORE`, or `afe batch status STORE`.
@@ -74,7 +75,11 @@ struct BatchFlags {
     /// Store layout: Zarr v3, or one .npz per file (as `afe extract` writes it).
     #[arg(long, value_name = "zarr|npz", default_value = "zarr")]
     format: String,
-    /// Replace the contents of a store made with other requests or parameters.
+    /// How the values are stored: f64 as computed, or f32 (each value rounded; half the
+    /// disk). A store keeps one type: a run with the other is refused.
+    #[arg(long, value_enum, default_value_t = StoredType::F64)]
+    dtype: StoredType,
+    /// Replace the contents of a store made with other requests, parameters or type.
     #[arg(long)]
     overwrite: bool,
 }
@@ -99,6 +104,7 @@ fn batch(
         requests,
         params,
         format: args.format.parse()?,
+        dtype: args.dtype.into(),
     };
     let options = BatchOptions {
         workers: args.jobs.map_or(0, |j| j as usize),
@@ -134,6 +140,7 @@ fn batch_status(store: &Path, as_json: bool) -> Result<(), CliError> {
             "requests": spec.requests,
             "params": spec.params,
             "param_hash": spec.param_hash(),
+            "dtype": spec.dtype.name(false),
             "done": done.len(),
             "audio_s": audio_s,
             "failed": failed.iter().map(|r| r.to_json()).collect::<Vec<_>>(),
@@ -142,10 +149,11 @@ fn batch_status(store: &Path, as_json: bool) -> Result<(), CliError> {
         return Ok(());
     }
     outln!(
-        "{}: {} store of {} with {} (hash {})",
+        "{}: {} store of {} ({}) with {} (hash {})",
         store.display(),
         spec.format.as_str(),
         spec.requests.join(","),
+        spec.dtype.name(false),
         serde_json::to_string(&spec.params).unwrap_or_default(),
         spec.param_hash()
     );

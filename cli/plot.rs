@@ -21,6 +21,11 @@ pub(crate) struct PlotArgs {
     /// drawn (default: the middle of the signal).
     #[arg(long, value_name = "S")]
     at: Option<f64>,
+    /// Audio-rate signals of several channels (filterbank, inner hair cell, adaptation)
+    /// as images of their largest magnitude per pixel column, in dB, instead of stacked
+    /// waveforms.
+    #[arg(long)]
+    images: bool,
     /// Figure width in pixels.
     #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u32).range(300..=10_000))]
     width: u32,
@@ -37,28 +42,23 @@ impl PlotArgs {
             params,
             ..Job::default()
         };
-        plot(&self.input, &job, self.at, self.width, &self.output)
+        let layout = afe_plot::Layout {
+            width: self.width,
+            at_s: self.at,
+            waveforms: !self.images,
+            ..afe_plot::Layout::default()
+        };
+        plot(&self.input, &job, &layout, &self.output)
     }
 }
 
-fn plot(
-    input: &Path,
-    job: &Job,
-    at: Option<f64>,
-    width: u32,
-    output: &Path,
-) -> Result<(), CliError> {
+fn plot(input: &Path, job: &Job, layout: &afe_plot::Layout, output: &Path) -> Result<(), CliError> {
     let format = afe_plot::Format::of(output)?;
     let output = checked_output(output, input)?;
     let mut wav = open_input(input)?;
     let mut mgr = Manager::new(wav.fs(), wav.channels())?;
     let rec = run_wav(&mut mgr, job, &mut wav)?;
-    let layout = afe_plot::Layout {
-        width,
-        at_s: at,
-        ..afe_plot::Layout::default()
-    };
-    let figure = afe_plot::render(&rec, format, &layout)?;
+    let figure = afe_plot::render(&rec, format, layout)?;
     output.write(|file| file.write_all(&figure))?;
     outln!(
         "drew {} panel(s) to {}",

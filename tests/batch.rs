@@ -780,6 +780,61 @@ fn npz_and_zarr_stores_of_a_whole_signal_graph_equal_extract() {
 }
 
 #[test]
+fn float32_stores_hold_the_extracted_values_rounded_and_keep_their_type() {
+    let tmp = TempDir::new("f32");
+    let corpus = tmp.join("corpus");
+    let ids = good_corpus(&corpus, 3);
+    // the STFT is complex: complex64 in a float32 store
+    let params = ["-r", "ratemap,stft", "-p", "fb_nChannels=8"];
+    let npz_store = tmp.join("store-npz");
+    let zarr_store = tmp.join("store.zarr");
+    let batch = |store: &Path, format: &str, dtype: &str| {
+        let mut args = vec!["batch", s(&corpus), "-o", s(store), "--format", format];
+        args.extend(params);
+        args.extend(["--dtype", dtype, "--progress", "none"]);
+        afe(&args)
+    };
+    for (store, format) in [(&npz_store, "npz"), (&zarr_store, "zarr")] {
+        assert!(batch(store, format, "f32").status.success());
+        assert_eq!(status(store)["dtype"], "float32");
+    }
+    let npz = tmp.join("x.npz");
+    for id in &ids {
+        let mut wide = params.to_vec();
+        wide.extend(["--dtype", "f64"]);
+        let want: Arrays = extracted(&corpus.join(id), &wide, &npz)
+            .into_iter()
+            .map(|(k, shape, v)| (k, shape, v.iter().map(|&x| f64::from(x as f32)).collect()))
+            .collect();
+        assert_same(&npz_arrays(&npz_store.join(format!("{id}.npz"))), &want, id);
+        assert_same(&stored(&zarr_store, id), &sorted(want), id);
+        // stored as float32 (complex64), half the bytes, the description saying so
+        let meta = common::npz_metadata(&npz_store.join(format!("{id}.npz")));
+        let ear = if meta.get("ratemap_left").is_some() {
+            "left"
+        } else {
+            "mono"
+        };
+        assert_eq!(meta[format!("ratemap_{ear}")]["dtype"], "float32", "{id}");
+        assert_eq!(meta[format!("stft_{ear}")]["dtype"], "complex64", "{id}");
+        for (array, dtype) in [("ratemap", "float32"), ("stft", "complex64")] {
+            let folder = zarr_store.join(id).join(format!("{array}_{ear}"));
+            let text = std::fs::read(folder.join("zarr.json")).expect("array metadata");
+            let zarr: Value = serde_json::from_slice(&text).expect("json");
+            assert_eq!(zarr["data_type"], dtype, "{id} {array}");
+            assert_eq!(zarr["attributes"]["afe"]["dtype"], dtype, "{id} {array}");
+        }
+    }
+    // a store keeps one type: float64 into it is refused, naming both
+    let out = batch(&zarr_store, "zarr", "f64");
+    assert!(!out.status.success());
+    let err = stderr(&out);
+    for needle in ["of float32 with", "of float64 with", "--overwrite"] {
+        assert!(err.contains(needle), "'{needle}' not in: {err}");
+    }
+}
+
+#[test]
 fn failures_are_recorded_or_stop_the_run() {
     let tmp = TempDir::new("stop");
     let corpus = tmp.join("corpus");

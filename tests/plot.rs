@@ -148,3 +148,56 @@ fn svg_figures_draw_the_same_panels_and_bad_outputs_are_clear_errors() {
     ]);
     assert_clear_error(&out, "--at 7 s is outside crosscorrelation", &late);
 }
+
+/// The colours of panel `p`'s plot area (left of the colour bar) in a figure of `pixels`.
+fn plot_area(pixels: &[[u8; 3]], p: usize) -> Vec<[u8; 3]> {
+    pixels
+        .chunks_exact((WIDTH * PANEL) as usize)
+        .nth(p)
+        .expect("the panel")
+        .chunks_exact(WIDTH as usize)
+        .flat_map(|row| row[..(WIDTH - 110) as usize].iter().copied())
+        .collect()
+}
+
+#[test]
+fn audio_rate_channels_are_stacked_waveforms_unless_images_are_asked() {
+    let draw = |extra: &[&str]| {
+        let png = tmp(&format!("ihc{}.png", extra.len()));
+        let mut args = vec![
+            "plot",
+            EXAMPLE,
+            "-r",
+            "innerhaircell",
+            "-p",
+            "fb_nChannels=16",
+        ];
+        args.extend(extra);
+        args.extend(["-o", png.to_str().expect("path")]);
+        let out = afe(&args);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        decode(&png).2
+    };
+    let chromatic = |area: &[[u8; 3]]| -> HashSet<[u8; 3]> {
+        area.iter()
+            .copied()
+            .filter(|c| c[0] != c[1] || c[1] != c[2])
+            .collect()
+    };
+    // waveforms: traces in blue (its blends with the white background at their
+    // edges), many pixels of it (the envelope of 44 100 samples in each of 16
+    // channels), no colour map
+    let waves = plot_area(&draw(&[]), 0);
+    let traces = waves.iter().filter(|c| **c == [0, 0, 255]).count();
+    let blue_or_blend = |c: &[u8; 3]| c[0] == c[1] && c[2] == 255;
+    assert!(chromatic(&waves).iter().all(blue_or_blend));
+    assert!(traces > 10_000, "{traces} trace pixels");
+    // images: the colour map's many colours
+    let image = plot_area(&draw(&["--images"]), 0);
+    let mapped = chromatic(&image);
+    assert!(mapped.iter().filter(|c| !blue_or_blend(c)).count() > 50);
+}

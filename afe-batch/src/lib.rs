@@ -8,6 +8,7 @@
 //!     requests: vec!["ratemap".into(), "ild".into()],
 //!     params: afe::ParamMap::new(),
 //!     format: Format::Zarr,
+//!     dtype: afe::npy::Dtype::Float64,
 //! };
 //! let summary = run(&["corpus/".into()], "features.zarr".as_ref(), &spec, &BatchOptions::default())?;
 //! println!("{}", summary.text());

@@ -1,7 +1,8 @@
 //! The corpus store: a Zarr v3 hierarchy (one group per file id, one float64 or
-//! complex128 array per output, written chunk by chunk as the output comes), or a folder
-//! of per-file `.npz` files in the `afe extract` layout. Its root records the requests
-//! and parameters and their hash, so a second run with others is refused.
+//! complex128 array per output, or float32 or complex64 rounded from them, written chunk
+//! by chunk as the output comes), or a folder of per-file `.npz` files in the `afe
+//! extract` layout. Its root records the requests, the parameters and their hash and the
+//! stored type, so a second run with others is refused.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -17,6 +18,7 @@ use zarrs::group::{Group, GroupBuilder};
 use super::inputs::{fnv1a, InputFile};
 use super::BatchError;
 use afe::extract::Sink;
+use afe::npy::Dtype;
 use afe::output::OutputFile;
 use afe::Recorder;
 
@@ -71,6 +73,8 @@ pub struct StoreSpec {
     pub params: ParamMap,
     /// The layout.
     pub format: Format,
+    /// How the values are stored: float64 as computed, or rounded to float32.
+    pub dtype: Dtype,
 }
 
 impl StoreSpec {
@@ -91,6 +95,7 @@ impl StoreSpec {
             "requests": self.requests,
             "params": self.params,
             "param_hash": self.param_hash(),
+            "dtype": self.dtype.name(false),
         })
     }
 
@@ -109,6 +114,12 @@ impl StoreSpec {
                 .map(|(k, v)| (k.clone(), v.clone()))
                 .collect(),
             format: v.get("format")?.as_str()?.parse().ok()?,
+            // stores written before float32 existed hold float64
+            dtype: match v.get("dtype").and_then(Value::as_str) {
+                None | Some("float64") => Dtype::Float64,
+                Some("float32") => Dtype::Float32,
+                Some(_) => return None,
+            },
         })
     }
 }
@@ -134,7 +145,9 @@ impl Store {
         }
         match read_spec(root)? {
             Some(found)
-                if found.param_hash() == spec.param_hash() && found.format == spec.format =>
+                if found.param_hash() == spec.param_hash()
+                    && found.format == spec.format
+                    && found.dtype == spec.dtype =>
             {
                 return Store::with(root, found);
             }
@@ -271,12 +284,14 @@ impl Store {
                     group: path,
                     root: &self.root,
                     audio_s: file.audio_s,
+                    dtype: self.spec.dtype,
                     arrays: Vec::new(),
                 }))
             }
             None => Ok(FileWriter::Npz {
                 rec: Recorder::new(false),
                 path: self.file_path(&file.id),
+                dtype: self.spec.dtype,
             }),
         }
     }
@@ -316,9 +331,10 @@ fn read_spec(root: &Path) -> Result<Option<StoreSpec>, BatchError> {
 
 fn describe(spec: &StoreSpec) -> String {
     format!(
-        "{} as {} with {} (hash {})",
+        "{} as {} of {} with {} (hash {})",
         spec.requests.join(","),
         spec.format.as_str(),
+        spec.dtype.name(false),
         serde_json::to_string(&spec.params).unwrap_or_default(),
         spec.param_hash()
     )
@@ -335,6 +351,8 @@ pub enum FileWriter<'a> {
         rec: Recorder,
         /// The file written at the end.
         path: PathBuf,
+        /// How its values are stored.
+        dtype: Dtype,
     },
 }
 
@@ -351,12 +369,12 @@ impl FileWriter<'_> {
     pub fn finish(self) -> Result<(), BatchError> {
         match self {
             FileWriter::Zarr(z) => z.finish(),
-            FileWriter::Npz { rec, path } => {
+            FileWriter::Npz { rec, path, dtype } => {
                 if let Some(dir) = path.parent() {
                     std::fs::create_dir_all(dir).map_err(|e| BatchError::store(dir, &e))?;
                 }
                 let out = OutputFile::check(&path).map_err(|e| BatchError::store(&path, &e))?;
-                out.write(|f| rec.write_npz(f))
+                out.write(|f| rec.write_npz_as(f, dtype))
                     .map_err(|e| BatchError::store(&path, &e))
             }
         }
@@ -398,6 +416,8 @@ pub struct ZarrFile<'a> {
     root: &'a Path,
     /// The file's duration in seconds, to size the chunks.
     audio_s: f64,
+    /// How the values are stored.
+    dtype: Dtype,
     arrays: Vec<ArrayOut>,
 }
 
@@ -409,6 +429,8 @@ struct ArrayOut {
     frame_shape: Vec<u64>,
     /// `f64` values per row (two per complex value).
     width: usize,
+    /// How the values are stored.
+    dtype: Dtype,
     rows_per_chunk: usize,
     buf: Vec<f64>,
     chunks: u64,
@@ -461,18 +483,25 @@ impl ZarrFile<'_> {
         } else {
             usize::MAX
         };
-        let rows_per_chunk = (CHUNK_BYTES / 8 / width.max(1)).clamp(1, expected.max(1));
+        let bytes = match self.dtype {
+            Dtype::Float64 => 8,
+            Dtype::Float32 => 4,
+        };
+        let rows_per_chunk = (CHUNK_BYTES / bytes / width.max(1)).clamp(1, expected.max(1));
         let mut shape = vec![0];
         shape.extend(&frame_shape);
         let mut chunk_shape = vec![rows_per_chunk as u64];
         chunk_shape.extend(frame_shape.iter().map(|&n| n.max(1)));
-        let (dtype, size) = if complex {
-            (DataType::Complex128, 16)
-        } else {
-            (DataType::Float64, 8)
+        let (dtype, size) = match (self.dtype, complex) {
+            (Dtype::Float64, true) => (DataType::Complex128, 16),
+            (Dtype::Float64, false) => (DataType::Float64, 8),
+            (Dtype::Float32, true) => (DataType::Complex64, 8),
+            (Dtype::Float32, false) => (DataType::Float32, 4),
         };
+        let mut described = afe::metadata::describe(manager, s);
+        described["dtype"] = Value::from(self.dtype.name(complex));
         let mut attrs = serde_json::Map::new();
-        attrs.insert("afe".into(), afe::metadata::describe(manager, s));
+        attrs.insert("afe".into(), described);
         let array = ArrayBuilder::new(shape, chunk_shape, dtype, FillValue::new(vec![0; size]))
             .dimension_names(Some(s.info.kind.axes().to_vec()))
             .attributes(attrs)
@@ -486,6 +515,7 @@ impl ZarrFile<'_> {
             array,
             frame_shape,
             width,
+            dtype: self.dtype,
             rows_per_chunk,
             buf: Vec::new(),
             chunks: 0,
@@ -527,7 +557,13 @@ impl ArrayOut {
         self.array.set_shape(shape)?;
         let mut indices = vec![self.chunks];
         indices.extend(self.frame_shape.iter().map(|_| 0));
-        let bytes: Vec<u8> = chunk.iter().flat_map(|v| v.to_ne_bytes()).collect();
+        let bytes: Vec<u8> = match self.dtype {
+            Dtype::Float64 => chunk.iter().flat_map(|v| v.to_ne_bytes()).collect(),
+            Dtype::Float32 => chunk
+                .iter()
+                .flat_map(|v| (*v as f32).to_ne_bytes())
+                .collect(),
+        };
         self.array.store_chunk(&indices, bytes)?;
         self.chunks += 1;
         self.rows += rows as u64;
@@ -535,8 +571,8 @@ impl ArrayOut {
     }
 }
 
-/// One array read back from a store: its shape, values (complex as re, im pairs) and
-/// metadata.
+/// One array read back from a store: its shape, values (complex as re, im pairs; float32
+/// ones widened, their `info` saying `float32` or `complex64`) and metadata.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StoredArray {
     /// Output name, e.g. `ratemap_left`.
@@ -574,10 +610,18 @@ impl Store {
                 .map_err(|e| BatchError::store(&self.root, &e))?
                 .into_fixed()
                 .map_err(|e| BatchError::store(&self.root, &e))?;
-            let data = bytes
-                .chunks_exact(8)
-                .map(|b| f64::from_ne_bytes(b.try_into().unwrap_or([0; 8])))
-                .collect();
+            let narrow = matches!(array.data_type(), DataType::Float32 | DataType::Complex64);
+            let data = if narrow {
+                bytes
+                    .chunks_exact(4)
+                    .map(|b| f64::from(f32::from_ne_bytes(b.try_into().unwrap_or([0; 4]))))
+                    .collect()
+            } else {
+                bytes
+                    .chunks_exact(8)
+                    .map(|b| f64::from_ne_bytes(b.try_into().unwrap_or([0; 8])))
+                    .collect()
+            };
             out.push(StoredArray {
                 key: array
                     .path()

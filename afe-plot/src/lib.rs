@@ -4,6 +4,13 @@
 //! vectors as z-scores, correlations, modulation spectra and the DUET histogram as images
 //! at a chosen time — with axes in seconds and Hz and a colour bar with its unit. PNG or
 //! SVG, chosen by the output's extension.
+//!
+//! Signals at the input's sampling rate (the filterbank, inner-hair-cell and adaptation
+//! outputs: whatever `fs_hz` equals `audio_fs_hz` for) are drawn as the AFE's `waveplot`
+//! draws them, one trace per channel stacked over the centre frequencies, or (with
+//! [`Layout::waveforms`] off) as images of their largest magnitudes. Either way they are
+//! first reduced to the figure's pixel columns by [`envelope`], which keeps the smallest
+//! and the largest value of each column, so that no peak is lost.
 
 use std::path::Path;
 
@@ -66,6 +73,10 @@ pub struct Layout {
     /// Time (s) at which correlations, modulation spectra and DUET histograms are drawn
     /// (`None`: the middle of the signal).
     pub at_s: Option<f64>,
+    /// Audio-rate signals of several channels as stacked waveforms (`true`) or as images
+    /// of their largest magnitude per pixel column, in dB where their display gives a
+    /// range (`false`).
+    pub waveforms: bool,
 }
 
 impl Default for Layout {
@@ -74,9 +85,14 @@ impl Default for Layout {
             width: 1000,
             panel_height: 230,
             at_s: None,
+            waveforms: true,
         }
     }
 }
+
+/// The AFE's `wavPlotZoom` default: the largest magnitude of a stacked waveform lies half
+/// this many channel spacings from its channel's line.
+const WAV_PLOT_ZOOM: f64 = 5.0;
 
 /// Longest image axis drawn, in cells: longer signals are reduced by block maxima.
 const MAX_COLUMNS: usize = 1000;
@@ -151,6 +167,18 @@ enum Content {
         x: Vec<f64>,
         y: Vec<f64>,
         y_label: String,
+        /// Line width in pixels: 1 for a waveform's envelope, whose steep reversals a
+        /// wider line would draw with spikes (mitred joins) far beyond the values.
+        stroke: u32,
+    },
+    /// Stacked waveforms: channel `k`'s trace runs around height `k` over the times `x`.
+    Waves {
+        x: Vec<f64>,
+        traces: Vec<Vec<f64>>,
+        /// Centre frequency of each channel.
+        row_labels: Vec<String>,
+        /// How far (in channel spacings) the traces may reach beyond the outer channels.
+        reach: f64,
     },
 }
 
@@ -186,7 +214,7 @@ pub fn render(rec: &Recorder, format: Format, layout: &Layout) -> Result<Vec<u8>
     let panels = rec
         .signals()
         .iter()
-        .map(|s| panel(s, layout.at_s))
+        .map(|s| panel(s, layout))
         .collect::<Result<Vec<_>, _>>()?;
     if panels.is_empty() {
         return Err(PlotError::Empty);
@@ -276,6 +304,108 @@ fn over_time(values: &[f64], frames: usize, width: usize, abs_max: bool) -> (Vec
     (out, cols)
 }
 
+/// The rows of a `frames × width` signal (row-major) reduced to at most `columns`
+/// columns, as `(starts, lo, hi)`: the first row of each column, and the smallest and the
+/// largest value of each channel over the column's rows (`columns × width`, row-major;
+/// NaN ignored, and left only where a column holds nothing else). With no more rows than
+/// columns each row is its own column.
+pub fn envelope(
+    values: &[f64],
+    frames: usize,
+    width: usize,
+    columns: usize,
+) -> (Vec<usize>, Vec<f64>, Vec<f64>) {
+    let cols = frames.min(columns.max(1));
+    let starts: Vec<usize> = (0..cols).map(|c| c * frames / cols).collect();
+    let mut lo = vec![f64::NAN; cols * width];
+    let mut hi = vec![f64::NAN; cols * width];
+    for (c, &start) in starts.iter().enumerate() {
+        let end = starts.get(c + 1).copied().unwrap_or(frames);
+        let (lo, hi) = (
+            &mut lo[c * width..(c + 1) * width],
+            &mut hi[c * width..(c + 1) * width],
+        );
+        for row in values[start * width..end * width].chunks_exact(width) {
+            for ((l, h), &v) in lo.iter_mut().zip(hi.iter_mut()).zip(row) {
+                // min and max take the number where one side is NaN
+                *l = l.min(v);
+                *h = h.max(v);
+            }
+        }
+    }
+    (starts, lo, hi)
+}
+
+/// Whether `s` is a waveform: values at the input's sampling rate, drawn on a linear or
+/// an amplitude-in-dB scale, of the time-domain or time-frequency kind.
+fn is_waveform(s: &Recorded) -> bool {
+    matches!(
+        s.info.kind,
+        SignalKind::TimeDomain | SignalKind::TimeFrequency
+    ) && s.info.fs_hz == s.info.audio_fs_hz
+        && matches!(
+            s.info.display,
+            DrawAs::Linear | DrawAs::AmplitudeDecibels { .. }
+        )
+}
+
+/// The channels of an audio-rate signal as the AFE's `waveplot` stacks them: each
+/// channel brought to zero mean and unit variance, all on one scale on which the largest
+/// magnitude lies `WAV_PLOT_ZOOM / 2` channel spacings from its channel's line; each trace
+/// runs down and up every pixel column, from its smallest value to its largest.
+fn stacked(s: &Recorded, columns: usize) -> Content {
+    let (frames, width) = (s.data.frames(), s.data.width());
+    let values = s.data.as_slice();
+    let (starts, lo, hi) = envelope(values, frames, width, columns);
+    let t: Vec<f64> = times(s).collect();
+    let x: Vec<f64> = starts.iter().flat_map(|&k| [t[k], t[k]]).collect();
+    let n = frames.max(1) as f64;
+    let moments: Vec<(f64, f64)> = (0..width)
+        .map(|ch| {
+            let col = || values.iter().skip(ch).step_by(width);
+            let mean = col().sum::<f64>() / n;
+            let sd = (col().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();
+            (mean, if sd.is_finite() && sd > 0.0 { sd } else { 1.0 })
+        })
+        .collect();
+    let normal = |i: usize, v: f64| (v - moments[i % width].0) / moments[i % width].1;
+    let peak = lo
+        .iter()
+        .chain(&hi)
+        .enumerate()
+        .map(|(i, v)| normal(i, *v).abs())
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max);
+    let scale = if peak > 0.0 {
+        0.5 * WAV_PLOT_ZOOM / peak
+    } else {
+        0.0
+    };
+    let traces = (0..width)
+        .map(|ch| {
+            (0..starts.len())
+                .flat_map(|c| [lo[c * width + ch], hi[c * width + ch]])
+                .map(|v| ch as f64 + scale * normal(ch, v))
+                .collect()
+        })
+        .collect();
+    Content::Waves {
+        x,
+        traces,
+        row_labels: channel_labels(s, width),
+        reach: 0.5 * WAV_PLOT_ZOOM,
+    }
+}
+
+/// Labels of a signal's channels: centre frequencies, or channel numbers.
+fn channel_labels(s: &Recorded, width: usize) -> Vec<String> {
+    if s.info.cf_hz.len() == width {
+        cf_labels(&s.info.cf_hz)
+    } else {
+        (0..width).map(|c| c.to_string()).collect()
+    }
+}
+
 fn finite_range(values: &[f64]) -> (f64, f64) {
     let (lo, hi) = values
         .iter()
@@ -325,7 +455,9 @@ fn frame_at(s: &Recorded, at: Option<f64>) -> Result<(usize, f64), PlotError> {
 }
 
 /// What to draw for signal `s`.
-fn panel(s: &Recorded, at: Option<f64>) -> Result<Panel, PlotError> {
+fn panel(s: &Recorded, layout: &Layout) -> Result<Panel, PlotError> {
+    let at = layout.at_s;
+    let columns = layout.width as usize;
     let name = s.description["name"].as_str().unwrap_or(&s.key).to_string();
     let unit = unit_of(s);
     let frames = s.data.frames();
@@ -335,41 +467,48 @@ fn panel(s: &Recorded, at: Option<f64>) -> Result<Panel, PlotError> {
     let mut title = s.key.clone();
     let content = match s.info.kind {
         SignalKind::TimeDomain if width == 1 => {
-            let (x, y) = line_reduced(s);
+            let (x, y) = line_reduced(s, columns);
             Content::Line {
                 x,
                 y,
                 y_label: "amplitude".into(),
+                stroke: 1,
             }
         }
+        _ if is_waveform(s) && layout.waveforms && frames > 0 => stacked(s, columns),
         SignalKind::TimeDomain | SignalKind::TimeFrequency | SignalKind::BinaryMask => {
             let full_rate = frames > MAX_COLUMNS && s.info.fs_hz == s.info.audio_fs_hz;
             let (mut cells, cols) = over_time(values, frames, width, full_rate);
-            let (lo, hi, map, unit) = if let DrawAs::PowerDecibels { range_db } = s.info.display {
-                cells
-                    .iter_mut()
-                    .for_each(|v| *v = 10.0 * v.max(1e-30).log10());
-                let peak = finite_range(&cells).1;
-                (peak - range_db, peak, Map::Sequential, "dB".to_string())
-            } else if s.info.kind == SignalKind::BinaryMask {
-                (0.0, 1.0, Map::Grey, "mask".to_string())
-            } else if s.info.display == DrawAs::Signed {
-                let (lo, hi) = symmetric(&cells);
-                (lo, hi, Map::Diverging, unit)
-            } else {
-                let (lo, hi) = finite_range(&cells);
-                let unit = if full_rate {
-                    format!("largest |value| {unit}")
+            let (lo, hi, map, unit) =
+                if let (true, Some(range_db)) = (full_rate, s.info.display.range_db()) {
+                    // largest magnitudes of a wide dynamic range, in dB
+                    cells
+                        .iter_mut()
+                        .for_each(|v| *v = 20.0 * v.max(1e-300).log10());
+                    let peak = finite_range(&cells).1;
+                    let unit = "dB (largest |value|)".to_string();
+                    (peak - range_db, peak, Map::Sequential, unit)
+                } else if let DrawAs::PowerDecibels { range_db } = s.info.display {
+                    cells
+                        .iter_mut()
+                        .for_each(|v| *v = 10.0 * v.max(1e-30).log10());
+                    let peak = finite_range(&cells).1;
+                    (peak - range_db, peak, Map::Sequential, "dB".to_string())
+                } else if s.info.kind == SignalKind::BinaryMask {
+                    (0.0, 1.0, Map::Grey, "mask".to_string())
+                } else if s.info.display == DrawAs::Signed {
+                    let (lo, hi) = symmetric(&cells);
+                    (lo, hi, Map::Diverging, unit)
                 } else {
-                    unit
+                    let (lo, hi) = finite_range(&cells);
+                    let unit = if full_rate {
+                        format!("largest |value| {unit}")
+                    } else {
+                        unit
+                    };
+                    (lo, hi, Map::Sequential, unit)
                 };
-                (lo, hi, Map::Sequential, unit)
-            };
-            let row_labels = if s.info.cf_hz.len() == width {
-                cf_labels(&s.info.cf_hz)
-            } else {
-                (0..width).map(|c| c.to_string()).collect()
-            };
+            let row_labels = channel_labels(s, width);
             Content::Image(Image {
                 values: cells,
                 rows: width,
@@ -410,6 +549,7 @@ fn panel(s: &Recorded, at: Option<f64>) -> Result<Panel, PlotError> {
         SignalKind::Feature if s.info.display == DrawAs::Trajectory => Content::Line {
             x: times(s).collect(),
             y: values.chunks_exact(width).map(|row| row[0]).collect(),
+            stroke: 2,
             y_label: format!(
                 "{} ({unit})",
                 s.info
@@ -514,19 +654,14 @@ fn panel(s: &Recorded, at: Option<f64>) -> Result<Panel, PlotError> {
     Ok(Panel { title, content })
 }
 
-/// A waveform reduced to the minimum and maximum of each block, at most 2·[`MAX_COLUMNS`]
-/// points.
-fn line_reduced(s: &Recorded) -> (Vec<f64>, Vec<f64>) {
+/// A waveform reduced to the minimum and maximum of each of at most `columns` columns
+/// ([`envelope`]), running down and up each column.
+fn line_reduced(s: &Recorded, columns: usize) -> (Vec<f64>, Vec<f64>) {
     let values = s.data.as_slice();
     let t: Vec<f64> = times(s).collect();
-    let block = values.len().div_ceil(MAX_COLUMNS).max(1);
-    let mut x = Vec::new();
-    let mut y = Vec::new();
-    for (ts, vs) in t.chunks(block).zip(values.chunks(block)) {
-        let (lo, hi) = finite_range(vs);
-        x.extend([ts[0], ts[ts.len() - 1]]);
-        y.extend([lo, hi]);
-    }
+    let (starts, lo, hi) = envelope(values, values.len(), 1, columns);
+    let x = starts.iter().flat_map(|&k| [t[k], t[k]]).collect();
+    let y = lo.iter().zip(&hi).flat_map(|(l, h)| [*l, *h]).collect();
     (x, y)
 }
 
@@ -547,7 +682,12 @@ fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, p: &Panel) -> D
     let (w, _) = area.dim_in_pixel();
     let (main, bar) = area.split_horizontally(w.saturating_sub(110));
     match &p.content {
-        Content::Line { x, y, y_label } => {
+        Content::Line {
+            x,
+            y,
+            y_label,
+            stroke,
+        } => {
             let (x0, x1) = finite_range(x);
             let (y0, y1) = finite_range(y);
             let pad = 0.05 * (y1 - y0);
@@ -571,8 +711,47 @@ fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, p: &Panel) -> D
                 if run.len() == 1 {
                     chart.draw_series(std::iter::once(Circle::new(run[0], 2, BLUE.filled())))?;
                 } else if !run.is_empty() {
-                    let style = BLUE.stroke_width(2);
+                    let style = BLUE.stroke_width(*stroke);
                     chart.draw_series(LineSeries::new(run.iter().copied(), style))?;
+                }
+            }
+        }
+        Content::Waves {
+            x,
+            traces,
+            row_labels,
+            reach,
+        } => {
+            let (x0, x1) = finite_range(x);
+            let rows = traces.len() as f64;
+            let mut chart = ChartBuilder::on(&main)
+                .caption(&p.title, ("sans-serif", 15))
+                .margin(6)
+                .x_label_area_size(32)
+                .y_label_area_size(70)
+                .build_cartesian_2d(x0..x1, -0.5 - reach..rows - 0.5 + reach)?;
+            chart
+                .configure_mesh()
+                .disable_mesh()
+                .x_desc("time (s)")
+                .y_desc("centre frequency (Hz)")
+                .y_labels(6.min(traces.len()) + 2)
+                .y_label_formatter(&|v| {
+                    // only the channels' own lines are labelled
+                    let i = v.round();
+                    match row_labels.get(i as usize) {
+                        Some(label) if (v - i).abs() < 1e-6 && i >= 0.0 => label.clone(),
+                        _ => String::new(),
+                    }
+                })
+                .label_style(("sans-serif", 11))
+                .draw()?;
+            for trace in traces {
+                let points: Vec<(f64, f64)> =
+                    x.iter().copied().zip(trace.iter().copied()).collect();
+                for run in points.split(|(_, v)| !v.is_finite()) {
+                    chart
+                        .draw_series(LineSeries::new(run.iter().copied(), BLUE.stroke_width(1)))?;
                 }
             }
         }
@@ -685,6 +864,97 @@ mod tests {
         assert_eq!(cells[cols], 1.0);
         assert_eq!(finite_range(&[f64::NAN, 2.0, -1.0]), (-1.0, 2.0));
         assert_eq!(finite_range(&[3.0, 3.0]), (2.5, 3.5));
+    }
+
+    #[test]
+    fn the_envelope_keeps_each_columns_smallest_and_largest_value() {
+        // 10 007 rows of 2 channels into 333 columns of 30 or 31 rows
+        let mut values: Vec<f64> = (0..20_014).map(|i| ((i * 7919) % 1000) as f64).collect();
+        values[2 * 5003 + 1] = 4e3; // a one-row peak
+        values[2 * 17] = f64::NAN; // ignored beside the column's other values
+        let (starts, lo, hi) = envelope(&values, 10_007, 2, 333);
+        assert_eq!(starts.len(), 333);
+        for (c, &start) in starts.iter().enumerate() {
+            let end = starts.get(c + 1).copied().unwrap_or(10_007);
+            assert!((30..=31).contains(&(end - start)));
+            for ch in 0..2 {
+                let column: Vec<f64> = (start..end)
+                    .map(|r| values[2 * r + ch])
+                    .filter(|v| v.is_finite())
+                    .collect();
+                let (l, h) = finite_range(&column);
+                assert_eq!((lo[2 * c + ch], hi[2 * c + ch]), (l, h), "column {c}");
+            }
+        }
+        assert_eq!(hi.iter().copied().fold(0.0, f64::max), 4e3);
+        // no more rows than columns: each row its own column
+        let (starts, lo, hi) = envelope(&values[..20], 10, 2, 333);
+        assert_eq!(starts, (0..10).collect::<Vec<_>>());
+        assert_eq!((&lo[2..], &hi[2..]), (&values[2..20], &values[2..20]));
+    }
+
+    /// `requests` on a 16-channel filterbank of 0.2 s of noise at 16 kHz.
+    fn recorded(requests: &[&str]) -> Recorder {
+        let x: Vec<f64> = (0..3200u64)
+            .map(|i| ((i.wrapping_mul(2_654_435_761) % 1000) as f64 - 500.0) / 1e3)
+            .collect();
+        let job = afe::extract::Job {
+            requests: requests.iter().map(|r| r.to_string()).collect(),
+            params: [("fb_nChannels".to_string(), serde_json::json!(16))].into(),
+            ..afe::extract::Job::default()
+        };
+        let mut mgr = afe::Manager::new(16000.0, 1).expect("a mono manager");
+        afe::extract::run_with(&mut mgr, &job, &[&x]).expect("the run")
+    }
+
+    #[test]
+    fn audio_rate_channels_are_stacked_waveforms_unless_images_are_asked() {
+        let rec = recorded(&["innerhaircell", "ratemap"]);
+        let layout = Layout::default();
+        let [ihc, ratemap] = rec.signals() else {
+            panic!("two signals")
+        };
+        match panel(ihc, &layout).expect("a panel").content {
+            Content::Waves {
+                x,
+                traces,
+                row_labels,
+                reach,
+            } => {
+                // 3200 samples to 1000 columns, down and up each: 2000 points a trace
+                assert_eq!((x.len(), traces.len(), reach), (2000, 16, 2.5));
+                assert_eq!(row_labels[0], format!("{:.0}", ihc.info.cf_hz[0]));
+                // channel k runs around height k, its largest value at most 2.5 away
+                for (k, trace) in traces.iter().enumerate() {
+                    assert!(trace.iter().all(|y| (y - k as f64).abs() <= 2.5 + 1e-9));
+                }
+                let farthest = traces
+                    .iter()
+                    .enumerate()
+                    .flat_map(|(k, t)| t.iter().map(move |y| (y - k as f64).abs()))
+                    .fold(0.0, f64::max);
+                assert!((farthest - 2.5).abs() < 1e-9);
+            }
+            _ => panic!("the hair cell's output is not drawn as waveforms"),
+        }
+        assert!(matches!(
+            panel(ratemap, &layout).expect("a panel").content,
+            Content::Image(_)
+        ));
+        let images = Layout {
+            waveforms: false,
+            ..layout
+        };
+        match panel(ihc, &images).expect("a panel").content {
+            Content::Image(img) => {
+                assert_eq!((img.rows, img.unit.as_str()), (16, "dB (largest |value|)"));
+                assert!((img.hi - img.lo - 60.0).abs() < 1e-9);
+            }
+            _ => panic!("no image of the hair cell's output"),
+        }
+        assert!(!render(&rec, Format::Png, &layout)
+            .expect("a PNG")
+            .is_empty());
     }
 
     #[test]

@@ -140,13 +140,15 @@ def _as_channels(signal: Audio, channels: Optional[int] = None) -> np.ndarray:
             f"signal of shape {x.shape}: expected [samples] (mono) or [samples, 2] (left, right){hint}"
         )
     if channels is not None and x.shape[1] != channels:
-        hint = ""
-        if channels == 2 and raw.ndim == 1:
-            hint = ": give [samples, 2] (left, right), e.g. np.column_stack([left, right])"
-        elif channels == 1:
-            hint = ": give [samples] (or make the manager with channels=2)"
+        n = x.shape[0]
+        if channels == 2:
+            expected = "[samples, 2] (left, right)"
+            hint = f"give np.column_stack([left, right]) (shape ({n}, 2))"
+        else:
+            expected = "[samples]"
+            hint = f"pass one ear, x[:, 0] (shape ({n},)), or make the manager with channels=2"
         raise ValueError(
-            f"signal has {x.shape[1]} channel(s), but this manager was made for {channels}{hint}"
+            f"signal of shape {raw.shape}: this manager (channels={channels}) expects {expected}; {hint}"
         )
     return np.ascontiguousarray(x)
 
@@ -437,6 +439,15 @@ def process(
     x = _as_channels(signal)
     if x.shape[0] == 0:
         raise ValueError("the signal is empty")
+    if x.shape[1] == 1:
+        binaural = {r["name"] for r in _catalog() if r["binaural"]}
+        for i, (name, _) in enumerate(items):
+            if name in binaural:
+                raise ValueError(
+                    f"requests[{i}]: request '{name}' needs a binaural (two-channel) input, but the "
+                    f"signal has shape {np.shape(signal)}: give [samples, 2] (left, right), e.g. "
+                    f"np.column_stack([left, right]) (shape ({x.shape[0]}, 2))"
+                )
     arrays, meta = _afe.process(x, float(fs), *settings)
     return _signals(arrays, json.loads(meta))
 

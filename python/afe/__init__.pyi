@@ -56,6 +56,14 @@ class Signal(np.ndarray):
     def parameters(self) -> Dict[str, Any]: ...
     @property
     def processors(self) -> List[str]: ...
+    def plot(
+        self,
+        ax: Any = ...,
+        at: Optional[float] = ...,
+        waveforms: bool = ...,
+        wavPlotZoom: float = ...,
+        width: float = ...,
+    ) -> Any: ...
 
 __version__: str
 
@@ -133,6 +141,8 @@ def plot(
     out: Optional[Union[str, os.PathLike]] = ...,
     at: Optional[float] = ...,
     width: float = ...,
+    waveforms: bool = ...,
+    wavPlotZoom: float = ...,
 ) -> Any: ...
 
 class Frames:

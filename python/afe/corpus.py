@@ -57,6 +57,7 @@ def batch(
     on_error: str = "skip",
     progress: Optional[str] = None,
     format: str = "zarr",
+    dtype: str = "float64",
     overwrite: bool = False,
 ) -> Dict[str, Any]:
     """Computes ``requests`` for every WAV file of ``inputs`` into the store ``out``.
@@ -65,7 +66,9 @@ def batch(
     manifests (one ``id<TAB>path`` per line); a file's id is its path relative to its
     input. ``params``: AFE parameters shared by the requests. ``out``: the store folder
     (Zarr v3, one group per file id and one array per output; ``format="npz"`` writes one
-    ``.npz`` per file as ``afe extract`` does).
+    ``.npz`` per file as ``afe extract`` does). ``dtype="float32"`` stores the values
+    (computed in float64) rounded to float32 (complex64 for spectra): half the disk, as
+    ``afe batch --dtype f32`` writes them; a store keeps one type.
 
     ``executor=None`` runs the Rust engine with ``jobs`` files at once (default: one per
     core). Any ``concurrent.futures.Executor`` computes the files as its tasks instead,
@@ -78,7 +81,8 @@ def batch(
     skipped, or with ``on_error="stop"`` stops the run (``RuntimeError``) after the files
     in flight. ``progress``: ``"bar"`` (stderr), ``"jsonl"`` (one JSON line per file on
     stdout) or ``"none"``; default: a bar on a terminal, else none. A store made with
-    other requests or parameters is refused (``ValueError``) unless ``overwrite``.
+    other requests, parameters or ``dtype`` is refused (``ValueError``) unless
+    ``overwrite``.
 
     Returns the summary: ``files``, ``already_done``, ``done``, ``failed`` (a list of
     ``{"id", "error"}``), ``not_started``, ``audio_s``, ``wall_s``, ``x_real_time``.
@@ -103,6 +107,7 @@ def batch(
             "requests": _requests(requests),
             "params": json.loads(_params_json(params)),
             "format": format,
+            "dtype": str(dtype),
         }
     )
     options = json.dumps(
@@ -204,6 +209,8 @@ class Store:
         self.requests: List[str] = status["requests"]
         self.params: Dict[str, Any] = status["params"]
         self.param_hash: str = status["param_hash"]
+        #: how the values are stored: ``"float64"`` or ``"float32"``
+        self.dtype: str = status["dtype"]
         latest = status["files"]
         #: file id → record of the files done (path, audio_s, compute_s, time)
         self.done: Dict[str, Dict[str, Any]] = {r["id"]: r for r in latest if r["status"] == "done"}
@@ -225,6 +232,8 @@ class Store:
         self.requests = requests
         self.params = {}
         self.param_hash = ""
+        narrow = any(m.get("dtype") in ("float32", "complex64") for m in meta.values())
+        self.dtype = "float32" if narrow else "float64"
         file_id = os.path.basename(self.path)[: -len(".npz")]
         self.done = {file_id: {"id": file_id, "path": self.path, "status": "done"}}
         self.failed = {}

@@ -186,6 +186,20 @@ class Signal(np.ndarray):
         """The chain of processors that computed the signal, nearest first."""
         return list(self._meta["processors"])
 
+    def plot(self, ax: Any = None, at: Optional[float] = None, waveforms: bool = True,
+             wavPlotZoom: float = 5.0, width: float = 10.0) -> Any:
+        """Draws this signal as :func:`afe.plot` draws each panel; returns the matplotlib
+        ``Figure``. ``ax``: the axes to draw on (their figure gets the colour bar); by
+        default a new figure ``width`` inches wide. ``at``, ``waveforms`` and
+        ``wavPlotZoom`` as for :func:`afe.plot`."""
+        from .plot import draw, new_figure
+
+        if ax is None:
+            fig = new_figure(width, 1)
+            ax = fig.subplots()
+        draw(ax.figure, ax, self, at, waveforms, wavPlotZoom)
+        return ax.figure
+
 
 def signals(arrays: Mapping[str, np.ndarray], meta: Mapping[str, Mapping[str, Any]]) -> Dict[str, Signal]:
     """``{name: Signal}`` from ``{name: array}`` and ``{name: description}``."""

@@ -9,7 +9,9 @@ use pyo3::exceptions::{PyKeyError, PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::{array, parse_params, to_py};
+use numpy::{Complex32, PyArray1, PyArrayMethods};
+
+use crate::{array, parse_params, stored_type, to_py};
 
 fn to_py_batch(e: BatchError) -> PyErr {
     match e {
@@ -21,7 +23,8 @@ fn to_py_batch(e: BatchError) -> PyErr {
     }
 }
 
-/// The store's spec from `{"requests": [...], "params": {...}, "format": "zarr"|"npz"}`.
+/// The store's spec from `{"requests": [...], "params": {...}, "format": "zarr"|"npz",
+/// "dtype": "float64"|"float32"}`.
 fn spec(json: &str) -> PyResult<StoreSpec> {
     let v: serde_json::Value =
         serde_json::from_str(json).map_err(|e| PyValueError::new_err(e.to_string()))?;
@@ -37,6 +40,7 @@ fn spec(json: &str) -> PyResult<StoreSpec> {
             .unwrap_or("zarr")
             .parse()
             .map_err(to_py_batch)?,
+        dtype: stored_type(v["dtype"].as_str().unwrap_or("float64"))?,
     })
 }
 
@@ -157,6 +161,7 @@ pub fn store_status(py: Python<'_>, store: PathBuf) -> PyResult<String> {
         "requests": spec.requests,
         "params": spec.params,
         "param_hash": spec.param_hash(),
+        "dtype": spec.dtype.name(false),
         "files": records.iter().map(afe_batch::Record::to_json).collect::<Vec<_>>(),
     })
     .to_string())
@@ -175,9 +180,37 @@ pub fn store_read<'py>(
     let values = PyDict::new(py);
     let infos = PyDict::new(py);
     for a in arrays {
-        let complex = a.info["dtype"] == "complex128";
-        values.set_item(&a.key, array(py, &a.shape, &a.data, complex)?)?;
+        let value = match a.info["dtype"].as_str() {
+            Some("complex128") => array(py, &a.shape, &a.data, true)?,
+            Some("float32") => narrow(py, &a.shape, &a.data, false)?,
+            Some("complex64") => narrow(py, &a.shape, &a.data, true)?,
+            _ => array(py, &a.shape, &a.data, false)?,
+        };
+        values.set_item(&a.key, value)?;
         infos.set_item(&a.key, a.info.to_string())?;
     }
     Ok((values, infos))
+}
+
+/// A float32 (or complex64) numpy array of `shape` from the widened values of a float32
+/// store, which `f32` holds exactly.
+fn narrow<'py>(
+    py: Python<'py>,
+    shape: &[usize],
+    data: &[f64],
+    complex: bool,
+) -> PyResult<Bound<'py, PyAny>> {
+    if complex {
+        let values: Vec<Complex32> = data
+            .chunks_exact(2)
+            .map(|c| Complex32::new(c[0] as f32, c[1] as f32))
+            .collect();
+        return Ok(PyArray1::from_vec(py, values)
+            .reshape(shape.to_vec())?
+            .into_any());
+    }
+    let values: Vec<f32> = data.iter().map(|&v| v as f32).collect();
+    Ok(PyArray1::from_vec(py, values)
+        .reshape(shape.to_vec())?
+        .into_any())
 }

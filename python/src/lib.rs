@@ -144,7 +144,7 @@ fn check_memory(
 }
 
 /// The `dtype` asked for from Python: `"float64"` or `"float32"`.
-fn stored_type(dtype: &str) -> PyResult<Dtype> {
+pub(crate) fn stored_type(dtype: &str) -> PyResult<Dtype> {
     match dtype {
         "float64" => Ok(Dtype::Float64),
         "float32" => Ok(Dtype::Float32),

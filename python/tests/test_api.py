@@ -415,7 +415,7 @@ def test_errors_are_python_exceptions_with_clear_messages(tmp_path):
         (lambda: afe.process(x, None, ["ratemap"]), ValueError, "fs is required"),
         (lambda: afe.process(x, 16000, ["ratemap"], chunk=0), ValueError, "chunk"),
         (lambda: afe.process("/nonexistent.wav", None, ["ratemap"]), FileNotFoundError, "nonexistent"),
-        (lambda: afe.Manager(16000, 2).process_chunk(x[:, 0]), ValueError, "made for 2"),
+        (lambda: afe.Manager(16000, 2).process_chunk(x[:, 0]), ValueError, "channels=2"),
         (lambda: afe.Manager(16000, 3), ValueError, "3 input channels"),
         (lambda: afe.Manager(16000, 2, threads=100), ValueError, "worker threads"),
     ]
@@ -684,7 +684,8 @@ def test_process_names_the_request_that_is_wrong(tmp_path):
         "requests[1]: invalid value 0 for parameter 'fb_nChannels': expected a positive integer"
     )
     assert _raises(lambda: afe.process(x[:, 0], fs, ["ratemap", "itd"])) == (
-        "requests[1]: request 'itd' needs a binaural (two-channel) input, but the input is mono"
+        "requests[1]: request 'itd' needs a binaural (two-channel) input, but the signal has shape "
+        "(1600,): give [samples, 2] (left, right), e.g. np.column_stack([left, right]) (shape (1600, 2))"
     )
     # an unknown request, in any case, is named with the one meant
     assert _raises(lambda: afe.process(x, fs, ["ratemap", "ITD"])).startswith(
@@ -720,9 +721,19 @@ def test_messages_guess_the_value_meant_and_say_the_default_only_when_it_is():
         "signal of shape (2, 1600): expected [samples] (mono) or [samples, 2] (left, right): "
         "it looks like [channels, samples]; pass x.T (shape (1600, 2))"
     )
-    assert _raises(lambda: afe.Manager(16000, 2).process_chunk(x[:, 0])) == (
-        "signal has 1 channel(s), but this manager was made for 2: give [samples, 2] (left, right), "
-        "e.g. np.column_stack([left, right])"
+    # [N] or [N, 1] to a binaural manager, [N, 2] to a mono one: the shape got and the one expected
+    binaural, mono = afe.Manager(16000, 2), afe.Manager(16000, 1)
+    assert _raises(lambda: binaural.process_chunk(x[:, 0])) == (
+        "signal of shape (1600,): this manager (channels=2) expects [samples, 2] (left, right); "
+        "give np.column_stack([left, right]) (shape (1600, 2))"
+    )
+    assert _raises(lambda: binaural.process_signal(x[:, :1])) == (
+        "signal of shape (1600, 1): this manager (channels=2) expects [samples, 2] (left, right); "
+        "give np.column_stack([left, right]) (shape (1600, 2))"
+    )
+    assert _raises(lambda: mono.process_chunk(x)) == (
+        "signal of shape (1600, 2): this manager (channels=1) expects [samples]; "
+        "pass one ear, x[:, 0] (shape (1600,)), or make the manager with channels=2"
     )
     # fb_highFreqHz = 8000 set at 11025 Hz is the user's value, not "the default"
     y = signal(1103, 11025)

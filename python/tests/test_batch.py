@@ -164,3 +164,34 @@ def test_npz_store_and_errors(corpus, cli, tmp_path):
         afe.batch(tmp_path / "nowhere", REQUESTS, out=tmp_path / "y.zarr")
     with pytest.raises(ValueError, match="not an afe store"):
         afe.open_store(root)
+
+
+def test_float32_stores_hold_the_float64_values_rounded(corpus, tmp_path):
+    root, _ = corpus
+    folder = root / "spk1"
+    requests = ["ratemap", "stft"]  # the STFT is complex: complex64
+    afe.batch(folder, requests, out=tmp_path / "wide.zarr", progress="none")
+    wide = afe.open_store(tmp_path / "wide.zarr")
+    for fmt, out in (("zarr", tmp_path / "narrow.zarr"), ("npz", tmp_path / "narrow-npz")):
+        afe.batch(folder, requests, out=out, format=fmt, dtype="float32", progress="none")
+        narrow = afe.open_store(out)
+        assert narrow.dtype == "float32" and wide.dtype == "float64"
+        assert narrow.ids() == wide.ids()
+        for fid in narrow:
+            a, b = narrow[fid], wide[fid]
+            for k in b:
+                want = np.complex64 if np.iscomplexobj(b[k]) else np.float32
+                assert a[k].dtype == want, (fmt, fid, k)
+                assert np.array_equal(a[k], b[k].astype(want)), (fmt, fid, k)
+                assert a[k].meta["dtype"] == np.dtype(want).name
+    # zarr-python reads the float32 arrays as they are stored
+    zarr = pytest.importorskip("zarr")
+    group = zarr.open_group(str(tmp_path / "narrow.zarr"), mode="r")
+    fid = wide.ids()[0]
+    assert group[fid]["ratemap_left"].dtype == np.float32
+    assert group[fid]["stft_left"].dtype == np.complex64
+    # a store keeps one type
+    with pytest.raises(ValueError, match="as zarr of float32 with"):
+        afe.batch(folder, requests, out=tmp_path / "narrow.zarr", progress="none")
+    with pytest.raises(ValueError, match='dtype = "f32"'):
+        afe.batch(folder, requests, out=tmp_path / "bad.zarr", dtype="f32")
