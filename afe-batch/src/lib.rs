@@ -15,6 +15,7 @@
 //! # Ok::<(), afe_batch::BatchError>(())
 //! ```
 
+mod group;
 mod inputs;
 mod ledger;
 mod progress;
@@ -31,6 +32,7 @@ use serde_json::{json, Value};
 use afe::extract::{run_into, Job};
 use afe::wav::open_input;
 
+pub use group::{is_saved_group, read_group, write_group, ElementType, SavedArray};
 pub use inputs::{discover, shard, InputFile};
 pub use ledger::{Ledger, Record, Status};
 pub use progress::{Progress, ProgressMode};

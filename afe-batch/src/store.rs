@@ -11,10 +11,10 @@ use afe_core::ParamMap;
 use afe_graph::{Manager, OutputRef, Signal};
 use serde_json::{json, Value};
 use zarrs::array::{Array, ArrayBuilder, DataType, FillValue};
-use zarrs::array_subset::ArraySubset;
 use zarrs::filesystem::FilesystemStore;
 use zarrs::group::{Group, GroupBuilder};
 
+use super::group::read_arrays;
 use super::inputs::{fnv1a, InputFile};
 use super::BatchError;
 use afe::extract::Sink;
@@ -26,7 +26,7 @@ use afe::Recorder;
 /// filterbank, minutes of a ratemap); a shorter output is one chunk of its own length.
 /// Chunks are stored uncompressed: the outputs are float64 noise to a compressor (gzip
 /// saved under 1 % on ratemaps and cost time).
-const CHUNK_BYTES: usize = 1 << 20;
+pub(crate) const CHUNK_BYTES: usize = 1 << 20;
 
 /// The metadata file of an npz store (a zarr store keeps it in its root's attributes).
 const NPZ_META: &str = "afe-batch.json";
@@ -599,47 +599,6 @@ impl Store {
         let path = format!("/{id}");
         let group =
             Group::open(z.clone(), &path).map_err(|_| BatchError::NoSuchFile(id.to_string()))?;
-        let mut out = Vec::new();
-        for array in group
-            .child_arrays()
-            .map_err(|e| BatchError::store(&self.root, &e))?
-        {
-            let shape: Vec<usize> = array.shape().iter().map(|&n| n as usize).collect();
-            let bytes = array
-                .retrieve_array_subset(&ArraySubset::new_with_shape(array.shape().to_vec()))
-                .map_err(|e| BatchError::store(&self.root, &e))?
-                .into_fixed()
-                .map_err(|e| BatchError::store(&self.root, &e))?;
-            let narrow = matches!(array.data_type(), DataType::Float32 | DataType::Complex64);
-            let data = if narrow {
-                bytes
-                    .chunks_exact(4)
-                    .map(|b| f64::from(f32::from_ne_bytes(b.try_into().unwrap_or([0; 4]))))
-                    .collect()
-            } else {
-                bytes
-                    .chunks_exact(8)
-                    .map(|b| f64::from_ne_bytes(b.try_into().unwrap_or([0; 8])))
-                    .collect()
-            };
-            out.push(StoredArray {
-                key: array
-                    .path()
-                    .as_str()
-                    .rsplit('/')
-                    .next()
-                    .unwrap_or_default()
-                    .to_string(),
-                shape,
-                data,
-                info: array
-                    .attributes()
-                    .get("afe")
-                    .cloned()
-                    .unwrap_or(Value::Null),
-            });
-        }
-        out.sort_by(|a, b| a.key.cmp(&b.key));
-        Ok(out)
+        read_arrays(&group, &self.root)
     }
 }

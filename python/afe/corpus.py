@@ -202,7 +202,10 @@ class Store:
     def __init__(self, path: PathLike):
         self.path = os.fspath(path)
         if os.path.isfile(self.path) and self.path.endswith(".npz"):
-            self._open_npz()
+            self._open_saved("npz-file", ".npz")
+            return
+        if _is_saved_group(self.path):
+            self._open_saved("zarr-group", ".zarr")
             return
         status = json.loads(_afe.store_status(self.path))
         self.format: str = status["format"]
@@ -217,13 +220,12 @@ class Store:
         #: file id → error of the files that failed
         self.failed: Dict[str, str] = {r["id"]: r["error"] for r in latest if r["status"] == "failed"}
 
-    def _open_npz(self) -> None:
-        """One ``.npz`` (``afe extract``'s or :func:`afe.save`'s) as a read-only store of
-        one file, whose id is the file's name without ``.npz``."""
-        from .saving import read_npz
-
-        _, meta = read_npz(self.path)
-        self.format = "npz-file"
+    def _open_saved(self, format: str, suffix: str) -> None:
+        """One ``.npz`` (``afe extract``'s or :func:`afe.save`'s) or one Zarr group of
+        :func:`afe.save` as a read-only store of one file, whose id is the path's last
+        name without its suffix."""
+        _, meta = self._read_saved()
+        self.format = format
         requests: List[str] = []
         for m in meta.values():
             chain = m.get("processors") or [m.get("name", "")]
@@ -234,9 +236,15 @@ class Store:
         self.param_hash = ""
         narrow = any(m.get("dtype") in ("float32", "complex64") for m in meta.values())
         self.dtype = "float32" if narrow else "float64"
-        file_id = os.path.basename(self.path)[: -len(".npz")]
+        name = os.path.basename(self.path.rstrip("/"))
+        file_id = name[: -len(suffix)] if name.endswith(suffix) else name
         self.done = {file_id: {"id": file_id, "path": self.path, "status": "done"}}
         self.failed = {}
+
+    def _read_saved(self) -> Tuple[Dict[str, np.ndarray], Dict[str, Dict[str, Any]]]:
+        from .saving import read_npz, read_zarr
+
+        return read_zarr(self.path) if os.path.isdir(self.path) else read_npz(self.path)
 
     def ids(self) -> List[str]:
         """The ids of the files done, sorted."""
@@ -265,10 +273,8 @@ class Store:
         if file_id not in self.done:
             why = f" (it failed: {self.failed[file_id]})" if file_id in self.failed else ""
             raise KeyError(f"the store holds no file '{file_id}'{why}")
-        if self.format == "npz-file":
-            from .saving import read_npz
-
-            return read_npz(self.path)
+        if self.format in ("npz-file", "zarr-group"):
+            return self._read_saved()
         if self.format == "npz":
             with np.load(os.path.join(self.path, file_id + ".npz")) as z:
                 meta = json.loads(str(z["afe_metadata"]))
@@ -283,10 +289,20 @@ class Store:
         )
 
 
+def _is_saved_group(path: str) -> bool:
+    """Whether ``path`` is a Zarr group written by :func:`afe.save`."""
+    try:
+        with open(os.path.join(path, "zarr.json"), encoding="utf-8") as f:
+            return "afe_saved" in json.load(f).get("attributes", {})
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
 def open_store(path: PathLike) -> Store:
     """Opens a store written by ``afe.batch`` or ``afe batch`` (``ValueError`` if the
-    folder is not one), or a single ``.npz`` of ``afe extract`` or :func:`afe.save` as a
-    read-only store of one file (``format`` ``"npz-file"``, its id the file's name
-    without ``.npz``, ``requests`` from its signals' descriptions, ``params`` empty:
-    each signal's :attr:`afe.Signal.parameters` has its own)."""
+    folder is not one), or a single ``.npz`` of ``afe extract`` or :func:`afe.save`, or a
+    Zarr group of :func:`afe.save`, as a read-only store of one file (``format``
+    ``"npz-file"`` or ``"zarr-group"``, its id the path's name without ``.npz`` or
+    ``.zarr``, ``requests`` from its signals' descriptions, ``params`` empty: each
+    signal's :attr:`afe.Signal.parameters` has its own)."""
     return Store(path)

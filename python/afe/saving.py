@@ -1,7 +1,9 @@
 """Saving signals with their descriptions: :func:`afe.save` writes an ``.npz`` in the
 layout of ``afe extract -o out.npz`` (one array per output, named by its key, and the
-descriptions as JSON text in the entry ``afe_metadata``); :func:`afe.load` reads such a
-file, whoever wrote it, back into :class:`afe.Signal` objects.
+descriptions as JSON text in the entry ``afe_metadata``), or to a path ending in
+``.zarr`` a Zarr v3 group in the layout of one file of an ``afe batch`` store (one array
+per output, its description in the array's ``afe`` attribute); :func:`afe.load` reads
+either back into :class:`afe.Signal` objects.
 
 >>> import afe, numpy as np, os, tempfile
 >>> out = afe.process(np.zeros((1600, 2)), 16000, ["ild"])
@@ -20,6 +22,7 @@ from typing import Any, Dict, Mapping, Union
 
 import numpy as np
 
+from . import _afe
 from .signal import Signal
 
 #: The ``.npz`` entry holding every array's description (``afe::npy::METADATA_ENTRY``).
@@ -34,6 +37,12 @@ def save(path: PathLike, signals: Union[Signal, Mapping[str, Signal]]) -> None:
     as computed, uncompressed, and every signal's description (:attr:`afe.Signal.meta`)
     as JSON text in the entry ``afe_metadata``, which ``numpy.load`` reads without
     pickling (``json.loads(str(np.load(path)["afe_metadata"]))``).
+
+    A ``path`` ending in ``.zarr`` is written as a Zarr v3 group instead (any Zarr v3
+    reader opens it: ``zarr.open_group(path)[name].attrs["afe"]`` is a description). It
+    replaces a group ``afe.save`` wrote before, and refuses any other existing path.
+    Arrays are float64, float32, complex128 or complex64, of at least one axis; the
+    description's ``dtype`` is set to the array's.
 
     ``signals``: ``{name: Signal}`` (``afe.process``'s output, ``afe.load``'s, a block of
     ``afe.stream``, ``store[file_id]``) or one :class:`afe.Signal` (saved under its key).
@@ -50,6 +59,7 @@ def save(path: PathLike, signals: Union[Signal, Mapping[str, Signal]]) -> None:
         )
     arrays: Dict[str, np.ndarray] = {}
     meta: Dict[str, Any] = {}
+    zarr = os.fspath(path).rstrip("/\\").endswith(".zarr")
     for name, s in signals.items():
         if name == METADATA_ENTRY:
             raise ValueError(f"'{METADATA_ENTRY}' is the entry of the descriptions: name the signal otherwise")
@@ -60,6 +70,13 @@ def save(path: PathLike, signals: Union[Signal, Mapping[str, Signal]]) -> None:
             )
         arrays[str(name)] = np.ascontiguousarray(np.asarray(s).view(np.ndarray))
         meta[str(name)] = s.meta
+    if zarr:
+        items = [
+            (k, a.dtype.name, list(a.shape), a.tobytes(), json.dumps(meta[k]))
+            for k, a in arrays.items()
+        ]
+        _afe.save_zarr(os.fspath(path), items)
+        return
     arrays[METADATA_ENTRY] = np.array(json.dumps(meta))
     # through a file object: np.savez would append ".npz" to a path without it
     with open(os.fspath(path), "wb") as f:
@@ -83,10 +100,22 @@ def read_npz(path: PathLike) -> "tuple[Dict[str, np.ndarray], Dict[str, Dict[str
     return arrays, meta
 
 
+def read_zarr(path: PathLike) -> "tuple[Dict[str, np.ndarray], Dict[str, Dict[str, Any]]]":
+    """The arrays of a Zarr group written by :func:`afe.save` (in their saved order) and
+    their descriptions."""
+    arrays, infos = _afe.load_zarr(os.fspath(path))
+    return dict(arrays), {k: json.loads(v) for k, v in infos.items()}
+
+
 def load(path: PathLike) -> Dict[str, Signal]:
     """Reads an ``.npz`` written by :func:`afe.save`, ``afe extract -o out.npz`` or
-    ``afe batch --format npz`` back into ``{name: Signal}``, each with its description,
-    in the file's order. Raises ``FileNotFoundError`` for a missing file and
-    ``ValueError`` for an ``.npz`` without afe's descriptions."""
-    arrays, meta = read_npz(path)
+    ``afe batch --format npz``, or a Zarr group written by :func:`afe.save`, back into
+    ``{name: Signal}``, each with its description, in the saved order. Raises
+    ``FileNotFoundError`` for a missing path and ``ValueError`` for an ``.npz`` without
+    afe's descriptions or a folder that is not such a group (a batch store opens with
+    :func:`afe.open_store`)."""
+    if not os.path.exists(os.fspath(path)):
+        raise FileNotFoundError(f"no file or folder '{os.fspath(path)}'")
+    reader = read_zarr if os.path.isdir(os.fspath(path)) else read_npz
+    arrays, meta = reader(path)
     return {k: Signal(v, meta[k]) for k, v in arrays.items()}

@@ -4,7 +4,9 @@
 
 use std::path::PathBuf;
 
-use afe_batch::{BatchError, BatchOptions, InputFile, Store, StoreSpec};
+use afe_batch::{
+    BatchError, BatchOptions, ElementType, InputFile, SavedArray, Store, StoreSpec, StoredArray,
+};
 use pyo3::exceptions::{PyKeyError, PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -177,6 +179,14 @@ pub fn store_read<'py>(
     let arrays = py
         .allow_threads(|| Store::open(&store)?.read(&id))
         .map_err(to_py_batch)?;
+    numpy_dicts(py, arrays)
+}
+
+/// `({name: array}, {name: metadata JSON text})` of arrays read back, in their order.
+fn numpy_dicts<'py>(
+    py: Python<'py>,
+    arrays: Vec<StoredArray>,
+) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
     let values = PyDict::new(py);
     let infos = PyDict::new(py);
     for a in arrays {
@@ -190,6 +200,46 @@ pub fn store_read<'py>(
         infos.set_item(&a.key, a.info.to_string())?;
     }
     Ok((values, infos))
+}
+
+/// One array for [`save_zarr`]: name, numpy dtype name, shape, raw bytes (C order,
+/// native byte order), metadata JSON text.
+type ToSave = (String, String, Vec<usize>, Vec<u8>, String);
+
+/// Writes `arrays` as the Zarr group `path` (`afe.save` to a `.zarr` path).
+#[pyfunction]
+pub fn save_zarr(py: Python<'_>, path: PathBuf, arrays: Vec<ToSave>) -> PyResult<()> {
+    let arrays = arrays
+        .into_iter()
+        .map(|(key, dtype, shape, bytes, info)| {
+            let element = ElementType::from_numpy(&dtype).ok_or_else(|| {
+                PyValueError::new_err(format!(
+                    "'{key}' is {dtype}: a Zarr group of afe.save holds float64, float32, complex128 or complex64"
+                ))
+            })?;
+            let mut info: serde_json::Value =
+                serde_json::from_str(&info).map_err(|e| PyValueError::new_err(e.to_string()))?;
+            // the description says what the values are, whatever they were computed as
+            if let Some(meta) = info.as_object_mut() {
+                meta.insert("dtype".into(), dtype.clone().into());
+            }
+            Ok(SavedArray { key, shape, element, bytes, info })
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    py.allow_threads(|| afe_batch::write_group(&path, &arrays))
+        .map_err(to_py_batch)
+}
+
+/// The arrays of a Zarr group written by `afe.save`, as [`store_read`] gives them.
+#[pyfunction]
+pub fn load_zarr<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
+    let arrays = py
+        .allow_threads(|| afe_batch::read_group(&path))
+        .map_err(to_py_batch)?;
+    numpy_dicts(py, arrays)
 }
 
 /// A float32 (or complex64) numpy array of `shape` from the widened values of a float32

@@ -818,6 +818,48 @@ def test_save_and_load_round_trip_signals_with_their_metadata(tmp_path, cli):
         afe.load(tmp_path / "missing.npz")
 
 
+
+def test_save_and_load_round_trip_through_a_zarr_group(tmp_path):
+    fs = 16000
+    x = signal(4000)
+    out = afe.process(x, fs, [("ratemap", {"fb_nChannels": 8}), "ild", "stft"])
+    narrow = afe.process(x, fs, ["ild", "stft"], dtype="float32")
+    for name, signals in (("cues.zarr", out), ("narrow.zarr", narrow)):
+        afe.save(tmp_path / name, signals)
+        back = afe.load(tmp_path / name)
+        assert list(back) == list(signals)
+        for k, s in signals.items():
+            assert isinstance(back[k], afe.Signal) and back[k].dtype == s.dtype, k
+            assert np.array_equal(np.asarray(back[k]).view(np.uint8), np.asarray(s).view(np.uint8)), k
+            assert back[k].meta == s.meta, k
+    # saved again: replaced, not merged
+    afe.save(tmp_path / "cues.zarr", out["ild_mono"])
+    assert list(afe.load(tmp_path / "cues.zarr")) == ["ild_mono"]
+    # any Zarr v3 reader opens it, with the description in each array's attributes
+    zarr = pytest.importorskip("zarr")
+    group = zarr.open_group(str(tmp_path / "narrow.zarr"), mode="r")
+    np.testing.assert_array_equal(group["ild_mono"][:], narrow["ild_mono"])
+    assert group["ild_mono"].attrs["afe"] == narrow["ild_mono"].meta
+    # afe.open_store reads it as a store of one file
+    store = afe.open_store(tmp_path / "narrow.zarr")
+    assert store.ids() == ["narrow"] and store.format == "zarr-group" and store.dtype == "float32"
+    assert store.requests == ["ild", "stft"]
+    np.testing.assert_array_equal(store["narrow"]["stft_left"], narrow["stft_left"])
+    # errors
+    (tmp_path / "folder").mkdir()
+    (tmp_path / "folder" / "notes.txt").write_text("mine")
+    (tmp_path / "folder").rename(tmp_path / "folder.zarr")
+    assert _raises(lambda: afe.save(tmp_path / "folder.zarr", out)) == (
+        f"'{tmp_path / 'folder.zarr'}' exists and is not a group written by afe.save: give a new path ending in .zarr"
+    )
+    assert (tmp_path / "folder.zarr" / "notes.txt").read_text() == "mine"
+    assert _raises(lambda: afe.load(tmp_path / "folder.zarr")) == (
+        f"'{tmp_path / 'folder.zarr'}' is not an afe store: it is not a group written by afe.save "
+        "(a batch store opens with afe.open_store)"
+    )
+    with pytest.raises(FileNotFoundError):
+        afe.load(tmp_path / "missing.zarr")
+
 SUMMARY_TEXT = """\
 ratemap -> ratemap_left, ratemap_right
     ratemap
