@@ -92,6 +92,23 @@ pub enum Error {
         /// Memory available, e.g. `3.9 GB`.
         available: String,
     },
+    /// A request whose parameters would make the graph compute more values per second of
+    /// signal than the work limit allows (see `afe_graph::work`).
+    #[error("request '{request}' would make the graph compute about {per_second:.1e} values per second of signal (its {heaviest} alone {heaviest_per_second:.1e}), over the limit of {limit:.1e}{set}: a longer hop, a shorter window, fewer channels, lags or bins lower it, or raise the limit with the environment variable AFE_WORK_LIMIT (values per second)")]
+    TooMuchWork {
+        /// The request placed.
+        request: String,
+        /// The graph's estimate with the request, values per second of signal.
+        per_second: f64,
+        /// The processor of the graph that computes the most.
+        heaviest: String,
+        /// Its share, values per second of signal.
+        heaviest_per_second: f64,
+        /// The limit, values per second of signal.
+        limit: f64,
+        /// The parameters the request set, as `; parameters set: a=1, b=2`, or empty.
+        set: String,
+    },
     /// Stopped on request (SIGINT or SIGTERM, Ctrl-C in Python) before the input's end.
     #[error("interrupted before the end of the input")]
     Interrupted,

@@ -24,6 +24,14 @@ pub trait Processor: Send {
     /// Returns to the just-constructed state (coefficients are kept).
     fn reset(&mut self);
 
+    /// Values this processor computes per second of signal beyond what its outputs and
+    /// their windows show (the graph's work estimate counts each output value, and each
+    /// input value a window spans once per frame): e.g. a bank of filters run on every
+    /// channel before framing. 0 by default.
+    fn hidden_work_per_second(&self) -> f64 {
+        0.0
+    }
+
     /// Whether this processor, though its output depends on chunk boundaries, can take a
     /// whole signal block by block ([`Processor::absorb`], then one
     /// [`Processor::finish`]) and give the output of one call: the whole input then

@@ -1,8 +1,8 @@
 //! Whether the outputs of a whole signal fit the machine's memory, checked before the
 //! computation starts: a warning above half of the memory available, an error
-//! ([`Error::OutputsTooLarge`]) above all of it. The memory available is the kernel's
-//! `MemAvailable`, or the environment variable `AFE_MEMORY_AVAILABLE_GB` where set (a
-//! container's share, or a test's).
+//! ([`Error::OutputsTooLarge`]) above all of it. The memory available is the least of the
+//! kernel's `MemAvailable`, a cgroup's limit and `ulimit -v`'s, or the environment
+//! variable `AFE_MEMORY_AVAILABLE_GB` where set (a test's, or a share of your choosing).
 
 use afe_core::error::WAYS_OUT;
 use afe_core::{Error, Result};
@@ -29,7 +29,10 @@ pub fn output_bytes(manager: &mut Manager, samples: u64, all: bool, dtype: Dtype
         .sum()
 }
 
-/// Memory available to this process in bytes, where known.
+/// Memory available to this process in bytes, where known: `AFE_MEMORY_AVAILABLE_GB`
+/// where set, else the least of the kernel's `MemAvailable`, the room left under the
+/// cgroup's `memory.max` (a container's share) and the room left under the address-space
+/// limit (`ulimit -v`), beyond which an allocation would fail and abort the process.
 pub fn available_bytes() -> Option<f64> {
     if let Some(gb) = std::env::var("AFE_MEMORY_AVAILABLE_GB")
         .ok()
@@ -37,10 +40,51 @@ pub fn available_bytes() -> Option<f64> {
     {
         return Some(gb * 1e9);
     }
+    [mem_available(), cgroup_room(), address_space_room()]
+        .into_iter()
+        .flatten()
+        .reduce(f64::min)
+}
+
+/// The kernel's `MemAvailable`, bytes.
+fn mem_available() -> Option<f64> {
     let info = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    kib_field(&info, "MemAvailable:")
+}
+
+/// A `name  N kB` line of a `/proc` file, in bytes.
+fn kib_field(text: &str, name: &str) -> Option<f64> {
+    let line = text.lines().find(|l| l.starts_with(name))?;
     let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb * 1024.0)
+}
+
+/// `memory.max` minus `memory.current` of this process's cgroup (v2), bytes; `None`
+/// without a limit.
+fn cgroup_room() -> Option<f64> {
+    let group = std::fs::read_to_string("/proc/self/cgroup").ok()?;
+    let path = group.lines().find_map(|l| l.strip_prefix("0::"))?;
+    let dir = std::path::Path::new("/sys/fs/cgroup").join(path.trim_start_matches('/'));
+    let read = |name: &str| -> Option<f64> {
+        std::fs::read_to_string(dir.join(name))
+            .ok()?
+            .trim()
+            .parse()
+            .ok()
+    };
+    Some((read("memory.max")? - read("memory.current").unwrap_or(0.0)).max(0.0))
+}
+
+/// The soft address-space limit minus the address space in use (`VmSize`), bytes;
+/// `None` without a limit.
+fn address_space_room() -> Option<f64> {
+    let (soft, _) = nix::sys::resource::getrlimit(nix::sys::resource::Resource::RLIMIT_AS).ok()?;
+    if soft == nix::sys::resource::RLIM_INFINITY {
+        return None;
+    }
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let used = kib_field(&status, "VmSize:").unwrap_or(0.0);
+    Some((soft as f64 - used).max(0.0))
 }
 
 /// Checks outputs of `bytes` against the memory available: `Ok(None)` when they take

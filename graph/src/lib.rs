@@ -15,6 +15,7 @@ mod sync;
 mod trace;
 mod wakeup;
 mod whole_run;
+pub mod work;
 
 pub use block_input::BlockSource;
 pub use engine::{is_worker_thread, MAX_THREADS};

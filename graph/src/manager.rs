@@ -437,7 +437,11 @@ impl Manager {
     fn add_request_now(&mut self, name: &str, params: &ParamMap) -> Result<RequestHandle> {
         let chain = chain_of(name)?;
         let rollback = self.graph.nodes.len();
-        match self.graph.resolve(self.ears, &chain, params, name) {
+        let placed = self
+            .graph
+            .resolve(self.ears, &chain, params, name)
+            .and_then(|outputs| self.graph.check_work(name, params).map(|()| outputs));
+        match placed {
             Ok(outputs) => {
                 self.requests.push(Some(Request {
                     outputs,
@@ -453,6 +457,12 @@ impl Manager {
                 Err(e)
             }
         }
+    }
+
+    /// The graph's work estimate in values per second of signal, checked against
+    /// [`crate::work::work_limit`] when a request is placed (see [`crate::work`]).
+    pub fn work_per_second(&self) -> f64 {
+        self.graph.work_per_second()
     }
 
     /// Checks that an input of `channels` channels is one this manager was made for.

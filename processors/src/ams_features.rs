@@ -209,6 +209,9 @@ pub struct AmsFeatures {
     /// The frame sums from hop sums, for the log filterbank with a window of ones two
     /// hops long (the default); then `frames` and `sums` stay empty.
     hop_sums: Option<HopSums>,
+    /// Values filtered or transformed per second of input before framing (see
+    /// [`Processor::hidden_work_per_second`]).
+    hidden_work: f64,
 }
 
 /// Frame sums for a rectangular window two hops long (the AFE's default), from the sums
@@ -495,11 +498,12 @@ impl AmsFeatures {
             AmsFbType::Lin => channels,
         };
         check_frame_values(("ams_wSizeSec", p.w_size_sec), w, framed_width)?;
-        let (mod_cf_hz, kind, width) = match p.fb_type {
+        let (mod_cf_hz, kind, width, hidden_work) = match p.fb_type {
             AmsFbType::Log => {
                 let (mf, filters) = log_bank(p, fs_ds, channels)?;
                 let width = channels * mf.len();
-                (mf, Bands::Log { filters }, width)
+                // every band filters every channel at the decimated rate
+                (mf, Bands::Log { filters }, width, fs_ds * width as f64)
             }
             AmsFbType::Lin => {
                 if !p.cf_hz.is_empty() {
@@ -521,7 +525,9 @@ impl AmsFeatures {
                     scratch: fft.make_scratch_vec(),
                     fft,
                 };
-                (centres, kind, channels)
+                // one transform of every channel per frame
+                let work = fs_ds / h as f64 * nfft as f64 * channels as f64;
+                (centres, kind, channels, work)
             }
         };
         let hop_sums =
@@ -542,6 +548,7 @@ impl AmsFeatures {
             banded: Vec::new(),
             sums: vec![0.0; framed],
             hop_sums,
+            hidden_work,
         };
         let info = SignalInfo {
             kind: SignalKind::Modulation,
@@ -568,6 +575,10 @@ fn filter_block(filters: &mut [Df2t], x: &[f64], rows: &mut [f64], nc: usize) {
 }
 
 impl Processor for AmsFeatures {
+    fn hidden_work_per_second(&self) -> f64 {
+        self.hidden_work
+    }
+
     fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {
         let nc = self.channels;
         let nb = self.bands;

@@ -1,0 +1,156 @@
+//! The work budget: an estimate of the values a graph computes per second of signal,
+//! checked when a request is placed, so that parameters asking for minutes of
+//! computation and gigabytes of output per second of audio (a 0.1-ms hop over 256
+//! channels, a second of lags) are refused up front with a message naming them, instead
+//! of running for hours or exhausting the memory.
+//!
+//! A node's estimate is the values it writes per second (each output's rate times its
+//! width), plus, for an output it frames, the input values its window spans once per frame,
+//! plus what the processor reports of its hidden work
+//! ([`afe_core::Processor::hidden_work_per_second`]). Every request of the AFE at its
+//! defaults together come to about 6·10^7 values per second at 44.1 kHz; this machine's
+//! kind computes about 10^9 values per second per core.
+
+use afe_core::{Error, ParamMap, Result};
+
+use crate::graph::Graph;
+
+/// The default limit, in values per second of signal: 2·10^9, some seconds of one core's
+/// computation per second of audio and 16 GB per second if every value were kept.
+pub const WORK_LIMIT: f64 = 2e9;
+
+/// The limit in force: the environment variable `AFE_WORK_LIMIT` (values per second of
+/// signal) where set to a positive number, else [`WORK_LIMIT`].
+pub fn work_limit() -> f64 {
+    std::env::var("AFE_WORK_LIMIT")
+        .ok()
+        .and_then(|v| v.trim().parse::<f64>().ok())
+        .filter(|v| *v > 0.0)
+        .unwrap_or(WORK_LIMIT)
+}
+
+impl Graph {
+    /// The estimate of node `i` in values per second of signal (0 for the input).
+    pub(crate) fn node_work(&self, i: usize) -> f64 {
+        let node = &self.nodes[i];
+        if i == 0 {
+            return 0.0;
+        }
+        let inputs: Vec<_> = node
+            .parents
+            .iter()
+            .map(|p| &self.nodes[p.node].infos[p.output])
+            .collect();
+        let input_width: f64 = inputs.iter().map(|info| info.width() as f64).sum();
+        let input_fs = inputs.first().map_or(0.0, |info| info.fs_hz);
+        let written: f64 = node
+            .infos
+            .iter()
+            .map(|info| info.fs_hz * info.width() as f64)
+            .sum();
+        let windowed = node
+            .infos
+            .iter()
+            // a window this node frames (an output at its input's rate passes one on)
+            .filter(|info| info.fs_hz < input_fs)
+            .filter_map(|info| info.window_s.map(|w| info.fs_hz * (w * input_fs).ceil()))
+            .fold(0.0, f64::max)
+            * input_width;
+        let hidden = node
+            .processor
+            .as_ref()
+            .map_or(0.0, |p| p.hidden_work_per_second());
+        written + windowed + hidden
+    }
+
+    /// The graph's estimate: every node's, in values per second of signal.
+    pub(crate) fn work_per_second(&self) -> f64 {
+        (0..self.nodes.len()).map(|i| self.node_work(i)).sum()
+    }
+
+    /// Refuses the graph as it stands, after placing `request` with `params`, if its
+    /// estimate exceeds [`work_limit`].
+    pub(crate) fn check_work(&self, request: &str, params: &ParamMap) -> Result<()> {
+        let limit = work_limit();
+        let works: Vec<f64> = (0..self.nodes.len()).map(|i| self.node_work(i)).collect();
+        let total: f64 = works.iter().sum();
+        if total <= limit {
+            return Ok(());
+        }
+        let (heaviest, share) =
+            works.iter().enumerate().fold(
+                (0, 0.0),
+                |best, (i, &w)| if w > best.1 { (i, w) } else { best },
+            );
+        let mut names: Vec<_> = params.keys().cloned().collect();
+        names.sort();
+        let set = if names.is_empty() {
+            String::new()
+        } else {
+            let listed: Vec<String> = names.iter().map(|n| format!("{n}={}", params[n])).collect();
+            format!("; parameters set: {}", listed.join(", "))
+        };
+        Err(Error::TooMuchWork {
+            request: request.to_string(),
+            per_second: total,
+            heaviest: self.nodes[heaviest].name.to_string(),
+            heaviest_per_second: share,
+            limit,
+            set,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use serde_json::json;
+
+    use crate::Manager;
+
+    fn params(pairs: &[(&str, serde_json::Value)]) -> afe_core::ParamMap {
+        pairs
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.clone()))
+            .collect()
+    }
+
+    #[test]
+    fn every_request_at_its_defaults_is_far_below_the_limit() {
+        let mut m = Manager::new(44100.0, 2).expect("manager");
+        for r in afe_processors::requests() {
+            m.add_request(r.name, &Default::default()).expect(r.name);
+        }
+        let total = m.work_per_second();
+        assert!(total > 1e7 && total < super::WORK_LIMIT / 20.0, "{total:e}");
+    }
+
+    #[test]
+    fn a_request_over_the_limit_is_refused_and_leaves_the_graph_as_it_was() {
+        let mut m = Manager::new(44100.0, 2).expect("manager");
+        m.add_request("ratemap", &Default::default())
+            .expect("ratemap");
+        let nodes = m.processor_count();
+        let heavy = params(&[
+            ("ac_wSizeSec", json!(0.2)),
+            ("ac_hSizeSec", json!(0.0001)),
+            ("fb_nChannels", json!(256)),
+        ]);
+        let e = m
+            .add_request("autocorrelation", &heavy)
+            .expect_err("refused");
+        let text = e.to_string();
+        assert!(
+            text.starts_with("request 'autocorrelation' would make the graph compute about ")
+                && text.contains("(its autocorrelation alone ")
+                && text.contains("over the limit of 2.0e9; parameters set: ac_hSizeSec=0.0001, ac_wSizeSec=0.2, fb_nChannels=256: a longer hop"),
+            "{text}"
+        );
+        assert_eq!(m.processor_count(), nodes);
+        // AMS filters every channel by every modulation band before framing
+        let ams = params(&[("ams_nFilters", json!(1000)), ("fb_nChannels", json!(1024))]);
+        let e = m.add_request("amsFeatures", &ams).expect_err("refused");
+        assert!(e.to_string().contains("(its amsFeatures alone "), "{e}");
+        m.add_request("amsFeatures", &Default::default())
+            .expect("defaults");
+    }
+}
