@@ -1,11 +1,122 @@
-//! Issue 44 (reliability, part 2), the command line's items: bounded reads (8), several
-//! outputs written together or not at all (12), and messages that name what is wrong (12).
+//! Issue 44 (reliability, part 2), the command line's items: a work and memory budget
+//! instead of an abort (4), bounded reads (8), several outputs written together or not at
+//! all (12), and messages that name what is wrong (12).
 
 mod common;
 
 use std::time::{Duration, Instant};
 
 use common::{afe, assert_clear_error, tmp, tone, write_wav};
+
+/// Item 4: parameters that asked for 180 GB (a 0.1-ms autocorrelation hop over 256
+/// channels) or for 22 GB of cross-correlation lags are refused before any allocation,
+/// with exit 1 and a message naming them, where they aborted the process (exit 134).
+#[test]
+fn parameters_beyond_the_work_limit_are_refused_before_allocating() {
+    let wav = tmp("work-in.wav");
+    write_wav(&wav, 2, 44100, 44100, tone);
+    let out_file = tmp("work.npz");
+    let run = |params: &[&str]| {
+        let mut args = vec!["extract", wav.to_str().expect("path"), "-o"];
+        args.push(out_file.to_str().expect("path"));
+        args.extend_from_slice(params);
+        afe(&args)
+    };
+    let out = run(&[
+        "-r",
+        "autocorrelation",
+        "-p",
+        "ac_wSizeSec=0.2",
+        "-p",
+        "ac_hSizeSec=0.0001",
+        "-p",
+        "fb_nChannels=256",
+    ]);
+    assert_clear_error(
+        &out,
+        "request 'autocorrelation' would make the graph compute about ",
+        &out_file,
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("(its autocorrelation alone ")
+            && err.contains(
+                "over the limit of 2.0e9; parameters set: ac_hSizeSec=0.0001, ac_wSizeSec=0.2, \
+                 fb_nChannels=256: a longer hop, a shorter window, fewer channels, lags or bins \
+                 lower it, or raise the limit with the environment variable AFE_WORK_LIMIT"
+            ),
+        "{err}"
+    );
+    // the estimate is at least the lags written: 10^4 frames/s x 256 channels x 8821 lags
+    // per ear
+    let estimate: f64 = err
+        .split("compute about ")
+        .nth(1)
+        .and_then(|r| r.split(' ').next())
+        .and_then(|v| v.parse().ok())
+        .expect("an estimate");
+    assert!(estimate >= 2.0 * 1e4 * 256.0 * 8821.0, "{estimate:e}");
+    let out = run(&[
+        "-r",
+        "crosscorrelation",
+        "-p",
+        "cc_wSizeSec=1",
+        "-p",
+        "cc_maxDelaySec=1",
+        "-p",
+        "cc_hSizeSec=0.001",
+    ]);
+    assert_clear_error(
+        &out,
+        "request 'crosscorrelation' would make the graph compute about ",
+        &out_file,
+    );
+    // the limit moves with AFE_WORK_LIMIT
+    let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_afe"));
+    let out = cmd
+        .args(["extract", wav.to_str().expect("path"), "-r", "ild", "-o"])
+        .arg(&out_file)
+        .env("AFE_WORK_LIMIT", "1e6")
+        .output()
+        .expect("run afe");
+    assert_clear_error(&out, "over the limit of 1.0e6", &out_file);
+}
+
+/// Item 4: outputs beyond the address space left under `ulimit -v` are refused with the
+/// memory message (the allocation aborted the process: `memory allocation of 21895721848
+/// bytes failed`, exit 134).
+#[test]
+fn outputs_beyond_ulimit_v_are_refused_not_aborted() {
+    let wav = tmp("ulimit-in.wav");
+    write_wav(&wav, 2, 44100, 441_000, tone);
+    let out_file = tmp("ulimit.npz");
+    let script = format!(
+        "ulimit -v 4000000 && exec '{}' extract '{}' -o '{}' -r crosscorrelation \
+         -p cc_wSizeSec=0.1 -p cc_maxDelaySec=0.1 -p cc_hSizeSec=0.001",
+        env!("CARGO_BIN_EXE_afe"),
+        wav.display(),
+        out_file.display()
+    );
+    let out = std::process::Command::new("sh")
+        .args(["-c", &script])
+        .env_remove("AFE_MEMORY_AVAILABLE_GB")
+        .output()
+        .expect("run sh");
+    assert_eq!(out.status.code(), Some(1), "{out:?}");
+    assert_clear_error(
+        &out,
+        "keeping the outputs would take 21.9 GB, more than the ",
+        &out_file,
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    let available: f64 = err
+        .split("more than the ")
+        .nth(1)
+        .and_then(|r| r.split(" GB").next())
+        .and_then(|v| v.parse().ok())
+        .expect("a size in GB");
+    assert!(available <= 4.1, "{err}");
+}
 
 /// Item 8: a parameter file is read up to a bound, so a wrong path such as /dev/zero is
 /// refused at once instead of filling the memory.

@@ -396,6 +396,34 @@ def test_outputs_too_large_for_the_memory_are_announced_before_the_work(monkeypa
     )
 
 
+
+def test_parameters_beyond_the_work_limit_are_a_value_error_not_an_abort():
+    """Issue 44, item 4: a 0.1-ms autocorrelation hop over 256 channels asked for 180 GB
+    and killed the interpreter; it is refused when placed, in a child interpreter that
+    must survive to print the message, and the manager goes on without it."""
+    script = (
+        "import numpy as np, afe\n"
+        "m = afe.Manager(44100, 2)\n"
+        "m.add_request('ild')\n"
+        "try:\n"
+        "    m.add_request('autocorrelation', {'ac_wSizeSec': 0.2, 'ac_hSizeSec': 0.0001, 'fb_nChannels': 256})\n"
+        "except ValueError as e:\n"
+        "    print(e)\n"
+        "print(sorted(m.process_chunk(np.zeros((4410, 2)))))\n"
+    )
+    env = dict(os.environ)
+    env.pop("AFE_WORK_LIMIT", None)
+    out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    message, outputs = out.stdout.strip().splitlines()
+    assert message.startswith("request 'autocorrelation' would make the graph compute about ")
+    assert message.endswith(
+        "over the limit of 2.0e9; parameters set: ac_hSizeSec=0.0001, ac_wSizeSec=0.2, fb_nChannels=256: "
+        "a longer hop, a shorter window, fewer channels, lags or bins lower it, or raise the limit "
+        "with the environment variable AFE_WORK_LIMIT (values per second)"
+    )
+    assert outputs == "['ild_mono']"
+
 def test_errors_are_python_exceptions_with_clear_messages(tmp_path):
     x = signal(1600)
     cases = [
