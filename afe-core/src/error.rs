@@ -92,26 +92,54 @@ pub enum Error {
         /// Memory available, e.g. `3.9 GB`.
         available: String,
     },
-    /// A request whose parameters would make the graph compute more values per second of
-    /// signal than the work limit allows (see `afe_graph::work`).
-    #[error("request '{request}' would make the graph compute about {per_second:.1e} values per second of signal (its {heaviest} alone {heaviest_per_second:.1e}), over the limit of {limit:.1e}{set}: a longer hop, a shorter window, fewer channels, lags or bins lower it, or raise the limit with the environment variable AFE_WORK_LIMIT (values per second)")]
-    TooMuchWork {
-        /// The request placed.
-        request: String,
-        /// The graph's estimate with the request, values per second of signal.
-        per_second: f64,
-        /// The processor of the graph that computes the most.
-        heaviest: String,
-        /// Its share, values per second of signal.
-        heaviest_per_second: f64,
-        /// The limit, values per second of signal.
-        limit: f64,
-        /// The parameters the request set, as `; parameters set: a=1, b=2`, or empty.
-        set: String,
-    },
+    /// A request whose parameters would make the graph compute or write more values per
+    /// second of signal than a limit allows (see `afe_graph::work`).
+    #[error("{0}")]
+    TooMuchWork(Box<WorkRefusal>),
     /// Stopped on request (SIGINT or SIGTERM, Ctrl-C in Python) before the input's end.
     #[error("interrupted before the end of the input")]
     Interrupted,
+}
+
+/// The details of [`Error::TooMuchWork`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct WorkRefusal {
+    /// The request placed.
+    pub request: String,
+    /// `compute` (every value, the work limit) or `write` (the outputs, the output limit).
+    pub what: &'static str,
+    /// The graph's estimate with the request, values per second of signal.
+    pub per_second: f64,
+    /// The processor of the graph that computes or writes the most.
+    pub heaviest: String,
+    /// Its share, values per second of signal.
+    pub heaviest_per_second: f64,
+    /// The limit, values per second of signal.
+    pub limit: f64,
+    /// The environment variable that moves the limit.
+    pub variable: &'static str,
+    /// The parameters the request set, as `; parameters set: a=1, b=2`, or empty.
+    pub set: String,
+}
+
+impl std::fmt::Display for WorkRefusal {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "request '{}' would make the graph {} about {:.1e} values per second of signal \
+             (its {} alone {:.1e}), over the limit of {:.1e}{}: a longer hop, a shorter \
+             window, fewer channels, lags or bins lower it, or raise the limit with the \
+             environment variable {} (values per second)",
+            self.request,
+            self.what,
+            self.per_second,
+            self.heaviest,
+            self.heaviest_per_second,
+            self.limit,
+            self.set,
+            self.variable
+        )
+    }
 }
 
 /// What to do about outputs too large for the memory: the end of

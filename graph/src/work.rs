@@ -1,40 +1,69 @@
-//! The work budget: an estimate of the values a graph computes per second of signal,
-//! checked when a request is placed, so that parameters asking for minutes of
+//! The work budget: estimates of the values a graph computes and writes per second of
+//! signal, checked when a request is placed, so that parameters asking for minutes of
 //! computation and gigabytes of output per second of audio (a 0.1-ms hop over 256
 //! channels, a second of lags) are refused up front with a message naming them, instead
 //! of running for hours or exhausting the memory.
 //!
-//! A node's estimate is the values it writes per second (each output's rate times its
-//! width), plus, for an output it frames, the input values its window spans once per frame,
-//! plus what the processor reports of its hidden work
+//! A node writes each output's rate times its width in values per second. It computes
+//! those, plus, for an output it frames, the input values its window spans once per
+//! frame, plus what the processor reports of its hidden work
 //! ([`afe_core::Processor::hidden_work_per_second`]). Every request of the AFE at its
-//! defaults together come to about 6·10^7 values per second at 44.1 kHz; this machine's
+//! defaults together compute about 6·10^7 values per second at 44.1 kHz; this machine's
 //! kind computes about 10^9 values per second per core.
 
+use afe_core::error::WorkRefusal;
 use afe_core::{Error, ParamMap, Result};
 
 use crate::graph::Graph;
 
-/// The default limit, in values per second of signal: 2·10^9, some seconds of one core's
-/// computation per second of audio and 16 GB per second if every value were kept.
+/// The default work limit, in values computed per second of signal: 2·10^9, some seconds
+/// of one core's computation per second of audio.
 pub const WORK_LIMIT: f64 = 2e9;
 
-/// The limit in force: the environment variable `AFE_WORK_LIMIT` (values per second of
-/// signal) where set to a positive number, else [`WORK_LIMIT`].
+/// The default output limit, in values written per second of signal by all the nodes:
+/// 2.5·10^8, 2 GB of float64 per second of signal in the blocks of one chunk (or of a
+/// whole signal's outputs before they are kept).
+pub const OUTPUT_LIMIT: f64 = 2.5e8;
+
+/// The work limit in force: the environment variable `AFE_WORK_LIMIT` (values per second
+/// of signal) where set to a positive number, else [`WORK_LIMIT`].
 pub fn work_limit() -> f64 {
-    std::env::var("AFE_WORK_LIMIT")
+    limit("AFE_WORK_LIMIT", WORK_LIMIT)
+}
+
+/// The output limit in force: `AFE_OUTPUT_LIMIT` where set to a positive number, else
+/// [`OUTPUT_LIMIT`].
+pub fn output_limit() -> f64 {
+    limit("AFE_OUTPUT_LIMIT", OUTPUT_LIMIT)
+}
+
+fn limit(variable: &str, default: f64) -> f64 {
+    std::env::var(variable)
         .ok()
         .and_then(|v| v.trim().parse::<f64>().ok())
         .filter(|v| *v > 0.0)
-        .unwrap_or(WORK_LIMIT)
+        .unwrap_or(default)
+}
+
+/// One limit to check: what it bounds (`compute`, `write`), the share of a node it sums,
+/// the limit and the environment variable that moves it.
+type Check = (&'static str, fn(&NodeWork) -> f64, f64, &'static str);
+
+/// One node's estimates, values per second of signal.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct NodeWork {
+    /// Values its outputs hold.
+    pub written: f64,
+    /// Values it computes, those written included.
+    pub computed: f64,
 }
 
 impl Graph {
-    /// The estimate of node `i` in values per second of signal (0 for the input).
-    pub(crate) fn node_work(&self, i: usize) -> f64 {
+    /// The estimates of node `i` (zero for the input).
+    pub(crate) fn node_work(&self, i: usize) -> NodeWork {
         let node = &self.nodes[i];
         if i == 0 {
-            return 0.0;
+            return NodeWork::default();
         }
         let inputs: Vec<_> = node
             .parents
@@ -60,44 +89,62 @@ impl Graph {
             .processor
             .as_ref()
             .map_or(0.0, |p| p.hidden_work_per_second());
-        written + windowed + hidden
-    }
-
-    /// The graph's estimate: every node's, in values per second of signal.
-    pub(crate) fn work_per_second(&self) -> f64 {
-        (0..self.nodes.len()).map(|i| self.node_work(i)).sum()
-    }
-
-    /// Refuses the graph as it stands, after placing `request` with `params`, if its
-    /// estimate exceeds [`work_limit`].
-    pub(crate) fn check_work(&self, request: &str, params: &ParamMap) -> Result<()> {
-        let limit = work_limit();
-        let works: Vec<f64> = (0..self.nodes.len()).map(|i| self.node_work(i)).collect();
-        let total: f64 = works.iter().sum();
-        if total <= limit {
-            return Ok(());
+        NodeWork {
+            written,
+            computed: written + windowed + hidden,
         }
-        let (heaviest, share) =
-            works.iter().enumerate().fold(
-                (0, 0.0),
-                |best, (i, &w)| if w > best.1 { (i, w) } else { best },
-            );
-        let mut names: Vec<_> = params.keys().cloned().collect();
-        names.sort();
-        let set = if names.is_empty() {
-            String::new()
-        } else {
-            let listed: Vec<String> = names.iter().map(|n| format!("{n}={}", params[n])).collect();
-            format!("; parameters set: {}", listed.join(", "))
-        };
-        Err(Error::TooMuchWork {
-            request: request.to_string(),
-            per_second: total,
-            heaviest: self.nodes[heaviest].name.to_string(),
-            heaviest_per_second: share,
-            limit,
-            set,
-        })
+    }
+
+    /// The graph's estimate of the values it computes per second of signal.
+    pub(crate) fn work_per_second(&self) -> f64 {
+        (0..self.nodes.len())
+            .map(|i| self.node_work(i).computed)
+            .sum()
+    }
+
+    /// Refuses the graph as it stands, after placing `request` with `params`, if it
+    /// computes more than [`work_limit`] or writes more than [`output_limit`].
+    pub(crate) fn check_work(&self, request: &str, params: &ParamMap) -> Result<()> {
+        let works: Vec<NodeWork> = (0..self.nodes.len()).map(|i| self.node_work(i)).collect();
+        let checks: [Check; 2] = [
+            ("compute", |w| w.computed, work_limit(), "AFE_WORK_LIMIT"),
+            ("write", |w| w.written, output_limit(), "AFE_OUTPUT_LIMIT"),
+        ];
+        for (what, share, limit, variable) in checks {
+            let total: f64 = works.iter().map(share).sum();
+            if total <= limit {
+                continue;
+            }
+            let (heaviest, most) =
+                works
+                    .iter()
+                    .map(share)
+                    .enumerate()
+                    .fold(
+                        (0, 0.0),
+                        |best, (i, w)| if w > best.1 { (i, w) } else { best },
+                    );
+            let mut names: Vec<_> = params.keys().cloned().collect();
+            names.sort();
+            let set = if names.is_empty() {
+                String::new()
+            } else {
+                let listed: Vec<String> =
+                    names.iter().map(|n| format!("{n}={}", params[n])).collect();
+                format!("; parameters set: {}", listed.join(", "))
+            };
+            return Err(Error::TooMuchWork(Box::new(WorkRefusal {
+                request: request.to_string(),
+                what,
+                per_second: total,
+                heaviest: self.nodes[heaviest].name.to_string(),
+                heaviest_per_second: most,
+                limit,
+                variable,
+                set,
+            })));
+        }
+        Ok(())
     }
 }
 
@@ -122,6 +169,13 @@ mod tests {
         }
         let total = m.work_per_second();
         assert!(total > 1e7 && total < super::WORK_LIMIT / 20.0, "{total:e}");
+        let written: f64 = (m.signals(true).iter())
+            .map(|s| s.info.fs_hz * s.info.width() as f64)
+            .sum();
+        assert!(
+            written > 1e6 && written < super::OUTPUT_LIMIT / 10.0,
+            "{written:e}"
+        );
     }
 
     #[test]

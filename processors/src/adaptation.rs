@@ -178,6 +178,10 @@ fn padded(values: &[f64], channels: usize, lanes: usize, fill: f64) -> Vec<f64> 
         .collect()
 }
 
+/// Lowest level floor accepted, dB SPL (amplitude 10^-15): the loops divide by the
+/// floor's roots, and a floor that reaches 0 (below about −6000 dB) gave NaN.
+const MIN_FLOOR_DB: f64 = -200.0;
+
 impl Adaptation {
     /// Builds the loops for the IHC signal `input` (its `cf_hz` gives the van Dorp
     /// Schuitman floor); `params` are taken after their preset (see
@@ -200,7 +204,10 @@ impl Adaptation {
                 .collect(),
             _ => vec![p.min_db_spl; input.channels()],
         };
-        if let Some(db) = floor_db.iter().find(|db| db.is_nan() || **db >= 100.0) {
+        if let Some(db) = floor_db
+            .iter()
+            .find(|db| db.is_nan() || **db >= 100.0 || **db < MIN_FLOOR_DB)
+        {
             let (name, value) = match p.model {
                 AdaptationModel::VanDorpSchuitman => {
                     ("adpt_model", "\"adt_vandorpschuitman\"".to_string())
@@ -211,8 +218,9 @@ impl Adaptation {
                 name: name.into(),
                 value,
                 reason: format!(
-                    "the level floor ({db} dB SPL) must be below 100 dB SPL (amplitude 1); \
-                     the van Dorp Schuitman floor exceeds it above about 17.8 kHz"
+                    "the level floor ({db} dB SPL) must be below 100 dB SPL (amplitude 1) and \
+                     at least {MIN_FLOOR_DB} dB SPL (the loops divide by it: lower floors reach \
+                     0 and give NaN); the van Dorp Schuitman floor exceeds 100 dB above about 17.8 kHz"
                 ),
             });
         }

@@ -16,6 +16,11 @@ use crate::even_inverse::EvenInverse;
 use crate::framed::check_framing;
 use crate::real_fft::RealFft;
 
+/// Outside these bounds on the ACF's lag 0 (the sum of the spectral powers |X|^K) the
+/// powers overflowed or lost their precision in the subnormals: the spectrum is then
+/// scaled by its largest magnitude.
+const POWER_RANGE: std::ops::RangeInclusive<f64> = 1e-200..=1e200;
+
 /// How a frame is centre-clipped (AFE `ac_clipMethod`): samples between the thresholds
 /// become 0, the others are kept as below.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -160,6 +165,15 @@ impl Autocorrelation {
                 reason: "must be between 0 and 1 (a fraction of the frame's extreme values)".into(),
             });
         }
+        if params.clip_method == ClipMethod::Compress && params.clip_alpha == 1.0 {
+            return Err(Error::InvalidParameter {
+                name: "ac_clipAlpha".into(),
+                value: params.clip_alpha.to_string(),
+                reason: "with ac_clipMethod 'clc' a threshold of 1 clips every sample to 0 and \
+                         the autocorrelation is NaN: give a value below 1"
+                    .into(),
+            });
+        }
         if params.spectral_exponent <= 0.0 {
             return Err(Error::InvalidParameter {
                 name: "ac_K".into(),
@@ -216,14 +230,34 @@ impl Autocorrelation {
             power.for_each(|(p, (re, im))| *p = re.hypot(*im).powf(k));
         }
         self.inverse.run(&self.power, &mut self.acf);
-        // An all-zero frame gives 0/0 = NaN at every lag, as in the AFE.
         let Some(&lag0) = self.acf.first() else {
             return; // a one-sample window has no lag to give
         };
+        let lag0 = if POWER_RANGE.contains(&lag0) {
+            lag0
+        } else {
+            self.rescaled_acf(k)
+        };
+        // An all-zero frame gives 0/0 = NaN at every lag, as in the AFE.
         let inv = 1.0 / lag0;
         for ((o, v), s) in out.iter_mut().zip(&self.acf).zip(&self.scale) {
             *o = v * s * inv;
         }
+    }
+
+    /// The ACF again from the spectrum over its largest magnitude, where |X|^K
+    /// overflowed or sank into the subnormals (a frame near 0, K far from 2): the
+    /// normalisation by lag 0 cancels the scale, and an all-zero frame stays all zero.
+    /// Returns the new lag 0.
+    #[cold]
+    fn rescaled_acf(&mut self, k: f64) -> f64 {
+        let m = (self.re.iter().zip(&self.im)).fold(0.0f64, |m, (re, im)| m.max(re.hypot(*im)));
+        if m > 0.0 {
+            let power = self.power.iter_mut().zip(self.re.iter().zip(&self.im));
+            power.for_each(|(p, (re, im))| *p = (re.hypot(*im) / m).powf(k));
+            self.inverse.run(&self.power, &mut self.acf);
+        }
+        self.acf[0]
     }
 }
 
@@ -471,6 +505,31 @@ mod tests {
                     out[j]
                 );
             }
+        }
+    }
+
+    #[test]
+    fn powers_that_overflow_or_sink_into_the_subnormals_are_rescaled() {
+        // the normalised ACF does not depend on the frame's scale: a frame near 0, or a
+        // spectral exponent whose powers overflow, gives the same ACF as a plain frame
+        let x = signal(40, 3);
+        let (_, plain) = run(&AutocorrelationParams::default(), 1, &x, &[40]);
+        let tiny: Vec<f64> = x.iter().map(|v| v * 1e-160).collect();
+        let (_, scaled) = run(&AutocorrelationParams::default(), 1, &tiny, &[40]);
+        for (a, b) in plain.iter().zip(&scaled) {
+            assert!((a - b).abs() < 1e-12, "{a} vs {b}");
+        }
+        for k in [465.0, 5e5, 1e-9] {
+            let p = AutocorrelationParams {
+                spectral_exponent: k,
+                ..Default::default()
+            };
+            let (_, out) = run(&p, 1, &x, &[40]);
+            assert!(
+                !out.is_empty() && out.iter().all(|v| v.is_finite()),
+                "K = {k}"
+            );
+            assert_eq!(out[0], 1.0, "K = {k}");
         }
     }
 

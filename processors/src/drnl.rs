@@ -554,6 +554,19 @@ impl Drnl {
     pub fn new(params: &FilterbankParams, fs: f64) -> Result<(Self, SignalInfo)> {
         let grid = params.grid()?;
         grid.check_below_nyquist(params, fs)?;
+        if let Some(&f) = grid.cf_hz.iter().find(|&&f| f <= 0.0) {
+            // its bandwidths and gains are powers of log10(cf): NaN at 0 Hz
+            let (name, value) = if params.cf_hz.is_empty() {
+                ("fb_lowFreqHz", params.low_freq_hz.to_string())
+            } else {
+                ("fb_cfHz", format!("{:?}", params.cf_hz))
+            };
+            return Err(Error::invalid(
+                name,
+                value,
+                format!("the DRNL needs centre frequencies above 0 Hz, and one is {f} Hz"),
+            ));
+        }
         let nc = grid.cf_hz.len();
         let moc_ipsi = per_channel("fb_mocIpsi", &params.moc_ipsi, nc)?;
         let moc_contra = per_channel("fb_mocContra", &params.moc_contra, nc)?;
