@@ -11,7 +11,7 @@ use std::time::Duration;
 
 use afe::stream::{run, StreamJob};
 use afe_bass_source::{Pacing, Synth};
-use afe_view::View;
+use afe_view::{View, ViewOptions};
 use serde_json::{json, Value};
 use tungstenite::Message;
 
@@ -85,7 +85,12 @@ fn read_all(mut ws: Socket, mut on_text: impl FnMut(&Value, &mut Socket)) -> See
 
 #[test]
 fn a_page_sees_every_frame_and_edits_the_graph() {
-    let (view, tap) = View::start("127.0.0.1:0".parse().expect("addr"), 10.0).expect("view");
+    let (view, tap) = View::start(
+        "127.0.0.1:0".parse().expect("addr"),
+        10.0,
+        &ViewOptions::default(),
+    )
+    .expect("view");
     let addr = view.addr();
 
     // the page itself, offline: no external script or style
