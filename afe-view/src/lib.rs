@@ -5,13 +5,15 @@
 //! The page talks to the server over one WebSocket (`/ws`):
 //! - server → page, text: `{"type":"layout", "version", "fs_hz", "ears", "block_ms",
 //!   "catalogue": [request names], "order": [keys], "signals": {key: description},
-//!   "requests": [{"handle", "outputs"}]}` on connection and whenever the graph changes
-//!   (the description is [`afe::metadata::describe`]'s); `{"type":"reply", "op", "ok",
-//!   "message"}` after an edit; `{"type":"lagged", "batches"}` when this page fell
-//!   behind and lost batches;
+//!   "requests": [{"handle", "outputs"}]}` on connection (the stream sends one on its
+//!   first block, even with no request in place) and whenever the graph changes (the
+//!   description is [`afe::metadata::describe`]'s); `{"type":"reply", "op", "ok",
+//!   "message"}` to the page that asked, after its edit or a refusal;
+//!   `{"type":"refused", "message"}` before closing a page there is no room for;
+//!   `{"type":"lagged", "batches"}` when this page fell behind and lost batches;
 //! - server → page, binary: a batch of blocks (see `server::encode`): the new frames of
 //!   every signal (complex values as magnitudes), each ear's min/max per block, the
-//!   input samples while the page listens, and the stream's counters (frames, frames
+//!   input samples while this page listens, and the stream's counters (frames, frames
 //!   lost by the stream, frames dropped for slow pages, compute time against budget);
 //! - page → server, text: `{"op":"add","request":"itd","params":{...}}`,
 //!   `{"op":"remove","handle":2}`, `{"op":"set","name":"rm_wSizeSec","value":0.05}`,
