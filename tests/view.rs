@@ -418,6 +418,34 @@ fn requests_are_bounded_per_page_and_over_all_pages() {
 }
 
 #[test]
+fn an_add_is_refused_while_the_stream_is_above_its_load_limit() {
+    let options = ViewOptions {
+        limits: Limits {
+            // any compute at all is above it
+            max_load: 0.0,
+            ..Limits::default()
+        },
+        ..ViewOptions::default()
+    };
+    let (view, streamer) = start(&options, &["ratemap"], 1.0);
+    let mut ws = connect(view.addr());
+    // the load is an average over blocks: let a few pass
+    std::thread::sleep(Duration::from_millis(200));
+    ws.send(Message::text(
+        json!({"op": "add", "request": "ild"}).to_string(),
+    ))
+    .expect("send");
+    let reply = replies(&mut ws, 1).remove(0);
+    assert_eq!(reply["ok"], false);
+    assert!(
+        message(&reply).contains("% of its real-time budget (above 0 %)"),
+        "{reply}"
+    );
+    drop(ws);
+    streamer.join().expect("stream");
+}
+
+#[test]
 fn an_oversized_message_closes_its_page_only() {
     let (view, streamer) = start(&ViewOptions::default(), &["ratemap"], 3.0);
     let addr = view.addr();
