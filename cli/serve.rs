@@ -22,6 +22,11 @@ pub(crate) struct ServeArgs {
     /// loopback: the page can edit the graph, and it has no authentication).
     #[arg(long, value_name = "ADDR")]
     http: Option<std::net::SocketAddr>,
+    /// Also let pages of this origin (scheme://host[:port], e.g. http://robot.local:8080)
+    /// open the web view's WebSocket, or any origin with * (repeatable). By default only
+    /// the page's own origin on an IP address or localhost.
+    #[arg(long, value_name = "URL", requires = "http")]
+    http_allow_origin: Vec<String>,
     /// Zenoh endpoint the server listens on for remote clients (repeatable); loopback
     /// unless told otherwise.
     #[cfg(feature = "remote")]
@@ -75,6 +80,7 @@ impl ServeArgs {
             as_json: self.json,
             output: None,
             view: self.http,
+            view_origins: self.http_allow_origin,
             #[cfg(feature = "remote")]
             serve: Some(afe_net::ServeOptions {
                 listen: self.listen,

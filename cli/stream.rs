@@ -67,6 +67,12 @@ pub(crate) struct StreamArgs {
     #[cfg(feature = "view")]
     #[arg(long, value_name = "ADDR")]
     view: Option<std::net::SocketAddr>,
+    /// Also let pages of this origin (scheme://host[:port]) open the view's WebSocket, or
+    /// any origin with * (repeatable). By default only the page's own origin on an IP
+    /// address or localhost.
+    #[cfg(feature = "view")]
+    #[arg(long, value_name = "URL", requires = "view")]
+    view_allow_origin: Vec<String>,
 }
 
 impl StreamArgs {
@@ -104,6 +110,8 @@ impl StreamArgs {
             output: self.output.as_deref(),
             #[cfg(feature = "view")]
             view: self.view,
+            #[cfg(feature = "view")]
+            view_origins: self.view_allow_origin,
             #[cfg(feature = "remote")]
             serve: None,
             endless: false,
@@ -123,6 +131,9 @@ pub(crate) struct StreamRun<'a> {
     /// Serve the live view on this address.
     #[cfg(feature = "view")]
     pub(crate) view: Option<std::net::SocketAddr>,
+    /// Origins allowed to open the live view's WebSocket besides the page's own.
+    #[cfg(feature = "view")]
+    pub(crate) view_origins: Vec<String>,
     /// Serve the stream to remote clients over Zenoh.
     #[cfg(feature = "remote")]
     pub(crate) serve: Option<afe_net::ServeOptions>,
@@ -187,7 +198,12 @@ pub(crate) fn stream(mut job: StreamJob, run: &StreamRun<'_>) -> Result<(), CliE
     #[cfg(feature = "view")]
     let (view, tap) = match run.view {
         Some(addr) => {
-            let (view, tap) = afe_view::View::start(addr, job.block_ms)?;
+            let options = afe_view::ViewOptions {
+                origins: afe_view::AllowedOrigins::parse(&run.view_origins)
+                    .map_err(afe_view::ViewError::from)?,
+                limits: afe_view::Limits::default(),
+            };
+            let (view, tap) = afe_view::View::start(addr, job.block_ms, &options)?;
             if !addr.ip().is_loopback() {
                 eprintln!(
                     "warning: the live view on {addr} is open to the network, without \

@@ -11,7 +11,7 @@ use afe::stream::{run, StreamJob};
 use afe::{Manager, ParamMap};
 use afe_bass_source::{Pacing, Synth};
 use afe_plot::{render, Format, Layout};
-use afe_view::View;
+use afe_view::{View, ViewOptions};
 use serde_json::{json, Value};
 use tungstenite::Message;
 
@@ -110,7 +110,12 @@ fn a_processor_defined_here_gets_metadata_a_figure_and_a_panel() {
     assert!(header.height >= 2 * Layout::default().panel_height);
 
     // its live-view panel: listed in the page's catalogue, described, and streamed
-    let (view, tap) = View::start("127.0.0.1:0".parse().expect("addr"), 10.0).expect("view");
+    let (view, tap) = View::start(
+        "127.0.0.1:0".parse().expect("addr"),
+        10.0,
+        &ViewOptions::default(),
+    )
+    .expect("view");
     let (mut ws, _) =
         tungstenite::connect(format!("ws://{}/ws", view.addr())).expect("a WebSocket");
     if let tungstenite::stream::MaybeTlsStream::Plain(s) = ws.get_ref() {

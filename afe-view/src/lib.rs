@@ -5,32 +5,49 @@
 //! The page talks to the server over one WebSocket (`/ws`):
 //! - server → page, text: `{"type":"layout", "version", "fs_hz", "ears", "block_ms",
 //!   "catalogue": [request names], "order": [keys], "signals": {key: description},
-//!   "requests": [{"handle", "outputs"}]}` on connection and whenever the graph changes
-//!   (the description is [`afe::metadata::describe`]'s); `{"type":"reply", "op", "ok",
-//!   "message"}` after an edit; `{"type":"lagged", "batches"}` when this page fell
-//!   behind and lost batches;
+//!   "requests": [{"handle", "outputs"}]}` on connection (the stream sends one on its
+//!   first block, even with no request in place) and whenever the graph changes (the
+//!   description is [`afe::metadata::describe`]'s); `{"type":"reply", "op", "ok",
+//!   "message"}` to the page that asked, after its edit or a refusal;
+//!   `{"type":"refused", "message"}` before closing a page there is no room for;
+//!   `{"type":"lagged", "batches"}` when this page fell behind and lost batches;
 //! - server → page, binary: a batch of blocks (see `server::encode`): the new frames of
 //!   every signal (complex values as magnitudes), each ear's min/max per block, the
-//!   input samples while the page listens, and the stream's counters (frames, frames
+//!   input samples while this page listens, and the stream's counters (frames, frames
 //!   lost by the stream, frames dropped for slow pages, compute time against budget);
 //! - page → server, text: `{"op":"add","request":"itd","params":{...}}`,
 //!   `{"op":"remove","handle":2}`, `{"op":"set","name":"rm_wSizeSec","value":0.05}`,
 //!   `{"op":"audio","on":true}`.
 //!
 //! The audio path never waits for the web side: batches come from a small pool and are
-//! dropped (counted) when none is free; edits wait in a channel until the next block.
+//! dropped (counted) when none is free; edits wait in a bounded channel until the next
+//! block. Only pages of allowed origins connect ([`AllowedOrigins`]), and what pages may
+//! ask is bounded ([`Limits`]).
 
+mod limits;
+mod origin;
 mod server;
 mod tap;
 
 use std::net::{SocketAddr, TcpListener};
-use std::sync::atomic::AtomicUsize;
+use std::sync::atomic::{AtomicU64, AtomicUsize};
 use std::sync::{mpsc, Arc, Mutex};
 use std::thread::JoinHandle;
 
 use thiserror::Error;
 
+pub use limits::Limits;
+pub use origin::{AllowedOrigins, OriginError};
 pub use tap::Tap;
+
+/// Who may connect to the view and how much they may ask.
+#[derive(Debug, Clone, Default)]
+pub struct ViewOptions {
+    /// Origins whose pages may open the WebSocket besides the page's own.
+    pub origins: AllowedOrigins,
+    /// Bounds on connections, pages, requests, messages and edits.
+    pub limits: Limits,
+}
 
 /// Batches in flight between the audio path and the pages.
 const POOL: usize = 4;
@@ -46,6 +63,9 @@ pub enum ViewError {
         /// What the system said.
         source: std::io::Error,
     },
+    /// An allowed origin given is not one.
+    #[error(transparent)]
+    Origin(#[from] OriginError),
 }
 
 /// A running view server; it stops when dropped.
@@ -59,7 +79,11 @@ pub struct View {
 impl View {
     /// Serves the view on `addr` for a stream in blocks of `block_ms`; returns the server
     /// and the stream's observer. Batches hold about 50 ms of blocks.
-    pub fn start(addr: SocketAddr, block_ms: f64) -> Result<(View, Tap), ViewError> {
+    pub fn start(
+        addr: SocketAddr,
+        block_ms: f64,
+        options: &ViewOptions,
+    ) -> Result<(View, Tap), ViewError> {
         let listen_error = |source| ViewError::Listen { addr, source };
         let listener = TcpListener::bind(addr).map_err(listen_error)?;
         listener.set_nonblocking(true).map_err(listen_error)?;
@@ -69,14 +93,17 @@ impl View {
         for _ in 0..POOL {
             let _ = pool_tx.send(tap::Batch::new());
         }
-        let (edits_tx, edits_rx) = mpsc::channel();
+        let (edits_tx, edits_rx) = mpsc::sync_channel(options.limits.edits_waiting);
         let listeners = Arc::new(AtomicUsize::new(0));
         let shared = Arc::new(server::Shared {
             out: tokio::sync::broadcast::channel(server::PAGE_BACKLOG).0,
             layout: Mutex::new(String::new()),
-            edits: Mutex::new(edits_tx),
+            edits: edits_tx,
             listeners: listeners.clone(),
             pages: AtomicUsize::new(0),
+            next_page: AtomicU64::new(1),
+            options: options.clone(),
+            log: Mutex::new(server::Throttle::default()),
         });
         let bridge_shared = shared.clone();
         std::thread::Builder::new()
@@ -90,7 +117,14 @@ impl View {
             .spawn(move || server::serve(listener, serve_shared, stopped))
             .map_err(listen_error)?;
         let batch_blocks = (50.0 / block_ms).ceil().clamp(1.0, 100.0) as u32;
-        let tap = Tap::new(to_server, pool_rx, edits_rx, listeners, batch_blocks);
+        let tap = Tap::new(
+            to_server,
+            pool_rx,
+            edits_rx,
+            listeners,
+            batch_blocks,
+            options.limits.clone(),
+        );
         Ok((
             View {
                 addr,

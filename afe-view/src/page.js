@@ -233,6 +233,8 @@ function onLayout(layout) {
   }
   state.hello = layout;
   state.layout = layout;
+  // a server started without requests: say so until one is added
+  $("empty").hidden = layout.order.length > 0;
   const keep = new Set(layout.order);
   for (const [key, p] of state.panels) {
     if (!keep.has(key) || JSON.stringify(p.d.parameters) !== JSON.stringify(layout.signals[key].parameters)) {
@@ -289,6 +291,7 @@ function play(samples, ears) {
 }
 
 function onFrames(buffer) {
+  if (!state.hello) return;          // frames before the first layout: nothing to draw on
   const view = new DataView(buffer);
   const hlen = view.getUint32(0, true);
   const header = JSON.parse(new TextDecoder().decode(new Uint8Array(buffer, 4, hlen)));
@@ -316,8 +319,16 @@ function connect() {
   const ws = new WebSocket(`ws://${location.host}/ws`);
   ws.binaryType = "arraybuffer";
   state.ws = ws;
-  ws.onopen = () => { $("conn").textContent = "live"; };
-  ws.onclose = () => { $("conn").textContent = "disconnected"; };
+  let opened = false;
+  ws.onopen = () => { opened = true; $("conn").textContent = "live"; };
+  ws.onclose = (ev) => {
+    // a refusal says why in the close frame; one before opening (an origin the
+    // server does not allow) only in the server's log
+    const why = ev.reason || (opened ? "" : "refused by the server (its log says why)");
+    if ($("conn").textContent !== "stream ended") $("conn").textContent = "disconnected";
+    if (why) log(why, ev.code !== 1000);
+    $("conn").className = ev.code === 1000 ? "" : "bad";
+  };
   ws.onmessage = (ev) => {
     if (typeof ev.data !== "string") { onFrames(ev.data); return; }
     const msg = JSON.parse(ev.data);
@@ -325,7 +336,9 @@ function connect() {
       onLayout(msg);
     } else if (msg.type === "reply") {
       log(msg.message, !msg.ok);
-    } else if (msg.type === "lagged") {
+    } else if (msg.type === "refused") {
+      log(msg.message, true);
+    } else if (msg.type === "lagged" && state.hello) {
       // this page fell behind: whole batches were skipped for it
       const blockFrames = Math.round(state.hello.block_ms * state.hello.fs_hz / 1000);
       state.stats.lagged += msg.batches * blockFrames * Math.ceil(50 / state.hello.block_ms);

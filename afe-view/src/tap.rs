@@ -1,7 +1,8 @@
 //! The audio side of the live view: after each block it copies the new frames into a
 //! pooled batch and hands full batches to the server's thread without blocking; when
 //! no batch is free (a slow page) the frames are dropped and counted, never queued.
-//! Edits asked for by pages are applied here, between blocks.
+//! Edits asked for by pages are applied here, between blocks, within the view's
+//! [`Limits`]: requests per page and in all, edits per block, the stream's load.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError};
@@ -12,6 +13,8 @@ use serde_json::{json, Value};
 
 use afe::metadata::describe;
 use afe::stream::{Observer, Timing};
+
+use super::Limits;
 
 /// Values reserved per signal in a fresh batch, so that steady-state blocks append
 /// without growing it.
@@ -91,21 +94,28 @@ impl Batch {
 pub(crate) enum ToServer {
     /// Frames of a few blocks.
     Frames(Batch),
-    /// A JSON text message for every page (the graph's new layout, an edit's outcome).
+    /// A JSON text message for every page (the graph's new layout).
     Text(String),
+    /// A JSON text message for one page (the outcome of its edit).
+    Reply { page: u64, text: String },
 }
 
-/// An edit asked for by a page.
+/// An edit asked for by a page (`page` is its id).
 pub(crate) enum Edit {
     /// Place request `name` with `params`.
     Add {
+        page: u64,
         name: String,
         params: afe_core::ParamMap,
     },
     /// Remove the request with this handle.
-    Remove(usize),
+    Remove { page: u64, handle: usize },
     /// Set parameter `name` to `value` in every request that uses it.
-    Set { name: String, value: Value },
+    Set {
+        page: u64,
+        name: String,
+        value: Value,
+    },
 }
 
 /// The live view's end of a stream (an [`Observer`]).
@@ -116,11 +126,16 @@ pub struct Tap {
     pub(crate) listeners: Arc<AtomicUsize>,
     /// Blocks per batch.
     pub(crate) batch_blocks: u32,
+    limits: Limits,
     batch: Option<Batch>,
     /// The signals of the current layout.
     sources: Vec<OutputRef>,
     version: u64,
     dropped_frames: u64,
+    /// Requests placed by pages and still in place: (handle, page).
+    placed: Vec<(usize, u64)>,
+    /// Compute time of a block over its duration, averaged over about a second.
+    load: f64,
 }
 
 impl Tap {
@@ -130,6 +145,7 @@ impl Tap {
         edits: Receiver<Edit>,
         listeners: Arc<AtomicUsize>,
         batch_blocks: u32,
+        limits: Limits,
     ) -> Self {
         Tap {
             to_server,
@@ -137,46 +153,102 @@ impl Tap {
             edits,
             listeners,
             batch_blocks,
+            limits,
             batch: None,
             sources: Vec::new(),
             version: 0,
             dropped_frames: 0,
+            placed: Vec::new(),
+            load: 0.0,
         }
     }
 
-    /// Applies the edits pages asked for, replying to them.
+    /// Applies up to `edits_per_block` of the edits pages asked for, replying to each
+    /// page.
     fn apply_edits(&mut self, mgr: &mut Manager) {
-        while let Ok(edit) = self.edits.try_recv() {
-            let (op, outcome) = match edit {
-                Edit::Add { name, params } => (
-                    "add",
-                    mgr.add_request(&name, &params)
-                        .map(|h| format!("placed {name} (request {})", h.index())),
-                ),
-                Edit::Remove(h) => (
+        for _ in 0..self.limits.edits_per_block {
+            let Ok(edit) = self.edits.try_recv() else {
+                break;
+            };
+            let (page, op, outcome) = match edit {
+                Edit::Add { page, name, params } => {
+                    (page, "add", self.add(mgr, page, &name, &params))
+                }
+                Edit::Remove { page, handle } => (
+                    page,
                     "remove",
-                    mgr.remove_request(afe_graph::RequestHandle::from_index(h))
-                        .map(|()| format!("removed request {h}")),
+                    mgr.remove_request(afe_graph::RequestHandle::from_index(handle))
+                        .map(|()| {
+                            self.placed.retain(|&(h, _)| h != handle);
+                            format!("removed request {handle}")
+                        })
+                        .map_err(|e| e.to_string()),
                 ),
-                Edit::Set { name, value } => ("set", set_everywhere(mgr, &name, value)),
+                Edit::Set { page, name, value } => (
+                    page,
+                    "set",
+                    set_everywhere(mgr, &name, value).map_err(|e| e.to_string()),
+                ),
             };
             let reply = match outcome {
                 Ok(message) => json!({ "type": "reply", "op": op, "ok": true, "message": message }),
-                Err(e) => {
-                    json!({ "type": "reply", "op": op, "ok": false, "message": e.to_string() })
+                Err(message) => {
+                    json!({ "type": "reply", "op": op, "ok": false, "message": message })
                 }
             };
-            // control messages wait for room: they are rare, and a page must see them
-            let _ = self.to_server.send(ToServer::Text(reply.to_string()));
+            // control messages wait for room: they are few (bounded per block), and a
+            // page must see them
+            let _ = self.to_server.send(ToServer::Reply {
+                page,
+                text: reply.to_string(),
+            });
         }
+    }
+
+    /// Places a request for `page` if the limits allow it.
+    fn add(
+        &mut self,
+        mgr: &mut Manager,
+        page: u64,
+        name: &str,
+        params: &afe_core::ParamMap,
+    ) -> Result<String, String> {
+        let limits = &self.limits;
+        let mine = self.placed.iter().filter(|&&(_, p)| p == page).count();
+        if mine >= limits.requests_per_page {
+            return Err(format!(
+                "this page has {mine} requests in place, the most one page may add: \
+                 remove one first"
+            ));
+        }
+        if self.placed.len() >= limits.requests {
+            return Err(format!(
+                "pages have {} requests in place, the most this server takes from pages: \
+                 remove one first",
+                self.placed.len()
+            ));
+        }
+        if self.load > limits.max_load {
+            return Err(format!(
+                "the stream uses {:.0} % of its real-time budget (above {:.0} %): remove a \
+                 request before adding one",
+                100.0 * self.load,
+                100.0 * limits.max_load
+            ));
+        }
+        let h = mgr.add_request(name, params).map_err(|e| e.to_string())?;
+        self.placed.push((h.index(), page));
+        Ok(format!("placed {name} (request {})", h.index()))
     }
 
     /// Sends the layout if the graph's signals changed (placed, removed, rebuilt), with
     /// what a page needs first: the input's rate and ears, the block length and the
-    /// request catalogue.
+    /// request catalogue. The first block always sends one, even with no request in
+    /// place, so that a page knows the stream before anything is added.
     fn check_layout(&mut self, mgr: &Manager, timing: &Timing) {
         let signals = mgr.signals(false);
-        if signals.len() == self.sources.len()
+        if self.version > 0
+            && signals.len() == self.sources.len()
             && signals
                 .iter()
                 .zip(&self.sources)
@@ -262,6 +334,12 @@ fn set_everywhere(mgr: &mut Manager, name: &str, value: Value) -> afe_core::Resu
 
 impl Observer for Tap {
     fn block(&mut self, timing: &Timing, mgr: &mut Manager, input: &[Vec<f64>]) {
+        let (ms, budget) = timing.last_block_ms();
+        if budget > 0.0 {
+            // a first-order average with a time constant of about a second
+            let alpha = (budget / 1000.0).min(1.0);
+            self.load += alpha * (ms / budget - self.load);
+        }
         self.check_layout(mgr, timing);
         if self.batch.is_none() {
             self.batch = self.pool.try_recv().ok();

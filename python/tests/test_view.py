@@ -1,6 +1,9 @@
 """The live web view in a real browser: headless Chromium (selenium) against
-`afe serve --http` on loopback with a synthetic source. Skipped, with the reason, where
-Chromium, chromedriver or selenium is missing; `.ci/run` installs them so CI never skips."""
+`afe serve --http` on loopback with a synthetic source: the page draws the stream and
+edits the graph; started without requests it says how to begin and draws what is added,
+without a console error; a page of another origin in the same browser is refused.
+Skipped, with the reason, where Chromium, chromedriver or selenium is missing;
+`.ci/run` installs them so CI never skips."""
 import json
 import os
 import shutil
@@ -110,3 +113,107 @@ def test_the_live_page_shows_the_stream_and_edits_the_graph(cli):
         out, err = server.communicate(timeout=10)
     report = json.loads(out)
     assert report["lost_frames"] == 0, report
+
+
+def _chrome(chromium, driver_path):
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    opts = webdriver.ChromeOptions()
+    opts.binary_location = chromium
+    for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+                "--window-size=1200,1000"):
+        opts.add_argument(arg)
+    opts.set_capability("goog:loggingPrefs", {"browser": "ALL"})
+    return webdriver.Chrome(service=Service(driver_path), options=opts)
+
+
+def test_a_page_started_without_requests_says_so_and_draws_what_is_added(cli):
+    chromium, driver_path = _browser()
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.support.ui import Select, WebDriverWait
+
+    port = _free_port()
+    server = subprocess.Popen(
+        [cli, "serve", "--source", SOURCE, "-p", "fb_nChannels=16",
+         "--http", f"127.0.0.1:{port}", "--listen", "tcp/127.0.0.1:0", "--for", "30", "--json"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    browser = None
+    try:
+        _wait_for_port(port, server)
+        browser = _chrome(chromium, driver_path)
+        browser.get(f"http://127.0.0.1:{port}/")
+        wait = WebDriverWait(browser, 10)
+        wait.until(lambda b: b.find_element(By.ID, "conn").text == "live")
+        empty = browser.find_element(By.ID, "empty")
+        wait.until(lambda b: empty.is_displayed())
+        assert "no request yet" in empty.text
+        # the input still scrolls, and a second of it raises no error
+        wave = "return document.getElementById('wave').toDataURL()"
+        wait.until(lambda b: int(b.find_element(By.ID, "frames").text) > 0)
+        before = browser.execute_script(wave)
+        time.sleep(1.0)
+        assert browser.execute_script(wave) != before, "the waveform does not move"
+        assert [e for e in browser.get_log("browser") if e["level"] == "SEVERE"] == []
+
+        Select(browser.find_element(By.ID, "request")).select_by_visible_text("ratemap")
+        browser.find_element(By.ID, "add").click()
+        wait.until(lambda b: b.find_elements(By.ID, "panel-ratemap_left"))
+        assert not empty.is_displayed()
+        canvas = "return document.querySelector('#panel-ratemap_left canvas.data').toDataURL()"
+        before = browser.execute_script(canvas)
+        time.sleep(1.0)
+        assert browser.execute_script(canvas) != before, "the ratemap canvas does not move"
+        assert "placed ratemap" in browser.find_element(By.ID, "log").text
+        assert [e for e in browser.get_log("browser") if e["level"] == "SEVERE"] == []
+    finally:
+        if browser is not None:
+            browser.quit()
+        server.terminate()
+        server.communicate(timeout=10)
+
+
+def test_a_page_of_another_origin_in_the_same_browser_is_refused(cli):
+    chromium, driver_path = _browser()
+    from selenium.webdriver.support.ui import WebDriverWait
+
+    port, other = _free_port(), _free_port()
+    server = subprocess.Popen(
+        [cli, "serve", "--source", SOURCE, "-r", "ratemap", "--http", f"127.0.0.1:{port}",
+         "--listen", "tcp/127.0.0.1:0", "--for", "20"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    # the other site: any page served from another port of loopback
+    site = subprocess.Popen(
+        ["/usr/bin/env", "python3", "-m", "http.server", str(other), "--bind", "127.0.0.1"],
+        cwd=os.path.dirname(__file__), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    )
+    probe = f"""
+      window.probe = [];
+      const ws = new WebSocket("ws://127.0.0.1:{port}/ws");
+      ws.onopen = () => window.probe.push("open");
+      ws.onmessage = () => window.probe.push("message");
+      ws.onclose = (ev) => window.probe.push("close " + ev.code);
+    """
+    browser = None
+    try:
+        _wait_for_port(port, server)
+        _wait_for_port(other, site)
+        browser = _chrome(chromium, driver_path)
+        browser.get(f"http://127.0.0.1:{other}/")
+        browser.execute_script(probe)
+        wait = WebDriverWait(browser, 10)
+        wait.until(lambda b: b.execute_script("return window.probe.length") > 0)
+        assert browser.execute_script("return window.probe") == ["close 1006"]
+        # the page's own origin is served in the same browser
+        browser.get(f"http://127.0.0.1:{port}/")
+        wait.until(lambda b: b.execute_script("return window.afeStats.batches") > 0)
+    finally:
+        if browser is not None:
+            browser.quit()
+        site.terminate()
+        site.wait(timeout=10)
+        server.terminate()
+        _, err = server.communicate(timeout=10)
+    assert f"refused a WebSocket: origin http://127.0.0.1:{other} is not this server's page" in err, err
