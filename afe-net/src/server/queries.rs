@@ -32,7 +32,7 @@ const QUERY_POLL: Duration = Duration::from_millis(50);
 pub(super) const QUERY_BACKLOG: usize = 256;
 /// Queries parked (waiting for a client's token or the stream's start) before the next
 /// are turned away.
-pub(super) const MAX_PARKED: usize = 64;
+pub(super) const MAX_PARKED: usize = 128;
 
 /// The server's queryables.
 #[derive(Debug, Clone, Copy)]
@@ -185,9 +185,7 @@ impl QueryLoop {
         while !stop.load(Ordering::Relaxed) {
             let wait = self
                 .next_deadline()
-                .map_or(QUERY_POLL, |d| {
-                    d.saturating_duration_since(Instant::now())
-                })
+                .map_or(QUERY_POLL, |d| d.saturating_duration_since(Instant::now()))
                 .min(QUERY_POLL);
             match events.recv_timeout(wait) {
                 Ok(Event::Query(op, q)) => {
@@ -295,14 +293,12 @@ impl QueryLoop {
                     Err(e) => return answer(&q, Err(e)),
                 };
                 self.next_epoch += 1;
-                self.clients
-                    .entry(s.client.clone())
-                    .or_insert(ClientState {
-                        token,
-                        epoch: self.next_epoch,
-                        subscriptions: HashSet::new(),
-                        reserved: 0,
-                    })
+                self.clients.entry(s.client.clone()).or_insert(ClientState {
+                    token,
+                    epoch: self.next_epoch,
+                    subscriptions: HashSet::new(),
+                    reserved: 0,
+                })
             }
         };
         if state.subscriptions.len() + state.reserved >= limits.max_subscriptions {
@@ -407,10 +403,7 @@ impl QueryLoop {
     fn settle(&mut self, asked: Asked, outcome: Outcome, query: Option<Query>) {
         let outcome = match asked {
             Asked::Subscribe { client, epoch } => {
-                let state = self
-                    .clients
-                    .get_mut(&client)
-                    .filter(|s| s.epoch == epoch);
+                let state = self.clients.get_mut(&client).filter(|s| s.epoch == epoch);
                 match (outcome, state) {
                     (Ok(mut reply), Some(state)) => {
                         state.reserved -= 1;
