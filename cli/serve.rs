@@ -41,6 +41,17 @@ pub(crate) struct ServeArgs {
     #[cfg(feature = "remote")]
     #[arg(long, value_name = "FILE.json5")]
     zenoh_config: Option<PathBuf>,
+    /// Zenoh clients holding subscriptions at once (1 to 1024); a further client is
+    /// refused until one leaves.
+    #[cfg(feature = "remote")]
+    #[arg(long, value_name = "N", default_value_t = afe_net::MAX_CLIENTS as u64,
+          value_parser = clap::value_parser!(u64).range(1..=afe_net::MAX_CLIENTS_LIMIT as u64))]
+    max_clients: u64,
+    /// Subscriptions one Zenoh client may hold (1 to 256).
+    #[cfg(feature = "remote")]
+    #[arg(long, value_name = "N", default_value_t = afe_net::MAX_SUBSCRIPTIONS as u64,
+          value_parser = clap::value_parser!(u64).range(1..=afe_net::MAX_SUBSCRIPTIONS_LIMIT as u64))]
+    max_subscriptions: u64,
     /// Block fed to the graph per step, in ms.
     #[arg(long, value_name = "M", default_value_t = 10.0)]
     block_ms: f64,
@@ -86,6 +97,8 @@ impl ServeArgs {
                 listen: self.listen,
                 name: self.name,
                 config_file: self.zenoh_config,
+                max_clients: self.max_clients as usize,
+                max_subscriptions: self.max_subscriptions as usize,
             }),
             endless: true,
         };

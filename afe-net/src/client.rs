@@ -3,7 +3,7 @@
 //! was lost on the way.
 
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
 use afe_core::ParamMap;
@@ -28,6 +28,10 @@ pub struct Client {
     session: Session,
     name: String,
     id: String,
+    /// The secret the server gave with this client's first subscription: it must come
+    /// with every later subscription and cancellation. Held while a subscription is
+    /// asked for, so that two first subscriptions are not asked for at once.
+    secret: Arc<Mutex<Option<String>>>,
     catalogue: Value,
     gone: Arc<AtomicBool>,
     _token: LivelinessToken,
@@ -69,6 +73,7 @@ impl Client {
             session,
             name,
             id,
+            secret: Arc::new(Mutex::new(None)),
             catalogue,
             gone,
             _token: token,
@@ -103,18 +108,28 @@ impl Client {
     }
 
     /// Subscribes to requests, each with its parameters; equal requests of other clients
-    /// share their processors. The frames start with the server's next block.
+    /// share their processors. The frames start with the server's next block. The first
+    /// subscription's reply gives this client's secret token, sent with every later
+    /// subscription and cancellation; beyond the server's limits (clients, subscriptions
+    /// per client) the server refuses, naming the limit.
     pub fn subscribe(&self, requests: &[(&str, ParamMap)]) -> Result<Subscription, RemoteError> {
-        let body = json!({
+        let mut secret = self.secret.lock().unwrap_or_else(PoisonError::into_inner);
+        let mut body = json!({
             "client": self.id,
             "requests": requests
                 .iter()
                 .map(|(name, params)| json!({ "name": name, "params": params }))
                 .collect::<Vec<_>>(),
         });
+        if let Some(token) = secret.as_ref() {
+            body["token"] = json!(token);
+        }
         let reply = query(&self.session, &key(&self.name, "subscribe"), Some(body))?;
         let bad = |what: &str| RemoteError::Malformed(format!("subscription reply without {what}"));
         let id = reply["subscription"].as_u64().ok_or_else(|| bad("an id"))?;
+        let token = reply["token"].as_str().ok_or_else(|| bad("a token"))?;
+        *secret = Some(token.to_string());
+        drop(secret);
         let frames_key = reply["key"]
             .as_str()
             .ok_or_else(|| bad("a key"))?
@@ -136,6 +151,7 @@ impl Client {
             session: self.session.clone(),
             name: self.name.clone(),
             client: self.id.clone(),
+            secret: self.secret.clone(),
             id,
             next_frame: reply["signals"]
                 .as_array()
@@ -243,6 +259,7 @@ pub struct Subscription {
     session: Session,
     name: String,
     client: String,
+    secret: Arc<Mutex<Option<String>>>,
     id: u64,
     signals: Vec<SignalMeta>,
     subscriber: Subscriber<RingChannelHandler<Sample>>,
@@ -342,7 +359,12 @@ impl Subscription {
 impl Drop for Subscription {
     fn drop(&mut self) {
         if !self.gone.load(Ordering::Relaxed) {
-            let body = json!({ "client": self.client, "subscription": self.id });
+            let token = self
+                .secret
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .clone();
+            let body = json!({ "client": self.client, "subscription": self.id, "token": token });
             let _ = query(&self.session, &key(&self.name, "unsubscribe"), Some(body));
         }
     }

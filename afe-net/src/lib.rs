@@ -8,9 +8,17 @@
 //! |---|---|
 //! | `afe/N/server` | the server's liveliness token |
 //! | `afe/N/catalogue` | queryable: JSON of the stream (rate, ears, block) and the requests |
-//! | `afe/N/subscribe` | queryable: JSON `{"client", "requests": [{"name", "params"}]}` → the subscription |
-//! | `afe/N/unsubscribe` | queryable: JSON `{"client", "subscription"}` |
-//! | `afe/N/client/ID` | a client's liveliness token: its subscriptions go when it goes |
+//! | `afe/N/subscribe` | queryable: JSON `{"client", "token"?, "requests": [{"name", "params"}]}` → the subscription and the client's secret `token` |
+//! | `afe/N/unsubscribe` | queryable: JSON `{"client", "subscription", "token"}` |
+//! | `afe/N/client/ID` | a client's liveliness token: its subscriptions and its state go when it goes |
+//!
+//! The first subscription under a client id returns a secret token (never published);
+//! every later subscription or cancellation under that id must carry it, so another
+//! session that learns the id (it is in the report) can neither cancel the client's
+//! subscriptions nor add to them. The server holds at most
+//! [`ServeOptions::max_clients`] clients of [`ServeOptions::max_subscriptions`]
+//! subscriptions each, answers every query without waiting on any one client, and
+//! publishes every subscription from a fixed pool of [`PUBLISH_THREADS`] threads.
 //! | `afe/N/audio` | raw audio blocks ([`wire`]) |
 //! | `afe/N/frames/S` | subscription `S`'s new frames per block ([`wire`]) |
 //! | `afe/N/report` | the server's report, JSON, once per second of audio |
@@ -46,8 +54,18 @@ pub const DEFAULT_LISTEN: &str = "tcp/127.0.0.1:7447";
 pub const DEFAULT_NAME: &str = "robot";
 /// Requests one subscription may hold.
 pub const MAX_REQUESTS: usize = 64;
-/// Subscriptions one client may hold.
+/// Subscriptions one client may hold unless `afe serve --max-subscriptions` says otherwise.
 pub const MAX_SUBSCRIPTIONS: usize = 32;
+/// Clients (ids holding subscriptions) a server serves at once unless `afe serve
+/// --max-clients` says otherwise.
+pub const MAX_CLIENTS: usize = 32;
+/// The largest `--max-subscriptions` accepted: each client's queue to the publishing
+/// pool is sized for this many subscriptions' messages.
+pub const MAX_SUBSCRIPTIONS_LIMIT: usize = 256;
+/// The largest `--max-clients` accepted.
+pub const MAX_CLIENTS_LIMIT: usize = 1024;
+/// Threads publishing every subscription's messages, however many there are.
+pub const PUBLISH_THREADS: usize = 4;
 /// Largest subscription message accepted, bytes.
 pub const MAX_QUERY_BYTES: usize = 64 * 1024;
 
@@ -70,6 +88,9 @@ pub enum RemoteError {
     /// A reply or message that does not follow the wire format.
     #[error("malformed message from the server: {0}")]
     Malformed(String),
+    /// Server options out of their range.
+    #[error("{0}")]
+    Options(String),
     /// The server has gone (its liveliness token was withdrawn).
     #[error("the server '{0}' has gone")]
     ServerGone(String),

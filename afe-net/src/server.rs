@@ -1,49 +1,40 @@
 //! The server side: a Zenoh session that answers the catalogue and subscription queries
 //! and watches its clients' liveliness, and the stream's observer ([`ServeTap`]) that
 //! places and removes the subscribed requests between blocks and hands each block's
-//! messages to publishing threads without ever waiting for them.
+//! messages to a fixed pool of publishing threads without ever waiting for them.
 
-use std::collections::HashSet;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, Sender, SyncSender};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
 
-use afe_core::ParamMap;
 use afe_graph::{Manager, RequestHandle};
-use serde::Deserialize;
 use serde_json::{json, Value};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Subscriber;
 use zenoh::qos::{CongestionControl, Priority};
-use zenoh::query::{Query, Queryable};
+use zenoh::query::Queryable;
 use zenoh::sample::SampleKind;
 use zenoh::{Session, Wait};
 
+mod publish;
+mod queries;
+
 use super::wire::{self, Header, Kind};
 use super::{
-    check_name, config, key, RemoteError, MAX_QUERY_BYTES, MAX_REQUESTS, MAX_SUBSCRIPTIONS,
+    check_name, config, key, RemoteError, MAX_CLIENTS, MAX_CLIENTS_LIMIT, MAX_SUBSCRIPTIONS,
+    MAX_SUBSCRIPTIONS_LIMIT, PUBLISH_THREADS,
 };
 use afe::metadata::describe;
 use afe::stream::{Observer, Timing};
+use publish::{Pool, SubEnd};
+use queries::{answer, Edit, Event, Limits, Op, Outcome, QueryLoop, RequestSpec, QUERY_BACKLOG};
 
-/// Messages a subscription may have on their way to its client before the next are
-/// dropped for it alone (at 10-ms blocks, 0.32 s).
-const SUB_QUEUE: usize = 32;
 /// Audio blocks on their way to the network before the next are dropped.
 const AUDIO_QUEUE: usize = 32;
-/// How long a new subscription's messages wait for its client's subscriber.
-const MATCH_WAIT: Duration = Duration::from_secs(2);
-/// How long a query waits for the audio thread to act on it.
-const EDIT_WAIT: Duration = Duration::from_secs(5);
-/// How long a subscription waits for its client's liveliness token to be seen.
-const CLIENT_WAIT: Duration = Duration::from_secs(2);
-/// How often the query thread looks whether its server has gone.
-const QUERY_POLL: Duration = Duration::from_millis(50);
 
-/// Where and under which name to serve.
+/// Where and under which name to serve, and for how many clients.
 #[derive(Debug, Clone)]
 pub struct ServeOptions {
     /// Zenoh endpoints to listen on, e.g. `tcp/127.0.0.1:7447`.
@@ -52,6 +43,11 @@ pub struct ServeOptions {
     pub name: String,
     /// A Zenoh configuration file (JSON5) to start from, e.g. with authentication.
     pub config_file: Option<PathBuf>,
+    /// Clients holding subscriptions at once, 1 to [`MAX_CLIENTS_LIMIT`]; a further
+    /// client is refused until one leaves.
+    pub max_clients: usize,
+    /// Subscriptions one client may hold, 1 to [`MAX_SUBSCRIPTIONS_LIMIT`].
+    pub max_subscriptions: usize,
 }
 
 impl Default for ServeOptions {
@@ -60,69 +56,39 @@ impl Default for ServeOptions {
             listen: vec![super::DEFAULT_LISTEN.to_string()],
             name: super::DEFAULT_NAME.to_string(),
             config_file: None,
+            max_clients: MAX_CLIENTS,
+            max_subscriptions: MAX_SUBSCRIPTIONS,
         }
     }
 }
 
-/// Queries waiting for the query thread before the next are turned away.
-const QUERY_BACKLOG: usize = 64;
-
-/// The server's queryables.
-#[derive(Debug, Clone, Copy)]
-enum Op {
-    Catalogue,
-    Subscribe,
-    Unsubscribe,
+impl ServeOptions {
+    /// The limits, checked against their ranges.
+    fn limits(&self) -> Result<Limits, RemoteError> {
+        let check = |value: usize, most: usize, what: &str| {
+            if (1..=most).contains(&value) {
+                Ok(value)
+            } else {
+                Err(RemoteError::Options(format!(
+                    "{what} = {value}: give 1 to {most}"
+                )))
+            }
+        };
+        Ok(Limits {
+            max_clients: check(self.max_clients, MAX_CLIENTS_LIMIT, "max_clients")?,
+            max_subscriptions: check(
+                self.max_subscriptions,
+                MAX_SUBSCRIPTIONS_LIMIT,
+                "max_subscriptions",
+            )?,
+        })
+    }
 }
 
-/// A query's outcome, sent back from the audio thread.
-type Outcome = Result<Value, String>;
-
-/// What the Zenoh side asks of the audio thread.
-enum Edit {
-    Subscribe {
-        client: String,
-        requests: Vec<RequestSpec>,
-        reply: SyncSender<Outcome>,
-    },
-    Unsubscribe {
-        client: String,
-        subscription: u64,
-        reply: SyncSender<Outcome>,
-    },
-    ClientGone(String),
-}
-
-/// One request of a subscription.
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RequestSpec {
-    name: String,
-    #[serde(default)]
-    params: ParamMap,
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct SubscribeQuery {
-    client: String,
-    requests: Vec<RequestSpec>,
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct UnsubscribeQuery {
-    client: String,
-    subscription: u64,
-}
-
-/// State the Zenoh callbacks share.
+/// State the Zenoh callbacks, the query loop and the audio thread share.
 struct Shared {
-    edits: Mutex<Sender<Edit>>,
     /// The catalogue's JSON, once the stream has started.
     catalogue: Mutex<Option<String>>,
-    /// Clients whose liveliness token is up.
-    clients: Mutex<HashSet<String>>,
 }
 
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
@@ -147,6 +113,7 @@ impl Server {
     /// declares the server's keys; returns it and the stream's observer.
     pub fn start(options: &ServeOptions) -> Result<(Server, ServeTap), RemoteError> {
         check_name(&options.name)?;
+        let limits = options.limits()?;
         let name = options.name.clone();
         let base = match &options.config_file {
             Some(path) => Some(zenoh::Config::from_file(path).map_err(|e| {
@@ -157,7 +124,8 @@ impl Server {
         let mut config = config(base, "peer", &options.listen, &[])?;
         // room for bursts on every link (16 batches, not 2), and a wait for a busy link
         // long enough that a client which keeps up never loses a message to a scheduling
-        // hiccup; the wait is on the subscription's own publishing thread
+        // hiccup; a put that waits this long marks its client's link congested
+        // (publish.rs), so the wait holds up no other client
         config.insert_json5("transport/link/tx/queue/size/data_high", "16")?;
         config.insert_json5(
             "transport/link/tx/queue/congestion_control/drop/wait_before_drop",
@@ -168,13 +136,12 @@ impl Server {
             .is_ok_and(|u| u != "null");
         let session = zenoh::open(config).wait()?;
         let (edits_tx, edits_rx) = mpsc::channel();
+        let (events, events_rx) = mpsc::channel::<Event>();
         let shared = Arc::new(Shared {
-            edits: Mutex::new(edits_tx),
             catalogue: Mutex::new(None),
-            clients: Mutex::new(HashSet::new()),
         });
         let client_prefix = key(&name, "client/");
-        let watch = shared.clone();
+        let watch = events.clone();
         let clients = session
             .liveliness()
             .declare_subscriber(key(&name, "client/*"))
@@ -183,43 +150,28 @@ impl Server {
                 let Some(id) = sample.key_expr().as_str().strip_prefix(&client_prefix) else {
                     return;
                 };
-                if sample.kind() == SampleKind::Put {
-                    lock(&watch.clients).insert(id.to_string());
+                let _ = watch.send(if sample.kind() == SampleKind::Put {
+                    Event::ClientUp(id.to_string())
                 } else {
-                    lock(&watch.clients).remove(id);
-                    let _ = lock(&watch.edits).send(Edit::ClientGone(id.to_string()));
-                }
+                    Event::ClientGone(id.to_string())
+                });
             })
             .wait()?;
-        // queries are answered on a thread of their own: one that waits (for a client's
-        // token, for the audio thread) must not hold up Zenoh's reception on its link
-        let (queries, pending) = mpsc::sync_channel::<(Op, Query)>(QUERY_BACKLOG);
-        let worker = shared.clone();
-        let catalogue_key = key(&name, "catalogue");
+        // one thread answers every query and waits on none: what must wait (a client's
+        // token, the stream's start, the audio thread) is parked and answered later
+        let queued = Arc::new(AtomicUsize::new(0));
         let stop = Arc::new(AtomicBool::new(false));
-        let stopped = stop.clone();
+        let query_loop = QueryLoop::new(
+            shared.clone(),
+            edits_tx,
+            limits,
+            key(&name, "catalogue"),
+            key(&name, "client/"),
+        );
+        let (stopped, counted) = (stop.clone(), queued.clone());
         let query_thread = std::thread::Builder::new()
             .name("afe-zenoh-queries".into())
-            .spawn(move || {
-                while !stopped.load(Ordering::Relaxed) {
-                    let (op, q) = match pending.recv_timeout(QUERY_POLL) {
-                        Ok(query) => query,
-                        Err(mpsc::RecvTimeoutError::Timeout) => continue,
-                        Err(mpsc::RecvTimeoutError::Disconnected) => break,
-                    };
-                    let outcome = match op {
-                        Op::Catalogue => catalogue(&worker),
-                        Op::Subscribe => subscribe(&worker, &q),
-                        Op::Unsubscribe => unsubscribe(&worker, &q),
-                    };
-                    // on the queryable's own key: a query for afe/*/catalogue learns the name
-                    let on = match op {
-                        Op::Catalogue => catalogue_key.as_str(),
-                        _ => q.key_expr().as_str(),
-                    };
-                    answer(&q, on, outcome);
-                }
-            })
+            .spawn(move || query_loop.run(events_rx, &counted, &stopped))
             .map_err(|e| RemoteError::Zenoh(format!("cannot start the query thread: {e}")))?;
         let mut queryables = Vec::new();
         for (op, what) in [
@@ -227,17 +179,18 @@ impl Server {
             (Op::Subscribe, "subscribe"),
             (Op::Unsubscribe, "unsubscribe"),
         ] {
-            let queries = queries.clone();
+            let (events, queued) = (events.clone(), queued.clone());
             queryables.push(
                 session
                     .declare_queryable(key(&name, what))
                     .callback(move |q| {
-                        if let Err(mpsc::TrySendError::Full((_, q))) = queries.try_send((op, q)) {
-                            answer(
-                                &q,
-                                q.key_expr().as_str(),
-                                Err("the server is busy: try again".into()),
-                            );
+                        if queued.fetch_add(1, Ordering::AcqRel) >= QUERY_BACKLOG {
+                            queued.fetch_sub(1, Ordering::AcqRel);
+                            answer(&q, Err("the server is busy: try again".into()));
+                        } else if let Err(mpsc::SendError(Event::Query(_, q))) =
+                            events.send(Event::Query(op, q))
+                        {
+                            answer(&q, Err("the server is stopping".into()));
                         }
                     })
                     .wait()?,
@@ -247,13 +200,21 @@ impl Server {
             .liveliness()
             .declare_token(key(&name, "server"))
             .wait()?;
-        let audio = Outlet::spawn(&session, key(&name, "audio"), AUDIO_QUEUE, false)?;
-        let report = Outlet::spawn(&session, key(&name, "report"), 2, false)?;
+        let audio = Outlet::spawn(&session, key(&name, "audio"), AUDIO_QUEUE)?;
+        let report = Outlet::spawn(&session, key(&name, "report"), 2)?;
+        let pool = Pool::start(
+            PUBLISH_THREADS,
+            limits.max_clients,
+            limits.max_subscriptions,
+        )?;
         let tap = ServeTap {
             session: session.clone(),
             name: name.clone(),
             shared,
             edits: edits_rx,
+            events,
+            pool,
+            clients: Vec::new(),
             subs: Vec::new(),
             next_sid: 0,
             audio,
@@ -299,90 +260,9 @@ impl Drop for Server {
     }
 }
 
-/// Replies to `q` on key `on` with the JSON of `outcome`, or an error reply
-/// `{"error": message}`.
-fn answer(q: &Query, on: &str, outcome: Outcome) {
-    let _ = match outcome {
-        Ok(v) => q.reply(on.to_string(), v.to_string()).wait(),
-        Err(message) => q.reply_err(json!({ "error": message }).to_string()).wait(),
-    };
-}
-
-/// The catalogue, once the stream runs.
-fn catalogue(shared: &Shared) -> Outcome {
-    let start = Instant::now();
-    loop {
-        if let Some(c) = lock(&shared.catalogue).as_ref() {
-            return serde_json::from_str(c).map_err(|e| e.to_string());
-        }
-        if start.elapsed() > EDIT_WAIT {
-            return Err("the server's stream has not started".into());
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    }
-}
-
-/// The query's JSON payload, bounded in size.
-fn payload<T: serde::de::DeserializeOwned>(q: &Query) -> Result<T, String> {
-    let bytes = q
-        .payload()
-        .map(|p| p.to_bytes().into_owned())
-        .unwrap_or_default();
-    if bytes.len() > MAX_QUERY_BYTES {
-        return Err(format!(
-            "a query of {} bytes: at most {MAX_QUERY_BYTES} are read",
-            bytes.len()
-        ));
-    }
-    serde_json::from_slice(&bytes).map_err(|e| format!("invalid query JSON: {e}"))
-}
-
-/// Passes an edit to the audio thread and waits for its outcome.
-fn ask(shared: &Shared, edit: impl FnOnce(SyncSender<Outcome>) -> Edit) -> Outcome {
-    let (tx, rx) = mpsc::sync_channel(1);
-    lock(&shared.edits)
-        .send(edit(tx))
-        .map_err(|_| "the server's stream has ended".to_string())?;
-    rx.recv_timeout(EDIT_WAIT)
-        .map_err(|_| "the server's stream did not take the query in time".to_string())?
-}
-
-fn subscribe(shared: &Shared, q: &Query) -> Outcome {
-    let query: SubscribeQuery = payload(q)?;
-    if query.requests.is_empty() || query.requests.len() > MAX_REQUESTS {
-        return Err(format!(
-            "a subscription holds 1 to {MAX_REQUESTS} requests, not {}",
-            query.requests.len()
-        ));
-    }
-    let start = Instant::now();
-    while !lock(&shared.clients).contains(&query.client) {
-        if start.elapsed() > CLIENT_WAIT {
-            return Err(format!(
-                "client '{}' has no liveliness token on afe/<name>/client/<id>: declare it first",
-                query.client
-            ));
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    ask(shared, |reply| Edit::Subscribe {
-        client: query.client,
-        requests: query.requests,
-        reply,
-    })
-}
-
-fn unsubscribe(shared: &Shared, q: &Query) -> Outcome {
-    let query: UnsubscribeQuery = payload(q)?;
-    ask(shared, |reply| Edit::Unsubscribe {
-        client: query.client,
-        subscription: query.subscription,
-        reply,
-    })
-}
-
-/// A publishing thread with its pool of message buffers: the audio thread takes a buffer,
-/// fills it and passes it on, never waiting; with no free buffer the message is dropped.
+/// A publishing thread with its pool of message buffers, for the audio and the report:
+/// the audio thread takes a buffer, fills it and passes it on, never waiting; with no
+/// free buffer the message is dropped.
 struct Outlet {
     to: SyncSender<Vec<u8>>,
     pool: Receiver<Vec<u8>>,
@@ -391,16 +271,8 @@ struct Outlet {
 
 impl Outlet {
     /// Declares a publisher on `key` (dropping messages for congested links, never
-    /// blocking) and starts its thread with `depth` buffers. With `await_subscriber`, the
-    /// thread holds its first messages until a subscriber matches (at most
-    /// [`MATCH_WAIT`]): a client declares its subscriber once it has the key, and must
-    /// not lose the blocks computed in between.
-    fn spawn(
-        session: &Session,
-        key: String,
-        depth: usize,
-        await_subscriber: bool,
-    ) -> Result<Outlet, RemoteError> {
+    /// blocking) and starts its thread with `depth` buffers.
+    fn spawn(session: &Session, key: String, depth: usize) -> Result<Outlet, RemoteError> {
         let publisher = session
             .declare_publisher(key.clone())
             .congestion_control(CongestionControl::Drop)
@@ -414,13 +286,6 @@ impl Outlet {
         let thread = std::thread::Builder::new()
             .name(format!("afe-zenoh-{key}"))
             .spawn(move || {
-                let start = Instant::now();
-                while await_subscriber && start.elapsed() < MATCH_WAIT {
-                    match publisher.matching_status().wait() {
-                        Ok(m) if !m.matching() => std::thread::sleep(Duration::from_millis(1)),
-                        _ => break,
-                    }
-                }
                 for message in from {
                     let _ = publisher.put(message.as_slice()).wait();
                     if back.send(message).is_err() {
@@ -455,7 +320,7 @@ struct Sub {
     client: String,
     requests: Vec<String>,
     handles: Vec<RequestHandle>,
-    outlet: Outlet,
+    end: SubEnd,
     seq: u64,
     dropped: u64,
 }
@@ -468,6 +333,12 @@ pub struct ServeTap {
     name: String,
     shared: Arc<Shared>,
     edits: Receiver<Edit>,
+    /// Outcomes and the stream's start, to the query loop.
+    events: Sender<Event>,
+    /// Publishes the subscriptions' messages; dropped (its threads joined) with the tap.
+    pool: Pool,
+    /// Each client's queue to the pool, while it holds subscriptions.
+    clients: Vec<(String, Arc<publish::ClientOut>)>,
     subs: Vec<Sub>,
     next_sid: u64,
     audio: Outlet,
@@ -490,6 +361,7 @@ impl ServeTap {
             "requests": afe::catalog::listing(),
         });
         *lock(&self.shared.catalogue) = Some(c.to_string());
+        let _ = self.events.send(Event::Started);
         self.started = true;
     }
 
@@ -511,8 +383,9 @@ impl ServeTap {
         for sub in &mut self.subs {
             let seq = sub.seq;
             sub.seq += 1;
-            let Some(mut buf) = sub.outlet.buffer() else {
+            let Some(mut buf) = sub.end.buffer() else {
                 sub.dropped += 1;
+                self.pool.nudge(&sub.end);
                 continue;
             };
             header(Kind::Frames, seq, timing, 0).write(&mut buf);
@@ -524,7 +397,7 @@ impl ServeTap {
                 }
             }
             buf[28..32].copy_from_slice(&count.to_le_bytes());
-            sub.outlet.send(buf);
+            self.pool.send(&sub.end, buf);
         }
     }
 
@@ -546,7 +419,7 @@ impl ServeTap {
                     "client": s.client,
                     "requests": s.requests,
                     "messages": s.seq,
-                    "dropped_messages": s.dropped,
+                    "dropped_messages": s.dropped + s.end.outlet().dropped(),
                 })
             })
             .collect();
@@ -554,6 +427,7 @@ impl ServeTap {
             "stream": timing.report(),
             "processors": mgr.processor_count(),
             "audio_dropped_messages": self.audio_dropped,
+            "clients": self.clients.len(),
             "subscriptions": subs,
         });
         buf.extend_from_slice(report.to_string().as_bytes());
@@ -564,16 +438,17 @@ impl ServeTap {
         while let Ok(edit) = self.edits.try_recv() {
             match edit {
                 Edit::Subscribe {
+                    ticket,
                     client,
                     requests,
-                    reply,
                 } => {
-                    let _ = reply.send(self.subscribe(timing, mgr, client, requests));
+                    let outcome = self.subscribe(timing, mgr, client, requests);
+                    let _ = self.events.send(Event::Outcome(ticket, outcome));
                 }
                 Edit::Unsubscribe {
+                    ticket,
                     client,
                     subscription,
-                    reply,
                 } => {
                     let found = self
                         .subs
@@ -583,13 +458,14 @@ impl ServeTap {
                         Some(i) => {
                             let sub = self.subs.remove(i);
                             release(mgr, &sub.handles);
+                            self.forget_client_if_idle(&client);
                             Ok(json!({ "unsubscribed": subscription }))
                         }
                         None => Err(format!(
                             "client '{client}' has no subscription {subscription}"
                         )),
                     };
-                    let _ = reply.send(outcome);
+                    let _ = self.events.send(Event::Outcome(ticket, outcome));
                 }
                 Edit::ClientGone(client) => {
                     let (gone, kept) = std::mem::take(&mut self.subs)
@@ -599,8 +475,16 @@ impl ServeTap {
                     for sub in gone {
                         release(mgr, &sub.handles);
                     }
+                    self.forget_client_if_idle(&client);
                 }
             }
+        }
+    }
+
+    /// Drops a client's queue once it holds no subscription.
+    fn forget_client_if_idle(&mut self, client: &str) {
+        if !self.subs.iter().any(|s| s.client == client) {
+            self.clients.retain(|(id, _)| id != client);
         }
     }
 
@@ -612,11 +496,6 @@ impl ServeTap {
         client: String,
         requests: Vec<RequestSpec>,
     ) -> Outcome {
-        if self.subs.iter().filter(|s| s.client == client).count() >= MAX_SUBSCRIPTIONS {
-            return Err(format!(
-                "client '{client}' already holds {MAX_SUBSCRIPTIONS} subscriptions"
-            ));
-        }
         let mut handles = Vec::new();
         for r in &requests {
             match mgr.add_request(&r.name, &r.params) {
@@ -629,10 +508,22 @@ impl ServeTap {
         }
         let id = self.next_sid;
         let frames_key = key(&self.name, &format!("frames/{id}"));
-        let outlet = match Outlet::spawn(&self.session, frames_key.clone(), SUB_QUEUE, true) {
-            Ok(o) => o,
+        let queue = match self.clients.iter().find(|(c, _)| *c == client) {
+            Some((_, q)) => q.clone(),
+            None => {
+                let q = self.pool.client();
+                self.clients.push((client.clone(), q.clone()));
+                q
+            }
+        };
+        let end = match self
+            .pool
+            .subscription(&self.session, frames_key.clone(), &queue)
+        {
+            Ok(end) => end,
             Err(e) => {
                 release(mgr, &handles);
+                self.forget_client_if_idle(&client);
                 return Err(e.to_string());
             }
         };
@@ -657,7 +548,7 @@ impl ServeTap {
             client,
             requests: requests.into_iter().map(|r| r.name).collect(),
             handles,
-            outlet,
+            end,
             seq: 0,
             dropped: 0,
         });

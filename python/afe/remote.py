@@ -116,6 +116,11 @@ class Remote:
         self._timeout = float(timeout)
         self._closed = False
         self._lock = threading.Lock()
+        # the secret the server gave with this client's first subscription: every later
+        # subscription and cancellation carries it (the id alone is public); held while a
+        # subscription is asked for, so that two first ones are not asked for at once
+        self._secret: Optional[str] = None
+        self._secret_lock = threading.Lock()
         self._receivers: weakref.WeakSet[_Receiver[Any]] = weakref.WeakSet()
         self._gone = False
         self.endpoint: str = endpoint
@@ -265,7 +270,8 @@ class Remote:
         counts what is lost, here or on the server's side).
 
         Raises :class:`RemoteError` when the server refuses (an unknown request or
-        parameter, an ill-typed value: its message says which), ``ValueError`` for
+        parameter, an ill-typed value, a limit reached: the most clients it serves or
+        subscriptions a client may hold; its message says which), ``ValueError`` for
         parameters that cannot be sent, ``ConnectionError`` when the server does not
         answer.
         """
@@ -276,7 +282,13 @@ class Remote:
         specs = [
             {"name": n, "params": json.loads(_params_json(p))} for n, p in request_list(requests, params)
         ]
-        reply = self._query("subscribe", {"client": self.id, "requests": specs})
+        with self._secret_lock:
+            body: Dict[str, Any] = {"client": self.id, "requests": specs}
+            if self._secret is not None:
+                body["token"] = self._secret
+            reply = self._query("subscribe", body)
+            if isinstance(reply, dict) and isinstance(reply.get("token"), str):
+                self._secret = reply["token"]
         try:
             sub = Subscription(self, reply, capacity)
         except BaseException:
@@ -304,7 +316,7 @@ class Remote:
         ``wait``, sends the query and returns at once."""
         if self._closed or self._server_gone():
             return
-        body = {"client": self.id, "subscription": subscription}
+        body = {"client": self.id, "subscription": subscription, "token": self._secret}
         try:
             if wait:
                 self._query("unsubscribe", body)

@@ -355,6 +355,28 @@ def test_a_dropped_subscription_is_released(serve, example_wav):
         assert left["subscriptions"][0]["requests"] == ["ratemap"]
 
 
+def test_another_session_cannot_cancel_or_add_to_a_clients_subscriptions(serve, example_wav):
+    """The client's id is public (the report names it); its subscriptions are changed only
+    with the secret token the server gave it, which the report never shows."""
+    endpoint = serve(example_wav, ["ratemap"])
+    with reports(endpoint) as next_report, connect(endpoint) as robot, connect(endpoint) as other:
+        sub = robot.subscribe(["ild"])
+        held = wait_for(next_report, lambda r: robot.id in clients(r), 10)
+        assert "token" not in json.dumps(held)
+        body = {"client": robot.id, "subscription": sub.id}
+        with pytest.raises(RemoteError, match="needs the \"token\""):
+            other._query("unsubscribe", body)
+        with pytest.raises(RemoteError, match="only the client that subscribed"):
+            other._query("unsubscribe", dict(body, token="0" * 32))
+        spec = {"client": robot.id, "requests": [{"name": "ratemap", "params": {}}]}
+        with pytest.raises(RemoteError, match="held by another session"):
+            other._query("subscribe", spec)
+        assert next_report()["subscriptions"][0]["subscription"] == sub.id
+        assert sub.recv(timeout=5) is not None
+        sub.close()  # with its token: released
+        wait_for(next_report, lambda r: not r["subscriptions"], 10)
+
+
 def test_a_reader_that_lags_loses_blocks_counted(serve, example_wav):
     endpoint = serve(example_wav, ["ratemap"])
     with connect(endpoint) as robot, robot.subscribe(["ratemap"], capacity=4) as sub:

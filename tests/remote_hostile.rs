@@ -1,0 +1,418 @@
+//! `afe serve` against hostile Zenoh clients on loopback (issue 44, items 6 and 7): the
+//! server runs as its own process, so that its threads are counted alone. Forty queries
+//! naming clients without a liveliness token and a thousand subscriptions leave the
+//! catalogue answering within 100 ms and the server's threads as many as at its start;
+//! a subscription is cancelled, or added to, only with its client's secret token, never
+//! with its published id; a departed client's subscriptions are removed and its room
+//! given to new clients.
+#![cfg(feature = "remote")]
+
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use afe_net::zenoh::{self, Wait};
+use afe_net::Client;
+use serde_json::{json, Value};
+
+fn endpoint(port: u16) -> String {
+    format!("tcp/127.0.0.1:{port}")
+}
+
+/// `afe serve` on `port` over a synthetic source for `seconds`, with `limits` (extra
+/// arguments); killed when dropped.
+struct ServeProcess(Child);
+
+impl ServeProcess {
+    fn start(port: u16, seconds: u32, limits: &[&str]) -> Self {
+        let child = Command::new(env!("CARGO_BIN_EXE_afe"))
+            .args([
+                "serve",
+                "--source",
+                "synth:fs=44100,tone=440,noise=0.1,seed=4",
+            ])
+            .args(["--listen", &endpoint(port), "--for", &seconds.to_string()])
+            .args(limits)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("afe serve");
+        ServeProcess(child)
+    }
+
+    /// The server process's threads, from /proc.
+    fn threads(&self) -> usize {
+        std::fs::read_dir(format!("/proc/{}/task", self.0.id()))
+            .map(Iterator::count)
+            .unwrap_or(0)
+    }
+}
+
+impl Drop for ServeProcess {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// A plain Zenoh session connected to the server, as a client in any language opens it.
+fn raw_session(port: u16) -> zenoh::Session {
+    let mut c = zenoh::Config::default();
+    c.insert_json5("mode", "\"client\"").expect("mode");
+    c.insert_json5("scouting/multicast/enabled", "false")
+        .expect("scouting");
+    c.insert_json5("connect/endpoints", &format!("[\"{}\"]", endpoint(port)))
+        .expect("connect");
+    let start = Instant::now();
+    loop {
+        match zenoh::open(c.clone()).wait() {
+            Ok(s) => return s,
+            Err(e) if start.elapsed() > Duration::from_secs(10) => panic!("no server: {e}"),
+            Err(_) => std::thread::sleep(Duration::from_millis(50)),
+        }
+    }
+}
+
+type Replies = zenoh::handlers::FifoChannelHandler<zenoh::query::Reply>;
+
+/// Sends a query on `afe/robot/<what>` without waiting for its reply.
+fn send(session: &zenoh::Session, what: &str, body: Option<Value>) -> Replies {
+    let mut get = session
+        .get(format!("afe/robot/{what}"))
+        .timeout(Duration::from_secs(10));
+    if let Some(b) = body {
+        get = get.payload(b.to_string());
+    }
+    get.wait().expect("get")
+}
+
+/// A query's reply: its JSON, or the server's reason for refusing.
+fn reply(replies: Replies) -> Result<Value, String> {
+    let reply = replies.recv().map_err(|_| "no reply".to_string())?;
+    match reply.result() {
+        Ok(ok) => Ok(serde_json::from_slice(&ok.payload().to_bytes()).expect("json")),
+        Err(e) => {
+            let bytes = e.payload().to_bytes();
+            Err(serde_json::from_slice::<Value>(&bytes).map_or_else(
+                |_| String::from_utf8_lossy(&bytes).to_string(),
+                |v| v["error"].as_str().unwrap_or_default().to_string(),
+            ))
+        }
+    }
+}
+
+fn ask(session: &zenoh::Session, what: &str, body: Value) -> Result<Value, String> {
+    reply(send(session, what, Some(body)))
+}
+
+/// The catalogue's round trip, once the stream has started.
+fn catalogue_time(session: &zenoh::Session) -> Duration {
+    let start = Instant::now();
+    let c = reply(send(session, "catalogue", None)).expect("the catalogue");
+    assert!(c["requests"].is_array(), "{c}");
+    start.elapsed()
+}
+
+/// Waits for the server's catalogue (its stream has started).
+fn wait_for_catalogue(session: &zenoh::Session) {
+    let start = Instant::now();
+    while reply(send(session, "catalogue", None)).is_err() {
+        assert!(start.elapsed() < Duration::from_secs(15), "no catalogue");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// Forty subscriptions naming clients that never declared a liveliness token: before
+/// the fix each held every query for 2 s, and legitimate ones timed out.
+fn stall(session: &zenoh::Session, round: usize) -> Vec<Replies> {
+    (0..40)
+        .map(|i| {
+            let body =
+                json!({ "client": format!("ghost-{round}-{i}"), "requests": [{ "name": "ild" }] });
+            send(session, "subscribe", Some(body))
+        })
+        .collect()
+}
+
+/// A subscription body for `client` (with its `token`, if it has one).
+fn subscription(client: &str, token: Option<&str>) -> Value {
+    let mut body = json!({
+        "client": client,
+        "requests": [{ "name": "ild", "params": { "fb_nChannels": 8 } }],
+    });
+    if let Some(t) = token {
+        body["token"] = json!(t);
+    }
+    body
+}
+
+/// The server's next report.
+fn report(session: &zenoh::Session) -> Value {
+    let reports = session
+        .declare_subscriber("afe/robot/report")
+        .wait()
+        .expect("subscriber");
+    let s = reports
+        .recv_timeout(Duration::from_secs(5))
+        .expect("recv")
+        .expect("a report within 5 s");
+    serde_json::from_slice(&s.payload().to_bytes()).expect("report")
+}
+
+#[test]
+fn forty_stalled_queries_and_a_thousand_subscriptions_keep_the_catalogue_answering() {
+    let port = 17631;
+    let server = ServeProcess::start(
+        port,
+        40,
+        &["--max-clients", "40", "--max-subscriptions", "25"],
+    );
+    let session = raw_session(port);
+    wait_for_catalogue(&session);
+    let threads_at_start = server.threads();
+
+    let stalled = stall(&session, 0);
+    let mut worst = Duration::ZERO;
+    for _ in 0..5 {
+        worst = worst.max(catalogue_time(&session));
+    }
+    eprintln!("catalogue with 40 stalled queries: {worst:?} at worst of 5");
+    assert!(worst < Duration::from_millis(100), "{worst:?}");
+
+    // 40 clients of 25 subscriptions each: the first of each gives the client's token
+    let tokens: Vec<_> = (0..40)
+        .map(|i| {
+            session
+                .liveliness()
+                .declare_token(format!("afe/robot/client/c{i}"))
+                .wait()
+                .expect("token")
+        })
+        .collect();
+    let firsts: Vec<Replies> = (0..40)
+        .map(|i| {
+            send(
+                &session,
+                "subscribe",
+                Some(subscription(&format!("c{i}"), None)),
+            )
+        })
+        .collect();
+    let secrets: Vec<String> = firsts
+        .into_iter()
+        .map(|r| {
+            let v = reply(r).expect("first subscription");
+            v["token"].as_str().expect("a token").to_string()
+        })
+        .collect();
+    let mut accepted = 40;
+    for batch in 0..4 {
+        let replies: Vec<Replies> = (0..40)
+            .flat_map(|i| std::iter::repeat_n(i, 6))
+            .map(|i| {
+                let body = subscription(&format!("c{i}"), Some(&secrets[i]));
+                send(&session, "subscribe", Some(body))
+            })
+            .collect();
+        for r in replies {
+            reply(r).unwrap_or_else(|e| panic!("batch {batch}: {e}"));
+            accepted += 1;
+        }
+    }
+    assert_eq!(accepted, 1000);
+    // beyond the limits: refused, naming them
+    let more = ask(&session, "subscribe", subscription("c0", Some(&secrets[0])));
+    assert!(
+        more.as_ref()
+            .is_err_and(|e| e.contains("already holds 25 subscriptions")
+                && e.contains("--max-subscriptions")),
+        "{more:?}"
+    );
+    let _late = session
+        .liveliness()
+        .declare_token("afe/robot/client/late")
+        .wait()
+        .expect("token");
+    let late = ask(&session, "subscribe", subscription("late", None));
+    assert!(
+        late.as_ref()
+            .is_err_and(|e| e.contains("at most 40 clients") && e.contains("--max-clients")),
+        "{late:?}"
+    );
+
+    let held = report(&session);
+    assert_eq!(held["subscriptions"].as_array().map(Vec::len), Some(1000));
+    assert_eq!(held["clients"], 40);
+    let threads = server.threads();
+    eprintln!("server threads: {threads_at_start} at start, {threads} with 1000 subscriptions");
+    assert!(
+        threads <= threads_at_start + 4,
+        "{threads} threads with 1000 subscriptions, {threads_at_start} at start"
+    );
+
+    // the catalogue still answers at once, with 40 more stalled queries and 1000
+    // subscriptions published
+    let stalled_again = stall(&session, 1);
+    let mut worst = Duration::ZERO;
+    for _ in 0..5 {
+        worst = worst.max(catalogue_time(&session));
+    }
+    eprintln!("catalogue with 40 stalled queries and 1000 subscriptions: {worst:?} at worst of 5");
+    assert!(worst < Duration::from_millis(100), "{worst:?}");
+    for r in stalled.into_iter().chain(stalled_again) {
+        let refused = reply(r);
+        assert!(
+            refused
+                .as_ref()
+                .is_err_and(|e| e.contains("no liveliness token")),
+            "{refused:?}"
+        );
+    }
+    drop(tokens);
+}
+
+#[test]
+fn a_subscription_is_cancelled_or_added_to_only_with_its_clients_token() {
+    let port = 17632;
+    let _server = ServeProcess::start(port, 30, &[]);
+    let attacker = raw_session(port);
+    wait_for_catalogue(&attacker);
+    let client = Client::connect(&endpoint(port), None).expect("client");
+    let mut sub = client
+        .subscribe(&[("ild", Default::default())])
+        .expect("subscribed");
+    let id = sub.id();
+    // the client's id is public: the report names it
+    let held = report(&attacker);
+    let victim = held["subscriptions"][0]["client"]
+        .as_str()
+        .expect("a client id")
+        .to_string();
+    assert_eq!(held["subscriptions"][0]["subscription"], id);
+    assert!(!held.to_string().contains("token"), "{held}");
+
+    let cancel = |token: Option<&str>| {
+        let mut body = json!({ "client": victim, "subscription": id });
+        if let Some(t) = token {
+            body["token"] = json!(t);
+        }
+        ask(&attacker, "unsubscribe", body)
+    };
+    let bare = cancel(None);
+    assert!(
+        bare.as_ref()
+            .is_err_and(|e| e.contains("needs the \"token\"")),
+        "{bare:?}"
+    );
+    let guessed = cancel(Some("00000000000000000000000000000000"));
+    assert!(
+        guessed
+            .as_ref()
+            .is_err_and(|e| e.contains("only the client that subscribed")),
+        "{guessed:?}"
+    );
+    let _token = attacker
+        .liveliness()
+        .declare_token(format!("afe/robot/client/{victim}"))
+        .wait()
+        .expect("token");
+    let under = ask(&attacker, "subscribe", subscription(&victim, None));
+    assert!(
+        under
+            .as_ref()
+            .is_err_and(|e| e.contains("held by another session")),
+        "{under:?}"
+    );
+
+    // the subscription is there and goes on
+    let held = report(&attacker);
+    assert_eq!(held["subscriptions"].as_array().map(Vec::len), Some(1));
+    let seqs: Vec<u64> = (0..10)
+        .map(|_| {
+            sub.recv(Duration::from_secs(5))
+                .expect("recv")
+                .expect("a block")
+                .seq
+        })
+        .collect();
+    assert!(seqs.windows(2).all(|w| w[1] == w[0] + 1), "{seqs:?}");
+    // its own client cancels it (with the token it was given)
+    drop(sub);
+    let start = Instant::now();
+    while report(&attacker)["subscriptions"]
+        .as_array()
+        .is_some_and(|s| !s.is_empty())
+    {
+        assert!(start.elapsed() < Duration::from_secs(5), "not cancelled");
+    }
+}
+
+#[test]
+fn a_departed_clients_subscriptions_are_removed_and_its_room_given_to_others() {
+    let port = 17633;
+    let _server = ServeProcess::start(
+        port,
+        30,
+        &["--max-clients", "2", "--max-subscriptions", "3"],
+    );
+    let watcher = raw_session(port);
+    wait_for_catalogue(&watcher);
+    // two clients fill the server, three subscriptions each
+    let fill = |name: &str| {
+        let s = raw_session(port);
+        let token = s
+            .liveliness()
+            .declare_token(format!("afe/robot/client/{name}"))
+            .wait()
+            .expect("token");
+        let first = ask(&s, "subscribe", subscription(name, None)).expect("subscribed");
+        let secret = first["token"].as_str().expect("a token").to_string();
+        for _ in 0..2 {
+            ask(&s, "subscribe", subscription(name, Some(&secret))).expect("subscribed");
+        }
+        (s, token)
+    };
+    let a = fill("a");
+    let b = fill("b");
+    assert_eq!(
+        report(&watcher)["subscriptions"].as_array().map(Vec::len),
+        Some(6)
+    );
+    let refused = {
+        let s = raw_session(port);
+        let _t = s
+            .liveliness()
+            .declare_token("afe/robot/client/c")
+            .wait()
+            .expect("token");
+        ask(&s, "subscribe", subscription("c", None))
+    };
+    assert!(
+        refused
+            .as_ref()
+            .is_err_and(|e| e.contains("at most 2 clients")),
+        "{refused:?}"
+    );
+    // both leave without cancelling anything (their sessions close, as a killed
+    // process's link would)
+    for (session, _token) in [a, b] {
+        session.close().wait().expect("close");
+    }
+    let start = Instant::now();
+    loop {
+        let r = report(&watcher);
+        if r["subscriptions"].as_array().is_some_and(Vec::is_empty) && r["clients"] == 0 {
+            break;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(10),
+            "the departed clients' subscriptions stayed: {r}"
+        );
+    }
+    // and two new clients get the whole room
+    let _c = fill("c");
+    let _d = fill("d");
+    assert_eq!(
+        report(&watcher)["subscriptions"].as_array().map(Vec::len),
+        Some(6)
+    );
+}
