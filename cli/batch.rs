@@ -32,7 +32,9 @@ pub(crate) struct BatchArgs {
 /// `afe batch status STORE`.
 #[derive(Subcommand)]
 enum BatchCommand {
-    /// Show what a store holds: its requests and parameters, files done and failed.
+    /// Show what a store holds: its requests and parameters, files done, failed, and
+    /// recorded as done but missing on disk (each done file checked: metadata and chunk
+    /// sizes).
     Status {
         /// The store.
         store: PathBuf,
@@ -123,15 +125,16 @@ fn batch(
 
 fn batch_status(store: &Path, as_json: bool) -> Result<(), CliError> {
     use afe_batch::Status;
-    let (spec, records) = afe_batch::status(store)?;
-    let done: Vec<_> = records
-        .iter()
-        .filter(|r| r.status == Status::Done)
-        .collect();
-    let failed: Vec<_> = records
-        .iter()
-        .filter(|r| r.status == Status::Failed)
-        .collect();
+    let status = afe_batch::status(store)?;
+    let spec = &status.spec;
+    let with = |want: Status| -> Vec<&afe_batch::Record> {
+        status.records.iter().filter(|r| r.status == want).collect()
+    };
+    let (done, failed, missing) = (
+        with(Status::Done),
+        with(Status::Failed),
+        with(Status::Missing),
+    );
     let audio_s: f64 = done.iter().map(|r| r.audio_s).sum();
     if as_json {
         let v = json!({
@@ -144,6 +147,8 @@ fn batch_status(store: &Path, as_json: bool) -> Result<(), CliError> {
             "done": done.len(),
             "audio_s": audio_s,
             "failed": failed.iter().map(|r| r.to_json()).collect::<Vec<_>>(),
+            "missing": missing.iter().map(|r| r.to_json()).collect::<Vec<_>>(),
+            "warnings": status.warnings,
         });
         outln!("{v}");
         return Ok(());
@@ -158,10 +163,11 @@ fn batch_status(store: &Path, as_json: bool) -> Result<(), CliError> {
         spec.param_hash()
     );
     outln!(
-        "{} file(s) done ({:.2} h of audio), {} failed",
+        "{} file(s) done ({:.2} h of audio), {} failed, {} missing",
         done.len(),
         audio_s / 3600.0,
-        failed.len()
+        failed.len(),
+        missing.len()
     );
     for r in failed {
         outln!(
@@ -170,6 +176,17 @@ fn batch_status(store: &Path, as_json: bool) -> Result<(), CliError> {
             r.path.display(),
             r.error.as_deref().unwrap_or("")
         );
+    }
+    for r in missing {
+        outln!(
+            "  missing: {} ({}): recorded as done, but {}: the next run computes it again",
+            r.id,
+            r.path.display(),
+            r.error.as_deref().unwrap_or("")
+        );
+    }
+    for w in &status.warnings {
+        outln!("  warning: {w}");
     }
     Ok(())
 }
