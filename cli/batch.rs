@@ -135,7 +135,8 @@ fn batch_status(store: &Path, as_json: bool) -> Result<(), CliError> {
         with(Status::Failed),
         with(Status::Missing),
     );
-    let audio_s: f64 = done.iter().map(|r| r.audio_s).sum();
+    // a fold from +0: an empty f64 sum is -0, printed as "-0.00 h"
+    let audio_s = done.iter().fold(0.0, |sum, r| sum + r.audio_s);
     if as_json {
         let v = json!({
             "store": store.to_string_lossy(),

@@ -264,7 +264,7 @@ impl LedgerView {
             .iter()
             .map(|(path, n)| {
                 format!(
-                    "skipped {n} line(s) of '{}' that are not records (torn by a kill or overwritten); the files they named are computed again",
+                    "skipped {n} line(s) of '{}' that are not records (torn by a kill, or overwritten): a file recorded only there counts as not done and is computed again",
                     path.display()
                 )
             })
