@@ -607,9 +607,9 @@ fn process(
 /// Computes one file of a distributed run (a Dask task: see `afe.batch`) into the store
 /// at `root` and records it in this process's log: as [`run`] does for each of its files,
 /// under the store's lock and the file's claim, waiting while another run holds it.
-/// Returns its record (a failed file is a record), or the record of the run that did it
-/// meanwhile. `Err`: the store cannot be written, or an interrupt.
-pub fn compute_one(root: &Path, file: &InputFile) -> Result<Record, BatchError> {
+/// Returns its record (a failed file is a record) and `false`, or the record of the run
+/// that did it meanwhile and `true`. `Err`: the store cannot be written, or an interrupt.
+pub fn compute_one(root: &Path, file: &InputFile) -> Result<(Record, bool), BatchError> {
     let store = Store::open_to_write(root)?;
     let ledger = Ledger::open(root).map_err(|e| BatchError::store(root, &e))?;
     let view = Mutex::new(LedgerView::default());
@@ -623,7 +623,8 @@ pub fn compute_one(root: &Path, file: &InputFile) -> Result<Record, BatchError> 
         true,
         &AtomicBool::new(false),
     )? {
-        Outcome::Recorded(r) | Outcome::Elsewhere(r) => Ok(r),
+        Outcome::Recorded(r) => Ok((r, false)),
+        Outcome::Elsewhere(r) => Ok((r, true)),
         Outcome::Busy | Outcome::Stopped => Err(BatchError::Afe(afe_core::Error::Interrupted)),
     }
 }

@@ -89,8 +89,11 @@ def batch(
     other requests, parameters or ``dtype`` is refused (``ValueError``) unless
     ``overwrite``.
 
-    Returns the summary: ``files``, ``already_done``, ``done``, ``failed`` (a list of
-    ``{"id", "error"}``), ``not_started``, ``audio_s``, ``wall_s``, ``x_real_time``.
+    Returns the summary: ``files``, ``already_done``, ``done``, ``done_elsewhere`` (by
+    another run sharing the store meanwhile), ``failed`` (a list of ``{"id", "error"}``),
+    ``not_started``, ``audio_s``, ``wall_s``, ``x_real_time``; the Rust engine's also
+    ``incomplete`` (files recorded as done but found incomplete on disk, computed again)
+    and ``warnings`` (log lines that could not be read).
     """
     from . import _params_json
 
@@ -145,6 +148,7 @@ def _distribute(
         "files": len(files) + already,
         "already_done": already,
         "done": 0,
+        "done_elsewhere": 0,
         "failed": [],
         "not_started": 0,
         "audio_s": 0.0,
@@ -162,7 +166,9 @@ def _distribute(
         if fut.cancelled():
             continue
         record = fut.result()
-        if record["status"] == "done":
+        if record.get("elsewhere"):
+            summary["done_elsewhere"] += 1
+        elif record["status"] == "done":
             summary["done"] += 1
             summary["audio_s"] += record["audio_s"]
         else:
@@ -173,7 +179,7 @@ def _distribute(
                     f.cancel()
         _show(progress, record, summary, len(files), total_s, time.monotonic() - start)
     summary["wall_s"] = time.monotonic() - start
-    summary["not_started"] = len(files) - summary["done"] - len(summary["failed"])
+    summary["not_started"] = len(files) - summary["done"] - summary["done_elsewhere"] - len(summary["failed"])
     summary["x_real_time"] = summary["audio_s"] / summary["wall_s"] if summary["wall_s"] > 0 else 0.0
     summary["failed"].sort(key=lambda f: f["id"])
     if progress == "bar":
@@ -187,7 +193,7 @@ def _distribute(
 
 
 def _show(progress: str, record: Dict[str, Any], summary: Dict[str, Any], files: int, total_s: float, elapsed: float) -> None:
-    count = summary["done"] + len(summary["failed"])
+    count = summary["done"] + summary["done_elsewhere"] + len(summary["failed"])
     speed = summary["audio_s"] / elapsed if elapsed > 0 else 0.0
     if progress == "jsonl":
         event = dict(record, event="file", done=summary["done"], failed=len(summary["failed"]), files=files, x_real_time=speed)

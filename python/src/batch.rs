@@ -129,7 +129,8 @@ pub fn batch_plan(
 /// Computes one file into an existing store and records it in this process's log, under
 /// the store's lock and the file's claim (waiting while another run holds it); returns its
 /// record as JSON text (a failed file is a record, not an exception; a file another run
-/// did meanwhile, that run's record). A store that cannot be written raises `OSError`.
+/// did meanwhile, that run's record with `"elsewhere": true`). A store that cannot be
+/// written raises `OSError`.
 #[pyfunction]
 pub fn batch_compute(
     py: Python<'_>,
@@ -139,7 +140,13 @@ pub fn batch_compute(
     audio_s: f64,
 ) -> PyResult<String> {
     py.allow_threads(|| afe_batch::compute_one(&store, &InputFile { id, path, audio_s }))
-        .map(|record| record.to_json().to_string())
+        .map(|(record, elsewhere)| {
+            let mut v = record.to_json();
+            if elsewhere {
+                v["elsewhere"] = true.into();
+            }
+            v.to_string()
+        })
         .map_err(to_py_batch)
 }
 
