@@ -777,6 +777,35 @@ fn npz_and_zarr_stores_of_a_whole_signal_graph_equal_extract() {
         2 * complex.1.iter().product::<usize>(),
         "complex values as pairs"
     );
+
+    // an .npz cut short is reported missing and redone by the next run
+    let cut = npz_store.join(format!("{}.npz", ids[0]));
+    let len = std::fs::metadata(&cut).expect("npz").len();
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(&cut)
+        .expect("open")
+        .set_len(len - 10)
+        .expect("cut");
+    let st = status(&npz_store);
+    assert_eq!(st["done"], ids.len() - 1, "{st}");
+    assert_eq!(st["missing"][0]["id"], ids[0].as_str(), "{st}");
+    assert!(
+        st["missing"][0]["error"]
+            .as_str()
+            .is_some_and(|e| e.contains("cut short")),
+        "{st}"
+    );
+    let mut args = vec!["batch", s(&corpus), "-o", s(&npz_store), "--format", "npz"];
+    args.extend(params);
+    args.extend(["--progress", "none"]);
+    let out = afe_ok(&args);
+    assert!(stderr(&out).contains("1 done now"), "{}", stderr(&out));
+    assert_same(
+        &npz_arrays(&cut),
+        &extracted(&corpus.join(&ids[0]), &params, &npz),
+        &ids[0],
+    );
 }
 
 #[test]

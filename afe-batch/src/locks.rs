@@ -71,14 +71,22 @@ impl StoreLock {
         })
     }
 
-    /// The store's lock, exclusive, if no other run holds it.
+    /// The store's lock, exclusive, if no other run holds it (the entries left under
+    /// `runs/` are then those of runs that were killed: they are removed).
     pub(crate) fn try_exclusive(root: &Path) -> io::Result<Option<StoreLock>> {
         let file = open_lock(root)?;
         match FileExt::try_lock(&file) {
-            Ok(()) => Ok(Some(StoreLock {
-                _file: file,
-                entry: None,
-            })),
+            Ok(()) => {
+                if let Ok(entries) = std::fs::read_dir(root.join(LOG_DIR).join(RUNS)) {
+                    for entry in entries.filter_map(Result::ok) {
+                        let _ = std::fs::remove_file(entry.path());
+                    }
+                }
+                Ok(Some(StoreLock {
+                    _file: file,
+                    entry: None,
+                }))
+            }
             Err(TryLockError::WouldBlock) => Ok(None),
             Err(TryLockError::Error(e)) => Err(e),
         }

@@ -49,19 +49,41 @@ fn json(path: &Path) -> Option<Value> {
 fn verify_group(dir: &Path) -> Result<(), String> {
     let meta = json(&dir.join("zarr.json"))
         .ok_or_else(|| "its group metadata is missing (a run did not finish it)".to_string())?;
-    let arrays = meta["attributes"]["afe"]["arrays"]
-        .as_array()
-        .ok_or_else(|| "its group metadata does not list its arrays".to_string())?;
+    let Some(arrays) = meta["attributes"]["afe"]["arrays"].as_array() else {
+        return verify_earlier_group(dir);
+    };
     for name in arrays {
         let name = name
             .as_str()
             .ok_or_else(|| "its group metadata lists an array without a name".to_string())?;
-        verify_array(&dir.join(name)).map_err(|e| format!("array '{name}': {e}"))?;
+        verify_array(&dir.join(name), true).map_err(|e| format!("array '{name}': {e}"))?;
     }
     Ok(())
 }
 
-fn verify_array(dir: &Path) -> Result<(), String> {
+/// A group written before groups listed their arrays (and before chunks of zeros were
+/// stored): the arrays found must have readable metadata, and the chunks found the size
+/// of a chunk; a deleted array or chunk cannot be told from one never written.
+fn verify_earlier_group(dir: &Path) -> Result<(), String> {
+    let entries = std::fs::read_dir(dir).map_err(|e| format!("its group cannot be read: {e}"))?;
+    let mut arrays = 0;
+    for entry in entries.filter_map(Result::ok) {
+        let path = entry.path();
+        if json(&path.join("zarr.json")).is_some_and(|m| m["node_type"] == "array") {
+            let name = entry.file_name().to_string_lossy().into_owned();
+            verify_array(&path, false).map_err(|e| format!("array '{name}': {e}"))?;
+            arrays += 1;
+        }
+    }
+    if arrays == 0 {
+        return Err("its group holds no array".into());
+    }
+    Ok(())
+}
+
+/// Checks the array in `dir`; `every_chunk`: each chunk of its shape must be on disk
+/// (else only those found are checked).
+fn verify_array(dir: &Path, every_chunk: bool) -> Result<(), String> {
     let meta = json(&dir.join("zarr.json")).ok_or("its metadata is missing")?;
     let numbers =
         |v: &Value| -> Option<Vec<u64>> { v.as_array()?.iter().map(Value::as_u64).collect() };
@@ -102,7 +124,8 @@ fn verify_array(dir: &Path) -> Result<(), String> {
                     m.len()
                 ))
             }
-            Err(_) => return Err(format!("chunk {indices:?} is missing")),
+            Err(_) if every_chunk => return Err(format!("chunk {indices:?} is missing")),
+            Err(_) => {}
         }
     }
     Ok(())
@@ -122,5 +145,79 @@ fn verify_npz(path: &Path) -> Result<(), String> {
         Ok(())
     } else {
         Err("its .npz is cut short (no zip directory at its end)".into())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::store::StoreSpec;
+    use serde_json::json;
+
+    fn write(path: &Path, bytes: &[u8]) {
+        std::fs::create_dir_all(path.parent().expect("parent")).expect("dir");
+        std::fs::write(path, bytes).expect("write");
+    }
+
+    #[test]
+    fn every_chunk_of_a_listed_array_is_checked_and_earlier_groups_by_what_they_hold() {
+        let root = std::env::temp_dir().join(format!("afe-verify-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        let spec = StoreSpec {
+            requests: vec!["ratemap".into()],
+            params: afe::ParamMap::new(),
+            format: Format::Zarr,
+            dtype: afe::npy::Dtype::Float64,
+        };
+        let store = Store::create(&root, &spec, false).expect("store");
+        // 5 rows of 3 in chunks of 2 rows: chunks 0, 1 and 2 of 48 bytes each
+        let array = json!({
+            "zarr_format": 3, "node_type": "array", "shape": [5, 3], "data_type": "float64",
+            "chunk_grid": {"name": "regular", "configuration": {"chunk_shape": [2, 3]}},
+        });
+        let group = |arrays: Option<&[&str]>| {
+            let mut afe = json!({ "path": "x.wav" });
+            if let Some(a) = arrays {
+                afe["arrays"] = json!(a);
+            }
+            json!({ "zarr_format": 3, "node_type": "group", "attributes": { "afe": afe } })
+        };
+        let dir = root.join("d/x.wav");
+        write(
+            &root.join("d/zarr.json"),
+            br#"{"zarr_format":3,"node_type":"group"}"#,
+        );
+        write(&dir.join("a/zarr.json"), array.to_string().as_bytes());
+        for k in 0..3 {
+            write(&dir.join(format!("a/c/{k}/0")), &[0; 48]);
+        }
+        assert_eq!(
+            store.verify("d/x.wav"),
+            Err("its group metadata is missing (a run did not finish it)".into())
+        );
+        write(
+            &dir.join("zarr.json"),
+            group(Some(&["a"])).to_string().as_bytes(),
+        );
+        assert_eq!(store.verify("d/x.wav"), Ok(()));
+        std::fs::remove_file(dir.join("a/c/1/0")).expect("rm");
+        assert_eq!(
+            store.verify("d/x.wav"),
+            Err("array 'a': chunk [1, 0] is missing".into())
+        );
+        // a group of an earlier version: a chunk may be absent (zeros were not stored),
+        // one of the wrong size may not
+        write(&dir.join("zarr.json"), group(None).to_string().as_bytes());
+        assert_eq!(store.verify("d/x.wav"), Ok(()));
+        write(&dir.join("a/c/2/0"), &[0; 40]);
+        assert_eq!(
+            store.verify("d/x.wav"),
+            Err("array 'a': chunk [2, 0] holds 40 bytes, not 48".into())
+        );
+        std::fs::remove_file(root.join("d/zarr.json")).expect("rm");
+        assert!(store
+            .verify("d/x.wav")
+            .is_err_and(|e| e.contains("its folder")));
+        let _ = std::fs::remove_dir_all(&root);
     }
 }
