@@ -81,7 +81,8 @@ struct BatchFlags {
     /// disk). A store keeps one type: a run with the other is refused.
     #[arg(long, value_enum, default_value_t = StoredType::F64)]
     dtype: StoredType,
-    /// Replace the contents of a store made with other requests, parameters or type.
+    /// Replace the contents of a store made with other requests, parameters or type
+    /// (refused while another run writes the store).
     #[arg(long)]
     overwrite: bool,
 }

@@ -153,9 +153,9 @@ impl Ledger {
         })
     }
 
-    /// Appends `record` as one line, in one write. Not synced to the disk: a killed
-    /// process loses nothing the kernel has (the arrays are not synced either, so a sync
-    /// here would not make a power cut safe, only every file slower).
+    /// Appends `record` as one line, in one write. Not synced to the disk: a killed process loses
+    /// nothing the kernel has; a power cut may lose the last lines, whose files are then
+    /// computed again.
     pub fn append(&self, record: &Record) -> std::io::Result<()> {
         let mut line = record.to_json().to_string();
         line.push('\n');
