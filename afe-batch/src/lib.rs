@@ -1,6 +1,7 @@
 //! Corpus extraction: the same requests over many files into one store, with every core
 //! busy, memory bounded by the files in flight, progress, failures recorded and skipped,
-//! resume after a crash at file granularity, and shards for independent jobs.
+//! resume after a crash at file granularity (each file checked on disk), shards for
+//! independent jobs, and runs that share a store without losing a file ([`locks`]).
 //!
 //! ```no_run
 //! use afe_batch::{run, BatchOptions, Format, StoreSpec};
