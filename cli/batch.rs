@@ -32,7 +32,9 @@ pub(crate) struct BatchArgs {
 /// `afe batch status STORE`.
 #[derive(Subcommand)]
 enum BatchCommand {
-    /// Show what a store holds: its requests and parameters, files done and failed.
+    /// Show what a store holds: its requests and parameters, files done, failed, and
+    /// recorded as done but missing on disk (each done file checked: metadata and chunk
+    /// sizes).
     Status {
         /// The store.
         store: PathBuf,
@@ -79,7 +81,8 @@ struct BatchFlags {
     /// disk). A store keeps one type: a run with the other is refused.
     #[arg(long, value_enum, default_value_t = StoredType::F64)]
     dtype: StoredType,
-    /// Replace the contents of a store made with other requests, parameters or type.
+    /// Replace the contents of a store made with other requests, parameters or type
+    /// (refused while another run writes the store).
     #[arg(long)]
     overwrite: bool,
 }
@@ -123,16 +126,18 @@ fn batch(
 
 fn batch_status(store: &Path, as_json: bool) -> Result<(), CliError> {
     use afe_batch::Status;
-    let (spec, records) = afe_batch::status(store)?;
-    let done: Vec<_> = records
-        .iter()
-        .filter(|r| r.status == Status::Done)
-        .collect();
-    let failed: Vec<_> = records
-        .iter()
-        .filter(|r| r.status == Status::Failed)
-        .collect();
-    let audio_s: f64 = done.iter().map(|r| r.audio_s).sum();
+    let status = afe_batch::status(store)?;
+    let spec = &status.spec;
+    let with = |want: Status| -> Vec<&afe_batch::Record> {
+        status.records.iter().filter(|r| r.status == want).collect()
+    };
+    let (done, failed, missing) = (
+        with(Status::Done),
+        with(Status::Failed),
+        with(Status::Missing),
+    );
+    // a fold from +0: an empty f64 sum is -0, printed as "-0.00 h"
+    let audio_s = done.iter().fold(0.0, |sum, r| sum + r.audio_s);
     if as_json {
         let v = json!({
             "store": store.to_string_lossy(),
@@ -144,6 +149,8 @@ fn batch_status(store: &Path, as_json: bool) -> Result<(), CliError> {
             "done": done.len(),
             "audio_s": audio_s,
             "failed": failed.iter().map(|r| r.to_json()).collect::<Vec<_>>(),
+            "missing": missing.iter().map(|r| r.to_json()).collect::<Vec<_>>(),
+            "warnings": status.warnings,
         });
         outln!("{v}");
         return Ok(());
@@ -158,10 +165,11 @@ fn batch_status(store: &Path, as_json: bool) -> Result<(), CliError> {
         spec.param_hash()
     );
     outln!(
-        "{} file(s) done ({:.2} h of audio), {} failed",
+        "{} file(s) done ({:.2} h of audio), {} failed, {} missing",
         done.len(),
         audio_s / 3600.0,
-        failed.len()
+        failed.len(),
+        missing.len()
     );
     for r in failed {
         outln!(
@@ -170,6 +178,17 @@ fn batch_status(store: &Path, as_json: bool) -> Result<(), CliError> {
             r.path.display(),
             r.error.as_deref().unwrap_or("")
         );
+    }
+    for r in missing {
+        outln!(
+            "  missing: {} ({}): recorded as done, but {}: the next run computes it again",
+            r.id,
+            r.path.display(),
+            r.error.as_deref().unwrap_or("")
+        );
+    }
+    for w in &status.warnings {
+        outln!("  warning: {w}");
     }
     Ok(())
 }

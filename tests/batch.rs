@@ -777,6 +777,35 @@ fn npz_and_zarr_stores_of_a_whole_signal_graph_equal_extract() {
         2 * complex.1.iter().product::<usize>(),
         "complex values as pairs"
     );
+
+    // an .npz cut short is reported missing and redone by the next run
+    let cut = npz_store.join(format!("{}.npz", ids[0]));
+    let len = std::fs::metadata(&cut).expect("npz").len();
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(&cut)
+        .expect("open")
+        .set_len(len - 10)
+        .expect("cut");
+    let st = status(&npz_store);
+    assert_eq!(st["done"], ids.len() - 1, "{st}");
+    assert_eq!(st["missing"][0]["id"], ids[0].as_str(), "{st}");
+    assert!(
+        st["missing"][0]["error"]
+            .as_str()
+            .is_some_and(|e| e.contains("cut short")),
+        "{st}"
+    );
+    let mut args = vec!["batch", s(&corpus), "-o", s(&npz_store), "--format", "npz"];
+    args.extend(params);
+    args.extend(["--progress", "none"]);
+    let out = afe_ok(&args);
+    assert!(stderr(&out).contains("1 done now"), "{}", stderr(&out));
+    assert_same(
+        &npz_arrays(&cut),
+        &extracted(&corpus.join(&ids[0]), &params, &npz),
+        &ids[0],
+    );
 }
 
 #[test]
@@ -945,4 +974,283 @@ fn a_manifest_names_the_files() {
         &["batch", s(&no_tab), "-r", "ratemap", "-o", s(&dup_store)],
         &["line 1", "id<TAB>path"],
     );
+}
+
+/// Spawns `afe` with `args`, its stdout piped (the `--progress jsonl` events) and its
+/// stderr kept.
+fn spawn(args: &[&str]) -> std::process::Child {
+    Command::new(env!("CARGO_BIN_EXE_afe"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn afe")
+}
+
+/// Waits until `store` records a finished file, or panics if `child` ends first.
+fn wait_for_first_record(child: &mut std::process::Child, store: &Path) {
+    let start = Instant::now();
+    while !ledger_records(store).iter().any(|r| r["status"] == "done") {
+        if let Some(code) = child.try_wait().expect("try_wait") {
+            panic!("the run ended ({code}) before any file was recorded");
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "no file recorded in 60 s"
+        );
+        std::thread::sleep(Duration::from_millis(1));
+    }
+}
+
+/// The summary event of a finished `--progress jsonl` run, which must have succeeded.
+fn summary_of(child: std::process::Child) -> Value {
+    let out = child.wait_with_output().expect("wait");
+    assert!(out.status.success(), "afe batch failed: {}", stderr(&out));
+    let ev = events(&out);
+    let last = ev.last().expect("events").clone();
+    assert_eq!(last["event"], "summary", "{ev:?}");
+    last
+}
+
+#[test]
+fn two_unsharded_runs_share_one_store_and_an_overwrite_meanwhile_is_refused() {
+    let tmp = TempDir::new("concurrent");
+    let corpus = tmp.join("corpus");
+    let ids = good_corpus(&corpus, 24);
+    let store = tmp.join("store.zarr");
+    let params = ["-r", "ratemap,ild,itd,ic", "-p", "fb_nChannels=16"];
+    let mut args = vec!["batch", s(&corpus), "-o", s(&store)];
+    args.extend(params);
+    args.extend(["-j", "1", "--progress", "jsonl"]);
+    // the second run starts while the first one is writing (it has recorded one file)
+    let mut first = spawn(&args);
+    wait_for_first_record(&mut first, &store);
+    let second = spawn(&args);
+    // an overwrite with other parameters while they write: refused, naming a run
+    let line = afe_err(
+        &[
+            "batch",
+            s(&corpus),
+            "-r",
+            "ratemap",
+            "-o",
+            s(&store),
+            "--overwrite",
+            "--progress",
+            "none",
+        ],
+        &["another run is writing the store", "--overwrite"],
+    );
+    assert!(
+        line.contains(&format!("pid {} on ", first.id()))
+            || line.contains(&format!("pid {} on ", second.id())),
+        "{line}"
+    );
+    let (a, b) = (summary_of(first), summary_of(second));
+    // mono files cannot give an ILD: they fail in whichever run takes them
+    let count = |v: &Value, key: &str| v[key].as_u64().expect(key);
+    let failed = |v: &Value| v["failed"].as_array().expect("failed").len() as u64;
+    for run in [&a, &b] {
+        assert_eq!(count(run, "files"), ids.len() as u64, "{run}");
+        assert_eq!(
+            count(run, "done")
+                + count(run, "done_elsewhere")
+                + count(run, "already_done")
+                + failed(run),
+            ids.len() as u64,
+            "{run}"
+        );
+    }
+    // each good file computed by exactly one of them; the second run did share the work
+    let mono = ids.len() as u64 - ids.len() as u64 / 4 * 3;
+    assert_eq!(
+        count(&a, "done") + count(&b, "done"),
+        ids.len() as u64 - mono
+    );
+    assert!(count(&b, "already_done") < ids.len() as u64 - mono, "{b}");
+
+    let st = status(&store);
+    assert_eq!(st["done"], ids.len() as u64 - mono, "{st}");
+    assert_eq!(st["missing"], serde_json::json!([]), "{st}");
+    assert_eq!(
+        st["params"]["fb_nChannels"], 16,
+        "the overwrite touched the store"
+    );
+    // every file of the corpus holds what `afe extract` computes, or failed for its ILD
+    let npz = tmp.join("x.npz");
+    let failed_ids: BTreeSet<&str> = st["failed"]
+        .as_array()
+        .expect("failed")
+        .iter()
+        .map(|r| r["id"].as_str().expect("id"))
+        .collect();
+    for id in &ids {
+        let wav = hound::WavReader::open(corpus.join(id)).expect("wav").spec();
+        if wav.channels == 1 {
+            assert!(failed_ids.contains(id.as_str()), "{id}");
+            continue;
+        }
+        let want = sorted(extracted(&corpus.join(id), &params, &npz));
+        assert_same(&stored(&store, id), &want, id);
+    }
+}
+
+#[test]
+fn status_and_resume_find_deleted_groups_arrays_and_chunks_and_skip_garbage_in_the_log() {
+    let tmp = TempDir::new("damaged");
+    let corpus = tmp.join("corpus");
+    let ids = good_corpus(&corpus, 8);
+    let store = tmp.join("store.zarr");
+    let params = ["-r", REQUESTS, "-p", "fb_nChannels=8"];
+    let mut args = vec!["batch", s(&corpus), "-o", s(&store)];
+    args.extend(params);
+    args.extend(["--progress", "jsonl"]);
+    afe_ok(&args);
+    let reference = tmp.join("reference.zarr");
+    copy_dir(&store, &reference);
+
+    // a whole group, one array, one chunk, and a chunk cut short
+    let stereo: Vec<&String> = ids
+        .iter()
+        .filter(|id| store.join(id).join("ratemap_left").exists())
+        .collect();
+    let (group, array, chunk, cut) = (stereo[0], stereo[1], stereo[2], stereo[3]);
+    std::fs::remove_dir_all(store.join(group)).expect("rm group");
+    std::fs::remove_dir_all(store.join(array).join("ratemap_right")).expect("rm array");
+    std::fs::remove_file(store.join(chunk).join("filterbank_left/c/0/0")).expect("rm chunk");
+    let cut_chunk = store.join(cut).join("ratemap_left/c/0/0");
+    let len = std::fs::metadata(&cut_chunk).expect("chunk").len();
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(&cut_chunk)
+        .expect("open")
+        .set_len(len / 2)
+        .expect("cut");
+    // binary bytes in a log, between whole lines
+    let log = std::fs::read_dir(store.join(".afe-batch"))
+        .expect("logs")
+        .map(|e| e.expect("entry").path())
+        .find(|p| p.extension().is_some_and(|e| e == "jsonl"))
+        .expect("a log");
+    let mut bytes = std::fs::read(&log).expect("log");
+    bytes.extend(b"\x00\xff\xfe{\"id\":\x80garbage\n");
+    std::fs::write(&log, bytes).expect("write log");
+
+    let st = status(&store);
+    assert_eq!(st["done"], ids.len() - 4, "{st}");
+    let missing: BTreeMap<String, String> = st["missing"]
+        .as_array()
+        .expect("missing")
+        .iter()
+        .map(|r| {
+            assert_eq!(r["status"], "missing");
+            (
+                r["id"].as_str().expect("id").to_string(),
+                r["error"].as_str().expect("error").to_string(),
+            )
+        })
+        .collect();
+    assert_eq!(
+        missing.keys().collect::<BTreeSet<_>>(),
+        BTreeSet::from([group, array, chunk, cut])
+    );
+    assert!(
+        missing[group].contains("group metadata is missing"),
+        "{missing:?}"
+    );
+    assert!(missing[array].contains("'ratemap_right'"), "{missing:?}");
+    assert!(
+        missing[chunk].contains("chunk [0, 0] is missing"),
+        "{missing:?}"
+    );
+    assert!(
+        missing[cut].contains(&format!("holds {} bytes", len / 2)),
+        "{missing:?}"
+    );
+    let warnings = st["warnings"].as_array().expect("warnings");
+    assert_eq!(warnings.len(), 1, "{st}");
+    assert!(warnings[0]
+        .as_str()
+        .expect("text")
+        .contains("skipped 1 line(s)"));
+    let text = afe_ok(&["batch", "status", s(&store)]);
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(text.contains(", 0 failed, 4 missing"), "{text}");
+
+    // the resume computes exactly those again, and the store equals the one before
+    let ev = events(&afe_ok(&args));
+    assert_eq!(ev[0]["already_done"], ids.len() - 4);
+    let redone: BTreeSet<&str> = ev
+        .iter()
+        .filter(|e| e["event"] == "file")
+        .map(|e| e["id"].as_str().expect("id"))
+        .collect();
+    assert_eq!(
+        redone,
+        BTreeSet::from([group, array, chunk, cut].map(String::as_str))
+    );
+    let summary = ev.last().expect("summary");
+    assert_eq!(
+        summary["incomplete"].as_array().expect("incomplete").len(),
+        4
+    );
+    assert_same_stores(&store, &reference);
+    let st = status(&store);
+    assert_eq!(st["done"], ids.len());
+    assert_eq!(st["missing"], serde_json::json!([]));
+}
+
+#[test]
+fn a_store_that_cannot_be_written_stops_the_run_and_leaves_the_files_to_resume() {
+    let tmp = TempDir::new("full");
+    let corpus = tmp.join("corpus");
+    let ids = good_corpus(&corpus, 12);
+    let store = tmp.join("store.zarr");
+    let params = ["-r", REQUESTS, "-p", "fb_nChannels=8"];
+    let mut args = vec!["batch", s(&corpus), "-o", s(&store)];
+    args.extend(params);
+    args.extend(["-j", "1", "--progress", "none"]);
+    // a file size limit of 64 blocks (32 or 64 KiB): writing a longer chunk fails with
+    // EFBIG (SIGXFSZ ignored), as a full disk fails with ENOSPC
+    let out = Command::new("sh")
+        .arg("-c")
+        .arg("trap '' XFSZ; ulimit -f 64 && exec \"$0\" \"$@\"")
+        .arg(env!("CARGO_BIN_EXE_afe"))
+        .args(&args)
+        .output()
+        .expect("run sh");
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    let line = err
+        .lines()
+        .find(|l| l.starts_with("error: "))
+        .unwrap_or_else(|| panic!("no error line in: {err}"));
+    for needle in [
+        "cannot write the store",
+        "File too large",
+        "run the same command again",
+    ] {
+        assert!(line.contains(needle), "'{needle}' not in: {line}");
+    }
+    // no file is recorded as failed, and what is recorded is whole
+    let st = status(&store);
+    assert_eq!(st["failed"], serde_json::json!([]), "{st}");
+    assert_eq!(st["missing"], serde_json::json!([]), "{st}");
+    let before = st["done"].as_u64().expect("done");
+    assert!(before < ids.len() as u64, "{st}");
+
+    let ev = events(&afe_ok(&{
+        let mut a = args.clone();
+        a.pop();
+        a.push("jsonl");
+        a
+    }));
+    assert_eq!(ev[0]["already_done"], before);
+    let st = status(&store);
+    assert_eq!(st["done"], ids.len(), "{st}");
+    let npz = tmp.join("x.npz");
+    for id in &ids {
+        let want = sorted(extracted(&corpus.join(id), &params, &npz));
+        assert_same(&stored(&store, id), &want, id);
+    }
 }

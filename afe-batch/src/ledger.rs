@@ -1,11 +1,12 @@
 //! The record of which files a store holds: one append-only log per process, a line of
 //! JSON per finished or failed file. A file counts as done only once its line is written,
 //! after all its arrays; a run killed part-way leaves at most a torn last line, which is
-//! ignored, so the next run redoes exactly the files not recorded.
+//! ignored, so the next run redoes exactly the files not recorded. A line that is not a
+//! record (a torn one, bytes written over the log) is skipped and counted, never fatal.
 
 use std::collections::HashMap;
 use std::fs::{File, OpenOptions};
-use std::io::Write;
+use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::{SystemTime, UNIX_EPOCH};
@@ -22,6 +23,21 @@ pub enum Status {
     Done,
     /// It could not be computed (unreadable, corrupt, refused by a request).
     Failed,
+    /// Recorded as done, but its output in the store is missing or incomplete (a group,
+    /// array or chunk deleted or cut short): the next run computes it again. Never
+    /// written to a log: [`crate::status`] finds it on disk.
+    Missing,
+}
+
+impl Status {
+    /// The name in a log line and in JSON.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Status::Done => "done",
+            Status::Failed => "failed",
+            Status::Missing => "missing",
+        }
+    }
 }
 
 /// One file's line in the log.
@@ -75,7 +91,7 @@ impl Record {
         json!({
             "id": self.id,
             "path": self.path.to_string_lossy(),
-            "status": match self.status { Status::Done => "done", Status::Failed => "failed" },
+            "status": self.status.as_str(),
             "error": self.error,
             "audio_s": self.audio_s,
             "compute_s": self.compute_s,
@@ -111,26 +127,35 @@ pub struct Ledger {
 impl Ledger {
     /// Opens (creating) this process's log in `store`: `log-<host>-<pid>.jsonl`, so that
     /// processes on several machines sharing one store never write the same file.
+    /// A log left by an earlier process of the same pid is appended to, after a line break
+    /// if it ends in a torn line (which would otherwise swallow the first new record).
     pub fn open(store: &Path) -> std::io::Result<Ledger> {
         let dir = store.join(LOG_DIR);
         std::fs::create_dir_all(&dir)?;
-        let host = std::fs::read_to_string("/proc/sys/kernel/hostname")
-            .map(|h| {
-                h.trim()
-                    .replace(|c: char| !c.is_ascii_alphanumeric() && c != '-', "_")
-            })
-            .unwrap_or_else(|_| "host".into());
-        let path = dir.join(format!("log-{host}-{}.jsonl", std::process::id()));
-        let file = OpenOptions::new().create(true).append(true).open(&path)?;
+        let path = dir.join(format!("log-{}-{}.jsonl", host_name(), std::process::id()));
+        let mut file = OpenOptions::new()
+            .create(true)
+            .read(true)
+            .append(true)
+            .open(&path)?;
+        let len = file.metadata()?.len();
+        if len > 0 {
+            let mut last = [0u8];
+            file.seek(SeekFrom::Start(len - 1))?;
+            file.read_exact(&mut last)?;
+            if last[0] != b'\n' {
+                file.write_all(b"\n")?;
+            }
+        }
         Ok(Ledger {
             path,
             file: Mutex::new(file),
         })
     }
 
-    /// Appends `record` as one line, in one write. Not synced to the disk: a killed
-    /// process loses nothing the kernel has (the arrays are not synced either, so a sync
-    /// here would not make a power cut safe, only every file slower).
+    /// Appends `record` as one line, in one write. Not synced to the disk: a killed process loses
+    /// nothing the kernel has; a power cut may lose the last lines, whose files are then
+    /// computed again.
     pub fn append(&self, record: &Record) -> std::io::Result<()> {
         let mut line = record.to_json().to_string();
         line.push('\n');
@@ -148,36 +173,114 @@ impl Ledger {
     }
 }
 
-/// The latest record of every file in `store`'s logs (none if it has no logs yet).
-pub fn read(store: &Path) -> std::io::Result<HashMap<String, Record>> {
-    let mut latest: HashMap<String, Record> = HashMap::new();
-    let dir = store.join(LOG_DIR);
-    let entries = match std::fs::read_dir(&dir) {
-        Ok(e) => e,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(latest),
-        Err(e) => return Err(e),
-    };
-    for entry in entries {
-        let path = entry?.path();
-        if path.extension().is_none_or(|e| e != "jsonl") {
-            continue;
-        }
-        let text = std::fs::read_to_string(&path)?;
-        // a line torn by a kill fails to parse and is skipped
-        for rec in text
-            .lines()
-            .filter_map(|l| serde_json::from_str::<Value>(l).ok())
-            .filter_map(|v| Record::from_json(&v))
-        {
-            match latest.get(&rec.id) {
-                Some(old) if old.time > rec.time => {}
-                _ => {
-                    latest.insert(rec.id.clone(), rec);
+/// This host's name as it appears in log and run file names (letters, digits, `-`).
+pub(crate) fn host_name() -> String {
+    std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .map(|h| {
+            h.trim()
+                .replace(|c: char| !c.is_ascii_alphanumeric() && c != '-', "_")
+        })
+        .unwrap_or_else(|_| "host".into())
+}
+
+/// The latest record of every file in a store's logs, read incrementally: each
+/// [`LedgerView::refresh`] reads only what the logs gained since the last one, so a run
+/// can look again cheaply when another run may have finished a file meanwhile.
+#[derive(Debug, Default)]
+pub struct LedgerView {
+    /// Bytes of each log read so far (up to its last whole line).
+    read: HashMap<PathBuf, u64>,
+    latest: HashMap<String, Record>,
+    /// Whole lines that were not records, per log.
+    skipped: HashMap<PathBuf, usize>,
+}
+
+impl LedgerView {
+    /// Reads what `store`'s logs gained since the last call (all of them the first time;
+    /// nothing if the store has no logs yet).
+    pub fn refresh(&mut self, store: &Path) -> std::io::Result<()> {
+        let dir = store.join(LOG_DIR);
+        let entries = match std::fs::read_dir(&dir) {
+            Ok(e) => e,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+            Err(e) => return Err(e),
+        };
+        for entry in entries {
+            let path = entry?.path();
+            if path.extension().is_none_or(|e| e != "jsonl") {
+                continue;
+            }
+            let from = self.read.get(&path).copied().unwrap_or(0);
+            let mut file = File::open(&path)?;
+            if file.metadata()?.len() <= from {
+                continue;
+            }
+            file.seek(SeekFrom::Start(from))?;
+            let mut bytes = Vec::new();
+            file.read_to_end(&mut bytes)?;
+            // a last line without its line break is being written, or torn by a kill:
+            // it is read (or skipped) once it is whole
+            let whole = bytes.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);
+            for line in bytes[..whole].split(|&b| b == b'\n') {
+                if line.iter().all(u8::is_ascii_whitespace) {
+                    continue;
                 }
+                match serde_json::from_slice::<Value>(line)
+                    .ok()
+                    .and_then(|v| Record::from_json(&v))
+                {
+                    Some(rec) => self.insert(rec),
+                    None => *self.skipped.entry(path.clone()).or_default() += 1,
+                }
+            }
+            self.read.insert(path, from + whole as u64);
+        }
+        Ok(())
+    }
+
+    fn insert(&mut self, rec: Record) {
+        match self.latest.get(&rec.id) {
+            Some(old) if old.time > rec.time => {}
+            _ => {
+                self.latest.insert(rec.id.clone(), rec);
             }
         }
     }
-    Ok(latest)
+
+    /// The latest record of file `id`.
+    pub fn get(&self, id: &str) -> Option<&Record> {
+        self.latest.get(id)
+    }
+
+    /// The latest record of every file.
+    pub fn records(&self) -> &HashMap<String, Record> {
+        &self.latest
+    }
+
+    /// What was skipped, for people: one line per log holding lines that are not records.
+    pub fn warnings(&self) -> Vec<String> {
+        let mut w: Vec<String> = self
+            .skipped
+            .iter()
+            .map(|(path, n)| {
+                format!(
+                    "skipped {n} line(s) of '{}' that are not records (torn by a kill, or overwritten): a file recorded only there counts as not done and is computed again",
+                    path.display()
+                )
+            })
+            .collect();
+        w.sort();
+        w
+    }
+}
+
+/// The latest record of every file in `store`'s logs (none if it has no logs yet), and
+/// the warnings of [`LedgerView::warnings`].
+pub fn read(store: &Path) -> std::io::Result<(HashMap<String, Record>, Vec<String>)> {
+    let mut view = LedgerView::default();
+    view.refresh(store)?;
+    let warnings = view.warnings();
+    Ok((view.latest, warnings))
 }
 
 #[cfg(test)]
@@ -217,11 +320,51 @@ mod tests {
             .open(ledger.path())
             .expect("reopen");
         f.write_all(b"{\"id\":\"c.wav\",\"sta").expect("torn");
-        let got = read(&dir).expect("read");
+        let (got, warnings) = read(&dir).expect("read");
         assert_eq!(got.len(), 2);
         assert_eq!(got["a.wav"], done);
         assert_eq!(got["b.wav"].status, Status::Done);
         assert_eq!(got["b.wav"].audio_s, 2.0);
+        // a torn last line is not counted: it may be a line being written
+        assert!(warnings.is_empty(), "{warnings:?}");
+
+        // a process reusing the pid goes on after a line break; binary bytes in another
+        // log are skipped with a warning, the records around them kept
+        let again = Ledger::open(&dir).expect("reopen");
+        again
+            .append(&Record::now(
+                "c.wav",
+                Path::new("/x/c.wav"),
+                Ok(()),
+                3.0,
+                0.1,
+            ))
+            .expect("append");
+        let other = dir.join(LOG_DIR).join("log-other-1.jsonl");
+        let mut bytes = Record::now("d.wav", Path::new("/x/d.wav"), Ok(()), 4.0, 0.1)
+            .to_json()
+            .to_string()
+            .into_bytes();
+        bytes.extend(b"\n\xff\xfe\x00garbage\x80\n\n");
+        bytes.extend(
+            Record::now("e.wav", Path::new("/x/e.wav"), Ok(()), 5.0, 0.1)
+                .to_json()
+                .to_string()
+                .into_bytes(),
+        );
+        bytes.push(b'\n');
+        std::fs::write(&other, bytes).expect("write");
+        let (got, warnings) = read(&dir).expect("read");
+        let mut ids: Vec<&str> = got.keys().map(String::as_str).collect();
+        ids.sort_unstable();
+        assert_eq!(ids, ["a.wav", "b.wav", "c.wav", "d.wav", "e.wav"]);
+        assert_eq!(warnings.len(), 2, "{warnings:?}");
+        assert!(
+            warnings
+                .iter()
+                .any(|w| w.contains("skipped 1 line(s)") && w.contains("log-other-1.jsonl")),
+            "{warnings:?}"
+        );
         std::fs::remove_dir_all(&dir).expect("clean");
     }
 }

@@ -1,6 +1,7 @@
 //! Corpus extraction: the same requests over many files into one store, with every core
 //! busy, memory bounded by the files in flight, progress, failures recorded and skipped,
-//! resume after a crash at file granularity, and shards for independent jobs.
+//! resume after a crash at file granularity (each file checked on disk), shards for
+//! independent jobs, and runs that share a store without losing a file ([`locks`]).
 //!
 //! ```no_run
 //! use afe_batch::{run, BatchOptions, Format, StoreSpec};
@@ -18,8 +19,10 @@
 mod group;
 mod inputs;
 mod ledger;
+pub mod locks;
 mod progress;
 mod store;
+mod verify;
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -34,7 +37,7 @@ use afe::wav::open_input;
 
 pub use group::{is_saved_group, read_group, write_group, ElementType, SavedArray};
 pub use inputs::{discover, shard, InputFile};
-pub use ledger::{Ledger, Record, Status};
+pub use ledger::{Ledger, LedgerView, Record, Status};
 pub use progress::{Progress, ProgressMode};
 pub use store::{FileWriter, Format, Store, StoreSpec, StoredArray};
 
@@ -103,6 +106,25 @@ pub enum BatchError {
         path: PathBuf,
         /// What the system or zarr said.
         reason: String,
+    },
+    /// `--overwrite` while another run writes the store.
+    #[error("another run is writing the store '{}' ({runs}): --overwrite would delete its files under it; wait for it to end (or stop it), then overwrite", path.display())]
+    Busy {
+        /// The store.
+        path: PathBuf,
+        /// The runs holding it, as `pid N on HOST`.
+        runs: String,
+    },
+    /// The store could not be written (a full disk, a quota, a file size limit, lost
+    /// permissions): the run stopped, and the files not written are left to resume.
+    #[error("cannot write the store '{}': {reason}; stopped after {done} file(s) of this run: the files not written are left to resume, free space (or fix the store) and run the same command again", path.display())]
+    StoreWrite {
+        /// The store or the file in it.
+        path: PathBuf,
+        /// What the system or zarr said.
+        reason: String,
+        /// Files this run finished.
+        done: usize,
     },
     /// A file id the store does not hold.
     #[error("the store holds no file '{0}'")]
@@ -206,6 +228,15 @@ pub struct Summary {
     pub already_done: usize,
     /// Computed by this run.
     pub done: usize,
+    /// Done meanwhile by another run sharing the store (found done once this run could
+    /// claim them).
+    pub done_elsewhere: usize,
+    /// Recorded as done by an earlier run but found incomplete in the store (a group,
+    /// array or chunk missing or cut short): id and what was wrong. They are among the
+    /// files this run computes.
+    pub incomplete: Vec<(String, String)>,
+    /// Lines of the store's logs that could not be read, skipped.
+    pub warnings: Vec<String>,
     /// Failed in this run: id and error.
     pub failed: Vec<(String, String)>,
     /// Not started because the run stopped at a failure.
@@ -223,6 +254,9 @@ impl Summary {
             "files": self.files,
             "already_done": self.already_done,
             "done": self.done,
+            "done_elsewhere": self.done_elsewhere,
+            "incomplete": self.incomplete.iter().map(|(id, e)| json!({"id": id, "error": e})).collect::<Vec<_>>(),
+            "warnings": self.warnings,
             "failed": self.failed.iter().map(|(id, e)| json!({"id": id, "error": e})).collect::<Vec<_>>(),
             "not_started": self.not_started,
             "audio_s": self.audio_s,
@@ -243,10 +277,15 @@ impl Summary {
     /// The summary for people, with the failures listed.
     pub fn text(&self) -> String {
         let mut s = format!(
-            "{} file(s): {} done now, {} done before, {} failed{}; {:.2} h of audio in {:.1} s ({:.0}x real time)",
+            "{} file(s): {} done now, {} done before, {}{} failed{}; {:.2} h of audio in {:.1} s ({:.0}x real time)",
             self.files,
             self.done,
             self.already_done,
+            if self.done_elsewhere > 0 {
+                format!("{} done by another run, ", self.done_elsewhere)
+            } else {
+                String::new()
+            },
             self.failed.len(),
             if self.not_started > 0 {
                 format!(", {} not started", self.not_started)
@@ -257,21 +296,46 @@ impl Summary {
             self.wall_s,
             self.speed()
         );
+        for (id, e) in &self.incomplete {
+            s.push_str(&format!(
+                "\n  recorded as done but incomplete in the store, computed again: {id}: {e}"
+            ));
+        }
         for (id, e) in &self.failed {
             s.push_str(&format!("\n  failed: {id}: {e}"));
+        }
+        for w in &self.warnings {
+            s.push_str(&format!("\n  warning: {w}"));
         }
         s
     }
 }
 
-/// The files of `inputs` (sharded) that `store` does not hold yet, longest first, and how
-/// many it holds already. Creates the store if needed (see [`Store::create`]).
+/// What a run over a store has to do.
+#[derive(Debug)]
+pub struct Plan {
+    /// The store, open to be written (its lock held shared).
+    pub store: Store,
+    /// The files to compute, longest first.
+    pub files: Vec<InputFile>,
+    /// Files of the inputs the store holds whole already.
+    pub already_done: usize,
+    /// Files recorded as done but incomplete on disk (id, what is wrong): in `files`.
+    pub incomplete: Vec<(String, String)>,
+    /// The store's logs as read.
+    pub ledger: LedgerView,
+}
+
+/// The files of `inputs` (sharded) that `store` does not hold whole yet, longest first:
+/// those without a record of being done, and those recorded as done whose output on disk
+/// is missing or cut short ([`Store::verify`]). Creates the store if needed (see
+/// [`Store::create`]).
 pub fn plan(
     inputs: &[PathBuf],
     root: &Path,
     spec: &StoreSpec,
     options: &BatchOptions,
-) -> Result<(Store, Vec<InputFile>, usize), BatchError> {
+) -> Result<Plan, BatchError> {
     check_spec(spec)?;
     let mut files = discover(inputs)?;
     if let Some((i, n)) = options.shard {
@@ -293,16 +357,35 @@ pub fn plan(
         )));
     }
     let store = Store::create(root, spec, options.overwrite)?;
-    let records = ledger::read(root).map_err(|e| BatchError::store(root, &e))?;
+    let mut ledger = LedgerView::default();
+    ledger
+        .refresh(root)
+        .map_err(|e| BatchError::store(root, &e))?;
     let before = files.len();
-    files.retain(|f| records.get(&f.id).is_none_or(|r| r.status != Status::Done));
-    let already = before - files.len();
+    let mut incomplete = Vec::new();
+    files.retain(|f| match ledger.get(&f.id) {
+        Some(r) if r.status == Status::Done => match store.verify(&f.id) {
+            Ok(()) => false,
+            Err(why) => {
+                incomplete.push((f.id.clone(), why));
+                true
+            }
+        },
+        _ => true,
+    });
+    let already_done = before - files.len();
     files.sort_by(|a, b| {
         b.audio_s
             .total_cmp(&a.audio_s)
             .then_with(|| a.id.cmp(&b.id))
     });
-    Ok((store, files, already))
+    Ok(Plan {
+        store,
+        files,
+        already_done,
+        incomplete,
+        ledger,
+    })
 }
 
 /// Refuses unknown requests and parameters before any file is touched.
@@ -317,8 +400,28 @@ fn check_spec(spec: &StoreSpec) -> Result<(), BatchError> {
     Ok(())
 }
 
-/// Computes `inputs` into the store at `root`: the files it does not hold yet, longest
-/// first, `options.workers` at a time.
+/// How one file of a run ended.
+#[derive(Debug)]
+enum Outcome {
+    /// Computed (or failed) by this run: its record, appended to the log.
+    Recorded(Record),
+    /// Found done by another run once claimed: that run's record.
+    Elsewhere(Record),
+    /// Another run holds its claim (and the caller would not wait).
+    Busy,
+    /// Not computed: the run is interrupted or stopping.
+    Stopped,
+}
+
+/// How often a run that waits for a file another run holds looks again.
+const CLAIM_POLL: std::time::Duration = std::time::Duration::from_millis(50);
+
+/// Computes `inputs` into the store at `root`: the files it does not hold whole yet,
+/// longest first, `options.workers` at a time. Each file is claimed first (see
+/// [`locks`]): a file another run holds is put aside and waited for once the others are
+/// done, then computed only if that run did not finish it, so runs sharing a store share
+/// its files. A store that cannot be written stops the run with
+/// [`BatchError::StoreWrite`], the files not written left to the next run.
 pub fn run(
     inputs: &[PathBuf],
     root: &Path,
@@ -326,7 +429,15 @@ pub fn run(
     options: &BatchOptions,
 ) -> Result<Summary, BatchError> {
     let start = Instant::now();
-    let (store, files, already) = plan(inputs, root, spec, options)?;
+    let Plan {
+        store,
+        files,
+        already_done,
+        incomplete,
+        ledger: view,
+    } = plan(inputs, root, spec, options)?;
+    let warnings = view.warnings();
+    let view = Mutex::new(view);
     let ledger = Ledger::open(root).map_err(|e| BatchError::store(root, &e))?;
     let workers = match options.workers {
         0 => std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get),
@@ -344,33 +455,57 @@ pub fn run(
         options.progress,
         files.len(),
         audio_s,
-        already,
+        already_done,
     ));
     let summary = Mutex::new(Summary {
-        files: files.len() + already,
-        already_done: already,
+        files: files.len() + already_done,
+        already_done,
+        incomplete,
+        warnings,
         ..Summary::default()
     });
     let next = AtomicUsize::new(0);
     let stop = AtomicBool::new(false);
-    let ledger_error = Mutex::new(None);
-    // a shared queue in longest-first order: each worker takes the next file when free
+    let deferred: Mutex<Vec<&InputFile>> = Mutex::new(Vec::new());
+    let store_error = Mutex::new(None);
+    // a shared queue in longest-first order: each worker takes the next file when free;
+    // files held by another run are put aside, then waited for
     std::thread::scope(|scope| {
         for _ in 0..workers {
             scope.spawn(|| {
+                let mut waiting = false;
                 while !stop.load(Ordering::Relaxed) && !afe::interrupt::requested() {
-                    let Some(file) = files.get(next.fetch_add(1, Ordering::Relaxed)) else {
-                        break;
+                    let file = if waiting {
+                        lock(&deferred).pop()
+                    } else {
+                        files.get(next.fetch_add(1, Ordering::Relaxed))
                     };
-                    // an interrupted file is not recorded: the next run redoes it
-                    let Some(record) = compute(&store, file, threads) else {
-                        break;
+                    let Some(file) = file else {
+                        if waiting {
+                            break;
+                        }
+                        waiting = true;
+                        continue;
                     };
-                    if let Err(e) = ledger.append(&record) {
-                        stop.store(true, Ordering::Relaxed);
-                        *lock(&ledger_error) = Some(BatchError::store(ledger.path(), &e));
-                        break;
-                    }
+                    let outcome = process(&store, &ledger, &view, file, threads, waiting, &stop);
+                    let record = match outcome {
+                        Ok(Outcome::Recorded(r)) => r,
+                        Ok(Outcome::Elsewhere(r)) => {
+                            lock(&summary).done_elsewhere += 1;
+                            lock(&progress).file(&r, true);
+                            continue;
+                        }
+                        Ok(Outcome::Busy) => {
+                            lock(&deferred).push(file);
+                            continue;
+                        }
+                        Ok(Outcome::Stopped) => break,
+                        Err(e) => {
+                            stop.store(true, Ordering::Relaxed);
+                            lock(&store_error).get_or_insert(e);
+                            break;
+                        }
+                    };
                     let mut s = lock(&summary);
                     match &record.error {
                         None => {
@@ -385,23 +520,31 @@ pub fn run(
                         }
                     }
                     drop(s);
-                    lock(&progress).file(&record);
+                    lock(&progress).file(&record, false);
                 }
             });
         }
     });
-    if let Some(e) = lock(&ledger_error).take() {
-        return Err(e);
-    }
     let mut summary = summary
         .into_inner()
         .unwrap_or_else(std::sync::PoisonError::into_inner);
     summary.wall_s = start.elapsed().as_secs_f64();
     summary.not_started = files
         .len()
-        .saturating_sub(summary.done + summary.failed.len());
+        .saturating_sub(summary.done + summary.done_elsewhere + summary.failed.len());
     summary.failed.sort();
     lock(&progress).finish(&summary);
+    if let Some(e) = lock(&store_error).take() {
+        let (path, reason) = match e {
+            BatchError::Store { path, reason } => (path, reason),
+            other => (root.to_path_buf(), other.to_string()),
+        };
+        return Err(BatchError::StoreWrite {
+            path,
+            reason,
+            done: summary.done,
+        });
+    }
     if afe::interrupt::requested() {
         return Err(BatchError::Interrupted { done: summary.done });
     }
@@ -420,27 +563,97 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     m.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
+/// Claims `file` (`wait`: until the run holding it lets go, else [`Outcome::Busy`]), and
+/// unless another run has done it meanwhile, computes it and appends its record while the
+/// claim is held. An error is the store's (it cannot be written): the run stops.
+fn process(
+    store: &Store,
+    ledger: &Ledger,
+    view: &Mutex<LedgerView>,
+    file: &InputFile,
+    threads: usize,
+    wait: bool,
+    stop: &AtomicBool,
+) -> Result<Outcome, BatchError> {
+    let root = store.root();
+    let _claim = loop {
+        match locks::try_claim(root, &file.id).map_err(|e| BatchError::store(root, &e))? {
+            Some(claim) => break claim,
+            None if !wait => return Ok(Outcome::Busy),
+            None if stop.load(Ordering::Relaxed) || afe::interrupt::requested() => {
+                return Ok(Outcome::Stopped)
+            }
+            None => std::thread::sleep(CLAIM_POLL),
+        }
+    };
+    // whole on disk and recorded as done since this run's plan: another run did it (a
+    // whole group without a record, left by a run killed before its record, is redone)
+    if store.verify(&file.id).is_ok() {
+        let mut view = lock(view);
+        view.refresh(root)
+            .map_err(|e| BatchError::store(root, &e))?;
+        if let Some(r) = view.get(&file.id).filter(|r| r.status == Status::Done) {
+            return Ok(Outcome::Elsewhere(r.clone()));
+        }
+    }
+    let Some(record) = compute(store, file, threads)? else {
+        return Ok(Outcome::Stopped);
+    };
+    ledger
+        .append(&record)
+        .map_err(|e| BatchError::store(ledger.path(), &e))?;
+    Ok(Outcome::Recorded(record))
+}
+
+/// Computes one file of a distributed run (a Dask task: see `afe.batch`) into the store
+/// at `root` and records it in this process's log: as [`run`] does for each of its files,
+/// under the store's lock and the file's claim, waiting while another run holds it.
+/// Returns its record (a failed file is a record) and `false`, or the record of the run
+/// that did it meanwhile and `true`. `Err`: the store cannot be written, or an interrupt.
+pub fn compute_one(root: &Path, file: &InputFile) -> Result<(Record, bool), BatchError> {
+    let store = Store::open_to_write(root)?;
+    let ledger = Ledger::open(root).map_err(|e| BatchError::store(root, &e))?;
+    let view = Mutex::new(LedgerView::default());
+    // one file per executor task: the executor's workers share the cores
+    match process(
+        &store,
+        &ledger,
+        &view,
+        file,
+        0,
+        true,
+        &AtomicBool::new(false),
+    )? {
+        Outcome::Recorded(r) => Ok((r, false)),
+        Outcome::Elsewhere(r) => Ok((r, true)),
+        Outcome::Busy | Outcome::Stopped => Err(BatchError::Afe(afe_core::Error::Interrupted)),
+    }
+}
+
 /// Computes one file into `store` (first removing what a killed run left of it) and
-/// returns its record, for the caller to append to a ledger; failures are in the record.
-/// `None`: interrupted (see [`afe::interrupt`]), nothing to record. `threads`: of the
-/// concurrent scheduler, the caller among them (0: the sequential executor).
-pub fn compute(store: &Store, file: &InputFile, threads: usize) -> Option<Record> {
+/// returns its record, for the caller to append to a ledger; failures of the file are in
+/// the record. `Ok(None)`: interrupted (see [`afe::interrupt`]), nothing to record.
+/// `Err`: the store cannot be written (a full disk...): nothing is recorded, the file is
+/// left to the next run. `threads`: of the concurrent scheduler, the caller among them
+/// (0: the sequential executor).
+fn compute(store: &Store, file: &InputFile, threads: usize) -> Result<Option<Record>, BatchError> {
     let start = Instant::now();
     let result = compute_file(store, file, threads);
     if result.is_err() {
         // a failed file leaves nothing half-written behind
         let _ = store.clear(&file.id);
     }
-    if let Err(BatchError::Afe(afe_core::Error::Interrupted)) = result {
-        return None;
+    match result {
+        Err(BatchError::Afe(afe_core::Error::Interrupted)) => Ok(None),
+        Err(e @ BatchError::Store { .. }) => Err(e),
+        result => Ok(Some(Record::now(
+            &file.id,
+            &file.path,
+            result.map_err(|e| e.to_string()),
+            file.audio_s,
+            start.elapsed().as_secs_f64(),
+        ))),
     }
-    Some(Record::now(
-        &file.id,
-        &file.path,
-        result.map_err(|e| e.to_string()),
-        file.audio_s,
-        start.elapsed().as_secs_f64(),
-    ))
 }
 
 fn compute_file(store: &Store, file: &InputFile, threads: usize) -> Result<(), BatchError> {
@@ -469,13 +682,39 @@ fn compute_file(store: &Store, file: &InputFile, threads: usize) -> Result<(), B
     writer.finish()
 }
 
-/// A store's state: its spec and the latest record of every file.
-pub fn status(root: &Path) -> Result<(StoreSpec, Vec<Record>), BatchError> {
+/// What a store holds, as [`status`] finds it.
+#[derive(Debug, Clone)]
+pub struct StoreStatus {
+    /// Its requests, parameters and layout.
+    pub spec: StoreSpec,
+    /// The latest record of every file, by id; a file recorded as done whose output is
+    /// not whole on disk has [`Status::Missing`] and what is wrong as its error.
+    pub records: Vec<Record>,
+    /// Lines of the logs that could not be read, skipped.
+    pub warnings: Vec<String>,
+}
+
+/// A store's state: its spec and the latest record of every file, each done one checked
+/// on disk ([`Store::verify`]: metadata read, chunk sizes compared, no value decoded).
+pub fn status(root: &Path) -> Result<StoreStatus, BatchError> {
     let store = Store::open(root)?;
-    let mut records: Vec<Record> = ledger::read(root)
-        .map_err(|e| BatchError::store(root, &e))?
+    let (records, warnings) = ledger::read(root).map_err(|e| BatchError::store(root, &e))?;
+    let mut records: Vec<Record> = records
         .into_values()
+        .map(|mut r| {
+            if r.status == Status::Done {
+                if let Err(why) = store.verify(&r.id) {
+                    r.status = Status::Missing;
+                    r.error = Some(why);
+                }
+            }
+            r
+        })
         .collect();
     records.sort_by(|a, b| a.id.cmp(&b.id));
-    Ok((store.spec().clone(), records))
+    Ok(StoreStatus {
+        spec: store.spec().clone(),
+        records,
+        warnings,
+    })
 }

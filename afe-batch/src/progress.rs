@@ -80,11 +80,12 @@ impl Progress {
         }
     }
 
-    /// Counts a finished file.
-    pub fn file(&mut self, record: &Record) {
+    /// Counts a finished file; `elsewhere`: done by another run sharing the store (its
+    /// `file` event says `"elsewhere": true`).
+    pub fn file(&mut self, record: &Record, elsewhere: bool) {
         match record.status {
             Status::Done => self.done += 1,
-            Status::Failed => self.failed += 1,
+            Status::Failed | Status::Missing => self.failed += 1,
         }
         self.audio_done_s += record.audio_s;
         let elapsed = self.start.elapsed().as_secs_f64();
@@ -115,6 +116,9 @@ impl Progress {
             ProgressMode::Jsonl => {
                 let mut event = record.to_json();
                 event["event"] = json!("file");
+                if elsewhere {
+                    event["elsewhere"] = json!(true);
+                }
                 event["done"] = json!(self.done);
                 event["failed"] = json!(self.failed);
                 event["files"] = json!(self.files);

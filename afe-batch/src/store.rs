@@ -6,16 +6,20 @@
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use std::time::Duration;
 
 use afe_core::ParamMap;
 use afe_graph::{Manager, OutputRef, Signal};
 use serde_json::{json, Value};
+use zarrs::array::codec::CodecOptions;
 use zarrs::array::{Array, ArrayBuilder, DataType, FillValue};
 use zarrs::filesystem::FilesystemStore;
 use zarrs::group::{Group, GroupBuilder};
 
 use super::group::read_arrays;
 use super::inputs::{fnv1a, InputFile};
+use super::ledger::LOG_DIR;
+use super::locks::{active_runs, StoreLock, LOCK_FILE};
 use super::BatchError;
 use afe::extract::Sink;
 use afe::npy::Dtype;
@@ -130,12 +134,19 @@ pub struct Store {
     root: PathBuf,
     spec: StoreSpec,
     zarr: Option<Arc<FilesystemStore>>,
+    /// The store's lock, held shared by a store opened to be written.
+    _lock: Option<StoreLock>,
 }
 
+/// How long a run waits between looks while another run creates the store.
+const CREATE_POLL: Duration = Duration::from_millis(20);
+
 impl Store {
-    /// Opens the store at `root` for `spec`, creating it if `root` is missing or an empty
-    /// folder. A store made for other requests, parameters or format is refused, or with
-    /// `overwrite` emptied first; a folder that is not a store is never touched.
+    /// Opens the store at `root` for `spec` to be written, creating it if `root` is
+    /// missing or an empty folder; the store's lock is held shared until the store is
+    /// dropped (see [`crate::locks`]). A store made for other requests, parameters or
+    /// format is refused, or with `overwrite` emptied first, which is refused while
+    /// another run writes it; a folder that is not a store is never touched.
     pub fn create(root: &Path, spec: &StoreSpec, overwrite: bool) -> Result<Store, BatchError> {
         if root.exists() && !root.is_dir() {
             return Err(BatchError::NotAStore {
@@ -143,37 +154,52 @@ impl Store {
                 reason: "it is a file".into(),
             });
         }
-        match read_spec(root)? {
-            Some(found)
-                if found.param_hash() == spec.param_hash()
-                    && found.format == spec.format
-                    && found.dtype == spec.dtype =>
-            {
-                return Store::with(root, found);
-            }
-            Some(found) if !overwrite => {
-                return Err(BatchError::OtherParams {
-                    path: root.to_path_buf(),
-                    found: describe(&found),
-                    wanted: describe(spec),
-                })
-            }
-            Some(_) => {
-                std::fs::remove_dir_all(root).map_err(|e| BatchError::store(root, &e))?;
-            }
-            None => {
-                let empty = std::fs::read_dir(root).map_or(true, |mut d| d.next().is_none());
-                if !empty {
-                    return Err(BatchError::NotAStore {
-                        path: root.to_path_buf(),
-                        reason: "it is a folder holding other files: give a new or empty folder"
-                            .into(),
-                    });
-                }
-            }
+        // nothing (not even the lock) is made in a folder holding other files
+        if root.exists() && read_spec(root)?.is_none() && !holds_only_logs(root) {
+            return Err(foreign(root));
         }
         std::fs::create_dir_all(root).map_err(|e| BatchError::store(root, &e))?;
-        let store = Store::with(root, spec.clone())?;
+        loop {
+            let shared = StoreLock::shared(root).map_err(|e| BatchError::store(root, &e))?;
+            let found = read_spec(root)?;
+            match &found {
+                Some(f) if same(f, spec) => return Store::with(root, f.clone(), Some(shared)),
+                Some(f) if !overwrite => return Err(other_params(root, f, spec)),
+                None if !holds_only_logs(root) => return Err(foreign(root)),
+                _ => {}
+            }
+            // made or emptied under the exclusive lock, then opened again shared (another
+            // run may make or replace it in between: the loop looks again)
+            drop(shared);
+            match StoreLock::try_exclusive(root).map_err(|e| BatchError::store(root, &e))? {
+                Some(exclusive) => {
+                    Store::make(root, spec, overwrite)?;
+                    drop(exclusive);
+                }
+                None if found.is_some() => {
+                    return Err(BatchError::Busy {
+                        path: root.to_path_buf(),
+                        runs: describe_runs(root),
+                    })
+                }
+                None if afe::interrupt::requested() => {
+                    return Err(BatchError::Interrupted { done: 0 })
+                }
+                None => std::thread::sleep(CREATE_POLL),
+            }
+        }
+    }
+
+    /// Under the exclusive lock: writes the metadata of a new store, or empties a store
+    /// of other contents first (`overwrite`), keeping the lock file.
+    fn make(root: &Path, spec: &StoreSpec, overwrite: bool) -> Result<(), BatchError> {
+        match read_spec(root)? {
+            Some(found) if same(&found, spec) => return Ok(()),
+            Some(found) if !overwrite => return Err(other_params(root, &found, spec)),
+            Some(_) => empty(root)?,
+            None if !holds_only_logs(root) => return Err(foreign(root)),
+            None => {}
+        }
         // written whole under a temporary name and renamed: a run killed here leaves no
         // torn metadata that every later run would refuse
         let (name, meta) = match spec.format {
@@ -186,21 +212,42 @@ impl Store {
         let file = OutputFile::check(&root.join(name)).map_err(|e| BatchError::store(root, &e))?;
         file.write(|f| f.write_all(meta.to_string().as_bytes()))
             .map_err(|e| BatchError::store(root, &e))?;
-        Ok(store)
+        // an overwrite into the other format: the old metadata goes last, so that the
+        // folder is a store at every moment
+        for old in ["zarr.json", NPZ_META].iter().filter(|&&n| n != name) {
+            match std::fs::remove_file(root.join(old)) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                    return Err(BatchError::store(root, &e))
+                }
+                _ => {}
+            }
+        }
+        Ok(())
     }
 
-    /// Opens an existing store.
+    /// Opens an existing store to read it (no lock is taken: a run may be writing it).
     pub fn open(root: &Path) -> Result<Store, BatchError> {
         match read_spec(root)? {
-            Some(spec) => Store::with(root, spec),
-            None => Err(BatchError::NotAStore {
-                path: root.to_path_buf(),
-                reason: "it holds no afe batch metadata".into(),
-            }),
+            Some(spec) => Store::with(root, spec, None),
+            None => Err(not_a_store(root)),
         }
     }
 
-    fn with(root: &Path, spec: StoreSpec) -> Result<Store, BatchError> {
+    /// Opens an existing store to write files into it, holding its lock shared until
+    /// dropped (one file of a distributed run: see [`crate::compute_one`]).
+    pub fn open_to_write(root: &Path) -> Result<Store, BatchError> {
+        if read_spec(root)?.is_none() {
+            return Err(not_a_store(root));
+        }
+        let lock = StoreLock::shared(root).map_err(|e| BatchError::store(root, &e))?;
+        // read again under the lock: an overwrite may have replaced it meanwhile
+        match read_spec(root)? {
+            Some(spec) => Store::with(root, spec, Some(lock)),
+            None => Err(not_a_store(root)),
+        }
+    }
+
+    fn with(root: &Path, spec: StoreSpec, lock: Option<StoreLock>) -> Result<Store, BatchError> {
         let zarr = match spec.format {
             Format::Zarr => Some(Arc::new(
                 FilesystemStore::new(root).map_err(|e| BatchError::store(root, &e))?,
@@ -211,6 +258,7 @@ impl Store {
             root: root.to_path_buf(),
             spec,
             zarr,
+            _lock: lock,
         })
     }
 
@@ -246,7 +294,9 @@ impl Store {
         }
     }
 
-    /// A writer of `file`'s outputs (its group is created now, with the file's facts).
+    /// A writer of `file`'s outputs. Its folders' groups are written now; its own group,
+    /// with the file's facts and its arrays' names, is written last by
+    /// [`FileWriter::finish`], so that a group with metadata is a whole one.
     pub fn writer(
         &self,
         file: &InputFile,
@@ -256,24 +306,14 @@ impl Store {
         match &self.zarr {
             Some(z) => {
                 let mut path = String::new();
-                for part in file.id.split('/') {
+                let parts: Vec<&str> = file.id.split('/').collect();
+                for part in &parts[..parts.len() - 1] {
                     path.push('/');
                     path.push_str(part);
-                    let is_file = path.len() == file.id.len() + 1;
-                    let attrs = if is_file {
-                        json!({ "afe": {
-                            "path": file.path.to_string_lossy(),
-                            "fs_hz": fs,
-                            "channels": channels,
-                            "duration_s": file.audio_s,
-                        }})
-                    } else if is_group(&self.root.join(&path[1..])) {
+                    if is_group(&self.root.join(&path[1..])) {
                         continue;
-                    } else {
-                        json!({})
-                    };
+                    }
                     GroupBuilder::new()
-                        .attributes(attrs.as_object().cloned().unwrap_or_default())
                         .build(z.clone(), &path)
                         .map_err(|e| BatchError::store(&self.root, &e))?
                         .store_metadata()
@@ -281,7 +321,13 @@ impl Store {
                 }
                 Ok(FileWriter::Zarr(ZarrFile {
                     store: z.clone(),
-                    group: path,
+                    group: format!("/{}", file.id),
+                    facts: json!({
+                        "path": file.path.to_string_lossy(),
+                        "fs_hz": fs,
+                        "channels": channels,
+                        "duration_s": file.audio_s,
+                    }),
                     root: &self.root,
                     audio_s: file.audio_s,
                     dtype: self.spec.dtype,
@@ -301,6 +347,88 @@ impl Store {
 /// leaves it empty or torn, and the next file in that folder then writes it again.
 fn is_group(dir: &Path) -> bool {
     std::fs::read(dir.join("zarr.json")).is_ok_and(|b| serde_json::from_slice::<Value>(&b).is_ok())
+}
+
+/// Whether two specs make the same store.
+fn same(a: &StoreSpec, b: &StoreSpec) -> bool {
+    a.param_hash() == b.param_hash() && a.format == b.format && a.dtype == b.dtype
+}
+
+fn other_params(root: &Path, found: &StoreSpec, wanted: &StoreSpec) -> BatchError {
+    BatchError::OtherParams {
+        path: root.to_path_buf(),
+        found: describe(found),
+        wanted: describe(wanted),
+    }
+}
+
+fn foreign(root: &Path) -> BatchError {
+    BatchError::NotAStore {
+        path: root.to_path_buf(),
+        reason: "it is a folder holding other files: give a new or empty folder".into(),
+    }
+}
+
+fn not_a_store(root: &Path) -> BatchError {
+    BatchError::NotAStore {
+        path: root.to_path_buf(),
+        reason: "it holds no afe batch metadata".into(),
+    }
+}
+
+/// Whether the folder `root` holds nothing but what making a store puts there first: the
+/// logs folder and the root metadata being written under a temporary name.
+fn holds_only_logs(root: &Path) -> bool {
+    std::fs::read_dir(root).is_ok_and(|entries| {
+        entries.filter_map(Result::ok).all(|e| {
+            let name = e.file_name();
+            let name = name.to_string_lossy();
+            name == LOG_DIR
+                || (name.ends_with(".partial")
+                    && (name.starts_with(".zarr.json.") || name.starts_with(".afe-batch.json.")))
+        })
+    })
+}
+
+/// Removes everything in the store but its metadata (the folder stays a store for other
+/// runs looking at it; the new metadata replaces it) and its lock file (other runs wait
+/// on that very file: a new one would be another lock).
+fn empty(root: &Path) -> Result<(), BatchError> {
+    let remove = |path: &Path| -> Result<(), BatchError> {
+        let removed = if path.is_dir() {
+            std::fs::remove_dir_all(path)
+        } else {
+            std::fs::remove_file(path)
+        };
+        removed.map_err(|e| BatchError::store(path, &e))
+    };
+    for entry in std::fs::read_dir(root).map_err(|e| BatchError::store(root, &e))? {
+        let path = entry.map_err(|e| BatchError::store(root, &e))?.path();
+        if path.ends_with("zarr.json") || path.ends_with(NPZ_META) {
+            continue;
+        }
+        if !path.ends_with(LOG_DIR) {
+            remove(&path)?;
+            continue;
+        }
+        for inner in std::fs::read_dir(&path).map_err(|e| BatchError::store(&path, &e))? {
+            let inner = inner.map_err(|e| BatchError::store(&path, &e))?.path();
+            if !inner.ends_with(LOCK_FILE) {
+                remove(&inner)?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The other runs holding the store's lock, for a message.
+fn describe_runs(root: &Path) -> String {
+    let runs = active_runs(root);
+    if runs.is_empty() {
+        "a run whose entry is not visible here".into()
+    } else {
+        runs.join(", ")
+    }
 }
 
 /// The store's spec, if `root` is a store.
@@ -413,6 +541,8 @@ impl Sink for FileWriter<'_> {
 pub struct ZarrFile<'a> {
     store: Arc<FilesystemStore>,
     group: String,
+    /// The file's facts (`afe` attributes of its group), written with the array names.
+    facts: Value,
     root: &'a Path,
     /// The file's duration in seconds, to size the chunks.
     audio_s: f64,
@@ -541,7 +671,30 @@ impl ZarrFile<'_> {
                 .store_metadata()
                 .map_err(|e| BatchError::store(self.root, &e))?;
         }
-        Ok(())
+        // the group's metadata last: it says the file is whole (see `verify`)
+        let mut names: Vec<String> = self
+            .arrays
+            .iter()
+            .map(|a| {
+                a.array
+                    .path()
+                    .as_str()
+                    .rsplit('/')
+                    .next()
+                    .unwrap_or_default()
+                    .to_string()
+            })
+            .collect();
+        names.sort();
+        self.facts["arrays"] = json!(names);
+        let mut attrs = serde_json::Map::new();
+        attrs.insert("afe".into(), self.facts);
+        GroupBuilder::new()
+            .attributes(attrs)
+            .build(self.store.clone(), &self.group)
+            .map_err(|e| BatchError::store(self.root, &e))?
+            .store_metadata()
+            .map_err(|e| BatchError::store(self.root, &e))
     }
 }
 
@@ -564,7 +717,11 @@ impl ArrayOut {
                 .flat_map(|v| (*v as f32).to_ne_bytes())
                 .collect(),
         };
-        self.array.store_chunk(&indices, bytes)?;
+        // a chunk of zeros is stored too (zarr would leave it out), so that every chunk of
+        // a whole array is on disk (see `verify`)
+        let mut options = CodecOptions::default();
+        options.set_store_empty_chunks(true);
+        self.array.store_chunk_opt(&indices, bytes, &options)?;
         self.chunks += 1;
         self.rows += rows as u64;
         Ok(())

@@ -75,8 +75,13 @@ def batch(
     e.g. ``dask.distributed.Client(...).get_executor()`` (workers need ``afe`` installed
     and the inputs and store on a shared file system).
 
-    Files the store records as done are skipped, so a run that was killed resumes where
-    it stopped. ``shard=(i, n)`` computes only shard ``i`` of ``n`` (by a stable hash of
+    Files the store records as done and holds whole on disk are skipped, so a run that
+    was killed resumes where it stopped (a file whose group, array or chunk was deleted or
+    cut short is computed again). Runs sharing a store (two calls at once, shards,
+    executor tasks) share its files: each file is claimed while it is written, and one
+    done by another run is not computed again. A store that cannot be written (a full
+    disk) raises ``OSError``, the files not written left to the next run; so does
+    ``overwrite`` while another run writes the store. ``shard=(i, n)`` computes only shard ``i`` of ``n`` (by a stable hash of
     the ids), for independent jobs filling one store. A file that fails is recorded and
     skipped, or with ``on_error="stop"`` stops the run (``RuntimeError``) after the files
     in flight. ``progress``: ``"bar"`` (stderr), ``"jsonl"`` (one JSON line per file on
@@ -84,8 +89,11 @@ def batch(
     other requests, parameters or ``dtype`` is refused (``ValueError``) unless
     ``overwrite``.
 
-    Returns the summary: ``files``, ``already_done``, ``done``, ``failed`` (a list of
-    ``{"id", "error"}``), ``not_started``, ``audio_s``, ``wall_s``, ``x_real_time``.
+    Returns the summary: ``files``, ``already_done``, ``done``, ``done_elsewhere`` (by
+    another run sharing the store meanwhile), ``failed`` (a list of ``{"id", "error"}``),
+    ``not_started``, ``audio_s``, ``wall_s``, ``x_real_time``; the Rust engine's also
+    ``incomplete`` (files recorded as done but found incomplete on disk, computed again)
+    and ``warnings`` (log lines that could not be read).
     """
     from . import _params_json
 
@@ -140,6 +148,7 @@ def _distribute(
         "files": len(files) + already,
         "already_done": already,
         "done": 0,
+        "done_elsewhere": 0,
         "failed": [],
         "not_started": 0,
         "audio_s": 0.0,
@@ -157,7 +166,9 @@ def _distribute(
         if fut.cancelled():
             continue
         record = fut.result()
-        if record["status"] == "done":
+        if record.get("elsewhere"):
+            summary["done_elsewhere"] += 1
+        elif record["status"] == "done":
             summary["done"] += 1
             summary["audio_s"] += record["audio_s"]
         else:
@@ -168,7 +179,7 @@ def _distribute(
                     f.cancel()
         _show(progress, record, summary, len(files), total_s, time.monotonic() - start)
     summary["wall_s"] = time.monotonic() - start
-    summary["not_started"] = len(files) - summary["done"] - len(summary["failed"])
+    summary["not_started"] = len(files) - summary["done"] - summary["done_elsewhere"] - len(summary["failed"])
     summary["x_real_time"] = summary["audio_s"] / summary["wall_s"] if summary["wall_s"] > 0 else 0.0
     summary["failed"].sort(key=lambda f: f["id"])
     if progress == "bar":
@@ -182,7 +193,7 @@ def _distribute(
 
 
 def _show(progress: str, record: Dict[str, Any], summary: Dict[str, Any], files: int, total_s: float, elapsed: float) -> None:
-    count = summary["done"] + len(summary["failed"])
+    count = summary["done"] + summary["done_elsewhere"] + len(summary["failed"])
     speed = summary["audio_s"] / elapsed if elapsed > 0 else 0.0
     if progress == "jsonl":
         event = dict(record, event="file", done=summary["done"], failed=len(summary["failed"]), files=files, x_real_time=speed)
@@ -215,10 +226,16 @@ class Store:
         #: how the values are stored: ``"float64"`` or ``"float32"``
         self.dtype: str = status["dtype"]
         latest = status["files"]
-        #: file id → record of the files done (path, audio_s, compute_s, time)
+        #: file id → record of the files done (path, audio_s, compute_s, time), each
+        #: checked on disk (its metadata and its chunks' sizes)
         self.done: Dict[str, Dict[str, Any]] = {r["id"]: r for r in latest if r["status"] == "done"}
         #: file id → error of the files that failed
         self.failed: Dict[str, str] = {r["id"]: r["error"] for r in latest if r["status"] == "failed"}
+        #: file id → what is wrong, for files recorded as done whose output is missing or
+        #: cut short on disk (the next ``afe.batch`` into the store computes them again)
+        self.missing: Dict[str, str] = {r["id"]: r["error"] for r in latest if r["status"] == "missing"}
+        #: lines of the store's logs that could not be read, skipped
+        self.warnings: List[str] = status["warnings"]
 
     def _open_saved(self, format: str, suffix: str) -> None:
         """One ``.npz`` (``afe extract``'s or :func:`afe.save`'s) or one Zarr group of
@@ -240,6 +257,8 @@ class Store:
         file_id = name[: -len(suffix)] if name.endswith(suffix) else name
         self.done = {file_id: {"id": file_id, "path": self.path, "status": "done"}}
         self.failed = {}
+        self.missing = {}
+        self.warnings = []
 
     def _read_saved(self) -> Tuple[Dict[str, np.ndarray], Dict[str, Dict[str, Any]]]:
         from .saving import read_npz, read_zarr
@@ -271,7 +290,14 @@ class Store:
 
     def _read(self, file_id: str) -> Tuple[Dict[str, np.ndarray], Dict[str, Dict[str, Any]]]:
         if file_id not in self.done:
-            why = f" (it failed: {self.failed[file_id]})" if file_id in self.failed else ""
+            why = ""
+            if file_id in self.failed:
+                why = f" (it failed: {self.failed[file_id]})"
+            elif file_id in self.missing:
+                why = (
+                    f" (recorded as done, but {self.missing[file_id]}: "
+                    "run the batch again to compute it)"
+                )
             raise KeyError(f"the store holds no file '{file_id}'{why}")
         if self.format in ("npz-file", "zarr-group"):
             return self._read_saved()
@@ -285,7 +311,7 @@ class Store:
     def __repr__(self) -> str:
         return (
             f"afe.Store({self.path!r}: {self.format}, {','.join(self.requests)}, "
-            f"{len(self.done)} done, {len(self.failed)} failed)"
+            f"{len(self.done)} done, {len(self.failed)} failed, {len(self.missing)} missing)"
         )
 
 

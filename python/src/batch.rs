@@ -18,7 +18,9 @@ use crate::{array, parse_params, stored_type, to_py};
 fn to_py_batch(e: BatchError) -> PyErr {
     match e {
         BatchError::Afe(e) => to_py(e),
-        BatchError::Store { .. } => PyOSError::new_err(e.to_string()),
+        BatchError::Store { .. } | BatchError::StoreWrite { .. } | BatchError::Busy { .. } => {
+            PyOSError::new_err(e.to_string())
+        }
         BatchError::NoSuchFile(_) => PyKeyError::new_err(e.to_string()),
         BatchError::Stopped { .. } => PyRuntimeError::new_err(e.to_string()),
         _ => PyValueError::new_err(e.to_string()),
@@ -112,20 +114,23 @@ pub fn batch_plan(
 ) -> PyResult<(Vec<Planned>, usize)> {
     let spec = spec(spec_json)?;
     let options = options(options_json)?;
-    let (_, files, already) = py
+    let plan = py
         .allow_threads(|| afe_batch::plan(&inputs, &store, &spec, &options))
         .map_err(to_py_batch)?;
     Ok((
-        files
+        plan.files
             .into_iter()
             .map(|f| (f.id, f.path, f.audio_s))
             .collect(),
-        already,
+        plan.already_done,
     ))
 }
 
-/// Computes one file into an existing store and records it in this process's log;
-/// returns its record as JSON text (a failed file is a record, not an exception).
+/// Computes one file into an existing store and records it in this process's log, under
+/// the store's lock and the file's claim (waiting while another run holds it); returns its
+/// record as JSON text (a failed file is a record, not an exception; a file another run
+/// did meanwhile, that run's record with `"elsewhere": true`). A store that cannot be
+/// written raises `OSError`.
 #[pyfunction]
 pub fn batch_compute(
     py: Python<'_>,
@@ -134,30 +139,24 @@ pub fn batch_compute(
     path: PathBuf,
     audio_s: f64,
 ) -> PyResult<String> {
-    py.allow_threads(|| {
-        let opened = Store::open(&store)?;
-        // one file per executor task: the executor's workers share the cores
-        let record = afe_batch::compute(&opened, &InputFile { id, path, audio_s }, 0)
-            .ok_or(BatchError::Afe(afe::Error::Interrupted))?;
-        let ledger = afe_batch::Ledger::open(&store).map_err(|e| BatchError::Store {
-            path: store.clone(),
-            reason: e.to_string(),
-        })?;
-        ledger.append(&record).map_err(|e| BatchError::Store {
-            path: ledger.path().to_path_buf(),
-            reason: e.to_string(),
-        })?;
-        Ok(record.to_json().to_string())
-    })
-    .map_err(to_py_batch)
+    py.allow_threads(|| afe_batch::compute_one(&store, &InputFile { id, path, audio_s }))
+        .map(|(record, elsewhere)| {
+            let mut v = record.to_json();
+            if elsewhere {
+                v["elsewhere"] = true.into();
+            }
+            v.to_string()
+        })
+        .map_err(to_py_batch)
 }
 
 /// A store's spec and the latest record of each file, as JSON text.
 #[pyfunction]
 pub fn store_status(py: Python<'_>, store: PathBuf) -> PyResult<String> {
-    let (spec, records) = py
+    let status = py
         .allow_threads(|| afe_batch::status(&store))
         .map_err(to_py_batch)?;
+    let (spec, records) = (status.spec, status.records);
     Ok(serde_json::json!({
         "format": spec.format.as_str(),
         "requests": spec.requests,
@@ -165,6 +164,7 @@ pub fn store_status(py: Python<'_>, store: PathBuf) -> PyResult<String> {
         "param_hash": spec.param_hash(),
         "dtype": spec.dtype.name(false),
         "files": records.iter().map(afe_batch::Record::to_json).collect::<Vec<_>>(),
+        "warnings": status.warnings,
     })
     .to_string())
 }

@@ -107,6 +107,39 @@ def test_an_executor_fills_the_same_store(corpus, tmp_path):
     _same_store(afe.open_store(tmp_path / "rust.zarr"), afe.open_store(tmp_path / "ex.zarr"))
 
 
+def test_two_executor_runs_at_once_share_the_store_and_a_deleted_chunk_is_redone(corpus, tmp_path):
+    root, good = corpus
+    afe.batch(root, REQUESTS, out=tmp_path / "rust.zarr", progress="none")
+    out = tmp_path / "shared.zarr"
+
+    def one_run():
+        with ThreadPoolExecutor(2) as ex:
+            return afe.batch(root, REQUESTS, out=out, executor=ex, progress="none")
+
+    # two distributed runs over one store at once: each file claimed by one task at a
+    # time, a file done by the other run is not computed again
+    with ThreadPoolExecutor(2) as runs:
+        summaries = [f.result() for f in [runs.submit(one_run) for _ in range(2)]]
+    for s in summaries:
+        assert s["done"] + s["done_elsewhere"] + s["already_done"] + len(s["failed"]) == len(good) + 3
+    assert sum(s["done"] for s in summaries) == len(good)
+    store = afe.open_store(out)
+    assert store.ids() == good and store.missing == {}
+    _same_store(afe.open_store(tmp_path / "rust.zarr"), store)
+
+    # a chunk deleted behind the store's back: reported, refused on reading, redone
+    os.remove(out / good[0] / "ratemap_left" / "c" / "0" / "0")
+    store = afe.open_store(out)
+    assert good[0] not in store
+    assert "chunk [0, 0] is missing" in store.missing[good[0]]
+    with pytest.raises(KeyError, match="recorded as done, but array 'ratemap_left'"):
+        store[good[0]]
+    with ThreadPoolExecutor(2) as ex:
+        again = afe.batch(root, REQUESTS, out=out, executor=ex, progress="none")
+    assert (again["already_done"], again["done"]) == (len(good) - 1, 1)
+    _same_store(afe.open_store(tmp_path / "rust.zarr"), afe.open_store(out))
+
+
 def test_dask_local_cluster_fills_the_same_store(corpus, tmp_path):
     distributed = pytest.importorskip("distributed", reason="install afe[dask] to run Dask batches")
     root, good = corpus
