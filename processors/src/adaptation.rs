@@ -178,6 +178,10 @@ fn padded(values: &[f64], channels: usize, lanes: usize, fill: f64) -> Vec<f64> 
         .collect()
 }
 
+/// Largest `adpt_lim` accepted: the limitation's constants are products of it, which
+/// overflowed near 1.8e308.
+const MAX_LIM: f64 = 1e100;
+
 /// Lowest level floor accepted, dB SPL (amplitude 10^-15): the loops divide by the
 /// floor's roots, and a floor that reaches 0 (below about −6000 dB) gave NaN.
 const MIN_FLOOR_DB: f64 = -200.0;
@@ -242,6 +246,17 @@ impl Adaptation {
             .map(|m| m.powf(1.0 / 2f64.powi(loops as i32)))
             .collect();
         let mult: Vec<f64> = corr.iter().map(|c| 100.0 / (1.0 - c)).collect();
+        if p.lim > MAX_LIM {
+            return Err(Error::invalid(
+                "adpt_lim",
+                p.lim,
+                format!(
+                    "must be at most {MAX_LIM:e}: larger factors overflow the limitation's \
+                     constants (NaN); a factor that large limits nothing: use at most 1 to \
+                     disable the limitation"
+                ),
+            ));
+        }
         let limit = if p.lim > 1.0 {
             let constants: Vec<[f64; 3]> = initial
                 .iter()
@@ -636,6 +651,21 @@ mod tests {
                 AdaptationParams {
                     lim: 1.000_001,
                     min_db_spl: 99.0,
+                    ..Default::default()
+                },
+                "adpt_lim",
+            ),
+            // NaN from finite parameters: a floor that reaches 0, constants that overflow
+            (
+                AdaptationParams {
+                    min_db_spl: -201.0,
+                    ..Default::default()
+                },
+                "adpt_mindB",
+            ),
+            (
+                AdaptationParams {
+                    lim: 1.7e308,
                     ..Default::default()
                 },
                 "adpt_lim",

@@ -564,6 +564,15 @@ mod tests {
                 },
                 "ac_K",
             ),
+            // every sample clipped to 0: all NaN
+            (
+                AutocorrelationParams {
+                    clip_method: ClipMethod::Compress,
+                    clip_alpha: 1.0,
+                    ..Default::default()
+                },
+                "ac_clipAlpha",
+            ),
             (
                 AutocorrelationParams {
                     w_size_sec: 0.0,

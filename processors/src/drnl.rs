@@ -1184,6 +1184,19 @@ mod tests {
             e.contains("'fb_highFreqHz'") && e.contains("Nyquist"),
             "{e}"
         );
+        // a lowest frequency that rounds to a centre frequency of 0 Hz gave NaN
+        let p = from_map(&[
+            ("fb_type", json!("drnl")),
+            ("fb_lowFreqHz", json!(8.8e-16)),
+            ("fb_nChannels", json!(4)),
+        ])
+        .expect("parsed");
+        let e = Drnl::new(&p, 44100.0).expect_err("0 Hz").to_string();
+        assert!(
+            e.contains("'fb_lowFreqHz'")
+                && e.contains("the DRNL needs centre frequencies above 0 Hz, and one is 0 Hz"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -142,6 +142,13 @@ class Signal(np.ndarray):
         return self._meta["hop_s"]
 
     @property
+    def nan_where(self) -> Optional[str]:
+        """Where this representation holds NaN from finite input, as the AFE's does (an
+        unvoiced pitch frame, an autocorrelation frame of silence, ...); ``None`` where
+        it never does (docs/conformance.md)."""
+        return self._meta.get("nan_where")
+
+    @property
     def cf_hz(self) -> np.ndarray:
         """Centre frequency of each channel in Hz (bin frequencies of a spectrum). Feature
         signals have no channels: the filterbank's centre frequencies that spectral

@@ -918,3 +918,16 @@ def test_the_examples_of_summary_and_saving_run():
     for name in ("afe.summary", "afe.saving"):
         failed, tried = doctest.testmod(sys.modules[name], optionflags=doctest.NORMALIZE_WHITESPACE)
         assert tried > 0 and failed == 0, name
+
+
+def test_nan_where_names_every_representation_that_is_nan_on_silence():
+    """Issue 44, item 10: digital silence makes some representations NaN, as the AFE's;
+    each says so in its description, and the others stay finite."""
+    out = afe.process(np.zeros((16000, 2)), 16000, afe.requests())
+    nan = {s.name for s in out.values() if np.isnan(np.asarray(s).real).any()}
+    assert nan == {"autocorrelation", "pitch", "precedence_ild", "gabor", "duet"}
+    for s in out.values():
+        assert (s.nan_where is not None) == (s.name in nan | {"spectralFeatures"}), s.key
+        assert not np.isinf(np.asarray(s).real).any(), s.key
+    assert "unvoiced" in out["pitch_left"].nan_where
+    assert out["ratemap_left"].nan_where is None
