@@ -22,7 +22,7 @@ pub(crate) struct ServeArgs {
     /// loopback: the page can edit the graph, and it has no authentication).
     #[arg(long, value_name = "ADDR")]
     http: Option<std::net::SocketAddr>,
-    /// Also let pages of this origin (scheme://host[:port], e.g. http://robot.local:8080)
+    /// Also let pages of this origin (`scheme://host[:port]`, e.g. `http://robot.local:8080`)
     /// open the web view's WebSocket, or any origin with * (repeatable). By default only
     /// the page's own origin on an IP address or localhost.
     #[arg(long, value_name = "URL", requires = "http")]

@@ -67,7 +67,7 @@ pub(crate) struct StreamArgs {
     #[cfg(feature = "view")]
     #[arg(long, value_name = "ADDR")]
     view: Option<std::net::SocketAddr>,
-    /// Also let pages of this origin (scheme://host[:port]) open the view's WebSocket, or
+    /// Also let pages of this origin (`scheme://host[:port]`) open the view's WebSocket, or
     /// any origin with * (repeatable). By default only the page's own origin on an IP
     /// address or localhost.
     #[cfg(feature = "view")]
