@@ -1,7 +1,6 @@
 //! Arguments that several subcommands share: the requests and their AFE parameters, and
 //! the executor's thread count.
 
-use std::io::Read as _;
 use std::path::{Path, PathBuf};
 
 use afe::extract::Job;
@@ -116,23 +115,17 @@ const PARAMS_FILE_MAX_BYTES: u64 = 1 << 20;
 /// The JSON object of parameter names to values in `path`, read up to
 /// [`PARAMS_FILE_MAX_BYTES`].
 fn read_params_file(path: &Path) -> Result<ParamMap, CliError> {
-    let cannot =
-        |e: std::io::Error| format!("cannot read parameter file '{}': {e}", path.display());
-    let mut bytes = Vec::new();
-    std::fs::File::open(path)
-        .and_then(|f| f.take(PARAMS_FILE_MAX_BYTES + 1).read_to_end(&mut bytes))
-        .map_err(cannot)?;
-    if bytes.len() as u64 > PARAMS_FILE_MAX_BYTES {
-        return Err(format!(
-            "parameter file '{}' is larger than {} KiB: it should hold one JSON object of \
-             AFE parameter names to values",
-            path.display(),
-            PARAMS_FILE_MAX_BYTES >> 10
-        )
-        .into());
-    }
-    let text = String::from_utf8(bytes)
-        .map_err(|_| format!("parameter file '{}' is not UTF-8 text", path.display()))?;
+    let text = afe::bounded_read::read_text(path, PARAMS_FILE_MAX_BYTES).map_err(|e| {
+        if e.kind() == std::io::ErrorKind::InvalidData {
+            format!(
+                "parameter file '{}' is {e}: it should hold one JSON object of AFE parameter \
+                 names to values",
+                path.display()
+            )
+        } else {
+            format!("cannot read parameter file '{}': {e}", path.display())
+        }
+    })?;
     match serde_json::from_str::<Value>(&text) {
         Ok(Value::Object(obj)) => Ok(obj.into_iter().collect()),
         Ok(_) => Err(format!(

@@ -130,10 +130,11 @@ fn main() -> ExitCode {
 
 /// SIGINT, SIGTERM or SIGHUP: the first asks the running work to stop cleanly (see
 /// `afe::interrupt`: no half-written output, a stream saves what it computed, a batch
-/// keeps its finished files), a second one quits at once.
+/// keeps its finished files), a second one quits at once; so does the first while the
+/// input is awaited (a FIFO without its writer: nothing is written yet).
 fn install_interrupt_handler() {
     let installed = ctrlc::set_handler(|| {
-        if afe::interrupt::requested() {
+        if afe::interrupt::requested() || afe::interrupt::waiting_on_input() {
             // quitting at once, in the middle of a write perhaps: no .partial file stays
             afe::output::remove_partial_files();
             std::process::exit(130);

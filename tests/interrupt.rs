@@ -196,3 +196,52 @@ fn sigint_during_a_batch_keeps_finished_files_and_resumes() {
     assert_eq!(summary["done"], 6 - first);
     std::fs::remove_dir_all(&dir).expect("clean");
 }
+
+/// Item 8 of issue 44: `afe extract` on a FIFO waits for its writer in `open`, where no
+/// check of the stop flag runs: the first SIGTERM (or SIGINT) ends it at once, exit 130,
+/// nothing written. Likewise while it waits for the rest of the header from a writer that
+/// stalls.
+#[test]
+fn a_signal_stops_the_wait_on_a_fifo() {
+    for (sig, stall_after_header) in [("-TERM", false), ("-INT", false), ("-TERM", true)] {
+        let fifo = tmp(&format!("wait{sig}{stall_after_header}.fifo"));
+        let _ = std::fs::remove_file(&fifo);
+        let made = Command::new("mkfifo").arg(&fifo).status().expect("mkfifo");
+        assert!(made.success());
+        let out = tmp(&format!("wait{sig}{stall_after_header}.npz"));
+        let child = spawn(&[
+            "extract",
+            fifo.to_str().expect("utf-8"),
+            "-r",
+            "ild",
+            "-o",
+            out.to_str().expect("utf-8"),
+        ]);
+        // a writer that sends the first bytes of a header, then nothing
+        let writer = stall_after_header.then(|| {
+            let path = fifo.clone();
+            std::thread::spawn(move || {
+                let wav = tmp("wait-header.wav");
+                write_wav(&wav, 2, 16000, 16000, tone);
+                let bytes = std::fs::read(&wav).expect("wav");
+                let mut f = std::fs::OpenOptions::new()
+                    .write(true)
+                    .open(&path)
+                    .expect("open the fifo");
+                std::io::Write::write_all(&mut f, &bytes[..8]).expect("write");
+                std::thread::sleep(Duration::from_secs(5));
+            })
+        });
+        std::thread::sleep(Duration::from_millis(500));
+        let signalled = Instant::now();
+        signal(&child, sig);
+        let res = child.wait_with_output().expect("wait");
+        let took = signalled.elapsed();
+        let stderr = String::from_utf8_lossy(&res.stderr);
+        assert_eq!(res.status.code(), Some(130), "{sig}: {stderr}");
+        assert!(took < Duration::from_secs(1), "{sig}: {took:?}");
+        assert!(!out.exists(), "{sig}: an output was written");
+        no_temporaries(out.parent().expect("dir"));
+        drop(writer);
+    }
+}

@@ -145,10 +145,14 @@ fn glob_files(pattern: &str) -> Result<Vec<(String, PathBuf)>, BatchError> {
     Ok(files)
 }
 
+/// Largest manifest read, bytes: a million lines of 256 bytes (a large file given by
+/// mistake is refused after that much, not read whole).
+const MANIFEST_MAX_BYTES: u64 = 256 << 20;
+
 /// A manifest: one `id<TAB>path` per line; blank lines and `#` comments are skipped;
 /// relative paths are taken from the manifest's folder.
 fn manifest(path: &Path) -> Result<Vec<(String, PathBuf)>, BatchError> {
-    let text = std::fs::read_to_string(path).map_err(|e| {
+    let text = afe::bounded_read::read_text(path, MANIFEST_MAX_BYTES).map_err(|e| {
         BatchError::input(
             path,
             &format!("cannot read it as a manifest (id<TAB>path lines): {e}"),

@@ -21,6 +21,7 @@ use super::inputs::{fnv1a, InputFile};
 use super::ledger::LOG_DIR;
 use super::locks::{active_runs, StoreLock, LOCK_FILE};
 use super::BatchError;
+use afe::bounded_read::read_text;
 use afe::extract::Sink;
 use afe::npy::Dtype;
 use afe::output::OutputFile;
@@ -31,6 +32,9 @@ use afe::Recorder;
 /// Chunks are stored uncompressed: the outputs are float64 noise to a compressor (gzip
 /// saved under 1 % on ratemaps and cost time).
 pub(crate) const CHUNK_BYTES: usize = 1 << 20;
+
+/// Largest store metadata file read, bytes (the spec holds requests and parameters).
+const META_MAX_BYTES: u64 = 16 << 20;
 
 /// The metadata file of an npz store (a zarr store keeps it in its root's attributes).
 const NPZ_META: &str = "afe-batch.json";
@@ -436,11 +440,11 @@ fn read_spec(root: &Path) -> Result<Option<StoreSpec>, BatchError> {
     let zarr = root.join("zarr.json");
     let npz = root.join(NPZ_META);
     let (path, meta) = if zarr.is_file() {
-        let text = std::fs::read_to_string(&zarr).map_err(|e| BatchError::store(&zarr, &e))?;
+        let text = read_text(&zarr, META_MAX_BYTES).map_err(|e| BatchError::store(&zarr, &e))?;
         let v: Value = serde_json::from_str(&text).map_err(|e| BatchError::store(&zarr, &e))?;
         (zarr, v["attributes"]["afe"].clone())
     } else if npz.is_file() {
-        let text = std::fs::read_to_string(&npz).map_err(|e| BatchError::store(&npz, &e))?;
+        let text = read_text(&npz, META_MAX_BYTES).map_err(|e| BatchError::store(&npz, &e))?;
         (
             npz.clone(),
             serde_json::from_str(&text).map_err(|e| BatchError::store(&npz, &e))?,

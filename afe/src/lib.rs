@@ -22,6 +22,7 @@
 //! ```
 
 pub mod block_times;
+pub mod bounded_read;
 pub mod catalog;
 pub mod extract;
 pub mod frames;

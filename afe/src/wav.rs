@@ -24,18 +24,26 @@ pub struct WavBlocks {
     fs: f64,
     channels: usize,
     samples: WavSamples,
+    /// Not a regular file (a FIFO, a device): opening and reading may block for ever.
+    blocking: bool,
 }
 
 impl WavBlocks {
-    /// Opens `path` and reads its header.
+    /// Opens `path` and reads its header. A FIFO or device is opened and read inside an
+    /// [`afe_core::interrupt::InputWait`], so that a signal stops a wait for its writer.
     pub fn open(path: &Path) -> Result<Self, WavError> {
-        let reader = WavReader::open(path)?;
+        let blocking = std::fs::metadata(path).is_ok_and(|m| !m.is_file());
+        let reader = {
+            let _wait = blocking.then(afe_core::interrupt::InputWait::start);
+            WavReader::open(path)?
+        };
         let format = reader.format();
         Ok(WavBlocks {
             reader,
             fs: f64::from(format.sample_rate),
             channels: usize::from(format.channels),
             samples: WavSamples::Int(Vec::new()),
+            blocking,
         })
     }
 
@@ -67,7 +75,10 @@ impl WavBlocks {
     /// Reads up to `frames` frames into `out` (one vector per channel, replaced) and
     /// returns how many it read: 0 at the end of the file.
     pub fn read(&mut self, frames: usize, out: &mut [Vec<f64>]) -> Result<usize, WavError> {
-        let got = self.reader.read(frames, &mut self.samples)?;
+        let got = {
+            let _wait = self.blocking.then(afe_core::interrupt::InputWait::start);
+            self.reader.read(frames, &mut self.samples)?
+        };
         let nch = self.channels;
         for (c, o) in out.iter_mut().enumerate().take(nch) {
             o.clear();
