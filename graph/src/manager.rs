@@ -155,9 +155,11 @@ impl FrameClock {
 }
 
 /// Largest input amplitude accepted (full scale is 1.0): far above any real recording
-/// (raw 32-bit PCM counts are 2.1e9), and low enough that the squares, filter gains and
-/// sums of the processing stay finite.
-pub const MAX_AMPLITUDE: f64 = 1e100;
+/// (raw 32-bit PCM counts are 2.1e9), and low enough that the processing stays finite,
+/// including the STFT, stored in single precision as the AFE stores it: a window of 2^16
+/// samples at 1e30 sums to below its largest value, 3.4e38 (at 3e58 it was Inf, and the
+/// spectral features NaN).
+pub const MAX_AMPLITUDE: f64 = 1e30;
 
 /// Block length in samples in which a whole signal goes through a chunk-invariant graph:
 /// bit-identical to one call, and the intermediate signals stay in cache.

@@ -931,3 +931,19 @@ def test_nan_where_names_every_representation_that_is_nan_on_silence():
         assert not np.isinf(np.asarray(s).real).any(), s.key
     assert "unvoiced" in out["pitch_left"].nan_where
     assert out["ratemap_left"].nan_where is None
+
+
+def test_the_loudest_accepted_input_gives_finite_output_and_louder_is_refused():
+    """Issue 44, item 10: noise at 3e58 made the STFT Inf (it is stored in single
+    precision, as by the AFE) and the spectral features NaN; the largest amplitude
+    accepted, 1e30, gives finite output in every request (NaN only where nan_where says,
+    here the unvoiced pitch), and beyond it the input is refused."""
+    x = np.random.default_rng(0).uniform(-1, 1, (16000, 2))
+    out = afe.process(x * 1e30, 16000, afe.requests())
+    for s in out.values():
+        values = np.asarray(s)
+        assert not np.isinf(values.real).any() and not np.isinf(values.imag).any(), s.key
+        assert s.name == "pitch" or not np.isnan(values.real).any(), s.key
+    assert _raises(lambda: afe.process(x * 3e58, 16000, ["stft"])).startswith(
+        "invalid input: sample 0 of the left channel is "
+    )
