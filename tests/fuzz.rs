@@ -773,6 +773,15 @@ fn random_number(rng: &mut Rng) -> Value {
     }
 }
 
+/// The numbers of a parameter's default: a vector's, a scalar as one, none without one.
+fn default_numbers(default: Option<&Value>) -> Vec<f64> {
+    match default {
+        Some(Value::Array(a)) => a.iter().filter_map(Value::as_f64).collect(),
+        Some(v) => v.as_f64().into_iter().collect(),
+        None => Vec::new(),
+    }
+}
+
 /// A value aimed at a parameter of kind `kind` whose default is `default`: often valid or
 /// near it, sometimes out of range, sometimes of another type.
 fn value_for(rng: &mut Rng, kind: ParamKind, default: Option<&Value>) -> Value {
@@ -828,11 +837,7 @@ fn value_for(rng: &mut Rng, kind: ParamKind, default: Option<&Value>) -> Value {
                 .collect::<Vec<_>>()),
         },
         ParamKind::Numbers => {
-            let base: Vec<f64> = match default {
-                Some(Value::Array(a)) => a.iter().filter_map(Value::as_f64).collect(),
-                Some(v) => v.as_f64().into_iter().collect(),
-                None => Vec::new(),
-            };
+            let base = default_numbers(default);
             match rng.below(4) {
                 0 if !base.is_empty() => {
                     json!(base.iter().map(|x| scale(rng, *x)).collect::<Vec<_>>())
@@ -1395,11 +1400,7 @@ fn accepted_draw(rng: &mut Rng, spec: &afe_core::ParamSpec, default: Option<&Val
             .map(|_| *rng.pick(choices))
             .collect::<Vec<_>>()),
         ParamKind::Numbers => {
-            let base: Vec<f64> = match default {
-                Some(Value::Array(a)) => a.iter().filter_map(Value::as_f64).collect(),
-                Some(v) => v.as_f64().into_iter().collect(),
-                None => Vec::new(),
-            };
+            let base = default_numbers(default);
             if base.is_empty() || rng.one_in(3) {
                 let n = 1 + rng.below(40);
                 let mut v: Vec<f64> = (0..n).map(|_| rng.unit() * 8000.0).collect();
