@@ -1336,14 +1336,6 @@ fn manager_edits() {
 // extremes included (issue 44): refused when placed, or finite output within the case's
 // time and the process's heap limit.
 
-/// Outputs that may hold NaN (never ±Inf), as the AFE's do, from a signal that is not
-/// silent (docs/conformance.md, and each signal's `nan_where`): the pitch of an unvoiced
-/// frame, the Gabor features of a chunk whose features do not vary (±Inf there too: the
-/// per-chunk variance is 0), the autocorrelation
-/// of a frame and the precedence ILD of a window whose input is all zero (a half-wave
-/// rectified channel far below the signal's band), the DUET histogram of a silent block.
-const NAN_ALLOWED: [&str; 5] = ["pitch", "gabor", "autocorrelation", "precedence", "duet"];
-
 /// Whether the parser of `def` accepts `params` (with the value under test in it).
 fn parses(def: &afe::RequestDef, params: &ParamMap) -> bool {
     (def.configure)(params).is_ok()
@@ -1449,20 +1441,14 @@ fn accepted_params(rng: &mut Rng, request: &str) -> ParamMap {
     params
 }
 
-/// Whether `params` make the ratemap signed (no hair-cell rectification, its mean
-/// magnitude): the logarithms of the representations computed from it (spectral
-/// features, Gabor features, onset and offset strengths) are then NaN, as in the AFE.
-fn signed_ratemap(params: &ParamMap) -> bool {
-    params.get("ihc_method") == Some(&json!("none"))
-        && params.get("rm_scaling") == Some(&json!("magnitude"))
-}
-
-/// Checks that every requested output shown holds finite values (NaN in the outputs of
-/// [`NAN_ALLOWED`], and past a signed ratemap), from an input that is not silent.
-fn check_finite(mgr: &Manager, signed_ratemap: bool) -> Result<(), String> {
+/// Checks that every requested output shown holds finite values, from an input that is
+/// not silent: NaN only in the representations whose description says where the AFE
+/// gives it (`nan_where`: an unvoiced pitch frame, an autocorrelation frame of zeros, the
+/// logarithms of a signed ratemap, ...), and ±Inf only in the Gabor features of a chunk
+/// whose features do not vary.
+fn check_finite(mgr: &Manager) -> Result<(), String> {
     for s in mgr.signals(false) {
-        let nan_allowed = NAN_ALLOWED.iter().any(|n| s.name.starts_with(n))
-            || (signed_ratemap && s.name != "ratemap");
+        let nan_allowed = afe::metadata::nan_where(s.name).is_some();
         let inf_allowed = s.name == "gabor";
         let wrong = |v: &f64| {
             !(v.is_finite() || (nan_allowed && v.is_nan()) || (inf_allowed && v.is_infinite()))
@@ -1518,7 +1504,7 @@ fn accepted_ranges() {
                 count("refused when processing");
                 return check_error(&e);
             }
-            check_finite(&mgr, signed_ratemap(&params))?;
+            check_finite(&mgr)?;
         }
         count("computed, finite");
         Ok(())

@@ -4,7 +4,10 @@
 //! in the group's `afe_saved` attribute.
 
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
+
+use afe::bounded_read::read_text;
 
 use serde_json::{json, Value};
 use zarrs::array::{Array, ArrayBuilder, DataType, FillValue};
@@ -12,7 +15,7 @@ use zarrs::array_subset::ArraySubset;
 use zarrs::filesystem::FilesystemStore;
 use zarrs::group::{Group, GroupBuilder};
 
-use super::store::{StoredArray, CHUNK_BYTES};
+use super::store::{StoredArray, CHUNK_BYTES, META_MAX_BYTES};
 use super::BatchError;
 
 /// The root attribute that marks a saved group and keeps its arrays' order.
@@ -79,9 +82,9 @@ pub struct SavedArray {
 
 /// Whether `root` is a group written by [`write_group`].
 pub fn is_saved_group(root: &Path) -> bool {
-    std::fs::read(root.join("zarr.json"))
+    read_text(&root.join("zarr.json"), META_MAX_BYTES)
         .ok()
-        .and_then(|b| serde_json::from_slice::<Value>(&b).ok())
+        .and_then(|t| serde_json::from_str::<Value>(&t).ok())
         .is_some_and(|v| v["attributes"][SAVED].is_object())
 }
 
@@ -105,21 +108,39 @@ pub fn write_group(root: &Path, arrays: &[SavedArray]) -> Result<(), BatchError>
             )));
         }
     }
-    let staging = sibling(root, &format!("partial.{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&staging);
-    let written = write_into(&staging, arrays);
-    if let Err(e) = written {
+    // names of this call alone: two threads saving to one path never share a folder
+    static CALLS: AtomicU64 = AtomicU64::new(0);
+    let tag = format!(
+        "{}.{}",
+        std::process::id(),
+        CALLS.fetch_add(1, Ordering::Relaxed)
+    );
+    let staging = sibling(root, &format!("partial.{tag}"));
+    let written = write_into(&staging, arrays).and_then(|()| replace(root, &staging, &tag));
+    if written.is_err() {
         let _ = std::fs::remove_dir_all(&staging);
-        return Err(e);
     }
-    let old = sibling(root, &format!("old.{}", std::process::id()));
+    written
+}
+
+/// Puts the written group `staging` in place of `root`: the old group is moved aside
+/// first, and back if the new one cannot take its place (a run killed between the two
+/// renames leaves it at `<root>.old.<tag>`).
+fn replace(root: &Path, staging: &Path, tag: &str) -> Result<(), BatchError> {
+    let old = sibling(root, &format!("old.{tag}"));
     let had_old = root.exists();
     if had_old {
         std::fs::rename(root, &old).map_err(|e| BatchError::store(root, &e))?;
     }
-    std::fs::rename(&staging, root).map_err(|e| BatchError::store(root, &e))?;
+    if let Err(e) = std::fs::rename(staging, root) {
+        if had_old {
+            let _ = std::fs::rename(&old, root);
+        }
+        return Err(BatchError::store(root, &e));
+    }
     if had_old {
-        std::fs::remove_dir_all(&old).map_err(|e| BatchError::store(&old, &e))?;
+        // the new group is in place: an old one left behind only takes disk
+        let _ = std::fs::remove_dir_all(&old);
     }
     Ok(())
 }
@@ -133,9 +154,14 @@ fn sibling(root: &Path, tag: &str) -> PathBuf {
 
 /// Refuses an array whose name cannot be a Zarr node or whose bytes do not fill its shape.
 fn check(a: &SavedArray) -> Result<(), BatchError> {
-    if a.key.is_empty() || a.key.contains('/') || a.key.starts_with("__") || a.key == "zarr.json" {
+    let reserved = ["", ".", "..", "zarr.json"];
+    if reserved.contains(&a.key.as_str())
+        || a.key.contains(['/', '\\'])
+        || a.key.chars().any(char::is_control)
+        || a.key.starts_with("__")
+    {
         return Err(BatchError::Usage(format!(
-            "'{}' cannot name an array of a Zarr group: give a name without '/' that does not start with '__'",
+            "'{}' cannot name an array of a Zarr group: give a name without '/', '\\' or control characters, not starting with '__', other than '.', '..' and 'zarr.json'",
             a.key
         )));
     }
@@ -193,7 +219,7 @@ fn write_into(root: &Path, arrays: &[SavedArray]) -> Result<(), BatchError> {
             continue;
         }
         array
-            .store_array_subset(&ArraySubset::new_with_shape(shape), a.bytes.clone())
+            .store_array_subset(&ArraySubset::new_with_shape(shape), a.bytes.as_slice())
             .map_err(|e| BatchError::store(root, &e))?;
     }
     Ok(())

@@ -34,7 +34,7 @@ use afe::Recorder;
 pub(crate) const CHUNK_BYTES: usize = 1 << 20;
 
 /// Largest store metadata file read, bytes (the spec holds requests and parameters).
-const META_MAX_BYTES: u64 = 16 << 20;
+pub(crate) const META_MAX_BYTES: u64 = 16 << 20;
 
 /// The metadata file of an npz store (a zarr store keeps it in its root's attributes).
 const NPZ_META: &str = "afe-batch.json";
@@ -350,7 +350,8 @@ impl Store {
 /// Whether `dir` holds a folder group's whole metadata: a run killed while writing it
 /// leaves it empty or torn, and the next file in that folder then writes it again.
 fn is_group(dir: &Path) -> bool {
-    std::fs::read(dir.join("zarr.json")).is_ok_and(|b| serde_json::from_slice::<Value>(&b).is_ok())
+    read_text(&dir.join("zarr.json"), META_MAX_BYTES)
+        .is_ok_and(|t| serde_json::from_str::<Value>(&t).is_ok())
 }
 
 /// Whether two specs make the same store.

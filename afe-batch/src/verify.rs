@@ -43,7 +43,8 @@ impl Store {
 
 /// The JSON of the file at `path`, if it can be read and parsed.
 fn json(path: &Path) -> Option<Value> {
-    serde_json::from_slice(&std::fs::read(path).ok()?).ok()
+    serde_json::from_str(&afe::bounded_read::read_text(path, crate::store::META_MAX_BYTES).ok()?)
+        .ok()
 }
 
 fn verify_group(dir: &Path) -> Result<(), String> {

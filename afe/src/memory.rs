@@ -59,20 +59,26 @@ fn kib_field(text: &str, name: &str) -> Option<f64> {
     Some(kb * 1024.0)
 }
 
-/// `memory.max` minus `memory.current` of this process's cgroup (v2), bytes; `None`
-/// without a limit.
+/// `memory.max` minus what this process's cgroup (v2) holds beyond its page cache
+/// (`memory.current` less `memory.stat`'s `file`, which the kernel reclaims), bytes;
+/// `None` without a limit.
 fn cgroup_room() -> Option<f64> {
     let group = std::fs::read_to_string("/proc/self/cgroup").ok()?;
     let path = group.lines().find_map(|l| l.strip_prefix("0::"))?;
     let dir = std::path::Path::new("/sys/fs/cgroup").join(path.trim_start_matches('/'));
-    let read = |name: &str| -> Option<f64> {
-        std::fs::read_to_string(dir.join(name))
-            .ok()?
-            .trim()
-            .parse()
-            .ok()
-    };
-    Some((read("memory.max")? - read("memory.current").unwrap_or(0.0)).max(0.0))
+    let read = |name: &str| std::fs::read_to_string(dir.join(name)).ok();
+    let max: f64 = read("memory.max")?.trim().parse().ok()?;
+    let current: f64 = read("memory.current")
+        .and_then(|t| t.trim().parse().ok())
+        .unwrap_or(0.0);
+    let cache: f64 = read("memory.stat")
+        .and_then(|t| {
+            t.lines()
+                .find_map(|l| l.strip_prefix("file "))
+                .and_then(|v| v.trim().parse().ok())
+        })
+        .unwrap_or(0.0);
+    Some((max - (current - cache).max(0.0)).max(0.0))
 }
 
 /// The soft address-space limit minus the address space in use (`VmSize`), bytes;

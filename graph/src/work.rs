@@ -9,7 +9,8 @@
 //! frame, plus what the processor reports of its hidden work
 //! ([`afe_core::Processor::hidden_work_per_second`]). Every request of the AFE at its
 //! defaults together compute about 6·10^7 values per second at 44.1 kHz; this machine's
-//! kind computes about 10^9 values per second per core.
+//! kind computes about 10^9 values per second per core. The limits are for inputs up to
+//! 44.1 kHz and grow in proportion beyond (every request at 1 MHz is accepted).
 
 use afe_core::error::WorkRefusal;
 use afe_core::{Error, ParamMap, Result};
@@ -106,9 +107,26 @@ impl Graph {
     /// computes more than [`work_limit`] or writes more than [`output_limit`].
     pub(crate) fn check_work(&self, request: &str, params: &ParamMap) -> Result<()> {
         let works: Vec<NodeWork> = (0..self.nodes.len()).map(|i| self.node_work(i)).collect();
+        // the audio-rate signals grow with the rate: the limits hold up to 44.1 kHz and
+        // grow with it beyond
+        let rate = self.nodes[0]
+            .infos
+            .first()
+            .map_or(1.0, |i| i.fs_hz / 44100.0)
+            .max(1.0);
         let checks: [Check; 2] = [
-            ("compute", |w| w.computed, work_limit(), "AFE_WORK_LIMIT"),
-            ("write", |w| w.written, output_limit(), "AFE_OUTPUT_LIMIT"),
+            (
+                "compute",
+                |w| w.computed,
+                work_limit() * rate,
+                "AFE_WORK_LIMIT",
+            ),
+            (
+                "write",
+                |w| w.written,
+                output_limit() * rate,
+                "AFE_OUTPUT_LIMIT",
+            ),
         ];
         for (what, share, limit, variable) in checks {
             let total: f64 = works.iter().map(share).sum();
@@ -176,6 +194,14 @@ mod tests {
             written > 1e6 && written < super::OUTPUT_LIMIT / 10.0,
             "{written:e}"
         );
+    }
+
+    #[test]
+    fn every_request_at_its_defaults_is_accepted_at_the_highest_rate() {
+        let mut m = Manager::new(1e6, 2).expect("manager");
+        for r in afe_processors::requests() {
+            m.add_request(r.name, &Default::default()).expect(r.name);
+        }
     }
 
     #[test]

@@ -15,7 +15,7 @@ use realfft::num_complex::Complex64;
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use serde::{Deserialize, Serialize};
 
-use crate::framed::{check_framing, EarFrames};
+use crate::framed::{check_framing, check_work, EarFrames};
 
 /// Parameters of the cross-correlation, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -191,6 +191,15 @@ impl Crosscorrelation {
         let win = window(&params.wname, w, "cc_wname")?;
         let nc = input.channels();
         let engine = if prefer_direct(w, max_lag) {
+            // the direct engine keeps three rows of half a window (and the lags) per
+            // channel and ear (found by fuzzing: 1.4 GB for a long window over 1024
+            // channels)
+            let rows = 3 * (2 * (w / 2) + max_lag + 13);
+            check_work(
+                ("cc_wSizeSec", params.w_size_sec),
+                nc.div_ceil(LANES) * LANES * rows,
+                nc,
+            )?;
             Engine::Direct(Direct::new(win, max_lag, nc))
         } else {
             Engine::Fft(Box::new(FftEngine::new(win, max_lag)))

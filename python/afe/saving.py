@@ -71,9 +71,11 @@ def save(path: PathLike, signals: Union[Signal, Mapping[str, Signal]]) -> None:
         arrays[str(name)] = np.ascontiguousarray(np.asarray(s).view(np.ndarray))
         meta[str(name)] = s.meta
     if zarr:
+        # native byte order: the group stores the values as this machine holds them
+        native = {k: a.astype(a.dtype.newbyteorder("="), copy=False) for k, a in arrays.items()}
         items = [
             (k, a.dtype.name, list(a.shape), a.tobytes(), json.dumps(meta[k]))
-            for k, a in arrays.items()
+            for k, a in native.items()
         ]
         _afe.save_zarr(os.fspath(path), items)
         return

@@ -9,6 +9,7 @@ use afe_batch::{
 };
 use pyo3::exceptions::{PyKeyError, PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
+use pyo3::pybacked::PyBackedBytes;
 use pyo3::types::PyDict;
 
 use numpy::{Complex32, PyArray1, PyArrayMethods};
@@ -204,7 +205,7 @@ fn numpy_dicts<'py>(
 
 /// One array for [`save_zarr`]: name, numpy dtype name, shape, raw bytes (C order,
 /// native byte order), metadata JSON text.
-type ToSave = (String, String, Vec<usize>, Vec<u8>, String);
+type ToSave = (String, String, Vec<usize>, PyBackedBytes, String);
 
 /// Writes `arrays` as the Zarr group `path` (`afe.save` to a `.zarr` path).
 #[pyfunction]
@@ -223,7 +224,13 @@ pub fn save_zarr(py: Python<'_>, path: PathBuf, arrays: Vec<ToSave>) -> PyResult
             if let Some(meta) = info.as_object_mut() {
                 meta.insert("dtype".into(), dtype.clone().into());
             }
-            Ok(SavedArray { key, shape, element, bytes, info })
+            Ok(SavedArray {
+                key,
+                shape,
+                element,
+                bytes: bytes.to_vec(),
+                info,
+            })
         })
         .collect::<PyResult<Vec<_>>>()?;
     py.allow_threads(|| afe_batch::write_group(&path, &arrays))

@@ -885,6 +885,14 @@ def test_save_and_load_round_trip_through_a_zarr_group(tmp_path):
         f"'{tmp_path / 'folder.zarr'}' is not an afe store: it is not a group written by afe.save "
         "(a batch store opens with afe.open_store)"
     )
+    assert _raises(lambda: afe.save(tmp_path / "k.zarr", {"..": out["ild_mono"]})).startswith(
+        "'..' cannot name an array of a Zarr group"
+    )
+    assert not (tmp_path / "k.zarr").exists() and not (tmp_path / "zarr.json").exists()
+    # another byte order is stored as this machine's, the values unchanged
+    swapped = afe.Signal(np.asarray(out["ild_mono"]).astype(">f8"), out["ild_mono"].meta)
+    afe.save(tmp_path / "be.zarr", swapped)
+    np.testing.assert_array_equal(afe.load(tmp_path / "be.zarr")["ild_mono"], out["ild_mono"])
     with pytest.raises(FileNotFoundError):
         afe.load(tmp_path / "missing.zarr")
 
