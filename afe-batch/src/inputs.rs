@@ -68,6 +68,17 @@ pub fn discover(inputs: &[PathBuf]) -> Result<Vec<InputFile>, BatchError> {
             prefix = parent;
         }
     }
+    // a FIFO or device blocks the planning that measures it, and cannot be read again
+    if let Some((_, path)) = found
+        .iter()
+        .find(|(_, p)| std::fs::metadata(p).is_ok_and(|m| !m.is_file()))
+    {
+        return Err(BatchError::input(
+            path,
+            "not a regular file (a FIFO or a device): afe batch takes WAV files it can \
+             measure, read again and resume (afe extract reads one from a device)",
+        ));
+    }
     Ok(found
         .into_iter()
         .map(|(id, path)| {
@@ -227,6 +238,24 @@ mod tests {
         ] {
             assert!(check_id(bad).is_err(), "{bad:?} accepted");
         }
+    }
+
+    #[test]
+    fn a_manifest_naming_a_fifo_is_refused_before_anything_blocks_on_it() {
+        let dir = std::env::temp_dir().join(format!("afe-inputs-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("dir");
+        let fifo = dir.join("live.wav");
+        let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+        assert!(made.is_ok_and(|s| s.success()), "mkfifo");
+        let list = dir.join("list.tsv");
+        std::fs::write(&list, "a\tlive.wav\n").expect("manifest");
+        let e = discover(&[list]).expect_err("refused").to_string();
+        assert!(
+            e.contains("live.wav") && e.contains("not a regular file"),
+            "{e}"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]
