@@ -14,16 +14,9 @@ use common::{afe, assert_clear_error, npz_arrays, tmp, tone, write_wav};
 /// The reference arrays by name (shape, values as float64).
 fn reference() -> BTreeMap<String, (Vec<usize>, Vec<f64>)> {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/oracle_raa/raa_speech_16k.npz");
-    let mut zip = zip::ZipArchive::new(std::fs::File::open(path).expect("reference")).expect("zip");
-    (0..zip.len())
-        .map(|i| {
-            let mut entry = zip.by_index(i).expect("entry");
-            let name = entry.name().trim_end_matches(".npy").to_string();
-            let mut bytes = Vec::new();
-            std::io::Read::read_to_end(&mut entry, &mut bytes).expect("read");
-            let a = afe::npy::decode(&bytes).expect("npy");
-            (name, (a.shape, a.data))
-        })
+    npz_arrays(&path)
+        .into_iter()
+        .map(|(name, shape, data)| (name, (shape, data)))
         .collect()
 }
 

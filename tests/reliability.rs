@@ -8,6 +8,15 @@ use std::time::{Duration, Instant};
 
 use common::{afe, assert_clear_error, tmp, tone, write_wav};
 
+/// The number in `text` between `before` and the next `after`.
+fn number_between(text: &str, before: &str, after: &str) -> f64 {
+    text.split(before)
+        .nth(1)
+        .and_then(|r| r.split(after).next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no number after '{before}' in: {text}"))
+}
+
 /// Item 4: parameters that asked for 180 GB (a 0.1-ms autocorrelation hop over 256
 /// channels) or for 22 GB of cross-correlation lags are refused before any allocation,
 /// with exit 1 and a message naming them, where they aborted the process (exit 134).
@@ -49,12 +58,7 @@ fn parameters_beyond_the_work_limit_are_refused_before_allocating() {
     );
     // the estimate is at least the lags written: 10^4 frames/s x 256 channels x 8821 lags
     // per ear
-    let estimate: f64 = err
-        .split("compute about ")
-        .nth(1)
-        .and_then(|r| r.split(' ').next())
-        .and_then(|v| v.parse().ok())
-        .expect("an estimate");
+    let estimate = number_between(&err, "compute about ", " ");
     assert!(estimate >= 2.0 * 1e4 * 256.0 * 8821.0, "{estimate:e}");
     let out = run(&[
         "-r",
@@ -106,19 +110,9 @@ fn outputs_beyond_ulimit_v_are_refused_not_aborted() {
     // 10 s of 500 frames/s of 32 channels of thousands of lags: gigabytes
     assert_clear_error(&out, "keeping the outputs would take ", &out_file);
     let err = String::from_utf8_lossy(&out.stderr);
-    let need: f64 = err
-        .split("would take ")
-        .nth(1)
-        .and_then(|r| r.split(" GB").next())
-        .and_then(|v| v.parse().ok())
-        .expect("a size in GB");
+    let need = number_between(&err, "would take ", " GB");
     assert!(need > 8.0, "{err}");
-    let available: f64 = err
-        .split("more than the ")
-        .nth(1)
-        .and_then(|r| r.split(" GB").next())
-        .and_then(|v| v.parse().ok())
-        .expect("a size in GB");
+    let available = number_between(&err, "more than the ", " GB");
     assert!(available <= 4.1, "{err}");
 }
 

@@ -241,7 +241,9 @@ class Store:
         """One ``.npz`` (``afe extract``'s or :func:`afe.save`'s) or one Zarr group of
         :func:`afe.save` as a read-only store of one file, whose id is the path's last
         name without its suffix."""
-        _, meta = self._read_saved()
+        from .saving import read_descriptions
+
+        meta = read_descriptions(self.path)
         self.format = format
         requests: List[str] = []
         for m in meta.values():
@@ -317,10 +319,11 @@ class Store:
 
 def _is_saved_group(path: str) -> bool:
     """Whether ``path`` is a Zarr group written by :func:`afe.save`."""
+    from .saving import zarr_attributes
+
     try:
-        with open(os.path.join(path, "zarr.json"), encoding="utf-8") as f:
-            return "afe_saved" in json.load(f).get("attributes", {})
-    except (OSError, ValueError, AttributeError):
+        return "afe_saved" in zarr_attributes(path)
+    except (OSError, ValueError):
         return False
 
 

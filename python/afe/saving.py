@@ -85,20 +85,27 @@ def save(path: PathLike, signals: Union[Signal, Mapping[str, Signal]]) -> None:
         np.savez(f, **arrays)
 
 
+def _npz_meta(z: Any, path: str) -> Dict[str, Dict[str, Any]]:
+    """The descriptions of the open afe ``.npz`` ``z``, one per array, in the file's order."""
+    if METADATA_ENTRY not in z.files:
+        raise ValueError(
+            f"'{path}' has no '{METADATA_ENTRY}' entry: not written by afe (np.load reads "
+            "its arrays)"
+        )
+    meta = json.loads(str(z[METADATA_ENTRY]))
+    names = [k for k in z.files if k != METADATA_ENTRY]
+    missing = [k for k in names if k not in meta]
+    if missing:
+        raise ValueError(f"'{path}': no description of {', '.join(missing)} in '{METADATA_ENTRY}'")
+    return {k: meta[k] for k in names}
+
+
 def read_npz(path: PathLike) -> "tuple[Dict[str, np.ndarray], Dict[str, Dict[str, Any]]]":
     """The arrays of an afe ``.npz`` (in the file's order) and their descriptions."""
     path = os.fspath(path)
     with np.load(path, allow_pickle=False) as z:
-        if METADATA_ENTRY not in z.files:
-            raise ValueError(
-                f"'{path}' has no '{METADATA_ENTRY}' entry: not written by afe (np.load reads "
-                "its arrays)"
-            )
-        meta = json.loads(str(z[METADATA_ENTRY]))
-        arrays = {k: z[k] for k in z.files if k != METADATA_ENTRY}
-    missing = [k for k in arrays if k not in meta]
-    if missing:
-        raise ValueError(f"'{path}': no description of {', '.join(missing)} in '{METADATA_ENTRY}'")
+        meta = _npz_meta(z, path)
+        arrays = {k: z[k] for k in meta}
     return arrays, meta
 
 
@@ -107,6 +114,26 @@ def read_zarr(path: PathLike) -> "tuple[Dict[str, np.ndarray], Dict[str, Dict[st
     their descriptions."""
     arrays, infos = _afe.load_zarr(os.fspath(path))
     return dict(arrays), {k: json.loads(v) for k, v in infos.items()}
+
+
+def read_descriptions(path: PathLike) -> Dict[str, Dict[str, Any]]:
+    """The descriptions of an afe ``.npz`` or of a Zarr group written by :func:`afe.save`,
+    in the saved order, without reading the arrays (from the ``.npz``'s metadata entry, or
+    from the ``zarr.json`` of the group and of each array)."""
+    path = os.fspath(path)
+    if not os.path.isdir(path):
+        with np.load(path, allow_pickle=False) as z:
+            return _npz_meta(z, path)
+    order = zarr_attributes(path)["afe_saved"]["order"]
+    return {k: zarr_attributes(os.path.join(path, k))["afe"] for k in order}
+
+
+def zarr_attributes(folder: PathLike) -> Dict[str, Any]:
+    """The attributes in the ``zarr.json`` of the Zarr node ``folder`` (``{}`` if none);
+    ``OSError`` or ``ValueError`` where it cannot be read."""
+    with open(os.path.join(os.fspath(folder), "zarr.json"), encoding="utf-8") as f:
+        node = json.load(f)
+    return (node.get("attributes") if isinstance(node, dict) else None) or {}
 
 
 def load(path: PathLike) -> Dict[str, Signal]:
