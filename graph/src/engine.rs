@@ -77,6 +77,15 @@ struct NodeRt {
     /// Whether the node takes each chunk with [`Processor::absorb`] (a whole signal's
     /// node that finishes once at its end) rather than processing it.
     absorbs: bool,
+    /// Per output: a whole signal's buffer that the node appends each chunk's output to
+    /// itself, right after computing it (see [`Engine::lend_kept`]).
+    kept: UnsafeCell<Vec<Option<Block>>>,
+    /// Whether no processor reads the node's outputs in the pool: those it keeps it then
+    /// writes straight into their buffers, with no copy.
+    kept_in_place: bool,
+    /// Frames of each kept output in chunk `k`, in `kept_frames[k % 2]` (read by the
+    /// caller as its slot).
+    kept_frames: [UnsafeCell<Vec<usize>>; 2],
     claimed_at_ns: AtomicU64,
     /// Whether a child's home is another thread: the node then claims its output's cache
     /// lines before writing them (see [`claim_lines`]).
@@ -230,7 +239,18 @@ impl Shared {
             for (dst, &p) in parts.iter_mut().zip(rt.parts.iter()) {
                 *dst = &*table.rt[p].slots[slot].get();
             }
+            let kept = &mut *rt.kept.get();
+            let kept_frames = &mut *rt.kept_frames[slot].get();
             catch_unwind(AssertUnwindSafe(|| {
+                if rt.kept_in_place {
+                    // the kept buffer stands in for the slot, showing only what is new
+                    for (out, acc) in outputs.iter_mut().zip(kept.iter_mut()) {
+                        if let Some(acc) = acc {
+                            std::mem::swap(out, acc);
+                            out.seal();
+                        }
+                    }
+                }
                 if rt.claims {
                     claim_lines(outputs);
                 }
@@ -243,6 +263,17 @@ impl Shared {
                         _ if rt.absorbs => p.absorb(inputs),
                         0 => p.process(inputs, outputs),
                         n => p.join(inputs, &parts[..n], outputs),
+                    }
+                }
+                let outs = outputs.iter_mut().zip(kept.iter_mut());
+                for ((out, acc), frames) in outs.zip(kept_frames.iter_mut()) {
+                    if let Some(acc) = acc {
+                        *frames = out.frames();
+                        if rt.kept_in_place {
+                            std::mem::swap(out, acc);
+                        } else {
+                            acc.extend_from(out);
+                        }
                     }
                 }
             }))
@@ -301,6 +332,9 @@ pub struct Engine {
     views: Vec<Vec<Block>>,
     /// Per node and output: whether [`Engine::collect`] copies it (all by default).
     copied: Vec<Vec<bool>>,
+    /// Per node and output: whether the node appends it to a buffer of its own (see
+    /// [`Engine::lend_kept`]), so that [`Engine::collect`] does not copy it.
+    kept: Vec<Vec<bool>>,
     /// Frames of every output in the last collected chunk, copied or not.
     frames: Vec<Vec<usize>>,
     stall_timeout: Duration,
@@ -355,6 +389,7 @@ impl Engine {
             collected: 0,
             views: Vec::new(),
             copied: Vec::new(),
+            kept: Vec::new(),
             frames: Vec::new(),
             stall_timeout: Duration::from_secs(30),
         };
@@ -527,34 +562,67 @@ impl Engine {
         self.submitted - self.collected
     }
 
+    /// Moves the buffers that `whole` holds (per node and output) for the `nodes` marked
+    /// into those nodes, which from the next chunk on append each chunk's output to them
+    /// on the worker that computed it, while it is still in that core's cache and in
+    /// parallel with the other nodes, instead of the caller copying it after
+    /// [`Engine::collect`] (which no longer copies them for [`Engine::block`]). The pool
+    /// must be quiescent; [`Engine::return_kept`] gives them back. The source (node 0),
+    /// which the caller fills, keeps its buffers.
+    pub(crate) fn lend_kept(&mut self, whole: &mut [Vec<Option<Block>>], nodes: &[bool]) {
+        let lends = |n: usize| n > 0 && nodes.get(n).copied().unwrap_or(false);
+        self.kept = (whole.iter().enumerate())
+            .map(|(n, outputs)| outputs.iter().map(|o| lends(n) && o.is_some()).collect())
+            .collect();
+        self.with_table_swapped(|shared| {
+            // SAFETY: no worker is active and the pool is quiescent.
+            #[allow(unsafe_code)]
+            let table = unsafe { &mut *shared.table.get() };
+            let reads: Vec<bool> = (table.rt.iter_mut())
+                .map(|r| r.processor.get_mut().is_some())
+                .collect();
+            for (n, (rt, outputs)) in table.rt.iter_mut().zip(whole).enumerate() {
+                let kept = rt.kept.get_mut();
+                kept.clear();
+                if lends(n) {
+                    kept.extend(outputs.iter_mut().map(Option::take));
+                }
+                let links = &table.links[n];
+                rt.kept_in_place = lends(n)
+                    && links.feedback_to.is_empty()
+                    && links.children.iter().all(|&c| !reads[c]);
+                for frames in &mut rt.kept_frames {
+                    frames.get_mut().clear();
+                    frames.get_mut().resize(kept.len(), 0);
+                }
+            }
+        });
+    }
+
+    /// Gives the buffers of [`Engine::lend_kept`] back to `whole`, holding every chunk's
+    /// output collected since. The pool must be quiescent.
+    pub(crate) fn return_kept(&mut self, whole: &mut [Vec<Option<Block>>]) {
+        self.with_table_swapped(|shared| {
+            // SAFETY: no worker is active and the pool is quiescent.
+            #[allow(unsafe_code)]
+            let table = unsafe { &mut *shared.table.get() };
+            for (rt, outputs) in table.rt.iter_mut().zip(whole) {
+                for (acc, kept) in outputs.iter_mut().zip(rt.kept.get_mut().drain(..)) {
+                    if let Some(mut kept) = kept {
+                        kept.unseal();
+                        *acc = Some(kept);
+                    }
+                }
+                rt.kept_in_place = false;
+            }
+        });
+        self.kept.clear();
+    }
+
     /// Waits for every node to finish the oldest uncollected chunk, copies its outputs
     /// (readable through [`Engine::block`] until the next collect) and returns the
     /// caller's reader tokens at once, so that no node waits for the caller.
     pub fn collect(&mut self) -> Result<u64> {
-        self.collect_with(|_, _, _| false)
-    }
-
-    /// As [`Engine::collect`], appending each output of the `nodes` marked for which
-    /// `whole` holds a block straight onto it (a whole signal's joined output: one copy,
-    /// not two) instead of copying it for [`Engine::block`].
-    pub fn collect_appending(
-        &mut self,
-        whole: &mut [Vec<Option<Block>>],
-        nodes: &[bool],
-    ) -> Result<u64> {
-        self.collect_with(|n, o, src| {
-            let acc = whole
-                .get_mut(n)
-                .filter(|_| nodes.get(n).copied().unwrap_or(false))
-                .and_then(|w| w.get_mut(o))
-                .and_then(Option::as_mut);
-            acc.map(|acc| acc.extend_from(src)).is_some()
-        })
-    }
-
-    /// [`Engine::collect`], offering each published output to `sink` (node, output,
-    /// block) first: what it takes (returns true for) is not copied again.
-    fn collect_with(&mut self, mut sink: impl FnMut(usize, usize, &Block) -> bool) -> Result<u64> {
         if self.collected == self.submitted {
             return Err(Error::Scheduler("no chunk in flight to collect".into()));
         }
@@ -577,12 +645,20 @@ impl Engine {
             #[allow(unsafe_code)]
             let published = unsafe { &*table.rt[n].slots[slot].get() };
             let copied = self.copied.get(n).map_or(&[][..], Vec::as_slice);
+            let kept = self.kept.get(n).map_or(&[][..], Vec::as_slice);
+            // SAFETY: as for the slot: written with it, before it was published.
+            #[allow(unsafe_code)]
+            let kept_frames = unsafe { &*table.rt[n].kept_frames[slot].get() };
             let frames = &mut self.frames[n];
             for (o, (dst, src)) in view.iter_mut().zip(published).enumerate() {
-                frames[o] = src.frames();
                 dst.clear();
-                if !sink(n, o, src) && copied.get(o).copied().unwrap_or(true) {
-                    dst.extend_from(src);
+                if kept.get(o).copied().unwrap_or(false) {
+                    frames[o] = kept_frames.get(o).copied().unwrap_or(0);
+                } else {
+                    frames[o] = src.frames();
+                    if copied.get(o).copied().unwrap_or(true) {
+                        dst.extend_from(src);
+                    }
                 }
             }
             consumed(&table.sync, n, k, |x| {
@@ -749,6 +825,9 @@ impl Engine {
                 feedback: node.feedback_from,
                 parts: parts.clone().into(),
                 absorbs: absorbs.get(i).copied().unwrap_or(false),
+                kept: UnsafeCell::new(Vec::new()),
+                kept_in_place: false,
+                kept_frames: Default::default(),
                 claimed_at_ns: AtomicU64::new(0),
                 claims: false,
             })
@@ -777,13 +856,21 @@ impl Engine {
                     feedback: None,
                     parts: Box::new([]),
                     absorbs: false,
+                    kept: UnsafeCell::new(Vec::new()),
+                    kept_in_place: false,
+                    kept_frames: Default::default(),
                     claimed_at_ns: AtomicU64::new(0),
                     claims: false,
                 });
             }
         }
+        // (a child without a processor, one that waits aside, reads nothing)
+        let reads: Vec<bool> = rt
+            .iter_mut()
+            .map(|r| r.processor.get_mut().is_some())
+            .collect();
         for (e, r) in rt.iter_mut().enumerate() {
-            r.claims = links[e].children.iter().any(|&c| home[c] != home[e]);
+            r.claims = (links[e].children.iter()).any(|&c| reads[c] && home[c] != home[e]);
         }
         let sync: Vec<NodeSync> = (0..total).map(|_| NodeSync::new()).collect();
         for (s, targets) in sync.iter().zip(&feedback_to) {

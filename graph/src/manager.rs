@@ -681,20 +681,6 @@ impl Manager {
         Ok(())
     }
 
-    /// As [`Manager::collect_chunk`], appending the outputs that `whole` holds blocks for
-    /// (per node and output) straight onto them: a whole signal's joined outputs.
-    fn collect_chunk_into(&mut self, whole: &mut [Vec<Option<Block>>]) -> Result<()> {
-        match self.engine.as_mut() {
-            Some(e) => {
-                let every = vec![true; whole.len()];
-                e.collect_appending(whole, &every)?;
-            }
-            None => return self.collect_chunk(),
-        }
-        self.tick();
-        Ok(())
-    }
-
     /// Chunks submitted and not yet collected.
     pub fn in_flight(&self) -> usize {
         match &self.engine {

@@ -119,7 +119,8 @@ impl Graph {
             })
             .collect();
         engine.install_absorbing(self, &plan.absorbing);
-        // the caller copies only the outputs it hands on; the joined ones are appended
+        // the caller copies only the outputs it hands on; the joined ones their nodes
+        // append themselves
         engine.set_copied(plan.streamed.to_vec());
         let streamed: Vec<OutputRef> = plan
             .streamed
@@ -130,8 +131,9 @@ impl Graph {
                 outputs.map(move |(output, _)| OutputRef { node, output })
             })
             .collect();
-        let mut collect = |engine: &mut Engine, whole: &mut [Vec<Option<Block>>]| -> Result<()> {
-            engine.collect_appending(whole, &plan.invariant)?;
+        engine.lend_kept(whole, &plan.invariant);
+        let mut collect = |engine: &mut Engine| -> Result<()> {
+            engine.collect()?;
             for &r in &streamed {
                 if let Some(b) = engine.block(r) {
                     each_block(r, b);
@@ -154,7 +156,7 @@ impl Graph {
                     false => engine.submit(&part),
                 })
                 .and_then(|()| match engine.in_flight() {
-                    2.. => collect(engine, whole),
+                    2.. => collect(engine),
                     _ => Ok(()),
                 });
             if fed.is_err() {
@@ -162,9 +164,10 @@ impl Graph {
             }
         }
         while fed.is_ok() && engine.in_flight() > 0 {
-            fed = collect(engine, whole);
+            fed = collect(engine);
         }
         let idle = engine.quiesce();
+        engine.return_kept(whole);
         engine.uninstall(self);
         for (node, p) in self.nodes.iter_mut().zip(aside) {
             if p.is_some() {

@@ -239,14 +239,24 @@ impl Manager {
                 .collect(),
             None => Vec::new(),
         };
-        // The sequential executor writes the joined outputs in place (the concurrent one
-        // double-buffers every output, and they are copied)
-        let lent = match self.engine {
-            Some(_) => Vec::new(),
+        // The sequential executor writes the joined outputs in place; the concurrent one
+        // double-buffers every output, and each node appends its own to them as it goes
+        let lent = match self.engine.as_mut() {
+            Some(e) => {
+                e.lend_kept(&mut whole, &invariant);
+                Vec::new()
+            }
             None => self.graph.lend_buffers(&mut whole, &invariant),
         };
-        let fed = self.feed_blocks(input, prefix, &mut whole, &lent, &streamed, &mut stream);
-        self.graph.return_buffers(&mut whole, &lent);
+        let fed = self.feed_blocks(input, prefix, &lent, &streamed, &mut stream);
+        match self.engine.as_mut() {
+            Some(e) => {
+                let idle = e.quiesce();
+                e.return_kept(&mut whole);
+                idle?;
+            }
+            None => self.graph.return_buffers(&mut whole, &lent),
+        }
         self.whole = whole;
         fed?;
         self.whole_shown = true;
@@ -267,7 +277,6 @@ impl Manager {
         &mut self,
         mut input: BlockInput<'_, '_>,
         prefix: usize,
-        whole: &mut [Vec<Option<Block>>],
         lent: &[OutputRef],
         streamed: &[OutputRef],
         stream: &mut Option<&mut BlockSink<'_>>,
@@ -291,11 +300,11 @@ impl Manager {
             self.graph.seal_lent(lent);
             self.submit_chunk(&part)?;
             if self.in_flight() >= self.pipeline_depth() {
-                self.collect_block(whole, lent, streamed, stream)?;
+                self.collect_block(streamed, stream)?;
             }
         }
         while self.in_flight() > 0 {
-            self.collect_block(whole, lent, streamed, stream)?;
+            self.collect_block(streamed, stream)?;
         }
         if fed == 0 {
             return Err(Error::InvalidInput("the signal is empty".into()));
@@ -303,21 +312,14 @@ impl Manager {
         Ok(())
     }
 
-    /// Collects the oldest block in flight: its outputs joined into `whole` (but for
-    /// those `lent`, written in place), and those `streamed` handed to `stream`.
+    /// Collects the oldest block in flight (its joined outputs written in place or
+    /// appended by their nodes), and hands those `streamed` to `stream`.
     fn collect_block(
         &mut self,
-        whole: &mut [Vec<Option<Block>>],
-        lent: &[OutputRef],
         streamed: &[OutputRef],
         stream: &mut Option<&mut BlockSink<'_>>,
     ) -> Result<()> {
-        // the joined outputs are either all lent or appended as the engine publishes them
-        if lent.is_empty() {
-            self.collect_chunk_into(whole)?;
-        } else {
-            self.collect_chunk()?;
-        }
+        self.collect_chunk()?;
         if let Some(f) = stream {
             for &r in streamed {
                 if let Some(s) = self.signal(r) {
