@@ -427,6 +427,19 @@ impl Engine {
         }
     }
 
+    /// Per output of node `n`: rows of room in its two pool slots and in the caller's
+    /// copy (the pool quiescent). A test reads it to see that an output was not copied.
+    #[cfg(test)]
+    pub(crate) fn rooms(&self, n: usize) -> Vec<(usize, usize, usize)> {
+        let rt = &self.table().rt[n];
+        // SAFETY: the pool is quiescent: no worker holds a slot.
+        #[allow(unsafe_code)]
+        let (a, b) = unsafe { (&*rt.slots[0].get(), &*rt.slots[1].get()) };
+        (a.iter().zip(b).zip(&self.views[n]))
+            .map(|((a, b), v)| (a.room(), b.room(), v.room()))
+            .collect()
+    }
+
     /// Waits (parked) until `done` holds, failing on a poisoned pool or a stall. `code`
     /// tells the workers what the caller waits for, so that they wake it only then.
     fn wait_until(

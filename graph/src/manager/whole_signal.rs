@@ -479,9 +479,7 @@ mod tests {
     /// The sequential executor writes a whole signal's joined outputs in place, block
     /// after block, into the buffers sized for the signal: the outputs' own blocks are
     /// never used (they would hold a block each, copied on). The values are those of a
-    /// run with the concurrent executor, which copies a chunk-invariant graph's blocks (a
-    /// graph with per-chunk nodes runs its invariant part on the calling thread either
-    /// way). Both graphs join every intermediate signal.
+    /// run with the concurrent executor. Both graphs join every intermediate signal.
     #[test]
     fn whole_signals_are_written_in_place_not_copied() {
         let fs = 16000.0;
@@ -511,6 +509,51 @@ mod tests {
             }
             assert!(joined >= 6, "{requests:?}: {joined} joined in blocks");
         }
+    }
+
+    /// On the concurrent executor, each node keeps its own joined output: the caller
+    /// copies none of them, and a node that no processor in the pool reads (`ratemap`,
+    /// `ild`) writes straight into its buffer, never into its slots, while one that is
+    /// read (the filterbank, the hair cell) computes into its slots and appends. Same bits
+    /// as on one thread, output by output.
+    #[test]
+    fn the_concurrent_executor_keeps_whole_outputs_without_the_callers_copy() {
+        let fs = 16000.0;
+        let x = swelling_tone(4 * WHOLE_SIGNAL_BLOCK + 5, 0.03, 500);
+        let run = |threads| {
+            let mut m = binaural(fs, threads, &["ratemap", "ild"]);
+            m.set_keep_all(true);
+            m.process_signal(&[&x, &x]).expect("process");
+            m
+        };
+        let (sequential, mut concurrent) = (run(0), run(2));
+        let (s, c) = (sequential.signals(true), concurrent.signals(true));
+        assert_eq!(s.len(), c.len());
+        let mut nodes = Vec::new();
+        for (s, c) in s.iter().zip(&c) {
+            assert_eq!(s.key(), c.key());
+            assert_eq!(bits(s.new), bits(c.new), "{}", s.key());
+            assert!(s.new.frames() > 20, "{}", s.key());
+            if c.source.node > 0 {
+                nodes.push((c.source.node, c.name));
+            }
+        }
+        let engine = concurrent.engine.as_mut().expect("engine");
+        engine.quiesce().expect("idle");
+        let mut in_place = Vec::new();
+        for (node, name) in nodes {
+            let rooms = engine.rooms(node);
+            assert!(
+                rooms.iter().all(|r| r.2 == 0),
+                "{name}: the caller copied it"
+            );
+            if rooms.iter().all(|r| r.0 == 0 && r.1 == 0) {
+                in_place.push(name);
+            }
+        }
+        in_place.sort_unstable();
+        in_place.dedup();
+        assert_eq!(in_place, ["ild", "ratemap"]);
     }
 
     /// A whole signal drawn block by block from a source (in short reads, with and
