@@ -8,6 +8,8 @@
 
 use std::ops::Range;
 
+use crate::lanes::vector_start;
+
 /// The rows of a time-major signal still needed by coming frames.
 ///
 /// Frame `j` of the stream always covers stream rows `[j·H, j·H + W)`, whatever the
@@ -78,7 +80,65 @@ impl<'a> Frame<'a> {
     pub fn first_column(&self) -> usize {
         self.offset
     }
+
+    /// Writes the frame's rows, row `t` times `win[t]`, into `cols` as columns
+    /// (`[column][time]`, `win.len()` values each, one per row), and where `peaks` is
+    /// given (one per column) each column's largest windowed value into it (NaN ignored,
+    /// as MATLAB's `max`). Tiles of [`TILE`] rows by [`TILE`] columns go through
+    /// registers, so that each column takes a cache line per store; the last tile of a
+    /// row ends at its last column (a column in two tiles gets its values twice).
+    /// Inlined so that its loops get the caller's vector width.
+    #[inline(always)]
+    pub fn window_columns(&self, win: &[f64], cols: &mut [f64], mut peaks: Option<&mut [f64]>) {
+        let (nc, w) = (self.width, win.len());
+        if let Some(p) = peaks.as_deref_mut() {
+            p.fill(f64::NAN);
+        }
+        let tiles = if nc >= TILE { nc.div_ceil(TILE) } else { 0 };
+        let mut n0 = 0;
+        for (part, stride, at) in self.segments() {
+            let rows = part.len() / stride.max(1);
+            let whole = if tiles > 0 { rows - rows % TILE } else { 0 };
+            for t0 in (0..whole).step_by(TILE) {
+                let wins: [f64; TILE] = std::array::from_fn(|i| win[n0 + t0 + i]);
+                for c0 in (0..tiles).map(|g| vector_start(g, TILE, nc)) {
+                    let block: [[f64; TILE]; TILE] = std::array::from_fn(|i| {
+                        let start = (t0 + i) * stride + at + c0;
+                        let row = &part[start..start + TILE];
+                        std::array::from_fn(|j| wins[i] * row[j])
+                    });
+                    if let Some(p) = peaks.as_deref_mut() {
+                        for row in &block {
+                            for (p, v) in p[c0..c0 + TILE].iter_mut().zip(row) {
+                                *p = p.max(*v);
+                            }
+                        }
+                    }
+                    let transposed: [[f64; TILE]; TILE] =
+                        std::array::from_fn(|j| std::array::from_fn(|i| block[i][j]));
+                    for (j, col) in transposed.iter().enumerate() {
+                        let start = (c0 + j) * w + n0 + t0;
+                        cols[start..start + TILE].copy_from_slice(col);
+                    }
+                }
+            }
+            for t in whole..rows {
+                let row = &part[t * stride + at..t * stride + at + nc];
+                for (c, v) in row.iter().enumerate() {
+                    let x = win[n0 + t] * v;
+                    cols[c * w + n0 + t] = x;
+                    if let Some(p) = peaks.as_deref_mut() {
+                        p[c] = p[c].max(x);
+                    }
+                }
+            }
+            n0 += rows;
+        }
+    }
 }
+
+/// Rows and columns of a tile of [`Frame::window_columns`]: a cache line of values.
+pub const TILE: usize = 8;
 
 /// A copy with as much room as the original, so that a copy made before the audio
 /// starts (a split processor's part) never grows on the audio path.
@@ -282,6 +342,47 @@ mod tests {
 
     fn collect(frame: Frame<'_>) -> Vec<f64> {
         frame.rows().flatten().copied().collect()
+    }
+
+    /// The tiled transposition gives each column's windowed values and peak, as a
+    /// plain loop over the rows does: for fewer columns than a tile, one tile, tiles
+    /// that overlap at the end, frames split between kept rows and a chunk, rows left
+    /// over by the tiles, a frame over part of the columns and NaN in the input.
+    #[test]
+    fn windowed_columns_and_peaks_equal_the_plain_loops() {
+        for (width, cols) in [(3, 0..3), (8, 0..8), (31, 0..31), (31, 5..19), (20, 0..20)] {
+            let (window, hop) = (37, 11);
+            let mut x: Vec<f64> = (0..width * 120)
+                .map(|i| ((i * 7919) % 1013) as f64 - 500.0)
+                .collect();
+            x[width * 50 + cols.start] = f64::NAN;
+            let win: Vec<f64> = (0..window).map(|t| 0.5 + t as f64 / 40.0).collect();
+            let mut fb = FrameBuffer::new(width, window, hop).columns(cols.clone());
+            let nc = cols.len();
+            for part in x.chunks(width * 17) {
+                for k in 0..fb.available(part) {
+                    let frame = fb.frame(part, k);
+                    let mut want = vec![0.0; nc * window];
+                    let mut want_peaks = vec![f64::NAN; nc];
+                    for (t, row) in frame.rows().enumerate() {
+                        for (c, v) in row.iter().enumerate() {
+                            want[c * window + t] = win[t] * v;
+                            want_peaks[c] = want_peaks[c].max(win[t] * v);
+                        }
+                    }
+                    let (mut got, mut peaks) = (vec![f64::INFINITY; nc * window], vec![0.0; nc]);
+                    frame.window_columns(&win, &mut got, Some(&mut peaks));
+                    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(bits(&got), bits(&want), "{width} wide, {cols:?}");
+                    assert_eq!(bits(&peaks), bits(&want_peaks), "{width} wide, {cols:?}");
+                    let mut alone = vec![f64::INFINITY; nc * window];
+                    frame.window_columns(&win, &mut alone, None);
+                    assert_eq!(bits(&alone), bits(&want));
+                }
+                let n = fb.available(part);
+                fb.advance(part, n);
+            }
+        }
     }
 
     #[test]

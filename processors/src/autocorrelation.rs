@@ -297,46 +297,14 @@ afe_core::simd_kernel!(
         let nc = input.width();
         let w = ac.win.len();
         for (k, frame_out) in out.chunks_exact_mut((nc * (w - 1)).max(1)).enumerate() {
-            window_columns(
-                &ac.frames.frame(input.as_slice(), k),
-                &ac.win,
-                &mut ac.columns,
-            );
+            let frame = ac.frames.frame(input.as_slice(), k);
+            frame.window_columns(&ac.win, &mut ac.columns, None);
             for (c, o) in frame_out.chunks_exact_mut(w - 1).enumerate() {
                 ac.correlate(c, o);
             }
         }
     }
 );
-
-/// Writes the windowed rows of `frame` (`[time][channel]`) into `columns`
-/// (`[channel][time]`), four rows at a time so that each column gets four adjacent
-/// values per pass.
-#[inline(always)]
-fn window_columns(frame: &afe_core::framing::Frame<'_>, win: &[f64], columns: &mut [f64]) {
-    let w = win.len();
-    let mut rows = frame.rows().zip(win);
-    let mut t = 0;
-    loop {
-        let quad: [Option<(&[f64], &f64)>; 4] = std::array::from_fn(|_| rows.next());
-        if let [Some(a), Some(b), Some(c), Some(d)] = quad {
-            let cols = columns.chunks_exact_mut(w);
-            let xs = a.0.iter().zip(b.0).zip(c.0.iter().zip(d.0));
-            for (col, ((xa, xb), (xc, xd))) in cols.zip(xs) {
-                col[t..t + 4].copy_from_slice(&[a.1 * xa, b.1 * xb, c.1 * xc, d.1 * xd]);
-            }
-            t += 4;
-        } else {
-            for (row, wv) in quad.into_iter().flatten() {
-                for (col, x) in columns.chunks_exact_mut(w).zip(row) {
-                    col[t] = wv * x;
-                }
-                t += 1;
-            }
-            break;
-        }
-    }
-}
 
 impl Processor for Autocorrelation {
     fn process(&mut self, inputs: &[&Block], outputs: &mut [Block]) {

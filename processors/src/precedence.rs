@@ -15,7 +15,6 @@ use std::sync::Arc;
 use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::erb::linspace;
 use afe_core::framing::Frame;
-use afe_core::lanes::vector_start;
 use afe_core::window::window;
 use afe_core::{Block, DrawAs, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use realfft::num_complex::Complex64;
@@ -320,55 +319,11 @@ afe_core::simd_kernel!(
     }
 );
 
-/// Rows and channels of a frame windowed and transposed per tile of [`window_columns`]
-/// (through registers: one cache line of each channel's column in one store).
-const TILE: usize = 8;
-
 afe_core::simd_kernel!(
     /// Windows the frame (`[time][channel]`, `nc` wide) into `cols` (`[channel][time]`) and
     /// each channel's largest windowed value into `peaks` (NaN ignored, as MATLAB's `max`).
     fn window_columns<'a>(win: &[f64], frame: Frame<'a>, cols: &mut [f64], peaks: &mut [f64]) {
-        let (nc, w) = (peaks.len(), win.len());
-        peaks.fill(f64::NAN);
-        // tiles of TILE channels, the last one ending at the last channel (a channel in
-        // two tiles gets the same values twice)
-        let tiles = if nc >= TILE { nc.div_ceil(TILE) } else { 0 };
-        let mut n0 = 0;
-        for part in [frame.head, frame.tail] {
-            let rows = part.len() / nc.max(1);
-            let whole = if tiles > 0 { rows - rows % TILE } else { 0 };
-            for t0 in (0..whole).step_by(TILE) {
-                let tile = &part[t0 * nc..(t0 + TILE) * nc];
-                let wins: [f64; TILE] = std::array::from_fn(|i| win[n0 + t0 + i]);
-                for c0 in (0..tiles).map(|g| vector_start(g, TILE, nc)) {
-                    let block: [[f64; TILE]; TILE] = std::array::from_fn(|i| {
-                        let row = &tile[i * nc + c0..i * nc + c0 + TILE];
-                        std::array::from_fn(|j| wins[i] * row[j])
-                    });
-                    let peak = &mut peaks[c0..c0 + TILE];
-                    for row in &block {
-                        for (p, v) in peak.iter_mut().zip(row) {
-                            *p = p.max(*v);
-                        }
-                    }
-                    let transposed: [[f64; TILE]; TILE] =
-                        std::array::from_fn(|j| std::array::from_fn(|i| block[i][j]));
-                    for (j, col) in transposed.iter().enumerate() {
-                        let at = (c0 + j) * w + n0 + t0;
-                        cols[at..at + TILE].copy_from_slice(col);
-                    }
-                }
-            }
-            for t in whole..rows {
-                let row = &part[t * nc..(t + 1) * nc];
-                for (c, (v, p)) in row.iter().zip(peaks.iter_mut()).enumerate() {
-                    let x = win[n0 + t] * v;
-                    cols[c * w + n0 + t] = x;
-                    *p = p.max(x);
-                }
-            }
-            n0 += rows;
-        }
+        frame.window_columns(win, cols, Some(peaks));
     }
 );
 
