@@ -100,13 +100,16 @@ impl<'a> Frame<'a> {
             let rows = part.len() / stride.max(1);
             let whole = if tiles > 0 { rows - rows % TILE } else { 0 };
             for t0 in (0..whole).step_by(TILE) {
-                let wins: [f64; TILE] = std::array::from_fn(|i| win[n0 + t0 + i]);
+                let mut wins = [0.0; TILE];
+                wins.copy_from_slice(&win[n0 + t0..n0 + t0 + TILE]);
                 for c0 in (0..tiles).map(|g| vector_start(g, TILE, nc)) {
-                    let block: [[f64; TILE]; TILE] = std::array::from_fn(|i| {
+                    let mut block = [[0.0; TILE]; TILE];
+                    for (i, (row, wt)) in block.iter_mut().zip(wins).enumerate() {
                         let start = (t0 + i) * stride + at + c0;
-                        let row = &part[start..start + TILE];
-                        std::array::from_fn(|j| wins[i] * row[j])
-                    });
+                        for (b, v) in row.iter_mut().zip(&part[start..start + TILE]) {
+                            *b = wt * v;
+                        }
+                    }
                     if let Some(p) = peaks.as_deref_mut() {
                         for row in &block {
                             for (p, v) in p[c0..c0 + TILE].iter_mut().zip(row) {
@@ -114,8 +117,12 @@ impl<'a> Frame<'a> {
                             }
                         }
                     }
-                    let transposed: [[f64; TILE]; TILE] =
-                        std::array::from_fn(|j| std::array::from_fn(|i| block[i][j]));
+                    let mut transposed = [[0.0; TILE]; TILE];
+                    for (i, row) in block.iter().enumerate() {
+                        for (col, v) in transposed.iter_mut().zip(row) {
+                            col[i] = *v;
+                        }
+                    }
                     for (j, col) in transposed.iter().enumerate() {
                         let start = (c0 + j) * w + n0 + t0;
                         cols[start..start + TILE].copy_from_slice(col);
