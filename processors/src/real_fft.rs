@@ -21,6 +21,32 @@ use std::sync::Arc;
 use num_complex::Complex64;
 use rustfft::{Fft, FftPlanner};
 
+/// The complex FFT of `n/2` points (forward or inverse) for a real transform of `n`
+/// values (even, at least 2), and `cos θ_k`, `sin θ_k` for `θ_k = −2πk/n`,
+/// `0 < k < ⌈n/4⌉`, which each direction scales its own way.
+///
+/// # Panics
+/// If `n` is odd or below 2.
+fn half_length_plan(n: usize, inverse: bool) -> (Arc<dyn Fft<f64>>, Vec<f64>, Vec<f64>) {
+    assert!(
+        n >= 2 && n % 2 == 0,
+        "an even length of at least 2, not {n}"
+    );
+    let mut planner = FftPlanner::new();
+    let fft = match inverse {
+        true => planner.plan_fft_inverse(n / 2),
+        false => planner.plan_fft_forward(n / 2),
+    };
+    let step = -2.0 * PI / n as f64;
+    let (cos, sin) = (1..n.div_ceil(4))
+        .map(|k| {
+            let angle = step * k as f64;
+            (angle.cos(), angle.sin())
+        })
+        .unzip();
+    (fft, cos, sin)
+}
+
 /// A planned forward transform of `N` real values, with its buffers.
 pub struct RealFft {
     fft: Arc<dyn Fft<f64>>,
@@ -47,21 +73,10 @@ impl RealFft {
     /// # Panics
     /// If `n` is odd or below 2.
     pub fn new(n: usize) -> Self {
-        assert!(
-            n >= 2 && n % 2 == 0,
-            "an even length of at least 2, not {n}"
-        );
-        let fft = FftPlanner::new().plan_fft_forward(n / 2);
-        let step = -2.0 * PI / n as f64;
-        let twiddles: Vec<Complex64> = (1..n.div_ceil(4))
-            .map(|k| {
-                let angle = step * k as f64;
-                Complex64::new(angle.cos(), angle.sin()) * 0.5
-            })
-            .collect();
+        let (fft, cos, sin) = half_length_plan(n, false);
         RealFft {
-            twiddle_re: twiddles.iter().map(|t| t.re).collect(),
-            twiddle_im: twiddles.iter().map(|t| t.im).collect(),
+            twiddle_re: cos.iter().map(|c| 0.5 * c).collect(),
+            twiddle_im: sin.iter().map(|s| 0.5 * s).collect(),
             pairs: vec![Complex64::default(); n / 2],
             z: vec![Complex64::default(); n / 2],
             scratch: vec![Complex64::default(); fft.get_outofplace_scratch_len()],
@@ -109,7 +124,7 @@ impl RealFft {
             im_high[0] = -im_high[0];
         }
         let (re_high, im_high) = (&mut re_high[middle..], &mut im_high[middle..]);
-        split(
+        split::<false>(
             (re_low, im_low),
             (re_high, im_high),
             (&self.twiddle_re[..pairs], &self.twiddle_im[..pairs]),
@@ -147,22 +162,11 @@ impl RealIfft {
     /// # Panics
     /// If `n` is odd or below 2.
     pub fn new(n: usize) -> Self {
-        assert!(
-            n >= 2 && n % 2 == 0,
-            "an even length of at least 2, not {n}"
-        );
+        let (fft, cos, sin) = half_length_plan(n, true);
         let m = n / 2;
-        let fft = FftPlanner::new().plan_fft_inverse(m);
-        let step = -2.0 * PI / n as f64;
-        let (twiddle_re, twiddle_im) = (1..n.div_ceil(4))
-            .map(|k| {
-                let angle = step * k as f64;
-                (angle.cos(), -angle.sin())
-            })
-            .unzip();
         RealIfft {
-            twiddle_re,
-            twiddle_im,
+            twiddle_re: cos,
+            twiddle_im: sin.iter().map(|s| -s).collect(),
             re: vec![0.0; m + 1],
             im: vec![0.0; m + 1],
             merged: vec![Complex64::default(); m],
@@ -198,7 +202,7 @@ impl RealIfft {
         let (re_low, re_high) = re[1..m].split_at_mut(pairs);
         let (im_low, im_high) = im[1..m].split_at_mut(pairs);
         let middle = re_high.len() - pairs;
-        merge(
+        split::<true>(
             (re_low, im_low),
             (&mut re_high[middle..], &mut im_high[middle..]),
             (&self.twiddle_re[..pairs], &self.twiddle_im[..pairs]),
@@ -216,37 +220,15 @@ impl RealIfft {
 }
 
 afe_core::simd_kernel!(
-    /// The merge pass over the pairs `(k, M − k)`, `0 < k < M/2`, in `realfft`'s order of
-    /// operations: `low` holds `X[k]` from `k = 1` on, `high` `X[M − k]` ending at
-    /// `k = 1`, as real and imaginary parts, and both get the merged values in their place.
-    fn merge(
-        (re_low, im_low): (&mut [f64], &mut [f64]),
-        (re_high, im_high): (&mut [f64], &mut [f64]),
-        (tw_re, tw_im): (&[f64], &[f64]),
-    ) {
-        let pairs = re_high.len();
-        let (re_low, im_low) = (&mut re_low[..pairs], &mut im_low[..pairs]);
-        let (im_high, tw_re, tw_im) = (&mut im_high[..pairs], &tw_re[..pairs], &tw_im[..pairs]);
-        for i in 0..pairs {
-            let j = pairs - 1 - i;
-            let (sum_re, sum_im) = (re_low[i] + re_high[j], im_low[i] + im_high[j]);
-            let (diff_re, diff_im) = (re_low[i] - re_high[j], im_low[i] - im_high[j]);
-            let t_re = sum_im * tw_re[i] + diff_re * tw_im[i];
-            let t_im = sum_im * tw_im[i] - diff_re * tw_re[i];
-            (re_low[i], im_low[i]) = (sum_re - t_re, diff_im - t_im);
-            (re_high[j], im_high[j]) = (sum_re + t_re, -t_im - diff_im);
-        }
-    }
-);
-
-afe_core::simd_kernel!(
     fma,
-    /// The split pass over the pairs `(k, M − k)`, `0 < k < M/2`, in `realfft`'s order of
-    /// operations: `low` holds `Z[k]` from `k = 1` on, `high` `Z[M − k]` ending at `k = 1`,
-    /// as real and imaginary parts, and both get `X` in their place. A function of its own,
-    /// with a version per vector width, so that its slices are known apart and the loop
-    /// vectorises although `high` runs backwards.
-    fn split(
+    /// The split pass (forward) or merge pass (`INVERSE`) over the pairs `(k, M − k)`,
+    /// `0 < k < M/2`, in `realfft`'s order of operations: `low` holds the values of
+    /// `k = 1` on, `high` those of `M − k` ending at `k = 1`, as real and imaginary parts,
+    /// and both get the results in their place (the inverse's signs are the forward's
+    /// negated, which changes no bit). A function of its own, with a version per vector
+    /// width, so that its slices are known apart and the loop vectorises although `high`
+    /// runs backwards.
+    fn split<const INVERSE: bool>(
         (re_low, im_low): (&mut [f64], &mut [f64]),
         (re_high, im_high): (&mut [f64], &mut [f64]),
         (tw_re, tw_im): (&[f64], &[f64]),
@@ -259,12 +241,14 @@ afe_core::simd_kernel!(
             let (xr, xi, yr, yi) = (re_low[i], im_low[i], re_high[j], im_high[j]);
             let (sum_re, sum_im) = (xr + yr, xi + yi);
             let (diff_re, diff_im) = (xr - yr, xi - yi);
-            let half_sum_re = 0.5 * sum_re;
-            let half_diff_im = 0.5 * diff_im;
             let t_re = sum_im * tw_re[i] + diff_re * tw_im[i];
             let t_im = sum_im * tw_im[i] - diff_re * tw_re[i];
-            (re_low[i], im_low[i]) = (half_sum_re + t_re, half_diff_im + t_im);
-            (re_high[j], im_high[j]) = (half_sum_re - t_re, t_im - half_diff_im);
+            let (a, b, t_re, t_im) = match INVERSE {
+                true => (sum_re, diff_im, -t_re, -t_im),
+                false => (0.5 * sum_re, 0.5 * diff_im, t_re, t_im),
+            };
+            (re_low[i], im_low[i]) = (a + t_re, b + t_im);
+            (re_high[j], im_high[j]) = (a - t_re, t_im - b);
         }
     }
 );
