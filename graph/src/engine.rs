@@ -6,11 +6,13 @@
 //! [`crate::placement`]), so that a chain of nodes stays in one core's cache.
 //!
 //! The calling thread also plays two roles of its own: it is the source (it publishes
-//! each input chunk into node 0) and the sink (it copies every other node's output of a
-//! chunk into blocks of its own, then returns its reader tokens). While it waits for a
-//! chunk or a free input slot it runs ready nodes like a worker, so that `threads`
-//! threads share `threads` cores without a third thread to wake per chunk. Workers never
-//! lock, allocate (beyond what a processor's first chunks of a new size need) or free: the
+//! each input chunk into node 0) and the sink (it copies the other nodes' outputs of a
+//! chunk that it reads into blocks of its own, then returns its reader tokens; a whole
+//! signal's joined outputs the nodes keep themselves, see [`Engine::lend_kept`]). While
+//! it waits for a chunk or a free input slot it runs ready nodes like a worker, so that
+//! `threads` threads share `threads` cores without a third thread to wake per chunk.
+//! Workers never lock, allocate (beyond what a processor's first chunks of a new size
+//! need, and a kept whole output growing past the length it was sized for) or free: the
 //! node table is built and dropped by the caller, and swapped only while the pool is idle.
 
 use std::cell::UnsafeCell;
@@ -80,15 +82,18 @@ struct NodeRt {
     /// Per output: a whole signal's buffer that the node appends each chunk's output to
     /// itself, right after computing it (see [`Engine::lend_kept`]).
     kept: UnsafeCell<Vec<Option<Block>>>,
-    /// Whether no processor reads the node's outputs in the pool: those it keeps it then
-    /// writes straight into their buffers, with no copy.
+    /// Whether it keeps its outputs by writing them straight into their buffers, with no
+    /// copy: set by [`Engine::lend_kept`] where no processor in the pool reads them.
     kept_in_place: bool,
+    /// Whether a processor in the pool reads its outputs (a child with a processor, or a
+    /// feedback target).
+    read: bool,
     /// Frames of each kept output in chunk `k`, in `kept_frames[k % 2]` (read by the
     /// caller as its slot).
     kept_frames: [UnsafeCell<Vec<usize>>; 2],
     claimed_at_ns: AtomicU64,
-    /// Whether a child's home is another thread: the node then claims its output's cache
-    /// lines before writing them (see [`claim_lines`]).
+    /// Whether a child that reads its outputs has its home on another thread: the node
+    /// then claims its output's cache lines before writing them (see [`claim_lines`]).
     claims: bool,
 }
 
@@ -241,16 +246,17 @@ impl Shared {
             }
             let kept = &mut *rt.kept.get();
             let kept_frames = &mut *rt.kept_frames[slot].get();
-            catch_unwind(AssertUnwindSafe(|| {
-                if rt.kept_in_place {
-                    // the kept buffer stands in for the slot, showing only what is new
-                    for (out, acc) in outputs.iter_mut().zip(kept.iter_mut()) {
-                        if let Some(acc) = acc {
-                            std::mem::swap(out, acc);
-                            out.seal();
-                        }
+            if rt.kept_in_place {
+                // the kept buffer stands in for the slot, showing only what is new (and
+                // goes back below even if the processor panics)
+                for (out, acc) in outputs.iter_mut().zip(kept.iter_mut()) {
+                    if let Some(acc) = acc {
+                        std::mem::swap(out, acc);
+                        out.seal();
                     }
                 }
+            }
+            let ok = catch_unwind(AssertUnwindSafe(|| {
                 if rt.claims {
                     claim_lines(outputs);
                 }
@@ -265,19 +271,20 @@ impl Shared {
                         n => p.join(inputs, &parts[..n], outputs),
                     }
                 }
-                let outs = outputs.iter_mut().zip(kept.iter_mut());
-                for ((out, acc), frames) in outs.zip(kept_frames.iter_mut()) {
-                    if let Some(acc) = acc {
-                        *frames = out.frames();
-                        if rt.kept_in_place {
-                            std::mem::swap(out, acc);
-                        } else {
-                            acc.extend_from(out);
-                        }
+            }))
+            .is_ok();
+            let outs = outputs.iter_mut().zip(kept.iter_mut());
+            for ((out, acc), frames) in outs.zip(kept_frames.iter_mut()) {
+                if let Some(acc) = acc {
+                    *frames = out.frames();
+                    if rt.kept_in_place {
+                        std::mem::swap(out, acc);
+                    } else if ok {
+                        acc.extend_from(out);
                     }
                 }
-            }))
-            .is_ok()
+            }
+            ok
         };
         if !ok {
             self.poisoned.store(true, Ordering::SeqCst);
@@ -583,6 +590,7 @@ impl Engine {
     /// must be quiescent; [`Engine::return_kept`] gives them back. The source (node 0),
     /// which the caller fills, keeps its buffers.
     pub(crate) fn lend_kept(&mut self, whole: &mut [Vec<Option<Block>>], nodes: &[bool]) {
+        debug_assert_eq!(self.in_flight(), 0, "lending needs a quiescent pool");
         let lends = |n: usize| n > 0 && nodes.get(n).copied().unwrap_or(false);
         self.kept = (whole.iter().enumerate())
             .map(|(n, outputs)| outputs.iter().map(|o| lends(n) && o.is_some()).collect())
@@ -591,19 +599,13 @@ impl Engine {
             // SAFETY: no worker is active and the pool is quiescent.
             #[allow(unsafe_code)]
             let table = unsafe { &mut *shared.table.get() };
-            let reads: Vec<bool> = (table.rt.iter_mut())
-                .map(|r| r.processor.get_mut().is_some())
-                .collect();
             for (n, (rt, outputs)) in table.rt.iter_mut().zip(whole).enumerate() {
                 let kept = rt.kept.get_mut();
                 kept.clear();
                 if lends(n) {
                     kept.extend(outputs.iter_mut().map(Option::take));
                 }
-                let links = &table.links[n];
-                rt.kept_in_place = lends(n)
-                    && links.feedback_to.is_empty()
-                    && links.children.iter().all(|&c| !reads[c]);
+                rt.kept_in_place = lends(n) && !rt.read;
                 for frames in &mut rt.kept_frames {
                     frames.get_mut().clear();
                     frames.get_mut().resize(kept.len(), 0);
@@ -612,9 +614,16 @@ impl Engine {
         });
     }
 
-    /// Gives the buffers of [`Engine::lend_kept`] back to `whole`, holding every chunk's
-    /// output collected since. The pool must be quiescent.
-    pub(crate) fn return_kept(&mut self, whole: &mut [Vec<Option<Block>>]) {
+    /// Finishes the chunks in flight ([`Engine::quiesce`]) and gives the buffers of
+    /// [`Engine::lend_kept`] back to `whole`, holding every chunk's output collected
+    /// since: after a processor's panic too, but not after a stall (a worker may never let
+    /// go of the table). Collects copy every output again afterwards.
+    pub(crate) fn return_kept(&mut self, whole: &mut [Vec<Option<Block>>]) -> Result<()> {
+        let idle = self.quiesce();
+        self.kept.clear();
+        if matches!(idle, Err(Error::Stalled(_))) {
+            return idle;
+        }
         self.with_table_swapped(|shared| {
             // SAFETY: no worker is active and the pool is quiescent.
             #[allow(unsafe_code)]
@@ -629,12 +638,13 @@ impl Engine {
                 rt.kept_in_place = false;
             }
         });
-        self.kept.clear();
+        idle
     }
 
-    /// Waits for every node to finish the oldest uncollected chunk, copies its outputs
-    /// (readable through [`Engine::block`] until the next collect) and returns the
-    /// caller's reader tokens at once, so that no node waits for the caller.
+    /// Waits for every node to finish the oldest uncollected chunk, copies the outputs it
+    /// reads (readable through [`Engine::block`] until the next collect; not those the
+    /// nodes keep, see [`Engine::lend_kept`]) and returns the caller's reader tokens at
+    /// once, so that no node waits for the caller.
     pub fn collect(&mut self) -> Result<u64> {
         if self.collected == self.submitted {
             return Err(Error::Scheduler("no chunk in flight to collect".into()));
@@ -684,12 +694,13 @@ impl Engine {
     }
 
     /// Output `r` of the last collected chunk; `None` for one not copied (see
-    /// [`Engine::set_copied`]).
+    /// [`Engine::set_copied`]) or kept by its node (see [`Engine::lend_kept`]).
     pub fn block(&self, r: OutputRef) -> Option<&Block> {
-        let copied = self.copied.get(r.node).and_then(|c| c.get(r.output));
-        copied
-            .copied()
-            .unwrap_or(true)
+        let flag = |m: &[Vec<bool>], default| {
+            let v = m.get(r.node).and_then(|c| c.get(r.output));
+            v.copied().unwrap_or(default)
+        };
+        (flag(&self.copied, true) && !flag(&self.kept, false))
             .then(|| &self.views[r.node][r.output])
     }
 
@@ -840,6 +851,7 @@ impl Engine {
                 absorbs: absorbs.get(i).copied().unwrap_or(false),
                 kept: UnsafeCell::new(Vec::new()),
                 kept_in_place: false,
+                read: false,
                 kept_frames: Default::default(),
                 claimed_at_ns: AtomicU64::new(0),
                 claims: false,
@@ -871,6 +883,7 @@ impl Engine {
                     absorbs: false,
                     kept: UnsafeCell::new(Vec::new()),
                     kept_in_place: false,
+                    read: false,
                     kept_frames: Default::default(),
                     claimed_at_ns: AtomicU64::new(0),
                     claims: false,
@@ -883,7 +896,9 @@ impl Engine {
             .map(|r| r.processor.get_mut().is_some())
             .collect();
         for (e, r) in rt.iter_mut().enumerate() {
-            r.claims = (links[e].children.iter()).any(|&c| reads[c] && home[c] != home[e]);
+            let readers = || links[e].children.iter().filter(|&&c| reads[c]);
+            r.read = readers().next().is_some() || !links[e].feedback_to.is_empty();
+            r.claims = readers().any(|&c| home[c] != home[e]);
         }
         let sync: Vec<NodeSync> = (0..total).map(|_| NodeSync::new()).collect();
         for (s, targets) in sync.iter().zip(&feedback_to) {
@@ -916,11 +931,13 @@ impl Engine {
             .collect();
         self.submitted = 0;
         self.collected = 0;
+        self.kept.clear();
     }
 
     /// Gives the processors back to `graph` (the pool must be quiescent) and leaves an
     /// empty table.
     pub(crate) fn uninstall(&mut self, graph: &mut Graph) {
+        self.kept.clear();
         let old = self.with_table_swapped(|shared| {
             // SAFETY: no worker is active and the pool is quiescent.
             #[allow(unsafe_code)]

@@ -102,8 +102,8 @@ impl Graph {
     }
 
     /// The invariant and absorbing nodes over the signal's `blocks`, on the `engine`'s
-    /// threads: the other nodes' processors wait aside, and each block's joined outputs
-    /// are appended to `whole` as the engine publishes them.
+    /// threads: the other nodes' processors wait aside, and the nodes keep their joined
+    /// outputs in `whole`'s buffers themselves (see [`Engine::lend_kept`]).
     fn blocks_on<'s>(
         &mut self,
         engine: &mut Engine,
@@ -141,40 +141,43 @@ impl Graph {
             }
             Ok(())
         };
-        let mut fed = Ok(());
-        for part in blocks {
-            // the input itself, where a node taking the signal in one call reads it (the
-            // engine's source is not collected)
-            for (acc, ear) in whole[0].iter_mut().zip(&part) {
-                if let Some(acc) = acc {
-                    acc.extend_from_slice(ear);
+        // (a panic in `each_block` or an input copy still gives the buffers back)
+        let fed = catch_unwind(AssertUnwindSafe(|| {
+            let mut fed = Ok(());
+            for part in blocks {
+                // the input itself, where a node taking the signal in one call reads it
+                // (the engine's source is not collected)
+                for (acc, ear) in whole[0].iter_mut().zip(&part) {
+                    if let Some(acc) = acc {
+                        acc.extend_from_slice(ear);
+                    }
+                }
+                fed = fed
+                    .and_then(|()| match interrupt::requested() {
+                        true => Err(Error::Interrupted),
+                        false => engine.submit(&part),
+                    })
+                    .and_then(|()| match engine.in_flight() {
+                        2.. => collect(engine),
+                        _ => Ok(()),
+                    });
+                if fed.is_err() {
+                    break;
                 }
             }
-            fed = fed
-                .and_then(|()| match interrupt::requested() {
-                    true => Err(Error::Interrupted),
-                    false => engine.submit(&part),
-                })
-                .and_then(|()| match engine.in_flight() {
-                    2.. => collect(engine),
-                    _ => Ok(()),
-                });
-            if fed.is_err() {
-                break;
+            while fed.is_ok() && engine.in_flight() > 0 {
+                fed = collect(engine);
             }
-        }
-        while fed.is_ok() && engine.in_flight() > 0 {
-            fed = collect(engine);
-        }
-        let idle = engine.quiesce();
-        engine.return_kept(whole);
+            fed
+        }));
+        let idle = engine.return_kept(whole);
         engine.uninstall(self);
         for (node, p) in self.nodes.iter_mut().zip(aside) {
             if p.is_some() {
                 node.processor = p;
             }
         }
-        fed.and(idle)
+        fed.unwrap_or_else(|panic| resume_unwind(panic)).and(idle)
     }
 
     /// Runs every node that is not invariant once, on its parents' joined outputs in

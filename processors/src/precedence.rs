@@ -544,12 +544,16 @@ impl Precedence {
 }
 
 impl Model {
+    /// Bins of each spectrum, `nfft/2 + 1`.
+    fn bins(&self) -> usize {
+        self.fft.len() / 2 + 1
+    }
+
     /// Step A for ear `e`: windows frame `x`, updates the cumulative autocorrelations
     /// and estimates the lag's delay and amplitude ratio.
     fn analyse(&mut self, e: usize, x: Frame<'_>) {
         let (nc, w, first) = (self.nc, self.win.len(), self.first);
-        let nfft = self.fft.len();
-        let bins = nfft / 2 + 1;
+        let (nfft, bins) = (self.fft.len(), self.bins());
         let ear = &mut self.ears[e];
         window_columns(&self.win, x, &mut ear.cols, &mut ear.peaks);
         // Active bandwidth: channels whose peak is within 12 dB of the frame's.
@@ -708,7 +712,7 @@ impl Model {
     /// autocorrelations: `xcorr(S_l, S_r)[m] = Σ_{q,p} c_q·d_p·R[m − qτ_l + pτ_r]`.
     fn short_pair(&mut self, cc: &mut [f64]) {
         let (nc, w) = (self.nc, self.win.len());
-        let bins = self.fft.len() / 2 + 1;
+        let bins = self.bins();
         let nl = 2 * self.max_lag + 1;
         let (ll, lr) = (self.ears[0].lag, self.ears[1].lag);
         for ear in &mut self.ears {

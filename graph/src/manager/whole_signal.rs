@@ -5,6 +5,8 @@
 
 use afe_core::{Block, Error, Result};
 
+use std::panic::{catch_unwind, resume_unwind, AssertUnwindSafe};
+
 use super::{BlockSink, Manager, WHOLE_SIGNAL_BLOCK, WHOLE_SIGNAL_LIMIT_MB};
 use crate::block_input::{BlockInput, BlockSource};
 use crate::graph::OutputRef;
@@ -248,16 +250,21 @@ impl Manager {
             }
             None => self.graph.lend_buffers(&mut whole, &invariant),
         };
-        let fed = self.feed_blocks(input, prefix, &lent, &streamed, &mut stream);
-        match self.engine.as_mut() {
-            Some(e) => {
-                let idle = e.quiesce();
-                e.return_kept(&mut whole);
-                idle?;
+        // (a panic in the source or the stream still gives the buffers back; after an
+        // error, the chunks still in flight are finished there, and a reset follows)
+        let fed = catch_unwind(AssertUnwindSafe(|| {
+            self.feed_blocks(input, prefix, &lent, &streamed, &mut stream)
+        }));
+        let idle = match self.engine.as_mut() {
+            Some(e) => e.return_kept(&mut whole),
+            None => {
+                self.graph.return_buffers(&mut whole, &lent);
+                Ok(())
             }
-            None => self.graph.return_buffers(&mut whole, &lent),
-        }
+        };
         self.whole = whole;
+        let fed = fed.unwrap_or_else(|panic| resume_unwind(panic));
+        idle?;
         fed?;
         self.whole_shown = true;
         Ok(())
@@ -554,6 +561,44 @@ mod tests {
         in_place.sort_unstable();
         in_place.dedup();
         assert_eq!(in_place, ["ild", "ratemap"]);
+    }
+
+    /// A source that panics mid-signal leaves no output lent to the concurrent executor's
+    /// nodes: after the panic and a reset, chunks give every frame again, as on one thread,
+    /// and so does a whole signal after them.
+    #[test]
+    fn a_panicking_source_gives_the_lent_outputs_back() {
+        let fs = 16000.0;
+        let x = swelling_tone(6 * WHOLE_SIGNAL_BLOCK, 0.03, 500);
+        let after = |threads| {
+            let mut m = binaural(fs, threads, &["ratemap", "ild"]);
+            let mut reads = 0;
+            let panicked = std::panic::catch_unwind(AssertUnwindSafe(|| {
+                let mut inner = slice_source(&x, WHOLE_SIGNAL_BLOCK);
+                m.process_source(x.len(), &mut |n, out| {
+                    reads += 1;
+                    assert!(reads < 3, "a source failing on its third read");
+                    inner(n, out)
+                })
+            }));
+            assert!(panicked.is_err());
+            m.reset().expect("reset");
+            let mut frames = 0;
+            for part in x.chunks(1600) {
+                m.process_chunk(&[part, part]).expect("chunk");
+                frames += m
+                    .signals(false)
+                    .iter()
+                    .map(|s| s.new.frames())
+                    .sum::<usize>();
+            }
+            m.process_signal(&[&x, &x]).expect("process");
+            let whole: Vec<Vec<u64>> = m.signals(false).iter().map(|s| bits(s.new)).collect();
+            (frames, whole)
+        };
+        let (sequential, concurrent) = (after(0), after(2));
+        assert!(sequential.0 > 100, "{} frames", sequential.0);
+        assert_eq!(concurrent, sequential);
     }
 
     /// A whole signal drawn block by block from a source (in short reads, with and
