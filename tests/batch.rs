@@ -227,6 +227,23 @@ fn status(store: &Path) -> Value {
     serde_json::from_slice(&out.stdout).expect("status json")
 }
 
+/// The records of one kind (`failed`, `missing`) in a `status --json` report, each
+/// checked to carry that status: their ids with their errors.
+fn errors_of(status: &Value, kind: &str) -> BTreeMap<String, String> {
+    status[kind]
+        .as_array()
+        .unwrap_or_else(|| panic!("no '{kind}' list in {status}"))
+        .iter()
+        .map(|r| {
+            assert_eq!(r["status"], kind);
+            (
+                r["id"].as_str().expect("id").to_string(),
+                r["error"].as_str().expect("error").to_string(),
+            )
+        })
+        .collect()
+}
+
 /// The ids of the files a zarr store holds: the groups with file attributes.
 fn stored_ids(root: &Path) -> BTreeSet<String> {
     fn walk(root: &Path, dir: &Path, out: &mut BTreeSet<String>) {
@@ -367,18 +384,7 @@ fn corpus_store_holds_what_extract_computes_and_records_every_failure() {
     // every corrupt file is listed as failed, with its problem, and left nothing behind
     let st = status(&store);
     assert_eq!(st["done"], 50, "{st}");
-    let failed: BTreeMap<String, String> = st["failed"]
-        .as_array()
-        .expect("failed")
-        .iter()
-        .map(|r| {
-            assert_eq!(r["status"], "failed");
-            (
-                r["id"].as_str().expect("id").to_string(),
-                r["error"].as_str().expect("error").to_string(),
-            )
-        })
-        .collect();
+    let failed = errors_of(&st, "failed");
     assert_eq!(
         failed.keys().cloned().collect::<Vec<_>>(),
         bad.iter().map(|b| b.0.clone()).collect::<Vec<_>>()
@@ -1138,18 +1144,7 @@ fn status_and_resume_find_deleted_groups_arrays_and_chunks_and_skip_garbage_in_t
 
     let st = status(&store);
     assert_eq!(st["done"], ids.len() - 4, "{st}");
-    let missing: BTreeMap<String, String> = st["missing"]
-        .as_array()
-        .expect("missing")
-        .iter()
-        .map(|r| {
-            assert_eq!(r["status"], "missing");
-            (
-                r["id"].as_str().expect("id").to_string(),
-                r["error"].as_str().expect("error").to_string(),
-            )
-        })
-        .collect();
+    let missing = errors_of(&st, "missing");
     assert_eq!(
         missing.keys().collect::<BTreeSet<_>>(),
         BTreeSet::from([group, array, chunk, cut])
