@@ -13,8 +13,8 @@ use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, Si
 use serde::{Deserialize, Serialize};
 
 use crate::even_inverse::EvenInverse;
-use crate::framed::check_framing;
-use crate::real_fft::RealFft;
+use crate::framed::{check_framing, check_work};
+use crate::real_fft::{transform_values, RealFft};
 
 /// Outside these bounds on the ACF's lag 0 (the sum of the spectral powers |X|^K) the
 /// powers overflowed or lost their precision in the subnormals: the spectrum is then
@@ -186,6 +186,13 @@ impl Autocorrelation {
         let nc = input.channels();
         // The AFE's transform length 2^nextpow2(2W − 1): no wrap-around up to lag W − 1.
         let nfft = (2 * w - 1).next_power_of_two();
+        // the transforms' buffers, beside the columns, spectra and lags (found by fuzzing:
+        // a window of minutes over one channel asked for gigabytes of transform buffers)
+        check_work(
+            ("ac_wSizeSec", params.w_size_sec),
+            nc * w + 2 * w + 3 * (nfft / 2 + 1) + 2 * transform_values(nfft),
+            nc,
+        )?;
         let top = (w - 1) as f64;
         let ac = Autocorrelation {
             params: params.clone(),

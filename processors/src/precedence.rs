@@ -20,7 +20,7 @@ use afe_core::{Block, DrawAs, Error, ParamKind, ParamSpec, Params, Processor, Re
 use serde::{Deserialize, Serialize};
 
 use crate::framed::{check_framing, check_work, EarFrames};
-use crate::real_fft::{RealFft, RealIfft};
+use crate::real_fft::{transform_values, RealFft, RealIfft};
 
 /// Parameters of the precedence model, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -464,10 +464,11 @@ impl Precedence {
         let nfft = fft_len(2 * w - 1);
         let bins = nfft / 2 + 1;
         let longest = w + 5 * ac_lag;
-        // per ear: columns, complex spectra, power and the lag-removal variant
+        // per ear: columns, complex spectra, power and the lag-removal variant; and the
+        // two transforms
         check_work(
             ("prec_wSizeSec", params.w_size_sec),
-            2 * nc * (w + 3 * bins + longest),
+            2 * nc * (w + 3 * bins + longest) + 2 * transform_values(nfft),
             nc,
         )?;
         let ear = Ear {

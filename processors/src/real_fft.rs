@@ -21,6 +21,13 @@ use std::sync::Arc;
 use num_complex::Complex64;
 use rustfft::{Fft, FftPlanner};
 
+/// At most the `f64` values a planned transform of `n` points here holds ([`RealFft`],
+/// [`RealIfft`], [`crate::even_inverse::EvenInverse`]): its buffers, scratch and the FFT
+/// plan's own twiddles, for the processors' working-memory bounds.
+pub fn transform_values(n: usize) -> usize {
+    n.saturating_mul(6)
+}
+
 /// The complex FFT of `n/2` points (forward or inverse) for a real transform of `n`
 /// values (even, at least 2), and `cos θ_k`, `sin θ_k` for `θ_k = −2πk/n`,
 /// `0 < k < ⌈n/4⌉`, which each direction scales its own way.
