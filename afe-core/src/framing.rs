@@ -83,16 +83,25 @@ impl<'a> Frame<'a> {
 
     /// Writes the frame's rows, row `t` times `win[t]`, into `cols` as columns
     /// (`[column][time]`, `win.len()` values each, one per row), and where `peaks` is
-    /// given (one per column) each column's largest windowed value into it (NaN ignored,
-    /// as MATLAB's `max`). Tiles of [`TILE`] rows by [`TILE`] columns go through
+    /// given (one per column) each column's largest windowed value into it, and where
+    /// `troughs` is given its smallest (NaN ignored, as MATLAB's `max` and `min`). Tiles of [`TILE`] rows by [`TILE`] columns go through
     /// registers, so that each column takes a cache line per store; the last tile of a
     /// row ends at its last column (a column in two tiles gets its values twice).
     /// Inlined so that its loops get the caller's vector width.
     #[inline(always)]
-    pub fn window_columns(&self, win: &[f64], cols: &mut [f64], mut peaks: Option<&mut [f64]>) {
+    pub fn window_columns(
+        &self,
+        win: &[f64],
+        cols: &mut [f64],
+        mut peaks: Option<&mut [f64]>,
+        mut troughs: Option<&mut [f64]>,
+    ) {
         let (nc, w) = (self.width, win.len());
-        if let Some(p) = peaks.as_deref_mut() {
-            p.fill(f64::NAN);
+        for extremes in [peaks.as_deref_mut(), troughs.as_deref_mut()]
+            .into_iter()
+            .flatten()
+        {
+            extremes.fill(f64::NAN);
         }
         let tiles = if nc >= TILE { nc.div_ceil(TILE) } else { 0 };
         let mut n0 = 0;
@@ -117,6 +126,13 @@ impl<'a> Frame<'a> {
                             }
                         }
                     }
+                    if let Some(t) = troughs.as_deref_mut() {
+                        for row in &block {
+                            for (t, v) in t[c0..c0 + TILE].iter_mut().zip(row) {
+                                *t = t.min(*v);
+                            }
+                        }
+                    }
                     let mut transposed = [[0.0; TILE]; TILE];
                     for (i, row) in block.iter().enumerate() {
                         for (col, v) in transposed.iter_mut().zip(row) {
@@ -136,6 +152,9 @@ impl<'a> Frame<'a> {
                     cols[c * w + n0 + t] = x;
                     if let Some(p) = peaks.as_deref_mut() {
                         p[c] = p[c].max(x);
+                    }
+                    if let Some(t) = troughs.as_deref_mut() {
+                        t[c] = t[c].min(x);
                     }
                 }
             }
@@ -351,7 +370,7 @@ mod tests {
         frame.rows().flatten().copied().collect()
     }
 
-    /// The tiled transposition gives each column's windowed values and peak, as a
+    /// The tiled transposition gives each column's windowed values, peak and trough, as a
     /// plain loop over the rows does: for fewer columns than a tile, one tile, tiles
     /// that overlap at the end, frames split between kept rows and a chunk, rows left
     /// over by the tiles, a frame over part of the columns and NaN in the input.
@@ -370,20 +389,28 @@ mod tests {
                 for k in 0..fb.available(part) {
                     let frame = fb.frame(part, k);
                     let mut want = vec![0.0; nc * window];
-                    let mut want_peaks = vec![f64::NAN; nc];
+                    let (mut want_peaks, mut want_troughs) =
+                        (vec![f64::NAN; nc], vec![f64::NAN; nc]);
                     for (t, row) in frame.rows().enumerate() {
                         for (c, v) in row.iter().enumerate() {
                             want[c * window + t] = win[t] * v;
                             want_peaks[c] = want_peaks[c].max(win[t] * v);
+                            want_troughs[c] = want_troughs[c].min(win[t] * v);
                         }
                     }
-                    let (mut got, mut peaks) = (vec![f64::INFINITY; nc * window], vec![0.0; nc]);
-                    frame.window_columns(&win, &mut got, Some(&mut peaks));
+                    let mut got = vec![f64::INFINITY; nc * window];
+                    let (mut peaks, mut troughs) = (vec![0.0; nc], vec![0.0; nc]);
+                    frame.window_columns(&win, &mut got, Some(&mut peaks), Some(&mut troughs));
                     let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
                     assert_eq!(bits(&got), bits(&want), "{width} wide, {cols:?}");
                     assert_eq!(bits(&peaks), bits(&want_peaks), "{width} wide, {cols:?}");
+                    assert_eq!(
+                        bits(&troughs),
+                        bits(&want_troughs),
+                        "{width} wide, {cols:?}"
+                    );
                     let mut alone = vec![f64::INFINITY; nc * window];
-                    frame.window_columns(&win, &mut alone, None);
+                    frame.window_columns(&win, &mut alone, None, None);
                     assert_eq!(bits(&alone), bits(&want));
                 }
                 let n = fb.available(part);

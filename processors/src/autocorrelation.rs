@@ -129,8 +129,10 @@ pub struct Autocorrelation {
     fft: RealFft,
     /// The inverse of the (real, even) power spectrum, at half a full transform's cost.
     inverse: EvenInverse,
-    /// Windowed frame, `[channel][time]`.
+    /// Windowed frame, `[channel][time]`, and each channel's largest and smallest value.
     columns: Vec<f64>,
+    peaks: Vec<f64>,
+    troughs: Vec<f64>,
     /// The frame's spectrum `X[0..=N/2]`, real and imaginary parts.
     re: Vec<f64>,
     im: Vec<f64>,
@@ -190,7 +192,7 @@ impl Autocorrelation {
         // a window of minutes over one channel asked for gigabytes of transform buffers)
         check_work(
             ("ac_wSizeSec", params.w_size_sec),
-            nc * w + 2 * w + 3 * (nfft / 2 + 1) + 2 * transform_values(nfft),
+            nc * (w + 2) + 2 * w + 3 * (nfft / 2 + 1) + 2 * transform_values(nfft),
             nc,
         )?;
         let top = (w - 1) as f64;
@@ -199,6 +201,8 @@ impl Autocorrelation {
             frames: FrameBuffer::new(nc, w, h),
             scale: (0..w - 1).map(|j| top / (top - j as f64)).collect(),
             columns: vec![0.0; nc * w],
+            peaks: vec![0.0; nc],
+            troughs: vec![0.0; nc],
             re: vec![0.0; nfft / 2 + 1],
             im: vec![0.0; nfft / 2 + 1],
             power: vec![0.0; nfft / 2 + 1],
@@ -219,32 +223,24 @@ impl Autocorrelation {
     /// into [`correlate_frames`] so that its loops get that function's vector width.
     #[inline(always)]
     fn correlate(&mut self, c: usize, out: &mut [f64]) {
-        let w = self.win.len();
-        let f = &self.columns[c * w..(c + 1) * w];
-        let time = self.fft.input();
-        clip(
-            f,
-            self.params.clip_method,
-            self.params.clip_alpha,
-            &mut time[..w],
-        );
-        time[w..].fill(0.0);
-        self.fft.run(&mut self.re, &mut self.im);
+        self.load(c);
         let k = self.params.spectral_exponent;
-        let power = self.power.iter_mut().zip(self.re.iter().zip(&self.im));
         if k == 2.0 {
-            power.for_each(|(p, (re, im))| *p = re * re + im * im);
+            self.inverse
+                .run_squares(self.fft.transform(), &mut self.acf);
         } else {
+            self.fft.run(&mut self.re, &mut self.im);
+            let power = self.power.iter_mut().zip(self.re.iter().zip(&self.im));
             power.for_each(|(p, (re, im))| *p = re.hypot(*im).powf(k));
+            self.inverse.run(&self.power, &mut self.acf);
         }
-        self.inverse.run(&self.power, &mut self.acf);
         let Some(&lag0) = self.acf.first() else {
             return; // a one-sample window has no lag to give
         };
         let lag0 = if POWER_RANGE.contains(&lag0) {
             lag0
         } else {
-            self.rescaled_acf(k)
+            self.rescaled_acf(c, k)
         };
         // An all-zero frame gives 0/0 = NaN at every lag, as in the AFE.
         let inv = 1.0 / lag0;
@@ -253,12 +249,27 @@ impl Autocorrelation {
         }
     }
 
-    /// The ACF again from the spectrum over its largest magnitude, where |X|^K
-    /// overflowed or sank into the subnormals (a frame near 0, K far from 2): the
-    /// normalisation by lag 0 cancels the scale, and an all-zero frame stays all zero.
-    /// Returns the new lag 0.
+    /// Writes channel `c`'s windowed frame, centre-clipped and zero-padded, into the
+    /// transform's input.
+    #[inline(always)]
+    fn load(&mut self, c: usize) {
+        let w = self.win.len();
+        let f = &self.columns[c * w..(c + 1) * w];
+        let alpha = self.params.clip_alpha;
+        let thresholds = (alpha * self.peaks[c].abs(), alpha * self.troughs[c].abs());
+        let time = self.fft.input();
+        clip(f, self.params.clip_method, thresholds, &mut time[..w]);
+        time[w..].fill(0.0);
+    }
+
+    /// The ACF of channel `c` again from its spectrum over the spectrum's largest
+    /// magnitude, where |X|^K overflowed or sank into the subnormals (a frame near 0, K
+    /// far from 2): the normalisation by lag 0 cancels the scale, and an all-zero frame
+    /// stays all zero. Returns the new lag 0.
     #[cold]
-    fn rescaled_acf(&mut self, k: f64) -> f64 {
+    fn rescaled_acf(&mut self, c: usize, k: f64) -> f64 {
+        self.load(c);
+        self.fft.run(&mut self.re, &mut self.im);
         let m = (self.re.iter().zip(&self.im)).fold(0.0f64, |m, (re, im)| m.max(re.hypot(*im)));
         if m > 0.0 {
             let power = self.power.iter_mut().zip(self.re.iter().zip(&self.im));
@@ -269,16 +280,12 @@ impl Autocorrelation {
     }
 }
 
-/// Centre-clips frame `f` into `g` (spec step 2): samples at or above `α·|max f|` and at
-/// or below `−α·|min f|` are kept (per `method`), the others become 0; a sample in both
-/// sets (zero, when both thresholds are 0) is treated as below.
+/// Centre-clips frame `f` into `g` (spec step 2) with the thresholds `(hi, lo)`,
+/// `α·|max f|` and `α·|min f|`: samples at or above `hi` and at or below `−lo` are kept
+/// (per `method`), the others become 0; a sample in both sets (zero, when both
+/// thresholds are 0) is treated as below.
 #[inline(always)]
-fn clip(f: &[f64], method: ClipMethod, alpha: f64, g: &mut [f64]) {
-    let (max, min) = f
-        .iter()
-        .fold((f64::NAN, f64::NAN), |(hi, lo), v| (hi.max(*v), lo.min(*v)));
-    let hi = alpha * max.abs();
-    let lo = alpha * min.abs();
+fn clip(f: &[f64], method: ClipMethod, (hi, lo): (f64, f64), g: &mut [f64]) {
     let pairs = g.iter_mut().zip(f);
     // One loop per method, each branch-free, so that it vectorises.
     match method {
@@ -305,7 +312,12 @@ afe_core::simd_kernel!(
         let w = ac.win.len();
         for (k, frame_out) in out.chunks_exact_mut((nc * (w - 1)).max(1)).enumerate() {
             let frame = ac.frames.frame(input.as_slice(), k);
-            frame.window_columns(&ac.win, &mut ac.columns, None);
+            frame.window_columns(
+                &ac.win,
+                &mut ac.columns,
+                Some(&mut ac.peaks),
+                Some(&mut ac.troughs),
+            );
             for (c, o) in frame_out.chunks_exact_mut(w - 1).enumerate() {
                 ac.correlate(c, o);
             }
@@ -374,21 +386,28 @@ mod tests {
         (info.lags_s.len(), all)
     }
 
+    /// Centre-clips frame `f` into `g` with the frame's thresholds.
+    fn clip_frame(f: &[f64], method: ClipMethod, alpha: f64, g: &mut [f64]) {
+        let max = f.iter().fold(f64::NAN, |m, v| m.max(*v));
+        let min = f.iter().fold(f64::NAN, |m, v| m.min(*v));
+        clip(f, method, (alpha * max.abs(), alpha * min.abs()), g);
+    }
+
     #[test]
     fn clipping_follows_the_afe() {
         let f = [-2.0, -1.0, 0.0, 1.0, 3.0, 2.0];
         let mut g = [0.0; 6];
         // hi = 0.5·3 = 1.5, lo = 0.5·2 = 1
-        clip(&f, ClipMethod::Keep, 0.5, &mut g);
+        clip_frame(&f, ClipMethod::Keep, 0.5, &mut g);
         assert_eq!(g, [-2.0, -1.0, 0.0, 0.0, 3.0, 2.0]);
-        clip(&f, ClipMethod::Compress, 0.5, &mut g);
+        clip_frame(&f, ClipMethod::Compress, 0.5, &mut g);
         assert_eq!(g, [-1.0, 0.0, 0.0, 0.0, 1.5, 0.5]);
-        clip(&f, ClipMethod::Sign, 0.5, &mut g);
+        clip_frame(&f, ClipMethod::Sign, 0.5, &mut g);
         assert_eq!(g, [-1.0, -1.0, 0.0, 0.0, 1.0, 1.0]);
         // an all-zero frame: every sample is both above and below
-        clip(&[0.0; 3], ClipMethod::Sign, 0.6, &mut g[..3]);
+        clip_frame(&[0.0; 3], ClipMethod::Sign, 0.6, &mut g[..3]);
         assert_eq!(g[..3], [-1.0; 3]);
-        clip(&[0.0; 3], ClipMethod::Keep, 0.6, &mut g[..3]);
+        clip_frame(&[0.0; 3], ClipMethod::Keep, 0.6, &mut g[..3]);
         assert_eq!(g[..3], [0.0; 3]);
     }
 
@@ -421,7 +440,7 @@ mod tests {
                 for c in 0..nc {
                     let f: Vec<f64> = (0..w).map(|n| win[n] * x[(t * h + n) * nc + c]).collect();
                     let mut g = vec![0.0; w];
-                    clip(&f, method, alpha, &mut g);
+                    clip_frame(&f, method, alpha, &mut g);
                     let acf = |j: usize| (0..w - j).map(|n| g[n] * g[n + j]).sum::<f64>();
                     for j in 0..nl {
                         let want = acf(j) / (nl - j) as f64 / (acf(0) / nl as f64);
@@ -470,7 +489,7 @@ mod tests {
             let (nl, out) = run(&p, 1, &x, &[40]);
             let f: Vec<f64> = (0..20).map(|n| win[n] * x[n]).collect();
             let mut g = vec![0.0; 20];
-            clip(&f, ClipMethod::Keep, 0.6, &mut g);
+            clip_frame(&f, ClipMethod::Keep, 0.6, &mut g);
             // W = 20: L = 2^nextpow2(39) = 64
             let c = generalised_acf(&g, 64, k);
             for j in 0..nl {

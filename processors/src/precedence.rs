@@ -359,7 +359,7 @@ afe_core::simd_kernel!(
     /// Windows the frame (`[time][channel]`, `nc` wide) into `cols` (`[channel][time]`) and
     /// each channel's largest windowed value into `peaks` (NaN ignored, as MATLAB's `max`).
     fn window_columns<'a>(win: &[f64], frame: Frame<'a>, cols: &mut [f64], peaks: &mut [f64]) {
-        frame.window_columns(win, cols, Some(peaks));
+        frame.window_columns(win, cols, Some(peaks), None);
     }
 );
 

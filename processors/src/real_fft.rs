@@ -96,10 +96,20 @@ impl RealFft {
         2 * self.pairs.len()
     }
 
-    /// The `N` real values to transform. [`RealFft::run`] leaves them unspecified: write
+    /// The `N` real values to transform. The transforms leave them unspecified: write
     /// all of them before each run.
     pub fn input(&mut self) -> &mut [f64] {
         bytemuck::cast_slice_mut(&mut self.pairs)
+    }
+
+    /// The half-length FFT `Z[0..M]` of the input's pairs, without the split pass, for
+    /// callers that fuse the split with what they do next; and the split's twiddles
+    /// `½·e^{−2πik/N}`, `0 < k < ⌈N/4⌉` (from `k = 1`), real and imaginary parts.
+    #[inline(always)]
+    pub fn transform(&mut self) -> (&[Complex64], (&[f64], &[f64])) {
+        self.fft
+            .process_outofplace_with_scratch(&mut self.pairs, &mut self.z, &mut self.scratch);
+        (&self.z, (&self.twiddle_re, &self.twiddle_im))
     }
 
     /// Writes the spectrum `X[0..=M]` of the input, real parts into `re` and imaginary
@@ -114,9 +124,8 @@ impl RealFft {
             re.len() == m + 1 && im.len() == m + 1,
             "the spectrum's first half, M + 1 values"
         );
-        self.fft
-            .process_outofplace_with_scratch(&mut self.pairs, &mut self.z, &mut self.scratch);
-        for ((r, i), z) in re.iter_mut().zip(im.iter_mut()).zip(&self.z) {
+        let (z, _) = self.transform();
+        for ((r, i), z) in re.iter_mut().zip(im.iter_mut()).zip(z) {
             (*r, *i) = (z.re, z.im);
         }
         let (z0_re, z0_im) = (re[0], im[0]);
