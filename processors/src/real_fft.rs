@@ -28,6 +28,18 @@ pub fn transform_values(n: usize) -> usize {
     n.saturating_mul(6)
 }
 
+/// The smallest length from `n` on of the form `2^k`, `3·2^k`, `5·2^k` or `7·2^k`, which
+/// these transforms run fastest: for a linear correlation, any length beyond its lags
+/// gives the same values (1792 for 20 ms at 44.1 kHz, about 12 % faster than the AFE's
+/// 2048).
+pub fn fast_len(n: usize) -> usize {
+    [1, 3, 5, 7]
+        .into_iter()
+        .map(|m| m * n.div_ceil(m).next_power_of_two())
+        .min()
+        .unwrap_or(n)
+}
+
 /// The complex FFT of `n/2` points (forward or inverse) for a real transform of `n`
 /// values (even, at least 2), and `cos θ_k`, `sin θ_k` for `θ_k = −2πk/n`,
 /// `0 < k < ⌈n/4⌉`, which each direction scales its own way.
@@ -274,6 +286,23 @@ mod tests {
     use super::*;
     use crate::testing::noise;
     use realfft::RealFftPlanner;
+
+    #[test]
+    fn transform_lengths_are_the_smallest_of_four_families() {
+        // 2W − 1 at 16, 44.1 and 48 kHz (5·2^7, 7·2^8, 2^11), then 2^10 and 3·2^8
+        // exactly, and one above 3·2^8 (7·2^7)
+        let cases = [
+            (639, 640),
+            (1763, 1792),
+            (1919, 2048),
+            (1024, 1024),
+            (768, 768),
+            (769, 896),
+        ];
+        for (n, want) in cases {
+            assert_eq!(fast_len(n), want, "{n}");
+        }
+    }
 
     fn spectrum(fft: &mut RealFft, x: &[f64]) -> Vec<Complex64> {
         fft.input().copy_from_slice(x);
