@@ -84,8 +84,8 @@ impl<'a> Frame<'a> {
     /// Writes the frame's rows, row `t` times `win[t]`, into `cols` as columns
     /// (`[column][time]`, `win.len()` values each, one per row), and where `peaks` is
     /// given (one per column) each column's largest windowed value into it, and where
-    /// `troughs` is given its smallest (NaN ignored, as MATLAB's `max` and `min`). Tiles of [`TILE`] rows by [`TILE`] columns go through
-    /// registers, so that each column takes a cache line per store; the last tile of a
+    /// `troughs` is given its smallest (NaN ignored, as MATLAB's `max` and `min`). Tiles
+    /// of [`TILE`] rows by [`TILE`] columns go through registers, so that each column takes a cache line per store; the last tile of a
     /// row ends at its last column (a column in two tiles gets its values twice).
     /// Inlined so that its loops get the caller's vector width.
     #[inline(always)]
@@ -126,10 +126,10 @@ impl<'a> Frame<'a> {
                             }
                         }
                     }
-                    if let Some(t) = troughs.as_deref_mut() {
+                    if let Some(low) = troughs.as_deref_mut() {
                         for row in &block {
-                            for (t, v) in t[c0..c0 + TILE].iter_mut().zip(row) {
-                                *t = t.min(*v);
+                            for (l, v) in low[c0..c0 + TILE].iter_mut().zip(row) {
+                                *l = l.min(*v);
                             }
                         }
                     }
@@ -153,8 +153,8 @@ impl<'a> Frame<'a> {
                     if let Some(p) = peaks.as_deref_mut() {
                         p[c] = p[c].max(x);
                     }
-                    if let Some(t) = troughs.as_deref_mut() {
-                        t[c] = t[c].min(x);
+                    if let Some(low) = troughs.as_deref_mut() {
+                        low[c] = low[c].min(x);
                     }
                 }
             }

@@ -129,14 +129,18 @@ pub struct Autocorrelation {
     fft: RealFft,
     /// The inverse of the (real, even) power spectrum, at half a full transform's cost.
     inverse: EvenInverse,
-    /// Windowed frame, `[channel][time]`, and each channel's largest and smallest value.
+    /// Windowed frame, `[channel][time]`.
     columns: Vec<f64>,
+    /// Each channel's largest windowed value (the clipping's upper threshold over α).
     peaks: Vec<f64>,
+    /// Each channel's smallest windowed value (the lower threshold over −α).
     troughs: Vec<f64>,
-    /// The frame's spectrum `X[0..=N/2]`, real and imaginary parts.
+    /// The frame's spectrum `X[0..=N/2]`, real and imaginary parts (for `K ≠ 2` and
+    /// rescaled spectra; `K = 2` goes from the transform to the inverse in one pass).
     re: Vec<f64>,
     im: Vec<f64>,
-    /// The power spectrum's first half, and the unnormalised ACF at lags `0..W − 1`.
+    /// The power spectrum's first half (for `K ≠ 2` and rescaled spectra), and the
+    /// unnormalised ACF at lags `0..W − 1`.
     power: Vec<f64>,
     acf: Vec<f64>,
 }
@@ -226,7 +230,7 @@ impl Autocorrelation {
         Ok((ac, info))
     }
 
-    /// The normalised ACF of the windowed frame `f` into `out` (`W − 1` lags); inlined
+    /// The normalised ACF of channel `c`'s windowed frame into `out` (`W − 1` lags); inlined
     /// into [`correlate_frames`] so that its loops get that function's vector width.
     #[inline(always)]
     fn correlate(&mut self, c: usize, out: &mut [f64]) {
@@ -241,9 +245,8 @@ impl Autocorrelation {
             power.for_each(|(p, (re, im))| *p = re.hypot(*im).powf(k));
             self.inverse.run(&self.power, &mut self.acf);
         }
-        let Some(&lag0) = self.acf.first() else {
-            return; // a one-sample window has no lag to give
-        };
+        // W ≥ 2 (check_framing), so there is a lag 0
+        let lag0 = self.acf[0];
         let lag0 = if POWER_RANGE.contains(&lag0) {
             lag0
         } else {

@@ -82,7 +82,7 @@ impl EvenInverse {
     /// `N` points, from that transform's half-length output `z` (`Z[0..M]`) and its split
     /// twiddles ([`RealFft::transform`]): the split, the powers and the fold into `u` in one
     /// pass over the pairs `(k, M − k)`, with `P` never stored. `P` and `u` are those of
-    /// the forward transform's spectrum bit for bit; `C[1]` sums the same terms in
+    /// the forward transform's spectrum bit for bit (for powers below `f64::MAX/2`); `C[1]` sums the same terms in
     /// another order.
     ///
     /// # Panics
@@ -104,8 +104,9 @@ impl EvenInverse {
         u[0] = 0.5 * (p0 + pm) + sin[0] * (p0 - pm);
         let c = m / 2;
         let pc = z[2 * c] * z[2 * c] + z[2 * c + 1] * z[2 * c + 1];
-        u[c] = pc; // ½(P + P) + sin·(P − P), exactly, for a finite P below f64::MAX/2
-                   // pairs (k, M − k), 0 < k < M/2: `low` from k = 1 up, `high` from M − 1 down
+        // ½(P + P) + sin·(P − P), exactly, for a finite P below f64::MAX/2
+        u[c] = pc;
+        // pairs (k, M − k), 0 < k < M/2: `low` from k = 1 up, `high` from M − 1 down
         let pairs = c - 1;
         let (u_low, u_rest) = u[1..].split_at_mut(pairs);
         let high_start = u_rest.len() - pairs;
@@ -277,13 +278,15 @@ mod tests {
     }
 
     /// The fused pass from the forward transform gives the inverse of its squared
-    /// spectrum, for pair counts with and without a remainder after whole vectors (none
-    /// at N = 4, 15 at 64, 511 at 2048).
+    /// spectrum, for pair counts with and without a remainder after whole vectors (0 pairs
+    /// at N = 4, 1 at 8, 8 at 36, 15 at 64, 511 at 2048).
     #[test]
     fn squares_from_the_forward_transform_equal_the_inverse_of_the_powers() {
         for (n, count) in [
             (4, 3),
+            (8, 5),
             (12, 7),
+            (36, 19),
             (64, 33),
             (64, 20),
             (2048, 881),
