@@ -85,8 +85,9 @@ impl<'a> Frame<'a> {
     /// (`[column][time]`, `win.len()` values each, one per row), and where `peaks` is
     /// given (one per column) each column's largest windowed value into it, and where
     /// `troughs` is given its smallest (NaN ignored, as MATLAB's `max` and `min`). Tiles
-    /// of [`TILE`] rows by [`TILE`] columns go through registers, so that each column takes a cache line per store; the last tile of a
-    /// row ends at its last column (a column in two tiles gets its values twice).
+    /// of [`TILE`] rows by [`TILE`] columns go through registers, so that each column
+    /// takes a cache line per store; the last tile of a row ends at its last column (a
+    /// column in two tiles gets its values twice).
     /// Inlined so that its loops get the caller's vector width.
     #[inline(always)]
     pub fn window_columns(

@@ -15,7 +15,7 @@ use std::f64::consts::PI;
 
 use num_complex::Complex64;
 
-use crate::real_fft::RealFft;
+use crate::real_fft::{split_pair, RealFft};
 
 /// A planned inverse of length `N` for real, even spectra, with its buffers.
 pub struct EvenInverse {
@@ -82,8 +82,8 @@ impl EvenInverse {
     /// `N` points, from that transform's half-length output `z` (`Z[0..M]`) and its split
     /// twiddles ([`RealFft::transform`]): the split, the powers and the fold into `u` in one
     /// pass over the pairs `(k, M − k)`, with `P` never stored. `P` and `u` are those of
-    /// the forward transform's spectrum bit for bit (for powers below `f64::MAX/2`); `C[1]` sums the same terms in
-    /// another order.
+    /// the forward transform's spectrum bit for bit (for powers below `f64::MAX/2`);
+    /// `C[1]` sums the same terms in another order.
     ///
     /// # Panics
     /// If `z` does not hold `M` values or `out` more than `M + 1`.
@@ -200,14 +200,9 @@ impl Fold<'_> {
         let (mut u_low, mut u_high) = ([0.0; N], [0.0; N]);
         for l in 0..N {
             let h = N - 1 - l;
-            let (xr, xi) = (z_low[2 * l], z_low[2 * l + 1]);
-            let (yr, yi) = (z_high[2 * h], z_high[2 * h + 1]);
-            let (sum_re, sum_im) = (xr + yr, xi + yi);
-            let (diff_re, diff_im) = (xr - yr, xi - yi);
-            let t_re = sum_im * tw_re[l] + diff_re * tw_im[l];
-            let t_im = sum_im * tw_im[l] - diff_re * tw_re[l];
-            let (a, b) = (0.5 * sum_re, 0.5 * diff_im);
-            let (lo_re, lo_im, hi_re, hi_im) = (a + t_re, b + t_im, a - t_re, t_im - b);
+            let x = (z_low[2 * l], z_low[2 * l + 1]);
+            let y = (z_high[2 * h], z_high[2 * h + 1]);
+            let ((lo_re, lo_im), (hi_re, hi_im)) = split_pair::<false>(x, y, (tw_re[l], tw_im[l]));
             let p_low = lo_re * lo_re + lo_im * lo_im;
             let p_high = hi_re * hi_re + hi_im * hi_im;
             u_low[l] = 0.5 * (p_low + p_high) + sin_low[l] * (p_low - p_high);

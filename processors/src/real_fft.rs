@@ -266,20 +266,32 @@ afe_core::simd_kernel!(
         let (im_high, tw_re, tw_im) = (&mut im_high[..pairs], &tw_re[..pairs], &tw_im[..pairs]);
         for i in 0..pairs {
             let j = pairs - 1 - i;
-            let (xr, xi, yr, yi) = (re_low[i], im_low[i], re_high[j], im_high[j]);
-            let (sum_re, sum_im) = (xr + yr, xi + yi);
-            let (diff_re, diff_im) = (xr - yr, xi - yi);
-            let t_re = sum_im * tw_re[i] + diff_re * tw_im[i];
-            let t_im = sum_im * tw_im[i] - diff_re * tw_re[i];
-            let (a, b, t_re, t_im) = match INVERSE {
-                true => (sum_re, diff_im, -t_re, -t_im),
-                false => (0.5 * sum_re, 0.5 * diff_im, t_re, t_im),
-            };
-            (re_low[i], im_low[i]) = (a + t_re, b + t_im);
-            (re_high[j], im_high[j]) = (a - t_re, t_im - b);
+            let (x, y) = ((re_low[i], im_low[i]), (re_high[j], im_high[j]));
+            let (low, high) = split_pair::<INVERSE>(x, y, (tw_re[i], tw_im[i]));
+            ((re_low[i], im_low[i]), (re_high[j], im_high[j])) = (low, high);
         }
     }
 );
+
+/// One pair of [`split`]: from `x` at `k`, `y` at `M − k` and the twiddle of `k` (real,
+/// imaginary parts), the values at `k` and at `M − k`, in `realfft`'s order of
+/// operations (the inverse's signs are the forward's negated, which changes no bit).
+#[inline(always)]
+pub fn split_pair<const INVERSE: bool>(
+    (xr, xi): (f64, f64),
+    (yr, yi): (f64, f64),
+    (tw_re, tw_im): (f64, f64),
+) -> ((f64, f64), (f64, f64)) {
+    let (sum_re, sum_im) = (xr + yr, xi + yi);
+    let (diff_re, diff_im) = (xr - yr, xi - yi);
+    let t_re = sum_im * tw_re + diff_re * tw_im;
+    let t_im = sum_im * tw_im - diff_re * tw_re;
+    let (a, b, t_re, t_im) = match INVERSE {
+        true => (sum_re, diff_im, -t_re, -t_im),
+        false => (0.5 * sum_re, 0.5 * diff_im, t_re, t_im),
+    };
+    ((a + t_re, b + t_im), (a - t_re, t_im - b))
+}
 
 #[cfg(test)]
 mod tests {
