@@ -128,15 +128,14 @@ struct Direct {
     starts: Vec<usize>,
     /// Lags of each half-length correlation: `maxLag + 1`, rounded up to `lag_block`.
     half_lags: usize,
-    /// Per group, the left frame's polyphase rows: `L_even`, `L_odd` and
+    /// The current group's left polyphase rows (each group in turn, so that they stay
+    /// in cache for the dot products): `L_even`, `L_odd` and
     /// `L_odd − L_even[·+1]`, `W/2 + half_lags` rows each, zero outside the frame.
     left: Vec<Lanes>,
-    /// Per group, the right frame's `r_even`, `r_odd` and `r_even − r_odd`, `W/2` rows each.
+    /// The current group's right rows: `r_even`, `r_odd` and `r_even − r_odd`, `W/2` rows each.
     right: Vec<Lanes>,
     /// `E`, `O` and `D` of one group, `half_lags` rows each.
     acc: Vec<Lanes>,
-    /// Energies of the current frames, per group.
-    energy: Vec<Energy>,
 }
 
 /// FFT plans, window and scratch of the per-channel correlation.
@@ -192,14 +191,10 @@ impl Crosscorrelation {
         let nc = input.channels();
         let engine = if prefer_direct(w, max_lag) {
             // the direct engine keeps three rows of half a window (and the lags) per
-            // channel and ear (found by fuzzing: 1.4 GB for a long window over 1024
-            // channels)
+            // ear and channel of one group (found by fuzzing: 1.4 GB for a long window
+            // when it kept every channel's)
             let rows = 3 * (2 * (w / 2) + max_lag + 13);
-            check_work(
-                ("cc_wSizeSec", params.w_size_sec),
-                nc.div_ceil(LANES) * LANES * rows,
-                nc,
-            )?;
+            check_work(("cc_wSizeSec", params.w_size_sec), LANES * rows, nc)?;
             Engine::Direct(Direct::new(win, max_lag, nc))
         } else {
             Engine::Fft(Box::new(FftEngine::new(win, max_lag)))
@@ -262,13 +257,11 @@ impl Direct {
     fn for_groups(win: Vec<f64>, max_lag: usize, lag_block: usize, starts: Vec<usize>) -> Self {
         let half_lags = (max_lag + 1).next_multiple_of(lag_block);
         let half = win.len() / 2;
-        let groups = starts.len();
         Direct {
             starts,
-            left: vec![Lanes::default(); groups * 3 * (half + half_lags)],
-            right: vec![Lanes::default(); groups * 3 * half],
+            left: vec![Lanes::default(); 3 * (half + half_lags)],
+            right: vec![Lanes::default(); 3 * half],
             acc: vec![Lanes::default(); 3 * half_lags],
-            energy: vec![([0.0; LANES], [0.0; LANES]); groups],
             win,
             max_lag,
             lag_block,
@@ -289,23 +282,6 @@ impl Direct {
         let (nc, first) = (frame_l.width(), frame_l.first_column());
         let half = self.win.len() / 2;
         let (rows_l, k) = (half + self.half_lags, self.half_lags);
-        let groups = self.starts.len();
-        for g in (0..groups).step_by(BATCH) {
-            let batch = BATCH.min(groups - g);
-            let left = &mut self.left[3 * rows_l * g..3 * rows_l * (g + batch)];
-            let right = &mut self.right[3 * half * g..3 * half * (g + batch)];
-            let frames = (frame_l, frame_r);
-            let energy = &mut self.energy[g..g + batch];
-            let starts = &self.starts[g..g + batch];
-            let window = match batch {
-                _ if nc < LANES => window_frames::<1, false>,
-                1 => window_frames::<1, true>,
-                2 => window_frames::<2, true>,
-                3 => window_frames::<3, true>,
-                _ => window_frames::<4, true>,
-            };
-            window(&self.win, frames, self.max_lag, starts, left, right, energy);
-        }
         let dot = match self.lag_block {
             5 => dot_lags::<5>,
             8 => dot_lags::<8>,
@@ -316,11 +292,14 @@ impl Direct {
             _ => dot_lags::<4>,
         };
         let nl = 2 * self.max_lag + 1;
-        let parts = self
-            .left
-            .chunks_exact(3 * rows_l)
-            .zip(self.right.chunks_exact(3 * half));
-        for ((left, right), ((el, er), &c0)) in parts.zip(self.energy.iter().zip(&self.starts)) {
+        let window = if nc < LANES {
+            window_frames::<false>
+        } else {
+            window_frames::<true>
+        };
+        for &c0 in &self.starts {
+            let (left, right) = (&mut self.left, &mut self.right);
+            let (el, er) = window(&self.win, (frame_l, frame_r), self.max_lag, c0, left, right);
             let phases = left.chunks_exact(rows_l).zip(right.chunks_exact(half));
             for ((l, r), acc) in phases.zip(self.acc.chunks_exact_mut(k)) {
                 dot(l, r, acc);
@@ -345,35 +324,29 @@ impl Direct {
     }
 }
 
-/// Groups windowed per pass of [`window_frames`] (their energies held in registers).
-const BATCH: usize = 4;
-
-/// Per-group energies `Σ (win·x)²` of the left and right frames.
+/// A group's energies `Σ (win·x)²` of the left and right frames.
 type Energy = ([f64; LANES], [f64; LANES]);
 
 afe_core::simd_kernel!(
-    /// Windows the frame pair (`[time][channel]`) into the polyphase rows of `G` groups
-    /// (first input channels `starts`; `left` and `right` laid out as in [`Direct`]), with
-    /// the frames' energies into `energy`, summed in time order in registers. Row `n` of the
+    /// Windows the frame pair (`[time][channel]`) into the polyphase rows of the group
+    /// whose first input channel is `start` (`left` and `right` laid out as in [`Direct`]),
+    /// and returns the frames' energies, summed in time order in registers. Row `n` of the
     /// left frame is row `p = n + maxLag` of `L`: row `p / 2` of `L_even` or `L_odd`, and of
     /// the differences with its neighbour (`L[p−1] − L[p]` at row `p/2 − 1` for an even `p`,
     /// `r[n−1] − r[n]` at row `n / 2` for an odd `n`). `WIDE`: at least `LANES` channels
     /// (else the frame's channels fill the first lanes, the others stay zero).
-    fn window_frames<'a, const G: usize, const WIDE: bool>(
+    fn window_frames<'a, const WIDE: bool>(
         win: &[f64],
         (frame_l, frame_r): (Frame<'a>, Frame<'a>),
         max_lag: usize,
-        starts: &[usize],
+        start: usize,
         left: &mut [Lanes],
         right: &mut [Lanes],
-        energy: &mut [Energy],
-    ) {
-        let (rows_l, half) = (left.len() / (3 * G), right.len() / (3 * G));
-        let mut el = [[0.0; LANES]; G];
-        let mut er = [[0.0; LANES]; G];
-        // the previous row of each group (zero before the frame)
-        let mut prev_l = [[0.0; LANES]; G];
-        let mut prev_r = [[0.0; LANES]; G];
+    ) -> Energy {
+        let (rows_l, half) = (left.len() / 3, right.len() / 3);
+        let (mut el, mut er) = ([0.0; LANES], [0.0; LANES]);
+        // the previous row (zero before the frame)
+        let (mut prev_l, mut prev_r) = ([0.0; LANES], [0.0; LANES]);
         let (nc, first) = (frame_l.width(), frame_l.first_column());
         let mut n = 0;
         let segments = frame_l.segments().into_iter().zip(frame_r.segments());
@@ -381,52 +354,45 @@ afe_core::simd_kernel!(
             let rows = part_l.chunks_exact(stride).zip(part_r.chunks_exact(stride));
             for ((row_l, row_r), &w) in rows.zip(&win[n..]) {
                 let p = n + max_lag;
-                let at_l = (p % 2) * rows_l + p / 2;
-                let at_r = (n % 2) * half + n / 2;
-                for g in 0..G {
-                    let (mut xl, mut xr) = ([0.0; LANES], [0.0; LANES]);
-                    if WIDE {
-                        let c0 = at + starts[g] - first;
-                        xl.copy_from_slice(&row_l[c0..c0 + LANES]);
-                        xr.copy_from_slice(&row_r[c0..c0 + LANES]);
-                    } else {
-                        xl[..nc].copy_from_slice(&row_l[at..at + nc]);
-                        xr[..nc].copy_from_slice(&row_r[at..at + nc]);
-                    }
-                    for l in 0..LANES {
-                        xl[l] *= w;
-                        xr[l] *= w;
-                        el[g][l] += xl[l] * xl[l];
-                        er[g][l] += xr[l] * xr[l];
-                    }
-                    let (gl, gr) = (3 * rows_l * g, 3 * half * g);
-                    left[gl + at_l].0 = xl;
-                    right[gr + at_r].0 = xr;
-                    if p % 2 == 0 && p >= 2 {
-                        let s = &mut left[gl + 2 * rows_l + p / 2 - 1].0;
-                        for l in 0..LANES {
-                            s[l] = prev_l[g][l] - xl[l];
-                        }
-                    }
-                    if n % 2 == 1 {
-                        let s = &mut right[gr + 2 * half + n / 2].0;
-                        for l in 0..LANES {
-                            s[l] = prev_r[g][l] - xr[l];
-                        }
-                    }
-                    (prev_l[g], prev_r[g]) = (xl, xr);
+                let (mut xl, mut xr) = ([0.0; LANES], [0.0; LANES]);
+                if WIDE {
+                    let c0 = at + start - first;
+                    xl.copy_from_slice(&row_l[c0..c0 + LANES]);
+                    xr.copy_from_slice(&row_r[c0..c0 + LANES]);
+                } else {
+                    xl[..nc].copy_from_slice(&row_l[at..at + nc]);
+                    xr[..nc].copy_from_slice(&row_r[at..at + nc]);
                 }
+                for l in 0..LANES {
+                    xl[l] *= w;
+                    xr[l] *= w;
+                    el[l] += xl[l] * xl[l];
+                    er[l] += xr[l] * xr[l];
+                }
+                left[(p % 2) * rows_l + p / 2].0 = xl;
+                right[(n % 2) * half + n / 2].0 = xr;
+                if p % 2 == 0 && p >= 2 {
+                    let s = &mut left[2 * rows_l + p / 2 - 1].0;
+                    for l in 0..LANES {
+                        s[l] = prev_l[l] - xl[l];
+                    }
+                }
+                if n % 2 == 1 {
+                    let s = &mut right[2 * half + n / 2].0;
+                    for l in 0..LANES {
+                        s[l] = prev_r[l] - xr[l];
+                    }
+                }
+                (prev_l, prev_r) = (xl, xr);
                 n += 1;
             }
         }
         // a last row of odd parity: its difference with the zero after the frame (row `p`)
         let p = n + max_lag;
-        for g in 0..G {
-            if p % 2 == 0 {
-                left[3 * rows_l * g + 2 * rows_l + p / 2 - 1].0 = prev_l[g];
-            }
-            energy[g] = (el[g], er[g]);
+        if p % 2 == 0 {
+            left[2 * rows_l + p / 2 - 1].0 = prev_l;
         }
+        (el, er)
     }
 );
 
