@@ -190,10 +190,11 @@ impl Crosscorrelation {
         let win = window(&params.wname, w, "cc_wname")?;
         let nc = input.channels();
         let engine = if prefer_direct(w, max_lag) {
-            // the direct engine keeps three rows of half a window (and the lags) per
-            // ear and channel of one group (found by fuzzing: 1.4 GB for a long window
-            // when it kept every channel's)
-            let rows = 3 * (2 * (w / 2) + max_lag + 13);
+            // the direct engine keeps, for one group of channels, three rows of half a
+            // window per ear, and three of the lags (padded by at most 11) for the left
+            // frame's shifts and the sums (found by fuzzing: 1.4 GB for a long window
+            // when it kept every group's)
+            let rows = 3 * (2 * (w / 2) + 2 * (max_lag + 12));
             check_work(("cc_wSizeSec", params.w_size_sec), LANES * rows, nc)?;
             Engine::Direct(Direct::new(win, max_lag, nc))
         } else {
