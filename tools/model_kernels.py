@@ -16,15 +16,19 @@ profile of a host whose model it has.
 """
 
 import argparse
+import bisect
 import collections
 import re
 import subprocess
 
-ARITHMETIC = re.compile(r"^v(f?n?m(ul|add|sub)\w*|add|sub|mul|div)[sp]d\b")
+ARITHMETIC = re.compile(r"^v?(f?n?m(ul|add|sub)\w*|add|sub|mul|div)[sp][sd]\b")
 
 
 def run(*cmd):
-    return subprocess.run(cmd, capture_output=True, text=True, check=True).stdout
+    done = subprocess.run(cmd, capture_output=True, text=True)
+    if done.returncode != 0:
+        raise SystemExit(f"{cmd[0]} failed: {done.stderr.strip()}")
+    return done.stdout
 
 
 def symbols(binary):
@@ -44,7 +48,7 @@ def samples(data, syms):
     for start, _, name in syms:
         starts[name].append(start)
     counts, base = collections.Counter(), None
-    for line in run("perf", "script", "-i", data, "-F", "ip,sym,symoff").splitlines():
+    for line in run("perf", "script", "-G", "-i", data, "-F", "ip,sym,symoff").splitlines():
         m = re.match(r"\s*([0-9a-f]+)\s+(.*)\+0x([0-9a-f]+)$", line.strip())
         if not m:
             continue
@@ -80,7 +84,9 @@ def hot_loop(code, counts):
     if not loops:
         return 0, []
     total = sum(counts[a] for a, _ in code)
-    hot = [x for x in loops if x[0] >= 0.4 * total] or loops
+    hot = [x for x in loops if x[0] >= 0.4 * total]
+    if not hot:
+        return max(loops, key=lambda x: x[0])
     return min(hot, key=lambda x: len(x[1]))
 
 
@@ -103,14 +109,18 @@ def main():
     syms = symbols(args.binary)
     counts = samples(args.data, syms)
     total = sum(counts.values())
-
-    def weight(sym):
-        return sum(n for a, n in counts.items() if sym[0] <= a < sym[0] + sym[1])
-
+    syms.sort()
+    starts = [start for start, _, _ in syms]
+    weight = collections.Counter()
+    for address, n in counts.items():
+        i = bisect.bisect_right(starts, address) - 1
+        if i >= 0 and address < syms[i][0] + syms[i][1]:
+            weight[i] += n
     cpus = args.cpus.split(",")
     print(f"{'share':>6} {'loop':>5} {'arith':>5}  " + " ".join(f"{c:>16}" for c in cpus)
           + "  symbol (cycles per loop iteration)")
-    for sym in sorted(syms, key=weight, reverse=True)[: args.top]:
+    for i, _ in weight.most_common(args.top):
+        sym = syms[i]
         n, body = hot_loop(disassemble(args.binary, sym[0], sym[1]), counts)
         if not body:
             continue

@@ -101,8 +101,8 @@ const LANES: usize = 8;
 #[repr(align(64))]
 struct Lanes([f64; LANES]);
 
-/// Window, polyphase frames and accumulators of the direct method, per group of `LANES`
-/// channels (see [`vector_start`]; with fewer channels, the unused lanes stay zero).
+/// Window, polyphase frames and accumulators of the direct method, for one group of
+/// `LANES` channels at a time (see [`vector_start`]; with fewer channels, the unused lanes stay zero).
 ///
 /// The correlation `acc[i] = Σ_n L[n+i]·r[n]` (`L`: the left frame after `maxLag` zero
 /// rows, `r`: the right frame, `i = ℓ + maxLag`) is split over even and odd samples, a
@@ -190,12 +190,12 @@ impl Crosscorrelation {
         let win = window(&params.wname, w, "cc_wname")?;
         let nc = input.channels();
         let engine = if prefer_direct(w, max_lag) {
-            // the direct engine keeps, for one group of channels, three rows of half a
-            // window per ear, and three of the lags (padded by at most 11) for the left
-            // frame's shifts and the sums (found by fuzzing: 1.4 GB for a long window
-            // when it kept every group's)
-            let rows = 3 * (2 * (w / 2) + 2 * (max_lag + 12));
-            check_work(("cc_wSizeSec", params.w_size_sec), LANES * rows, nc)?;
+            // found by fuzzing: 1.4 GB for a long window when it kept every group's rows
+            check_work(
+                ("cc_wSizeSec", params.w_size_sec),
+                direct_work(w, max_lag),
+                nc,
+            )?;
             Engine::Direct(Direct::new(win, max_lag, nc))
         } else {
             Engine::Fft(Box::new(FftEngine::new(win, max_lag)))
@@ -214,6 +214,13 @@ impl Crosscorrelation {
             .with_window_s(params.w_size_sec);
         Ok((cc, info))
     }
+}
+
+/// At most the `f64` values of the direct engine's buffers for a `w`-sample window and
+/// lags up to `max_lag`: for one group of channels, three rows of half a window per ear,
+/// and three of the lags (padded by at most 11) for the left frame's shifts and the sums.
+fn direct_work(w: usize, max_lag: usize) -> usize {
+    LANES * 3 * (2 * (w / 2) + 2 * (max_lag + 12))
 }
 
 /// Whether dot products beat the FFT for a `w`-sample window and lags up to `max_lag`:
@@ -794,9 +801,24 @@ mod tests {
     }
 
     #[test]
+    fn the_working_memory_bound_holds_every_buffer() {
+        for (w, max_lag) in [(40, 0), (40, 11), (42, 12), (882, 49), (882, 882)] {
+            let win = window("hann", w, "").expect("hann");
+            for lag_block in [4, 5, 8, 9, 10, 11, 12] {
+                let d = Direct::with_lag_block(win.clone(), max_lag, 37, lag_block);
+                let held = LANES * (d.left.len() + d.right.len() + d.acc.len());
+                assert!(
+                    held <= direct_work(w, max_lag),
+                    "W {w}, maxLag {max_lag}, {lag_block} lags per pass: {held}"
+                );
+            }
+        }
+    }
+
+    #[test]
     fn direct_and_fft_engines_agree() {
-        // Channel counts below one group, with a partial group, in a batch of three
-        // groups and over one batch; half frames of even and odd length; lags up to and
+        // Channel counts below one group (3), and of two, three and five groups that
+        // reuse one buffer, the last one overlapping its neighbour (11, 20, 37); half frames of even and odd length; lags up to and
         // beyond the window, and lag counts that leave 1, 2 or 3 lags of a block of 5,
         // 10 or 11 beyond a multiple of 4; frames that start in rows kept from an earlier
         // chunk; a window that ends in 0 (hann) and one that does not (hamming).
