@@ -7,9 +7,9 @@ Xeon's AVX2 path), with LLVM's machine-code analyser.
 
 For each of the `top` symbols with the most samples (each instance of a generic kernel
 apart), it takes the innermost loop holding at least 40 % of the symbol's samples (a
-backward jump in the disassembly and its body), and prints the loop's share of all samples, its
-instructions, its floating-point arithmetic, and the cycles per iteration `llvm-mca`
-predicts on each CPU model (throughput-bound, data in the first-level cache). BIN needs
+backward jump in the disassembly and its body), and prints the loop's share of all
+samples, its instructions, its floating-point arithmetic, and the cycles per iteration
+`llvm-mca` predicts on each CPU model (throughput-bound, data in the first-level cache). BIN needs
 symbols (a release build keeps them). Needs perf, objdump and llvm-mca (Debian's binutils,
 linux-perf and llvm). A model, not a measurement: compare it with the measured
 profile of a host whose model it has.

@@ -102,7 +102,8 @@ const LANES: usize = 8;
 struct Lanes([f64; LANES]);
 
 /// Window, polyphase frames and accumulators of the direct method, for one group of
-/// `LANES` channels at a time (see [`vector_start`]; with fewer channels, the unused lanes stay zero).
+/// `LANES` channels at a time (see [`vector_start`]; with fewer channels, the unused
+/// lanes stay zero).
 ///
 /// The correlation `acc[i] = Σ_n L[n+i]·r[n]` (`L`: the left frame after `maxLag` zero
 /// rows, `r`: the right frame, `i = ℓ + maxLag`) is split over even and odd samples, a
@@ -818,10 +819,11 @@ mod tests {
     #[test]
     fn direct_and_fft_engines_agree() {
         // Channel counts below one group (3), and of two, three and five groups that
-        // reuse one buffer, the last one overlapping its neighbour (11, 20, 37); half frames of even and odd length; lags up to and
-        // beyond the window, and lag counts that leave 1, 2 or 3 lags of a block of 5,
-        // 10 or 11 beyond a multiple of 4; frames that start in rows kept from an earlier
-        // chunk; a window that ends in 0 (hann) and one that does not (hamming).
+        // reuse one buffer, the last one overlapping its neighbour (11, 20, 37); half
+        // frames of even and odd length; lags up to and beyond the window, and lag counts
+        // that leave 1, 2 or 3 lags of a block of 5, 10 or 11 beyond a multiple of 4;
+        // frames that start in rows kept from an earlier chunk; a window that ends in 0
+        // (hann) and one that does not (hamming).
         let configs = [(40, 11), (42, 3), (42, 37), (40, 20)];
         for ((w, nc), wname) in configs
             .into_iter()
