@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use afe::extract::{run_slices_into, run_with, Discard, Job};
+use afe::host::Host;
 use afe::Manager;
 use serde_json::json;
 
@@ -89,6 +90,7 @@ fn bench(
     times.sort_by(f64::total_cmp);
     let median = times[times.len() / 2];
     let outputs = if discard { "discarded" } else { "kept" };
+    let host = Host::detect();
     let result = json!({
         "input": input.display().to_string(),
         "requests": job.requests,
@@ -102,17 +104,19 @@ fn bench(
         "repeat": repeat,
         "outputs": outputs,
         "output_values": values,
+        "host": host,
     });
     if as_json {
         outln!("{result}");
     } else {
         outln!(
-            "{:.3} s of audio in {:.4} s (median of {repeat}; first run {first:.4} s): {:.1}x real time, threads {}, chunk {}, {values} output values {outputs}",
+            "{:.3} s of audio in {:.4} s (median of {repeat}; first run {first:.4} s): {:.1}x real time, threads {}, chunk {}, {values} output values {outputs}; {}",
             seconds,
             median,
             seconds / median,
             job.threads,
-            job.chunk.map_or("whole signal".to_string(), |c| format!("{c} samples"))
+            job.chunk.map_or("whole signal".to_string(), |c| format!("{c} samples")),
+            host.describe()
         );
     }
     Ok(())

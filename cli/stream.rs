@@ -276,6 +276,7 @@ pub(crate) fn stream(mut job: StreamJob, run: &StreamRun<'_>) -> Result<(), CliE
             "seconds": r.frames as f64 / r.fs,
             "rt": r.realtime.as_ref().map(afe::realtime::Realtime::describe),
             "rt_complete": r.realtime.as_ref().map(afe::realtime::Realtime::complete),
+            "host": afe::host::Host::detect(),
         });
         if let (Some(all), Value::Object(extra)) = (result.as_object_mut(), extra) {
             all.extend(extra);
@@ -284,7 +285,7 @@ pub(crate) fn stream(mut job: StreamJob, run: &StreamRun<'_>) -> Result<(), CliE
     } else {
         outln!(
             "{} frames ({:.2} s at {} Hz) in {} blocks of {} frames: compute per block p50 {:.3} ms, \
-             p99 {:.3} ms, max {:.3} ms (block {}), budget {:.2} ms ({:.1}x real time); \
+             p99 {:.3} ms, max {:.3} ms (block {}), budget {:.2} ms ({:.1}x real time on {}); \
              {} deadline miss(es){}; {} frame(s) lost{}{}",
             r.frames,
             r.frames as f64 / r.fs,
@@ -297,6 +298,7 @@ pub(crate) fn stream(mut job: StreamJob, run: &StreamRun<'_>) -> Result<(), CliE
             r.slowest_block,
             r.budget_ms,
             r.x_realtime,
+            afe::host::Host::detect().describe(),
             r.deadline_misses,
             match r.missed_blocks.as_slice() {
                 [] => String::new(),

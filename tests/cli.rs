@@ -521,6 +521,12 @@ fn threads_trace_and_bench() {
     assert!(b["wall_seconds_median"].as_f64().expect("number") > 0.0);
     assert!(b["wall_seconds_first"].as_f64().expect("number") > 0.0);
     assert_eq!(b["outputs"], "kept");
+    // the figure names the machine and the instruction set it came from
+    let host = &b["host"];
+    assert!(!host["cpu"].as_str().expect("cpu").is_empty());
+    assert!(host["cores"].as_u64().expect("cores") >= 1);
+    assert!(["avx512", "avx2", "baseline"].contains(&host["simd"].as_str().expect("simd")));
+    assert_eq!(host["version"], env!("CARGO_PKG_VERSION"));
     // with --discard every chunk's output is still computed and seen, then dropped
     for chunk in ["441", "1000000"] {
         let out = afe(&[

@@ -94,6 +94,7 @@ fn the_json_report_counts_frames_blocks_and_losses() {
     assert!(r["compute_ms_p50"].as_f64() <= r["compute_ms_p99"].as_f64());
     assert!(r["compute_ms_p99"].as_f64() <= r["compute_ms_max"].as_f64());
     assert!(r["x_realtime"].as_f64().expect("number") > 0.0);
+    assert!(r["host"]["simd"].is_string() && r["host"]["cpu"].is_string());
     // the slowest block is named, the histogram holds every block, the missed ones are
     // listed (as many as counted, up to 100)
     assert!(r["slowest_block"].as_u64().expect("index") < 25);

@@ -26,6 +26,7 @@ pub mod bounded_read;
 pub mod catalog;
 pub mod extract;
 pub mod frames;
+pub mod host;
 pub mod memory;
 pub mod metadata;
 pub mod npy;
