@@ -5,12 +5,14 @@ use std::time::Instant;
 
 use afe::extract::{run_slices_into, run_with, Discard, Job};
 use afe::host::Host;
+use afe::output::OutputFile;
 use afe::Manager;
 use serde_json::json;
 
 use crate::args::{Requests, Threads};
 use crate::error::CliError;
-use crate::files::read_input;
+use crate::extract::TRACE_EVENTS;
+use crate::files::{checked_output, read_input};
 use crate::outln;
 
 /// `afe bench IN.wav -r ... [--repeat K]`.
@@ -37,17 +39,29 @@ pub(crate) struct BenchArgs {
     /// Print the result as one JSON object.
     #[arg(long)]
     json: bool,
+    /// Write the scheduler's per-node, per-chunk timing of the last run as a Chrome
+    /// trace (Perfetto), to see where the threads wait.
+    #[arg(long, value_name = "trace.json")]
+    trace: Option<PathBuf>,
 }
 
 impl BenchArgs {
     pub(crate) fn run(self) -> Result<(), CliError> {
         let job = self.requests.job(self.chunk, false, self.threads.count())?;
+        if self.trace.is_some() && job.threads == 0 {
+            return Err("--trace records the concurrent scheduler: use --threads 1 or more".into());
+        }
+        let trace = match &self.trace {
+            Some(t) => Some(checked_output(t, &self.input)?),
+            None => None,
+        };
         bench(
             &self.input,
             &job,
             self.repeat as usize,
             self.discard,
             self.json,
+            trace,
         )
     }
 }
@@ -58,14 +72,18 @@ fn bench(
     repeat: usize,
     discard: bool,
     as_json: bool,
+    trace: Option<OutputFile>,
 ) -> Result<(), CliError> {
     let audio = read_input(input)?;
+    // trace events preallocated per worker, as `afe extract --trace`
+    let capacity = if trace.is_some() { TRACE_EVENTS } else { 0 };
+    let mut events = None;
     let refs: Vec<&[f64]> = audio.channels.iter().map(Vec::as_slice).collect();
     let seconds = refs[0].len() as f64 / audio.fs;
     let mut times = Vec::with_capacity(repeat);
     let mut values = 0;
     for _ in 0..repeat {
-        let mut mgr = Manager::with_threads(audio.fs, refs.len(), job.threads)?;
+        let mut mgr = Manager::with_engine(audio.fs, refs.len(), job.threads, capacity)?;
         for r in &job.requests {
             mgr.add_request(r, &job.params)?;
         }
@@ -85,6 +103,13 @@ fn bench(
             values = rec.signals().iter().map(|s| s.data.as_slice().len()).sum();
             std::hint::black_box(rec);
         }
+        if trace.is_some() {
+            events = mgr.trace()?;
+        }
+    }
+    if let (Some(t), Some(events)) = (&trace, events) {
+        let staged = t.stage(|file| file.write_all(events.to_string().as_bytes()))?;
+        afe::output::commit_all(vec![staged])?;
     }
     let first = times[0];
     times.sort_by(f64::total_cmp);

@@ -65,6 +65,9 @@ impl From<StoredType> for Dtype {
     }
 }
 
+/// Trace events preallocated per worker (48 bytes each): 12 MiB, ~5000 chunks of 11 nodes.
+pub(crate) const TRACE_EVENTS: usize = 1 << 18;
+
 fn extract(
     input: &Path,
     job: Job,
@@ -87,8 +90,7 @@ fn extract(
         None => None,
     };
     let mut wav = open_input(input)?;
-    // trace events preallocated per worker (48 bytes each): 12 MiB, ~5000 chunks of 11 nodes
-    let capacity = if trace.is_some() { 1 << 18 } else { 0 };
+    let capacity = if trace.is_some() { TRACE_EVENTS } else { 0 };
     let mut mgr = Manager::with_engine(wav.fs(), wav.channels(), job.threads, capacity)?;
     for r in &job.requests {
         mgr.add_request(r, &job.params)?;

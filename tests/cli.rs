@@ -527,6 +527,37 @@ fn threads_trace_and_bench() {
     assert!(host["cores"].as_u64().expect("cores") >= 1);
     assert!(["avx512", "avx2", "baseline"].contains(&host["simd"].as_str().expect("simd")));
     assert_eq!(host["version"], env!("CARGO_PKG_VERSION"));
+    // the schedule of the last run, as `extract --trace` writes it
+    let bench_trace = tmp("bench-trace.json");
+    let traced = |threads: &str| {
+        afe(&[
+            "bench",
+            w,
+            "-r",
+            "ratemap,itd",
+            "--chunk",
+            "160",
+            "--threads",
+            threads,
+            "--repeat",
+            "2",
+            "--trace",
+            bench_trace.to_str().expect("path"),
+        ])
+    };
+    let out = traced("2");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let t: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&bench_trace).expect("trace written")).expect("json");
+    let events = t["traceEvents"].as_array().expect("events");
+    let processed = events.iter().filter(|e| e["cat"] == "process").count();
+    assert_eq!(processed, 50 * 11, "one run's chunks, not both runs'");
+    std::fs::remove_file(&bench_trace).expect("removed");
+    assert_clear_error(&traced("0"), "--threads 1 or more", &bench_trace);
     // with --discard every chunk's output is still computed and seen, then dropped
     for chunk in ["441", "1000000"] {
         let out = afe(&[
