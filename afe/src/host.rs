@@ -1,10 +1,14 @@
 //! The machine a measurement ran on, for the reports of `afe bench` and `afe stream`:
-//! speed figures are only comparable with the CPU and instruction set they came from.
+//! speed figures are only comparable with the CPU and instruction set they came from,
+//! and figures on several threads with how far apart their cores are.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
 
 use serde::Serialize;
 
 /// The CPU, its logical cores and the instruction set the kernels take.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Host {
     /// The CPU's model name (Linux's `/proc/cpuinfo`), or the architecture where that
     /// is not known.
@@ -18,6 +22,9 @@ pub struct Host {
     pub avx512_available: bool,
     /// The version of this crate.
     pub version: &'static str,
+    /// How long one cache line takes to go from one core to another and back, in ns
+    /// (see [`core_to_core_ns`]); `None` with one core.
+    pub core_to_core_ns: Option<f64>,
 }
 
 impl Host {
@@ -29,19 +36,82 @@ impl Host {
             simd: afe_core::cpu::simd_path(),
             avx512_available: afe_core::cpu::cpu_has_avx512(),
             version: env!("CARGO_PKG_VERSION"),
+            core_to_core_ns: core_to_core_ns(),
         }
     }
 
-    /// One line for a person: `AMD EPYC, 2 cores, avx512`, with `(AVX-512 off)` on
-    /// the forced AVX2 path.
+    /// One line for a person: `AMD EPYC, 2 cores (80 ns apart), avx512`, with
+    /// `(AVX-512 off)` on the forced AVX2 path.
     pub fn describe(&self) -> String {
         let forced = if self.avx512_available && self.simd != "avx512" {
             " (AVX-512 off)"
         } else {
             ""
         };
-        format!("{}, {} cores, {}{forced}", self.cpu, self.cores, self.simd)
+        let apart = self
+            .core_to_core_ns
+            .map_or(String::new(), |ns| format!(" ({ns:.0} ns apart)"));
+        format!(
+            "{}, {} cores{apart}, {}{forced}",
+            self.cpu, self.cores, self.simd
+        )
     }
+}
+
+/// The round trip of one cache line between two threads, in ns: the median of five
+/// batches of 2000 hand-overs back and forth, a few ms in all. Cores that share a
+/// last-level cache take about 50–100 ns; cores apart (another chiplet or socket, or the
+/// virtual CPUs of a VM placed so by its host) 300 ns and more, and the scheduler's
+/// threads, which hand each block's signals from core to core, then gain less from the
+/// second core. `None` with one core, or when the second thread does not run alongside
+/// the first within 50 ms (the machine is busy).
+pub fn core_to_core_ns() -> Option<f64> {
+    if std::thread::available_parallelism().map_or(1, |n| n.get()) < 2 {
+        return None;
+    }
+    /// The line handed over: odd values are the first thread's, even the second's.
+    #[repr(align(128))]
+    struct Line(AtomicU64);
+    const STOP: u64 = u64::MAX;
+    const TRIPS: u64 = 2000;
+    let line = Line(AtomicU64::new(0));
+    let deadline = Instant::now() + Duration::from_millis(50);
+    std::thread::scope(|s| {
+        s.spawn(|| loop {
+            let v = line.0.load(Ordering::Acquire);
+            if v == STOP {
+                break;
+            }
+            if v % 2 == 1 {
+                line.0.store(v + 1, Ordering::Release);
+            } else {
+                std::hint::spin_loop();
+            }
+        });
+        let mut batches = Vec::with_capacity(5);
+        let mut next = 0;
+        'batches: for _ in 0..5 {
+            let start = Instant::now();
+            for _ in 0..TRIPS {
+                line.0.store(next + 1, Ordering::Release);
+                let mut spins = 0u32;
+                while line.0.load(Ordering::Acquire) != next + 2 {
+                    spins = spins.wrapping_add(1);
+                    if spins % 1024 == 0 && Instant::now() > deadline {
+                        break 'batches;
+                    }
+                    std::hint::spin_loop();
+                }
+                next += 2;
+            }
+            batches.push(start.elapsed().as_secs_f64() * 1e9 / TRIPS as f64);
+        }
+        line.0.store(STOP, Ordering::Release);
+        (batches.len() == 5).then(|| {
+            batches.sort_by(f64::total_cmp);
+            batches[2]
+        })
+    })
 }
 
 /// The first `model name` of `/proc/cpuinfo`.
@@ -83,11 +153,29 @@ mod tests {
             simd: "avx2",
             avx512_available: true,
             version: "0",
+            core_to_core_ns: Some(81.6),
         };
-        assert_eq!(host.describe(), "Xeon, 2 cores, avx2 (AVX-512 off)");
+        assert_eq!(
+            host.describe(),
+            "Xeon, 2 cores (82 ns apart), avx2 (AVX-512 off)"
+        );
         host.avx512_available = false;
+        host.core_to_core_ns = None;
         assert_eq!(host.describe(), "Xeon, 2 cores, avx2");
         let here = Host::detect();
         assert!(here.cores >= 1 && !here.cpu.is_empty());
+    }
+
+    #[test]
+    fn the_round_trip_between_cores_is_measured_where_there_are_two() {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        if cores < 2 {
+            assert_eq!(core_to_core_ns(), None);
+            return;
+        }
+        // (a machine busy with other tests may leave the second thread waiting: None)
+        let ns = (0..3).find_map(|_| core_to_core_ns()).expect("measured");
+        // a hand-over takes more than a cache hit, and a batch must end within 50 ms
+        assert!(ns > 10.0 && ns < 25_000.0, "{ns} ns");
     }
 }
