@@ -47,6 +47,7 @@ __all__ = [
     "Subscription",
     "batch",
     "connect",
+    "host",
     "load",
     "open_store",
     "parameters",
@@ -105,6 +106,20 @@ def parameters(request: Optional[str] = None) -> List[Dict[str, Any]]:
     close = difflib.get_close_matches(request, list(catalog) + [p["name"] for p in every], n=3)
     hint = f" (did you mean {', '.join(repr(c) for c in close)}?)" if close else ""
     raise ValueError(f"'{request}' is neither a request nor a parameter{hint}")
+
+
+def host() -> Dict[str, Any]:
+    """The machine a timing comes from, to keep beside it (as ``afe bench --json``).
+
+    A dict with ``cpu`` (the model name), ``cores`` (logical cores this process may use),
+    ``simd`` (the instruction set the kernels take: ``avx512``, ``avx2`` or
+    ``baseline``), ``avx512_available`` (``simd == "avx2"`` with it is the forced AVX2
+    path of a ``no-avx512`` build), ``version`` and ``core_to_core_ns`` (one cache
+    line's round trip between two threads, measured now in a few ms: about 80 ns where
+    the cores share a last-level cache, 350 ns and more where they do not, when
+    ``threads=2`` gains less; ``None`` with one core).
+    """
+    return json.loads(_afe.host_json())
 
 
 def read_wav(path: Union[str, os.PathLike]) -> Tuple[np.ndarray, float]:

@@ -597,6 +597,13 @@ fn catalog_json() -> String {
     afe::catalog::listing().to_string()
 }
 
+/// The machine and instruction set this runs on, as JSON text (`afe bench`'s `host`).
+#[pyfunction]
+fn host_json(py: Python<'_>) -> String {
+    // the cores' round trip is measured with two threads spinning a few ms
+    py.allow_threads(|| serde_json::json!(afe::host::Host::detect()).to_string())
+}
+
 /// Reads a WAV file: `(samples as a [samples, channels] float64 array, fs in Hz)`.
 #[pyfunction]
 fn read_wav<'py>(py: Python<'py>, path: PathBuf) -> PyResult<(Bound<'py, PyAny>, f64)> {
@@ -620,6 +627,7 @@ fn _afe(m: &Bound<'_, PyModule>) -> PyResult<()> {
     numpy::PyArray1::<f64>::zeros(m.py(), 0, false);
     m.add_class::<PyManager>()?;
     m.add_function(wrap_pyfunction!(catalog_json, m)?)?;
+    m.add_function(wrap_pyfunction!(host_json, m)?)?;
     m.add_function(wrap_pyfunction!(process, m)?)?;
     m.add_function(wrap_pyfunction!(process_file, m)?)?;
     m.add_function(wrap_pyfunction!(read_wav, m)?)?;

@@ -48,8 +48,18 @@ def test_catalogue_matches_the_afe_names():
 def test_dir_shows_the_public_api_only():
     assert dir(afe) == sorted(
         ["Audio", "AudioBlock", "Frames", "Manager", "Remote", "RemoteError", "Signal", "Store", "Subscription", "batch", "connect",
-         "load", "open_store", "parameters", "plot", "process", "raa", "read_wav", "requests", "save", "stream", "summary", "__version__"]
+         "host", "load", "open_store", "parameters", "plot", "process", "raa", "read_wav", "requests", "save", "stream", "summary", "__version__"]
     )
+
+
+def test_host_names_the_machine_a_timing_comes_from():
+    h = afe.host()
+    assert set(h) == {"cpu", "cores", "simd", "avx512_available", "version", "core_to_core_ns"}
+    assert h["cpu"] and h["cores"] >= 1 and h["version"] == afe.__version__
+    assert h["simd"] in ("avx512", "avx2", "baseline")
+    if h["simd"] == "avx512":
+        assert h["avx512_available"]
+    assert h["core_to_core_ns"] is None or h["core_to_core_ns"] > 0
 
 
 def test_a_top_channel_at_nyquist_is_accepted_as_in_the_afe():
