@@ -204,7 +204,8 @@ impl Autocorrelation {
         check_work(
             ("ac_wSizeSec", params.w_size_sec),
             nc * (w + 2) + 2 * w + 3 * (nfft / 2 + 1) + 2 * transform_values(nfft),
-            nc,
+            &format!("this window over {nc} channels"),
+            "shorten the window or use fewer channels",
         )?;
         let top = (w - 1) as f64;
         let ac = Autocorrelation {

@@ -192,10 +192,12 @@ impl Crosscorrelation {
         let nc = input.channels();
         let engine = if prefer_direct(w, max_lag) {
             // found by fuzzing: 1.4 GB for a long window when it kept every group's rows
+            // (one group of channels at a time: more channels take no more)
             check_work(
                 ("cc_wSizeSec", params.w_size_sec),
                 direct_work(w, max_lag),
-                nc,
+                &format!("this window with {max_lag} lags either side"),
+                "shorten the window or cc_maxDelaySec",
             )?;
             Engine::Direct(Direct::new(win, max_lag, nc))
         } else {
@@ -895,6 +897,30 @@ mod tests {
         );
         cc.reset();
         assert_eq!(run(&mut cc), first);
+    }
+
+    #[test]
+    fn a_window_beyond_the_working_memory_is_refused_naming_what_shrinks_it() {
+        // the direct engine holds one group of channels at a time: its memory grows with
+        // the window and the lags, not with the channels
+        let info = SignalInfo::time_frequency(44100.0, vec![500.0]);
+        let params = |w_size_sec| CrosscorrelationParams {
+            w_size_sec,
+            h_size_sec: 1.0,
+            max_delay_sec: 0.0,
+            ..Default::default()
+        };
+        let e = Crosscorrelation::new(&params(64.0), &info)
+            .expect_err("64 s")
+            .to_string();
+        assert!(
+            e.contains("cc_wSizeSec")
+                && e.contains("working memory")
+                && e.contains("shorten the window or cc_maxDelaySec")
+                && !e.contains("channels"),
+            "{e}"
+        );
+        assert!(Crosscorrelation::new(&params(30.0), &info).is_ok());
     }
 
     #[test]

@@ -19,8 +19,9 @@ pub const MAX_FRAME_VALUES: usize = 1 << 24;
 pub const MAX_WORK_VALUES: usize = 1 << 26;
 
 /// Refuses a window whose working buffers (`values` f64 values) would exceed
-/// [`MAX_WORK_VALUES`], naming the window parameter `w` (AFE name, value in s).
-pub fn check_work(w: (&str, f64), values: usize, channels: usize) -> Result<()> {
+/// [`MAX_WORK_VALUES`], naming the window parameter `w` (AFE name, value in s), what
+/// they grow with (`this window over 32 channels`) and what makes them smaller.
+pub fn check_work(w: (&str, f64), values: usize, what: &str, remedy: &str) -> Result<()> {
     if values <= MAX_WORK_VALUES {
         return Ok(());
     }
@@ -28,7 +29,7 @@ pub fn check_work(w: (&str, f64), values: usize, channels: usize) -> Result<()> 
         name: w.0.into(),
         value: w.1.to_string(),
         reason: format!(
-            "this window over {channels} channels would need {} MiB of working memory (at most {} MiB): shorten the window or use fewer channels",
+            "{what} would need {} MiB of working memory (at most {} MiB): {remedy}",
             values / (1 << 17),
             MAX_WORK_VALUES / (1 << 17)
         ),

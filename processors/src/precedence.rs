@@ -458,7 +458,8 @@ impl Precedence {
         check_work(
             ("prec_wSizeSec", params.w_size_sec),
             2 * nc * (w + 3 * bins + longest) + 2 * transform_values(nfft),
-            nc,
+            &format!("this window over {nc} channels"),
+            "shorten the window or use fewer channels",
         )?;
         let ear = Ear {
             cols: vec![0.0; nc * w],
