@@ -40,7 +40,8 @@ pub(crate) struct BenchArgs {
     #[arg(long)]
     json: bool,
     /// Write the scheduler's per-node, per-chunk timing of the last run as a Chrome
-    /// trace (Perfetto), to see where the threads wait.
+    /// trace (Perfetto), to see where the threads wait (recording adds a little to that
+    /// run's time).
     #[arg(long, value_name = "trace.json")]
     trace: Option<PathBuf>,
 }
@@ -75,14 +76,16 @@ fn bench(
     trace: Option<OutputFile>,
 ) -> Result<(), CliError> {
     let audio = read_input(input)?;
-    // trace events preallocated per worker, as `afe extract --trace`
-    let capacity = if trace.is_some() { TRACE_EVENTS } else { 0 };
     let mut events = None;
     let refs: Vec<&[f64]> = audio.channels.iter().map(Vec::as_slice).collect();
     let seconds = refs[0].len() as f64 / audio.fs;
     let mut times = Vec::with_capacity(repeat);
     let mut values = 0;
-    for _ in 0..repeat {
+    for run in 0..repeat {
+        // the last run records the trace (events preallocated per worker, as `afe
+        // extract --trace`), the others nothing
+        let traced = trace.is_some() && run + 1 == repeat;
+        let capacity = if traced { TRACE_EVENTS } else { 0 };
         let mut mgr = Manager::with_engine(audio.fs, refs.len(), job.threads, capacity)?;
         for r in &job.requests {
             mgr.add_request(r, &job.params)?;
@@ -103,13 +106,9 @@ fn bench(
             values = rec.signals().iter().map(|s| s.data.as_slice().len()).sum();
             std::hint::black_box(rec);
         }
-        if trace.is_some() {
+        if traced {
             events = mgr.trace()?;
         }
-    }
-    if let (Some(t), Some(events)) = (&trace, events) {
-        let staged = t.stage(|file| file.write_all(events.to_string().as_bytes()))?;
-        afe::output::commit_all(vec![staged])?;
     }
     let first = times[0];
     times.sort_by(f64::total_cmp);
@@ -143,6 +142,11 @@ fn bench(
             job.chunk.map_or("whole signal".to_string(), |c| format!("{c} samples")),
             host.describe()
         );
+    }
+    // after the figures, which a trace that cannot be written does not take with it
+    if let (Some(t), Some(events)) = (&trace, events) {
+        let staged = t.stage(|file| file.write_all(events.to_string().as_bytes()))?;
+        afe::output::commit_all(vec![staged])?;
     }
     Ok(())
 }

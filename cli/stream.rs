@@ -237,6 +237,8 @@ pub(crate) fn stream(mut job: StreamJob, run: &StreamRun<'_>) -> Result<(), CliE
         }
         None => (None, None),
     };
+    // measured before the stream, whose thread `--rt` leaves at real-time priority
+    let host = afe::host::Host::detect();
     let mut status = Status::new(!as_json && std::io::stderr().is_terminal());
     let observer = CliObserver {
         status: &mut status,
@@ -276,7 +278,7 @@ pub(crate) fn stream(mut job: StreamJob, run: &StreamRun<'_>) -> Result<(), CliE
             "seconds": r.frames as f64 / r.fs,
             "rt": r.realtime.as_ref().map(afe::realtime::Realtime::describe),
             "rt_complete": r.realtime.as_ref().map(afe::realtime::Realtime::complete),
-            "host": afe::host::Host::detect(),
+            "host": host,
         });
         if let (Some(all), Value::Object(extra)) = (result.as_object_mut(), extra) {
             all.extend(extra);
@@ -298,7 +300,7 @@ pub(crate) fn stream(mut job: StreamJob, run: &StreamRun<'_>) -> Result<(), CliE
             r.slowest_block,
             r.budget_ms,
             r.x_realtime,
-            afe::host::Host::detect().describe(),
+            host.describe(),
             r.deadline_misses,
             match r.missed_blocks.as_slice() {
                 [] => String::new(),

@@ -22,39 +22,56 @@ pub fn cpu_has_avx512() -> bool {
 }
 
 /// The instruction set the SIMD kernels ([`simd_kernel!`](crate::simd_kernel)) run on
-/// here: `"avx512"`, `"avx2"` (AVX2 and FMA: also an AVX-512 CPU under the `no-avx512`
-/// build) or `"baseline"` (x86-64's SSE2, or another architecture's own).
+/// here, as their dispatch chose it: `"avx512"`, `"avx2"` (also an AVX-512 CPU under
+/// the `no-avx512` build) or `"baseline"` (x86-64's SSE2, or another architecture's
+/// own). The kernels that use FMA take their AVX2 clone only where the CPU also has FMA,
+/// as every AVX2 CPU sold has.
 pub fn simd_path() -> &'static str {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if has_avx512() {
-            return "avx512";
-        }
-        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-        {
-            return "avx2";
+    match selected() {
+        Path::Avx512 => "avx512",
+        Path::Avx2 => "avx2",
+        Path::Baseline => "baseline",
+    }
+}
+
+/// A clone of the kernels, by its widest instruction set.
+enum Path {
+    Avx512,
+    Avx2,
+    Baseline,
+}
+
+crate::simd_kernel!(
+    /// The clone the dispatch picked.
+    fn selected() -> Path {
+        let target = multiversion::target::selected_target!();
+        if target.supports_feature_str("avx512f") {
+            Path::Avx512
+        } else if target.supports_feature_str("avx2") {
+            Path::Avx2
+        } else {
+            Path::Baseline
         }
     }
-    "baseline"
-}
+);
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
-    fn the_path_follows_the_cpu_and_the_build() {
+    fn the_path_is_the_one_the_dispatch_takes() {
         let path = simd_path();
+        // the kernels sized for AVX-512 registers are sized so exactly where it runs
         assert_eq!(path == "avx512", has_avx512());
         if cfg!(feature = "no-avx512") {
             assert_ne!(path, "avx512");
-        } else {
-            assert_eq!(has_avx512(), cpu_has_avx512());
         }
         #[cfg(target_arch = "x86_64")]
-        if cpu_has_avx512() {
-            // AVX-512F implies AVX2 and FMA
-            assert_ne!(path, "baseline");
-        }
+        assert_eq!(
+            path != "baseline",
+            std::arch::is_x86_feature_detected!("avx2"),
+            "the AVX2 clone runs wherever the CPU has AVX2"
+        );
     }
 }

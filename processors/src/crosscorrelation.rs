@@ -192,12 +192,12 @@ impl Crosscorrelation {
         let nc = input.channels();
         let engine = if prefer_direct(w, max_lag) {
             // found by fuzzing: 1.4 GB for a long window when it kept every group's rows
-            // (one group of channels at a time: more channels take no more)
+            // (one group of channels at a time, few lags: the window is what counts)
             check_work(
                 ("cc_wSizeSec", params.w_size_sec),
                 direct_work(w, max_lag),
-                &format!("this window with {max_lag} lags either side"),
-                "shorten the window or cc_maxDelaySec",
+                &format!("this window of {w} samples"),
+                "shorten the window",
             )?;
             Engine::Direct(Direct::new(win, max_lag, nc))
         } else {
@@ -902,7 +902,7 @@ mod tests {
     #[test]
     fn a_window_beyond_the_working_memory_is_refused_naming_what_shrinks_it() {
         // the direct engine holds one group of channels at a time: its memory grows with
-        // the window and the lags, not with the channels
+        // the window, not with the channels
         let info = SignalInfo::time_frequency(44100.0, vec![500.0]);
         let params = |w_size_sec| CrosscorrelationParams {
             w_size_sec,
@@ -916,7 +916,8 @@ mod tests {
         assert!(
             e.contains("cc_wSizeSec")
                 && e.contains("working memory")
-                && e.contains("shorten the window or cc_maxDelaySec")
+                && e.contains("window of 2822400 samples")
+                && e.contains("shorten the window")
                 && !e.contains("channels"),
             "{e}"
         );

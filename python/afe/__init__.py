@@ -117,7 +117,8 @@ def host() -> Dict[str, Any]:
     path of a ``no-avx512`` build), ``version`` and ``core_to_core_ns`` (one cache
     line's round trip between two threads, measured now in a few ms: about 80 ns where
     the cores share a last-level cache, 350 ns and more where they do not, when
-    ``threads=2`` gains less; ``None`` with one core).
+    ``threads=2`` gains less; ``None`` with one core, or on a machine too busy to run
+    two threads side by side).
     """
     return json.loads(_afe.host_json())
 
