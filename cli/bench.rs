@@ -11,7 +11,7 @@ use serde_json::json;
 
 use crate::args::{Requests, Threads};
 use crate::error::CliError;
-use crate::extract::TRACE_EVENTS;
+use crate::extract::{check_trace_threads, TRACE_EVENTS};
 use crate::files::{checked_output, read_input};
 use crate::outln;
 
@@ -49,9 +49,7 @@ pub(crate) struct BenchArgs {
 impl BenchArgs {
     pub(crate) fn run(self) -> Result<(), CliError> {
         let job = self.requests.job(self.chunk, false, self.threads.count())?;
-        if self.trace.is_some() && job.threads == 0 {
-            return Err("--trace records the concurrent scheduler: use --threads 1 or more".into());
-        }
+        check_trace_threads(self.trace.is_some(), job.threads)?;
         let trace = match &self.trace {
             Some(t) => Some(checked_output(t, &self.input)?),
             None => None,

@@ -69,6 +69,14 @@ impl From<StoredType> for Dtype {
 /// 23 000 chunks of 11 nodes on one worker.
 pub(crate) const TRACE_EVENTS: usize = 1 << 18;
 
+/// Refuses `--trace` with the sequential executor (`--threads 0`), which records none.
+pub(crate) fn check_trace_threads(traced: bool, threads: usize) -> Result<(), CliError> {
+    if traced && threads == 0 {
+        return Err("--trace records the concurrent scheduler: use --threads 1 or more".into());
+    }
+    Ok(())
+}
+
 fn extract(
     input: &Path,
     job: Job,
@@ -76,9 +84,7 @@ fn extract(
     trace: Option<&Path>,
     output: &Path,
 ) -> Result<(), CliError> {
-    if trace.is_some() && job.threads == 0 {
-        return Err("--trace records the concurrent scheduler: use --threads 1 or more".into());
-    }
+    check_trace_threads(trace.is_some(), job.threads)?;
     // every output is checked before the computation, so that none is found unwritable
     // after it (or written while another is not)
     let output = checked_output(output, input)?;
