@@ -415,3 +415,53 @@ fn by_default_only_the_requested_signals_are_shown_with_the_same_values() {
         }
     }
 }
+
+/// Sound, then silence long enough for the filters' states to decay below the smallest
+/// normal number: every thread flushes those subnormals to zero (they cost an Intel core a
+/// microcode assist each), so no output holds one, chunked or whole, and every thread
+/// count still gives the sequential output. The caller's thread gets its own setting back.
+#[test]
+fn silence_after_sound_leaves_no_subnormal_on_any_thread() {
+    let (mut left, mut right) = signal(32000);
+    for x in [&mut left, &mut right] {
+        x[4000..].fill(0.0);
+    }
+    let subnormals = |rec: &Recorder| -> Vec<String> {
+        rec.signals()
+            .iter()
+            .filter(|s| s.data.as_slice().iter().any(|v| v.is_subnormal()))
+            .map(|s| s.key.clone())
+            .collect()
+    };
+    let run = |threads: usize, whole: bool| {
+        let mut mgr = manager(threads);
+        for r in afe::requests() {
+            mgr.add_request(r.name, &ParamMap::new())
+                .unwrap_or_else(|e| panic!("{}: {e}", r.name));
+        }
+        let mut rec = Recorder::new(true);
+        if whole {
+            mgr.process_signal(&[&left, &right]).expect("process");
+            rec.record(&mgr);
+        } else {
+            feed(&mut mgr, &mut rec, &left, &right, &[441, 1000, 37]);
+        }
+        rec
+    };
+    for whole in [false, true] {
+        let reference = run(0, whole);
+        assert_eq!(
+            subnormals(&reference),
+            Vec::<String>::new(),
+            "whole {whole}"
+        );
+        let two = run(2, whole);
+        assert_eq!(identical(&reference, &two), Ok(()), "whole {whole}");
+        assert_eq!(subnormals(&two), Vec::<String>::new(), "whole {whole}");
+    }
+    let halved = std::hint::black_box(f64::MIN_POSITIVE) * std::hint::black_box(0.5);
+    assert!(
+        halved.is_subnormal(),
+        "the caller's floating-point setting restored"
+    );
+}

@@ -7,6 +7,7 @@
 pub mod block;
 pub mod butter;
 pub mod cpu;
+pub mod denormals;
 pub mod descriptor;
 pub mod erb;
 pub mod error;

@@ -22,6 +22,7 @@ use std::sync::Arc;
 use std::thread::{self, JoinHandle, Thread};
 use std::time::{Duration, Instant};
 
+use afe_core::denormals::FlushDenormals;
 use afe_core::{Block, Error, Part, Processor, Result};
 
 use crate::graph::{Graph, OutputRef, MAX_INPUTS};
@@ -184,6 +185,8 @@ impl Shared {
 
     fn worker_loop(&self, id: usize) {
         IS_WORKER.with(|w| w.set(true));
+        // for the thread's life, so that `run`'s own guard only reads the setting
+        let _flush = FlushDenormals::enable();
         while !self.shutdown.load(Ordering::Acquire) {
             self.active.fetch_add(1, Ordering::SeqCst);
             if self.swapping.load(Ordering::SeqCst) {
@@ -217,6 +220,7 @@ impl Shared {
 
     /// Process and Release of one claimed node.
     fn run(&self, table: &Table, n: usize, worker: usize) {
+        let _flush = FlushDenormals::enable();
         let k = next_chunk(&table.sync, n);
         let slot = (k % 2) as usize;
         let rt = &table.rt[n];

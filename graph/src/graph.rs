@@ -2,6 +2,7 @@
 
 use std::sync::Arc;
 
+use afe_core::denormals::FlushDenormals;
 use afe_core::{Block, Configured, ParamMap, Processor, SignalInfo};
 use afe_processors::RequestDef;
 
@@ -119,6 +120,7 @@ impl Graph {
     /// feedback first receives its source's output of the previous chunk (still in the
     /// source's blocks, since the source comes later).
     pub fn run_sequential(&mut self) {
+        let _flush = FlushDenormals::enable();
         for i in 1..self.nodes.len() {
             if let Some(f) = self.nodes[i].feedback_from {
                 let (below, above) = self.nodes.split_at_mut(f.node);
@@ -142,6 +144,7 @@ impl Graph {
         i: usize,
         f: impl FnOnce(&mut dyn Processor, &[&Block], &mut [Block]),
     ) {
+        let _flush = FlushDenormals::enable();
         let (before, rest) = self.nodes.split_at_mut(i);
         let node = &mut rest[0];
         let first = node.parents[0];

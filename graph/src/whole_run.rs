@@ -8,6 +8,7 @@
 use std::panic::{catch_unwind, resume_unwind, AssertUnwindSafe};
 use std::sync::{Condvar, Mutex, RwLock};
 
+use afe_core::denormals::FlushDenormals;
 use afe_core::{interrupt, Block, Error, Processor, Result};
 
 use crate::engine::Engine;
@@ -275,6 +276,7 @@ struct Job<'a> {
 /// buffers among the `joined` (those it has: the ones read later).
 fn run_job(job: &mut Job<'_>, i: usize, joined: &[RwLock<&mut Vec<Option<Block>>>]) {
     {
+        let _flush = FlushDenormals::enable();
         // parents are done: their buffers are only read from now on
         let guards: Vec<_> = job
             .parents
