@@ -841,3 +841,48 @@ fn extract_announces_outputs_too_large_for_the_memory() {
     assert!(!out.exists());
     std::fs::remove_dir_all(&dir).expect("clean");
 }
+
+/// A tone, then 0.9 s of digital silence: the filterbank's decay stops at 0 instead of
+/// running through the subnormals (see `afe_core::denormals`), unless
+/// `AFE_KEEP_SUBNORMALS=1` asks for the IEEE arithmetic of the AFE; both on two threads.
+#[test]
+fn silence_is_flushed_to_zero_unless_subnormals_are_kept() {
+    let dir = tmp("subnormals");
+    std::fs::create_dir_all(&dir).expect("dir");
+    let wav = dir.join("in.wav");
+    write_wav(
+        &wav,
+        2,
+        16000,
+        16000,
+        |i| if i < 3200 { tone(i) } else { 0.0 },
+    );
+    let subnormals = |keep: &str| {
+        let out = dir.join(format!("keep-{keep}.npz"));
+        let run = common::afe_env(
+            &[
+                "extract",
+                wav.to_str().expect("utf-8"),
+                "-r",
+                "filterbank",
+                "--threads",
+                "2",
+                "-o",
+                out.to_str().expect("utf-8"),
+            ],
+            &[("AFE_KEEP_SUBNORMALS", std::path::Path::new(keep))],
+        );
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        npz_arrays(&out)
+            .iter()
+            .map(|(_, _, data)| data.iter().filter(|v| v.is_subnormal()).count())
+            .sum::<usize>()
+    };
+    assert_eq!(subnormals("0"), 0);
+    assert!(subnormals("1") > 1000);
+    std::fs::remove_dir_all(&dir).expect("clean");
+}

@@ -16,10 +16,18 @@
 //! chunking changes nothing either. The caller's own setting comes back when the guard is
 //! dropped: numpy in the same Python thread computes as before.
 //!
+//! Where the input holds digital silence, the representations normalised frame by frame
+//! (the autocorrelation, the pitch's raw values, `precedence`'s ITD and ILD) of frames
+//! that only hold such a decay, 280 dB and more below the signal, then differ from the
+//! AFE's, which computes them from its arithmetic's last bits. `AFE_KEEP_SUBNORMALS=1` in
+//! the environment keeps the IEEE arithmetic (read once per process): the AFE's numbers
+//! there too, at the Intel cores' cost.
+//!
 //! On other architectures than x86-64 the guard does nothing: AArch64 cores handle
 //! subnormals in hardware at full speed.
 
 use std::marker::PhantomData;
+use std::sync::OnceLock;
 
 /// Flush-to-zero (bit 15) and denormals-are-zero (bit 6) of MXCSR.
 #[cfg(target_arch = "x86_64")]
@@ -37,13 +45,23 @@ pub struct FlushDenormals {
     _thread: PhantomData<*const ()>,
 }
 
+/// Whether processing flushes subnormals to zero: unless `AFE_KEEP_SUBNORMALS` is set to
+/// anything but `0` or nothing, read once per process.
+pub fn flushing() -> bool {
+    static FLUSH: OnceLock<bool> = OnceLock::new();
+    *FLUSH.get_or_init(|| {
+        std::env::var_os("AFE_KEEP_SUBNORMALS").is_none_or(|v| v.is_empty() || v == "0")
+    })
+}
+
 impl FlushDenormals {
-    /// Flushes subnormal results and inputs to zero on this thread until the guard drops.
+    /// Flushes subnormal results and inputs to zero on this thread until the guard drops
+    /// (unless [`flushing`] is off).
     pub fn enable() -> Self {
         #[cfg(target_arch = "x86_64")]
         {
             let csr = mxcsr::read();
-            let saved = (csr & FTZ_DAZ != FTZ_DAZ).then(|| {
+            let saved = (flushing() && csr & FTZ_DAZ != FTZ_DAZ).then(|| {
                 mxcsr::write(csr | FTZ_DAZ);
                 csr
             });

@@ -192,6 +192,23 @@ def test_chunked_stream_equals_whole_signal():
     assert afe.process(x, 16000, "ild", chunk=333)["ild_mono"].tolist() == whole["ild_mono"].tolist()
 
 
+def test_silence_leaves_no_subnormal_and_numpy_keeps_its_arithmetic():
+    """A tone, then digital silence: afe flushes the filters' decay to zero below
+    2.2e-308 while it computes (so a silent stretch costs no more than sound), on the
+    caller's thread and the workers, and gives the thread back its IEEE arithmetic."""
+    x = signal()
+    x[1600:] = 0.0
+    tiny = np.float64(np.finfo(np.float64).tiny)
+    for threads in (None, 2):
+        out = afe.process(x, 16000, ["filterbank", "ratemap"], threads=threads)
+        for k, v in out.items():
+            assert not np.any((v != 0) & (np.abs(v) < tiny)), k
+        m = afe.Manager(16000, 2, threads=threads)
+        m.add_request("filterbank")
+        m.process_chunk(x)
+        assert tiny / 2 > 0, "numpy's subnormals after a call"
+
+
 def test_metadata_and_layouts():
     m = afe.Manager(16000, 2)
     m.add_request("crosscorrelation", {"fb_nChannels": 8})
