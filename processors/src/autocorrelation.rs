@@ -21,6 +21,10 @@ use crate::real_fft::{fast_len, transform_values, RealFft};
 /// scaled by its largest magnitude.
 const POWER_RANGE: std::ops::RangeInclusive<f64> = 1e-200..=1e200;
 
+/// Frames whose largest magnitude lies in this range keep their scale (`K = 2`): lag 0,
+/// between its square and `W` times it, stays within [`POWER_RANGE`].
+const UNSCALED: std::ops::RangeInclusive<f64> = 1e-90..=1e90;
+
 /// How a frame is centre-clipped (AFE `ac_clipMethod`): samples between the thresholds
 /// become 0, the others are kept as below.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -235,9 +239,26 @@ impl Autocorrelation {
     /// into [`correlate_frames`] so that its loops get that function's vector width.
     #[inline(always)]
     fn correlate(&mut self, c: usize, out: &mut [f64]) {
+        // An all-zero frame gives 0/0 = NaN at every lag, as in the AFE (after digital
+        // silence most frames are such: no transform for them). Sign clipping makes it
+        // all −1.
+        if self.peaks[c] == 0.0
+            && self.troughs[c] == 0.0
+            && self.params.clip_method != ClipMethod::Sign
+        {
+            out.fill(f64::NAN);
+            return;
+        }
         self.load(c);
         let k = self.params.spectral_exponent;
         if k == 2.0 {
+            // A frame far from 1 (the decay after digital silence) is brought near it by a
+            // power of two, which changes no bit of the normalised ACF and keeps lag 0 in
+            // range, where one transform does.
+            let top = self.peaks[c].abs().max(self.troughs[c].abs());
+            if !UNSCALED.contains(&top) && self.params.clip_method != ClipMethod::Sign {
+                to_unit(&mut self.fft.input()[..self.win.len()], top);
+            }
             self.inverse
                 .run_squares(self.fft.transform(), &mut self.acf);
         } else {
@@ -253,7 +274,6 @@ impl Autocorrelation {
         } else {
             self.rescaled_acf(c, k)
         };
-        // An all-zero frame gives 0/0 = NaN at every lag, as in the AFE.
         let inv = 1.0 / lag0;
         for ((o, v), s) in out.iter_mut().zip(&self.acf).zip(&self.scale) {
             *o = v * s * inv;
@@ -274,9 +294,9 @@ impl Autocorrelation {
     }
 
     /// The ACF of channel `c` again from its spectrum over the spectrum's largest
-    /// magnitude, where |X|^K overflowed or sank into the subnormals (a frame near 0, K
-    /// far from 2): the normalisation by lag 0 cancels the scale, and an all-zero frame
-    /// stays all zero. Returns the new lag 0.
+    /// magnitude, where |X|^K overflowed or sank into the subnormals (K far from 2, or a
+    /// frame that clipping brought near 0): the normalisation by lag 0 cancels the scale,
+    /// and an all-zero frame stays all zero. Returns the new lag 0.
     #[cold]
     fn rescaled_acf(&mut self, c: usize, k: f64) -> f64 {
         self.load(c);
@@ -288,6 +308,20 @@ impl Autocorrelation {
             self.inverse.run(&self.power, &mut self.acf);
         }
         self.acf[0]
+    }
+}
+
+/// Multiplies `x`, whose largest magnitude is `top` (> 0), by the power of two that brings
+/// `top` into [0.5, 1): exact, unless `x` holds subnormals.
+#[inline(always)]
+fn to_unit(x: &mut [f64], top: f64) {
+    // top = f·2^e with f in [0.5, 1); 2^−e in steps that stay finite
+    let mut e = top.log2().floor() as i32 + 1;
+    while e != 0 {
+        let step = e.clamp(-1000, 1000);
+        let factor = 2f64.powi(-step);
+        x.iter_mut().for_each(|v| *v *= factor);
+        e -= step;
     }
 }
 
@@ -531,6 +565,15 @@ mod tests {
         let (_, scaled) = run(&AutocorrelationParams::default(), 1, &tiny, &[40]);
         for (a, b) in plain.iter().zip(&scaled) {
             assert!((a - b).abs() < 1e-12, "{a} vs {b}");
+        }
+        // scaled by powers of two, down to 1e-301 and up to 1e298, the frames
+        // give the plain frame's ACF bit for bit
+        for e in [-1000, -530, 600, 990] {
+            let factor = 2f64.powi(e / 2) * 2f64.powi(e - e / 2);
+            let x2: Vec<f64> = x.iter().map(|v| v * factor).collect();
+            let (_, scaled) = run(&AutocorrelationParams::default(), 1, &x2, &[40]);
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&scaled), bits(&plain), "2^{e}");
         }
         for k in [465.0, 5e5, 1e-9] {
             let p = AutocorrelationParams {
