@@ -10,6 +10,9 @@
 //! * Group `chain`: `ratemap`, `ild`, `itd` and `ic` together at default parameters, fed
 //!   whole and in chunks of 441 (10 ms) and 2205 (50 ms) samples through `process_chunk`.
 //!   Group `all`: every registered request at once, fed the same way.
+//! * Group `silence`: `pitch` and the `chain` set on the example with its last 0.6 s
+//!   set to 0 (digital silence, where the filters' states decay towards the subnormal
+//!   numbers), whole signal: against `pitch/whole` and `chain/whole`, what silence costs.
 //! * Group `gammatone`: the filterbank kernel alone, one ear, 16/32/64 channels, in
 //!   channel-samples per second.
 //! * Group `drnl`: the DRNL filterbank alone (`casp`, `map`), one ear, 16/32 channels,
@@ -141,6 +144,30 @@ fn request_set(c: &mut Criterion, name: &str, requests: &[&str]) {
                     out += frames(&mgr, &handles);
                 }
                 black_box(out)
+            })
+        });
+    }
+    group.finish();
+}
+
+/// Group `silence`: see the module's doc.
+fn silence(c: &mut Criterion) {
+    let (fs, mut left, mut right) = example();
+    let from = left.len() * 2 / 5;
+    left[from..].fill(0.0);
+    right[from..].fill(0.0);
+    let mut group = c.benchmark_group("silence");
+    group.sample_size(10);
+    group.warm_up_time(Duration::from_secs(1));
+    group.measurement_time(Duration::from_secs(3));
+    group.throughput(Throughput::Elements(left.len() as u64));
+    for (name, requests) in [("pitch", &["pitch"][..]), ("chain", CHAIN)] {
+        let (mut mgr, handles) = manager(fs, requests, &ParamMap::new());
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                mgr.process_signal(&[black_box(&left), black_box(&right)])
+                    .expect("processing the example");
+                black_box(frames(&mgr, &handles))
             })
         });
     }
@@ -348,10 +375,18 @@ fn stages(c: &mut Criterion) {
 
 /// The benchmark list (in a private module: the macro makes an undocumented `pub fn`).
 mod list {
-    use super::{chain, drnl, gammatone, per_request, stages};
+    use super::{chain, drnl, gammatone, per_request, silence, stages};
     use criterion::criterion_group;
 
-    criterion_group!(benches, per_request, chain, gammatone, drnl, stages);
+    criterion_group!(
+        benches,
+        per_request,
+        chain,
+        silence,
+        gammatone,
+        drnl,
+        stages
+    );
 }
 
 criterion_main!(list::benches);
