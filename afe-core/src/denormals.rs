@@ -58,23 +58,23 @@ impl FlushDenormals {
     /// Flushes subnormal results and inputs to zero on this thread until the guard drops
     /// (unless [`flushing`] is off).
     pub fn enable() -> Self {
-        #[cfg(target_arch = "x86_64")]
-        {
-            let csr = mxcsr::read();
-            let saved = (flushing() && csr & FTZ_DAZ != FTZ_DAZ).then(|| {
-                mxcsr::write(csr | FTZ_DAZ);
-                csr
-            });
-            FlushDenormals {
-                saved,
-                _thread: PhantomData,
-            }
-        }
-        #[cfg(not(target_arch = "x86_64"))]
         FlushDenormals {
+            #[cfg(target_arch = "x86_64")]
+            saved: set_ftz_daz(),
             _thread: PhantomData,
         }
     }
+}
+
+/// Sets FTZ and DAZ where they were not both set already; returns the register's value
+/// before, if it changed it.
+#[cfg(target_arch = "x86_64")]
+fn set_ftz_daz() -> Option<u32> {
+    let csr = mxcsr::read();
+    (flushing() && csr & FTZ_DAZ != FTZ_DAZ).then(|| {
+        mxcsr::write(csr | FTZ_DAZ);
+        csr
+    })
 }
 
 impl Drop for FlushDenormals {
