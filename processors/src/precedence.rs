@@ -5,7 +5,8 @@
 //! `L`, long), and the pair with the highest cumulative summary coherence gives the cues.
 //!
 //! Autocorrelations and the cross-correlation of the raw frames use real FFTs of at
-//! least `2W − 1` points; the lag-removed `S` signals are sums of six shifted copies
+//! least `2W − 1` points (the autocorrelations' inverse a half-length cosine transform,
+//! since their spectra are real and even); the lag-removed `S` signals are sums of six shifted copies
 //! of the frame, so their correlation is read off that of the frames (36 terms per lag)
 //! instead of correlating signals up to `W + 5·acLag` samples long. The truncated `L`
 //! signals are correlated directly.
@@ -19,6 +20,7 @@ use afe_core::window::window;
 use afe_core::{Block, DrawAs, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
 
+use crate::even_inverse::EvenInverse;
 use crate::framed::{check_framing, check_work, EarFrames};
 use crate::real_fft::{fast_len, transform_values, RealFft, RealIfft};
 
@@ -104,6 +106,9 @@ struct Model {
     /// spectra as real and imaginary parts, so that the passes around them vectorise).
     fft: RealFft,
     ifft: RealIfft,
+    /// The inverse of the real, even power spectra (the autocorrelations), at half the
+    /// cost.
+    even: EvenInverse,
     ears: [Ear; 2],
     /// Whether the next frame is the first since construction or reset.
     first: bool,
@@ -450,14 +455,15 @@ impl Precedence {
         }
         let max_lag = max_lag as usize;
         let nc = input.channels();
-        let nfft = fast_len(2 * w - 1);
+        // at least 2W − 1 points, a multiple of 4 for the even inverse
+        let nfft = 4 * fast_len((2 * w - 1).div_ceil(4));
         let bins = nfft / 2 + 1;
         let longest = w + 5 * ac_lag;
         // per ear: columns, complex spectra, power and the lag-removal variant; and the
-        // two transforms
+        // three transforms
         check_work(
             ("prec_wSizeSec", params.w_size_sec),
-            2 * nc * (w + 3 * bins + longest) + 2 * transform_values(nfft),
+            2 * nc * (w + 3 * bins + longest) + 3 * transform_values(nfft),
             &format!("this window over {nc} channels"),
             "shorten the window or use fewer channels",
         )?;
@@ -504,6 +510,7 @@ impl Precedence {
             icc: vec![0.0; 2 * max_lag.max(cc_lag) + 1],
             fft: RealFft::new(nfft),
             ifft: RealIfft::new(nfft),
+            even: EvenInverse::new(nfft),
         };
         let p = Precedence {
             frames: EarFrames::new(nc, w, h),
@@ -574,13 +581,16 @@ impl Model {
             for c in 0..nc {
                 let (re, im) = ear.spectra.bins(c * bins..(c + 1) * bins);
                 let power = &ear.power[c * bins..(c + 1) * bins];
-                let (s_re, s_im) = self.ifft.spectrum();
-                s_im.fill(0.0);
-                for (((s, r), i), p) in s_re.iter_mut().zip(re).zip(im).zip(power) {
-                    *s = if first { r * r + i * i } else { *p };
-                }
                 let row = &mut ear.rows[c * nl..(c + 1) * nl];
-                inverse_lags(&mut self.ifft, scale, row);
+                if first {
+                    let (raw, _) = self.ifft.spectrum();
+                    for ((s, r), i) in raw.iter_mut().zip(re).zip(im) {
+                        *s = r * r + i * i;
+                    }
+                    even_lags(&mut self.even, raw, scale, row);
+                } else {
+                    even_lags(&mut self.even, power, scale, row);
+                }
             }
             for (row, peak) in ear.rows.chunks_exact(nl).zip(ear.peaks.iter_mut()) {
                 *peak = first_max(row).0;
@@ -603,10 +613,7 @@ impl Model {
                 }
             }
         } else {
-            let (s_re, s_im) = self.ifft.spectrum();
-            s_re.copy_from_slice(&ear.summary);
-            s_im.fill(0.0);
-            inverse_lags(&mut self.ifft, scale, &mut ear.sacf);
+            even_lags(&mut self.even, &ear.summary, scale, &mut ear.sacf);
         }
         let total = first_max(&ear.sacf).0;
         let (side, j) = first_max(&ear.sacf[self.main_peak_width..]);
@@ -754,12 +761,11 @@ impl Model {
 }
 
 afe_core::simd_kernel!(
-    /// The inverse transform of the (real) spectrum in `ifft`, scaled by `scale`, at lags
-    /// `0..out.len()` into `out`.
-    fn inverse_lags(ifft: &mut RealIfft, scale: f64, out: &mut [f64]) {
-        for (o, t) in out.iter_mut().zip(ifft.run()) {
-            *o = t * scale;
-        }
+    /// The inverse transform of the real, even spectrum whose first half is `p`, scaled
+    /// by `scale`, at lags `0..out.len()` into `out`.
+    fn even_lags(even: &mut EvenInverse, p: &[f64], scale: f64, out: &mut [f64]) {
+        even.run(p, out);
+        out.iter_mut().for_each(|o| *o *= scale);
     }
 );
 
