@@ -941,6 +941,8 @@ impl Engine {
     /// Gives the processors back to `graph` (the pool must be quiescent) and leaves an
     /// empty table.
     pub(crate) fn uninstall(&mut self, graph: &mut Graph) {
+        // parts rejoin here, as the processors ran them
+        let _flush = FlushDenormals::enable();
         self.kept.clear();
         let old = self.with_table_swapped(|shared| {
             // SAFETY: no worker is active and the pool is quiescent.

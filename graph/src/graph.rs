@@ -259,6 +259,7 @@ impl Graph {
 
     /// Resets every processor and clears every output.
     pub fn reset(&mut self) {
+        let _flush = FlushDenormals::enable();
         for node in &mut self.nodes {
             if let Some(p) = node.processor.as_mut() {
                 p.reset();

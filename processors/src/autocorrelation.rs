@@ -21,8 +21,10 @@ use crate::real_fft::{fast_len, transform_values, RealFft};
 /// scaled by its largest magnitude.
 const POWER_RANGE: std::ops::RangeInclusive<f64> = 1e-200..=1e200;
 
-/// Frames whose largest magnitude lies in this range keep their scale (`K = 2`): lag 0,
-/// between its square and `W` times it, stays within [`POWER_RANGE`].
+/// Frames whose largest magnitude lies in this range keep their scale (`K = 2`): lag 0
+/// (the unnormalised inverse's, `N·Σx²` over the clipped frame) then stays within
+/// [`POWER_RANGE`] unless `clc` clipping shrinks the frame, where the rescaling after the
+/// fact takes over.
 const UNSCALED: std::ops::RangeInclusive<f64> = 1e-90..=1e90;
 
 /// How a frame is centre-clipped (AFE `ac_clipMethod`): samples between the thresholds
@@ -312,9 +314,13 @@ impl Autocorrelation {
 }
 
 /// Multiplies `x`, whose largest magnitude is `top` (> 0), by the power of two that brings
-/// `top` into [0.5, 1): exact, unless `x` holds subnormals.
+/// `top` near [0.5, 1) (`log2` may round it into [0.25, 0.5)): exact, unless `x` holds
+/// subnormals or the scaling makes some. A non-finite `top` leaves `x` as it is.
 #[inline(always)]
 fn to_unit(x: &mut [f64], top: f64) {
+    if !top.is_finite() {
+        return;
+    }
     // top = f·2^e with f in [0.5, 1); 2^−e in steps that stay finite
     let mut e = top.log2().floor() as i32 + 1;
     while e != 0 {
@@ -566,9 +572,9 @@ mod tests {
         for (a, b) in plain.iter().zip(&scaled) {
             assert!((a - b).abs() < 1e-12, "{a} vs {b}");
         }
-        // scaled by powers of two, down to 1e-301 and up to 1e298, the frames
-        // give the plain frame's ACF bit for bit
-        for e in [-1000, -530, 600, 990] {
+        // scaled by powers of two, down to 1e-301 and up to 1e307 (two steps of scaling),
+        // the frames give the plain frame's ACF bit for bit
+        for e in [-1000, -530, 600, 990, 1020] {
             let factor = 2f64.powi(e / 2) * 2f64.powi(e - e / 2);
             let x2: Vec<f64> = x.iter().map(|v| v * factor).collect();
             let (_, scaled) = run(&AutocorrelationParams::default(), 1, &x2, &[40]);

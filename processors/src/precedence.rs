@@ -6,10 +6,10 @@
 //!
 //! Autocorrelations and the cross-correlation of the raw frames use real FFTs of at
 //! least `2W − 1` points (the autocorrelations' inverse a half-length cosine transform,
-//! since their spectra are real and even); the lag-removed `S` signals are sums of six shifted copies
-//! of the frame, so their correlation is read off that of the frames (36 terms per lag)
-//! instead of correlating signals up to `W + 5·acLag` samples long. The truncated `L`
-//! signals are correlated directly.
+//! since their spectra are real and even); the lag-removed `S` signals are sums of six
+//! shifted copies of the frame, so their correlation is read off that of the frames (36
+//! terms per lag) instead of correlating signals up to `W + 5·acLag` samples long. The
+//! truncated `L` signals are correlated directly.
 
 use std::ops::Range;
 
