@@ -241,13 +241,12 @@ impl Autocorrelation {
     /// into [`correlate_frames`] so that its loops get that function's vector width.
     #[inline(always)]
     fn correlate(&mut self, c: usize, out: &mut [f64]) {
+        // the windowed frame's largest magnitude; sign clipping makes every sample ±1
+        let top = self.peaks[c].abs().max(self.troughs[c].abs());
+        let signs = self.params.clip_method == ClipMethod::Sign;
         // An all-zero frame gives 0/0 = NaN at every lag, as in the AFE (after digital
-        // silence most frames are such: no transform for them). Sign clipping makes it
-        // all −1.
-        if self.peaks[c] == 0.0
-            && self.troughs[c] == 0.0
-            && self.params.clip_method != ClipMethod::Sign
-        {
+        // silence most frames are such: no transform for them).
+        if top == 0.0 && !signs {
             out.fill(f64::NAN);
             return;
         }
@@ -257,8 +256,7 @@ impl Autocorrelation {
             // A frame far from 1 (the decay after digital silence) is brought near it by a
             // power of two, which changes no bit of the normalised ACF and keeps lag 0 in
             // range, where one transform does.
-            let top = self.peaks[c].abs().max(self.troughs[c].abs());
-            if !UNSCALED.contains(&top) && self.params.clip_method != ClipMethod::Sign {
+            if !UNSCALED.contains(&top) && !signs {
                 to_unit(&mut self.fft.input()[..self.win.len()], top);
             }
             self.inverse
