@@ -36,6 +36,7 @@ pub mod realtime;
 mod recorder;
 pub mod rss;
 pub mod stream;
+pub mod trial;
 pub mod wav;
 
 pub use afe_bass_source as bass_source;
