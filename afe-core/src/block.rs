@@ -432,6 +432,16 @@ impl Block {
         self.grow(frames.saturating_mul(self.width));
     }
 
+    /// As [`Block::reserve_frames`] for exactly `frames` more rows, returning the
+    /// allocator's refusal instead of aborting the process (the buffers sized by a whole
+    /// signal's length).
+    pub fn try_reserve_frames(
+        &mut self,
+        frames: usize,
+    ) -> Result<(), std::collections::TryReserveError> {
+        huge_pages::try_reserve(&mut self.data, frames.saturating_mul(self.width))
+    }
+
     /// Makes room for `values` more values. A new allocation of 4 MiB or more is advised
     /// to the kernel for huge pages before anything is written to it (see `huge_pages`).
     fn grow(&mut self, values: usize) {

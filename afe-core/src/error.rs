@@ -83,6 +83,39 @@ pub enum Error {
         /// The processors that need the whole input, e.g. `innerhaircell (ihc_method 'hilbert')`.
         what: String,
     },
+    /// A whole-signal call would take more memory than is available (its input, the
+    /// intermediate signals it joins, the outputs and the processors' working copies).
+    #[error("processing the signal in one call would take about {need} for {seconds:.1} s of it ({what} take the whole input at once, as in the AFE), more than the {available} of memory available: feed it in chunks (the AFE's per-chunk semantics: `afe extract --chunk N`, `chunk=` in Python, `Manager::process_chunk`), shorten it, or free memory")]
+    WholeSignalOverMemory {
+        /// Length of the signal (or of its part read so far) in seconds.
+        seconds: f64,
+        /// Memory the call would take, e.g. `1.8 GB`.
+        need: String,
+        /// Memory available, e.g. `0.9 GB`.
+        available: String,
+        /// The processors that need the whole input.
+        what: String,
+    },
+    /// An allocation sized by the signal's length was refused by the allocator (the
+    /// memory ran short after the checks: another process took it, or the estimate
+    /// was low).
+    #[error("could not allocate {need} for {what}: the memory is short; free memory, shorten the signal, or feed it in chunks (`afe extract --chunk N`, `chunk=` in Python)")]
+    AllocationFailed {
+        /// The size asked for, e.g. `218.7 MB`.
+        need: String,
+        /// What it was for, e.g. `the joined output of filterbank`.
+        what: String,
+    },
+    /// An environment variable that sets a limit holds a value it does not accept.
+    #[error("the environment variable {variable} is {value:?}: it must be {accepted} (unset it for the default)")]
+    BadSetting {
+        /// The variable, e.g. `AFE_WORK_LIMIT`.
+        variable: &'static str,
+        /// Its value as set.
+        value: String,
+        /// What it accepts, e.g. `a positive number of values per second`.
+        accepted: &'static str,
+    },
     /// The outputs of a whole signal would not fit the memory available (see
     /// `afe::memory`).
     #[error("keeping the outputs would take {need}, more than the {available} of memory available: {WAYS_OUT}")]

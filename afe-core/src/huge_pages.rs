@@ -31,6 +31,27 @@ pub(crate) fn reserve(values: &mut Vec<f64>, additional: usize) {
     *values = fresh;
 }
 
+/// As [`reserve`], returning the allocator's refusal instead of aborting the process: for
+/// the buffers sized by a whole signal's length, which may not fit the memory left.
+pub(crate) fn try_reserve(
+    values: &mut Vec<f64>,
+    additional: usize,
+) -> Result<(), std::collections::TryReserveError> {
+    if values.capacity() - values.len() >= additional {
+        return Ok(());
+    }
+    let needed = values.len().saturating_add(additional);
+    if needed.saturating_mul(std::mem::size_of::<f64>()) < MIN_BYTES {
+        return values.try_reserve_exact(additional);
+    }
+    let mut fresh = Vec::new();
+    fresh.try_reserve_exact(needed)?;
+    advise(&fresh);
+    fresh.extend_from_slice(values);
+    *values = fresh;
+    Ok(())
+}
+
 /// The whole huge pages inside `bytes` bytes from address `start`: their first address
 /// and length in bytes, if the allocation is large enough to be advised.
 fn advised_range(start: usize, bytes: usize) -> Option<(usize, usize)> {
