@@ -653,3 +653,203 @@ fn afe_serve_logs_a_refused_origin_and_checks_its_allowed_ones() {
         "{stderr}"
     );
 }
+
+/// Issue 57: the page is served with headers that forbid framing it and guessing its
+/// type, and a Content Security Policy that runs its own script only.
+#[test]
+fn the_page_cannot_be_framed_and_runs_only_its_own_script() {
+    let (view, streamer) = start(&ViewOptions::default(), &["ratemap"], 0.5);
+    let mut http = TcpStream::connect(view.addr()).expect("http");
+    http.write_all(b"GET / HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")
+        .expect("get");
+    let mut page = String::new();
+    http.read_to_string(&mut page).expect("page");
+    let (head, _) = page.split_once("\r\n\r\n").expect("headers");
+    let head = head.to_ascii_lowercase();
+    assert!(head.contains("\r\nx-frame-options: deny"), "{head}");
+    assert!(
+        head.contains("\r\nx-content-type-options: nosniff"),
+        "{head}"
+    );
+    let csp = head
+        .lines()
+        .find_map(|l| l.strip_prefix("content-security-policy: "))
+        .expect("a content security policy");
+    for part in [
+        "frame-ancestors 'none'",
+        "default-src 'none'",
+        "script-src 'sha256-",
+        "connect-src 'self'",
+    ] {
+        assert!(csp.contains(part), "{part} not in {csp}");
+    }
+    assert!(!csp.contains("unsafe-eval"), "{csp}");
+    streamer.join().expect("stream");
+}
+
+/// Issue 57: a page edits only the requests it placed: it cannot remove the stream's
+/// own or another page's, and its `set` changes its own requests alone (placed again
+/// with the value), never a request another page or the stream shares processors with.
+#[test]
+fn a_page_edits_only_the_requests_it_placed() {
+    let (view, streamer) = start(&ViewOptions::default(), &["ratemap"], 3.0);
+    let (mut a, mut b) = (connect(view.addr()), connect(view.addr()));
+    let ask = |ws: &mut Socket, msg: Value| {
+        ws.send(Message::text(msg.to_string())).expect("send");
+        replies(ws, 1).remove(0)
+    };
+    // the stream's ratemap is request 0; a's ratemap shares all its processors
+    let placed = ask(
+        &mut a,
+        json!({"op": "add", "request": "ratemap", "params": {"fb_nChannels": 8}}),
+    );
+    assert_eq!(placed["ok"], true, "{placed}");
+    assert_eq!(message(&placed), "placed ratemap (request 1)");
+    for handle in [0, 1] {
+        let r = ask(&mut b, json!({"op": "remove", "handle": handle}));
+        assert_eq!(r["ok"], false);
+        assert_eq!(
+            message(&r),
+            format!("request {handle} was not placed by this page: a page removes only the requests it added")
+        );
+    }
+    let r = ask(&mut b, json!({"op": "remove", "handle": 7}));
+    assert_eq!(message(&r), "no request 7 is in place");
+    let r = ask(
+        &mut b,
+        json!({"op": "set", "name": "rm_wSizeSec", "value": 0.05}),
+    );
+    assert_eq!(r["ok"], false);
+    assert!(
+        message(&r).starts_with("no request this page placed uses parameter 'rm_wSizeSec'"),
+        "{r}"
+    );
+    // a's set places its request again; the stream's ratemap keeps its window
+    let r = ask(
+        &mut a,
+        json!({"op": "set", "name": "rm_wSizeSec", "value": 0.05}),
+    );
+    assert_eq!(r["ok"], true, "{r}");
+    assert!(
+        message(&r).starts_with("rm_wSizeSec = 0.05 in 1 request(s) of this page"),
+        "{r}"
+    );
+    let layout = loop {
+        let Message::Text(t) = a.read().expect("a layout") else {
+            continue;
+        };
+        let v: Value = serde_json::from_str(t.as_str()).expect("json");
+        if v["type"] == "layout" && v["signals"].get("ratemap_2_left").is_some() {
+            break v;
+        }
+    };
+    assert_eq!(
+        layout["signals"]["ratemap_left"]["window_s"], 0.02,
+        "the stream's own"
+    );
+    assert_eq!(layout["signals"]["ratemap_2_left"]["window_s"], 0.05, "a's");
+    let handles: Vec<u64> = layout["requests"]
+        .as_array()
+        .expect("requests")
+        .iter()
+        .map(|r| r["handle"].as_u64().expect("handle"))
+        .collect();
+    assert_eq!(handles.len(), 2, "{layout}");
+    assert!(handles.contains(&0) && !handles.contains(&1), "{handles:?}");
+    drop((a, b));
+    streamer.join().expect("stream");
+}
+
+/// Issue 57: a page's requests leave with it, so closed pages hold no room.
+#[test]
+fn the_requests_of_a_page_that_closed_are_freed() {
+    let options = ViewOptions {
+        limits: Limits {
+            requests_per_page: 2,
+            requests: 2,
+            ..Limits::default()
+        },
+        ..ViewOptions::default()
+    };
+    let (view, streamer) = start(&options, &[], 4.0);
+    let add = |ws: &mut Socket, channels: u32| {
+        let msg = json!({"op": "add", "request": "ild", "params": {"fb_nChannels": channels}});
+        ws.send(Message::text(msg.to_string())).expect("send");
+        replies(ws, 1).remove(0)
+    };
+    for round in 0..3 {
+        let mut page = connect(view.addr());
+        assert_eq!(add(&mut page, 4 + round)["ok"], true, "round {round}");
+        assert_eq!(add(&mut page, 10 + round)["ok"], true, "round {round}");
+        let full = add(&mut page, 20);
+        assert!(
+            message(&full).starts_with("this page has 2 requests in place"),
+            "{full}"
+        );
+        page.close(None).expect("close");
+        while page.read().is_ok() {}
+    }
+    // the last page's requests went too: a watcher sees an empty layout
+    let mut watcher = connect(view.addr());
+    let deadline = Instant::now() + Duration::from_secs(2);
+    let mut empty = false;
+    while !empty && Instant::now() < deadline {
+        if let Ok(Message::Text(t)) = watcher.read() {
+            let v: Value = serde_json::from_str(t.as_str()).expect("json");
+            empty = v["type"] == "layout" && v["requests"].as_array().is_some_and(Vec::is_empty);
+        }
+    }
+    assert!(empty, "the closed pages' requests are still in place");
+    drop(watcher);
+    streamer.join().expect("stream");
+}
+
+/// Issue 57, item 11: a request whose cost would take the stream past its deadline is
+/// refused before it runs, with its measured cost, the budget and what to change; the
+/// stream misses no deadline, and a light request is still taken.
+#[test]
+fn a_request_too_heavy_for_the_deadline_is_refused_before_it_runs() {
+    let (view, tap) = View::start(
+        "127.0.0.1:0".parse().expect("addr"),
+        10.0,
+        &ViewOptions::default(),
+    )
+    .expect("view");
+    let job = StreamJob {
+        requests: vec!["ratemap".into()],
+        duration_s: Some(4.0),
+        pacing: Pacing::Realtime,
+        ..StreamJob::default()
+    };
+    let synth = Synth::parse("fs=44100,tone=500,noise=0.1,seed=3").expect("synth");
+    let streamer = std::thread::spawn(move || run(synth, &job, tap).expect("stream"));
+    let mut ws = connect(view.addr());
+    std::thread::sleep(Duration::from_millis(300));
+    let heavy = json!({"op": "add", "request": "autocorrelation", "params": {
+        "fb_nChannels": 64, "ac_hSizeSec": 0.002, "ac_wSizeSec": 0.05}});
+    ws.send(Message::text(heavy.to_string())).expect("send");
+    let reply = replies(&mut ws, 1).remove(0);
+    assert_eq!(reply["ok"], false, "{reply}");
+    let m = message(&reply);
+    assert!(
+        m.starts_with("'autocorrelation' would cost ")
+            && m.contains(" of each 10.0-ms block (measured on a trial before placing it)")
+            && m.contains("(80 %) requests may use: ask for less (fewer channels, a longer hop"),
+        "{m}"
+    );
+    let light = json!({"op": "add", "request": "ild"});
+    ws.send(Message::text(light.to_string())).expect("send");
+    let reply = replies(&mut ws, 1).remove(0);
+    assert_eq!(reply["ok"], true, "{reply}");
+    let seen = read_all(ws, |_, _| {});
+    let out = streamer.join().expect("stream");
+    assert!(
+        seen.texts
+            .iter()
+            .filter(|v| v["type"] == "layout")
+            .all(|v| v["signals"].get("autocorrelation_left").is_none()),
+        "the refused request was placed"
+    );
+    assert_eq!(out.report.lost_frames, 0, "{:?}", out.report);
+    assert_eq!(out.report.deadline_misses, 0, "{:?}", out.report);
+}

@@ -22,8 +22,11 @@
 //! The audio path never waits for the web side: batches come from a small pool and are
 //! dropped (counted) when none is free; edits wait in a bounded channel until the next
 //! block. Only pages of allowed origins connect ([`AllowedOrigins`]), and what pages may
-//! ask is bounded ([`Limits`]).
+//! ask is bounded ([`Limits`]): a page edits only the requests it placed, they go when
+//! it closes, and each request is measured before it is placed ([`afe::trial`]) and
+//! refused if it would take the stream past its deadline.
 
+mod csp;
 mod limits;
 mod origin;
 mod server;
@@ -63,6 +66,9 @@ pub enum ViewError {
         /// What the system said.
         source: std::io::Error,
     },
+    /// A thread of the view cannot be started.
+    #[error("cannot start the live view's request trials: {0}")]
+    Thread(std::io::Error),
     /// An allowed origin given is not one.
     #[error(transparent)]
     Origin(#[from] OriginError),
@@ -94,11 +100,16 @@ impl View {
             let _ = pool_tx.send(tap::Batch::new());
         }
         let (edits_tx, edits_rx) = mpsc::sync_channel(options.limits.edits_waiting);
+        // one departure per page: bounded by the pages, never refused
+        let (departed_tx, departed_rx) = mpsc::channel();
+        let trials =
+            afe::trial::Trials::start(options.limits.edits_waiting).map_err(ViewError::Thread)?;
         let listeners = Arc::new(AtomicUsize::new(0));
         let shared = Arc::new(server::Shared {
             out: tokio::sync::broadcast::channel(server::PAGE_BACKLOG).0,
             layout: Mutex::new(String::new()),
             edits: edits_tx,
+            departed: departed_tx,
             listeners: listeners.clone(),
             pages: AtomicUsize::new(0),
             next_page: AtomicU64::new(1),
@@ -121,9 +132,11 @@ impl View {
             to_server,
             pool_rx,
             edits_rx,
+            departed_rx,
             listeners,
             batch_blocks,
             options.limits.clone(),
+            trials,
         );
         Ok((
             View {

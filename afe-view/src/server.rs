@@ -22,14 +22,19 @@ use hyper_util::service::TowerToHyperService;
 use serde_json::{json, Value};
 use tokio::sync::{broadcast, Semaphore};
 
+use super::csp;
 use super::limits::Rate;
 use super::tap::{Batch, Edit, ToServer};
 use super::ViewOptions;
 
+/// The page's script, as inlined (its hash is in the page's Content Security Policy).
+const SCRIPT: &str = concat!("\n", include_str!("page.js"));
+
 /// The page, with its script inline: no CDN, works offline.
 const PAGE: &str = concat!(
     include_str!("page.html"),
-    "<script>\n",
+    "<script>",
+    "\n",
     include_str!("page.js"),
     "</script>\n</body>\n</html>\n"
 );
@@ -64,6 +69,8 @@ pub(crate) struct Shared {
     pub layout: Mutex<String>,
     /// Edits for the tap (bounded: a full channel is "busy").
     pub edits: SyncSender<Edit>,
+    /// Pages that closed, for the tap to remove their requests.
+    pub departed: Sender<u64>,
     /// Pages that asked for the audio.
     pub listeners: Arc<AtomicUsize>,
     /// Pages connected.
@@ -214,7 +221,7 @@ pub(crate) fn serve(
         let listener = tokio::net::TcpListener::from_std(listener)?;
         let limits = shared.options.limits.clone();
         let app = Router::new()
-            .route("/", get(|| async { Html(PAGE) }))
+            .route("/", get(|| async { (csp::headers(SCRIPT), Html(PAGE)) }))
             .route("/ws", get(upgrade))
             .with_state(shared.clone());
         let connections = Arc::new(Semaphore::new(limits.connections.max(1)));
@@ -396,6 +403,8 @@ async fn page(mut socket: WebSocket, shared: &Shared) {
     if listening {
         shared.listeners.fetch_sub(1, Ordering::Relaxed);
     }
+    // its requests leave with it
+    let _ = shared.departed.send(id);
 }
 
 /// A refusal for this page alone, for `op` if known.

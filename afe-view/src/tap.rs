@@ -2,8 +2,12 @@
 //! pooled batch and hands full batches to the server's thread without blocking; when
 //! no batch is free (a slow page) the frames are dropped and counted, never queued.
 //! Edits asked for by pages are applied here, between blocks, within the view's
-//! [`Limits`]: requests per page and in all, edits per block, the stream's load.
+//! [`Limits`]: requests per page and in all, edits per block, the stream's load. A page
+//! edits only the requests it placed (never the stream's own, another page's or a Zenoh
+//! client's), its requests go when it closes, and what it adds or changes is measured
+//! first ([`afe::trial`]) and refused if it would take the stream past its deadline.
 
+use std::collections::HashMap;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError};
 use std::sync::Arc;
@@ -13,6 +17,7 @@ use serde_json::{json, Value};
 
 use afe::metadata::describe;
 use afe::stream::{Observer, Timing};
+use afe::trial::{Cost, LoadCap, Shape, TrialError, Trials};
 
 use super::Limits;
 
@@ -118,11 +123,49 @@ pub(crate) enum Edit {
     },
 }
 
+/// A request a page placed and that is still in place.
+struct Placed {
+    handle: usize,
+    page: u64,
+    name: String,
+    /// The parameters it was placed with.
+    params: afe_core::ParamMap,
+    /// Its cost per block as measured before it was placed, ms.
+    cost_ms: f64,
+}
+
+/// An edit waiting for the trial of what it would place.
+enum Measured {
+    /// A page's new request.
+    Add {
+        page: u64,
+        name: String,
+        params: afe_core::ParamMap,
+    },
+    /// A page's requests `old` (handles), to be placed again as `new` with `param` set.
+    Set {
+        page: u64,
+        param: String,
+        old: Vec<usize>,
+        new: Vec<(String, afe_core::ParamMap)>,
+    },
+}
+
+impl Measured {
+    fn page(&self) -> u64 {
+        match self {
+            Measured::Add { page, .. } | Measured::Set { page, .. } => *page,
+        }
+    }
+}
+
 /// The live view's end of a stream (an [`Observer`]).
 pub struct Tap {
     pub(crate) to_server: SyncSender<ToServer>,
     pub(crate) pool: Receiver<Batch>,
     pub(crate) edits: Receiver<Edit>,
+    /// Pages that closed: their requests go.
+    pub(crate) departed: Receiver<u64>,
     pub(crate) listeners: Arc<AtomicUsize>,
     /// Blocks per batch.
     pub(crate) batch_blocks: u32,
@@ -132,113 +175,361 @@ pub struct Tap {
     sources: Vec<OutputRef>,
     version: u64,
     dropped_frames: u64,
-    /// Requests placed by pages and still in place: (handle, page).
-    placed: Vec<(usize, u64)>,
-    /// Compute time of a block over its duration, averaged over about a second.
-    load: f64,
+    /// Requests placed by pages and still in place.
+    placed: Vec<Placed>,
+    /// Edits whose cost is being measured, by ticket.
+    measured: HashMap<u64, Measured>,
+    next_ticket: u64,
+    /// Measures requests before they are placed, off the audio path.
+    trials: Trials,
+    /// The stream's load and the share requests may take.
+    cap: LoadCap,
+    /// The stream's shape, for the trials.
+    shape: Option<Shape>,
 }
 
 impl Tap {
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn new(
         to_server: SyncSender<ToServer>,
         pool: Receiver<Batch>,
         edits: Receiver<Edit>,
+        departed: Receiver<u64>,
         listeners: Arc<AtomicUsize>,
         batch_blocks: u32,
         limits: Limits,
+        trials: Trials,
     ) -> Self {
         Tap {
             to_server,
             pool,
             edits,
+            departed,
             listeners,
             batch_blocks,
+            cap: LoadCap::new(limits.max_load),
             limits,
             batch: None,
             sources: Vec::new(),
             version: 0,
             dropped_frames: 0,
             placed: Vec::new(),
-            load: 0.0,
+            measured: HashMap::new(),
+            next_ticket: 0,
+            trials,
+            shape: None,
+        }
+    }
+
+    /// Sends `page` the outcome of its edit `op`.
+    fn reply(&self, page: u64, op: &str, outcome: Result<String, String>) {
+        let reply = match outcome {
+            Ok(message) => json!({ "type": "reply", "op": op, "ok": true, "message": message }),
+            Err(message) => json!({ "type": "reply", "op": op, "ok": false, "message": message }),
+        };
+        // control messages wait for room: they are few (bounded per block), and a
+        // page must see them
+        let _ = self.to_server.send(ToServer::Reply {
+            page,
+            text: reply.to_string(),
+        });
+    }
+
+    /// Removes the requests of the pages that closed, and forgets their edits.
+    fn forget_departed(&mut self, mgr: &mut Manager) {
+        while let Ok(page) = self.departed.try_recv() {
+            for p in self.placed.iter().filter(|p| p.page == page) {
+                let _ = mgr.remove_request(afe_graph::RequestHandle::from_index(p.handle));
+            }
+            self.placed.retain(|p| p.page != page);
+            self.measured.retain(|_, m| m.page() != page);
+        }
+    }
+
+    /// Places what was measured and fits, replying to each page.
+    fn apply_measured(&mut self, mgr: &mut Manager) {
+        for (ticket, cost) in self.trials.finished() {
+            let Some(edit) = self.measured.remove(&ticket) else {
+                continue; // its page has gone
+            };
+            match edit {
+                Measured::Add { page, name, params } => {
+                    let outcome = cost
+                        .and_then(|c| self.cap.admit(&format!("'{name}'"), c).map(|()| c))
+                        .map_err(|e| e.to_string())
+                        .and_then(|c| self.place(mgr, page, &name, &params, c.ms));
+                    self.reply(page, "add", outcome);
+                }
+                Measured::Set {
+                    page,
+                    param,
+                    old,
+                    new,
+                } => {
+                    let outcome = self.replace(mgr, page, &param, &old, &new, cost);
+                    self.reply(page, "set", outcome);
+                }
+            }
         }
     }
 
     /// Applies up to `edits_per_block` of the edits pages asked for, replying to each
-    /// page.
+    /// page (an add or a set once its trial has measured it).
     fn apply_edits(&mut self, mgr: &mut Manager) {
+        self.forget_departed(mgr);
+        self.apply_measured(mgr);
         for _ in 0..self.limits.edits_per_block {
             let Ok(edit) = self.edits.try_recv() else {
                 break;
             };
-            let (page, op, outcome) = match edit {
+            match edit {
                 Edit::Add { page, name, params } => {
-                    (page, "add", self.add(mgr, page, &name, &params))
+                    if let Err(why) = self.add(mgr, page, name, params) {
+                        self.reply(page, "add", Err(why));
+                    }
                 }
-                Edit::Remove { page, handle } => (
-                    page,
-                    "remove",
-                    mgr.remove_request(afe_graph::RequestHandle::from_index(handle))
-                        .map(|()| {
-                            self.placed.retain(|&(h, _)| h != handle);
-                            format!("removed request {handle}")
-                        })
-                        .map_err(|e| e.to_string()),
-                ),
-                Edit::Set { page, name, value } => (
-                    page,
-                    "set",
-                    set_everywhere(mgr, &name, value).map_err(|e| e.to_string()),
-                ),
-            };
-            let reply = match outcome {
-                Ok(message) => json!({ "type": "reply", "op": op, "ok": true, "message": message }),
-                Err(message) => {
-                    json!({ "type": "reply", "op": op, "ok": false, "message": message })
+                Edit::Remove { page, handle } => {
+                    let outcome = self.remove(mgr, page, handle);
+                    self.reply(page, "remove", outcome);
                 }
-            };
-            // control messages wait for room: they are few (bounded per block), and a
-            // page must see them
-            let _ = self.to_server.send(ToServer::Reply {
-                page,
-                text: reply.to_string(),
-            });
+                Edit::Set { page, name, value } => {
+                    if let Err(why) = self.set(mgr, page, name, value) {
+                        self.reply(page, "set", Err(why));
+                    }
+                }
+            }
         }
     }
 
-    /// Places a request for `page` if the limits allow it.
+    /// Requests `page` has in place or being measured.
+    fn count(&self, page: Option<u64>) -> usize {
+        let mine = |p: u64| page.is_none_or(|q| q == p);
+        self.placed.iter().filter(|p| mine(p.page)).count()
+            + self
+                .measured
+                .values()
+                .filter(|m| matches!(m, Measured::Add { page: p, .. } if mine(*p)))
+                .count()
+    }
+
+    /// Asks for the trial of `page`'s new request if the limits allow it (or places it
+    /// at once when the stream has no deadline); the reply comes when it is placed or
+    /// refused.
     fn add(
         &mut self,
         mgr: &mut Manager,
         page: u64,
-        name: &str,
-        params: &afe_core::ParamMap,
-    ) -> Result<String, String> {
+        name: String,
+        params: afe_core::ParamMap,
+    ) -> Result<(), String> {
         let limits = &self.limits;
-        let mine = self.placed.iter().filter(|&&(_, p)| p == page).count();
+        let mine = self.count(Some(page));
         if mine >= limits.requests_per_page {
             return Err(format!(
                 "this page has {mine} requests in place, the most one page may add: \
                  remove one first"
             ));
         }
-        if self.placed.len() >= limits.requests {
+        let all = self.count(None);
+        if all >= limits.requests {
             return Err(format!(
-                "pages have {} requests in place, the most this server takes from pages: \
-                 remove one first",
-                self.placed.len()
+                "pages have {all} requests in place, the most this server takes from pages: \
+                 remove one first"
             ));
         }
-        if self.load > limits.max_load {
-            return Err(format!(
-                "the stream uses {:.0} % of its real-time budget (above {:.0} %): remove a \
-                 request before adding one",
-                100.0 * self.load,
-                100.0 * limits.max_load
-            ));
+        self.cap.check_load().map_err(|e| e.to_string())?;
+        match self.shape.filter(|_| self.cap.has_deadline()) {
+            None => {
+                let outcome = self.place(mgr, page, &name, &params, 0.0);
+                self.reply(page, "add", outcome);
+            }
+            Some(shape) => {
+                let ticket = self.ticket();
+                let tried = vec![(name.clone(), params.clone())];
+                self.trials
+                    .submit(ticket, shape, tried, self.cap.headroom_ms())
+                    .map_err(|e| e.to_string())?;
+                self.measured
+                    .insert(ticket, Measured::Add { page, name, params });
+            }
         }
+        Ok(())
+    }
+
+    fn ticket(&mut self) -> u64 {
+        self.next_ticket += 1;
+        self.next_ticket
+    }
+
+    /// Places a request for `page`, measured at `cost_ms` per block.
+    fn place(
+        &mut self,
+        mgr: &mut Manager,
+        page: u64,
+        name: &str,
+        params: &afe_core::ParamMap,
+        cost_ms: f64,
+    ) -> Result<String, String> {
         let h = mgr.add_request(name, params).map_err(|e| e.to_string())?;
-        self.placed.push((h.index(), page));
+        self.placed.push(Placed {
+            handle: h.index(),
+            page,
+            name: name.to_string(),
+            params: params.clone(),
+            cost_ms,
+        });
         Ok(format!("placed {name} (request {})", h.index()))
+    }
+
+    /// Removes a request `page` placed; any other (the stream's own, another page's, a
+    /// Zenoh client's) is refused.
+    fn remove(&mut self, mgr: &mut Manager, page: u64, handle: usize) -> Result<String, String> {
+        let h = afe_graph::RequestHandle::from_index(handle);
+        if !self
+            .placed
+            .iter()
+            .any(|p| p.handle == handle && p.page == page)
+        {
+            return Err(if mgr.request_signals(h).is_ok() {
+                format!(
+                    "request {handle} was not placed by this page: a page removes only the \
+                     requests it added"
+                )
+            } else {
+                format!("no request {handle} is in place")
+            });
+        }
+        mgr.remove_request(h).map_err(|e| e.to_string())?;
+        self.placed.retain(|p| p.handle != handle);
+        Ok(format!("removed request {handle}"))
+    }
+
+    /// Sets parameter `name` in `page`'s requests that use it, by placing them again
+    /// with the new value (their processors shared with other requests are left alone,
+    /// so no one else's request changes): measured first when the stream has a deadline.
+    fn set(
+        &mut self,
+        mgr: &mut Manager,
+        page: u64,
+        name: String,
+        value: Value,
+    ) -> Result<(), String> {
+        let single: afe_core::ParamMap = [(name.clone(), value.clone())].into_iter().collect();
+        afe_graph::check_parameter_names(&single).map_err(|e| e.to_string())?;
+        let mut old = Vec::new();
+        let mut new = Vec::new();
+        for p in self.placed.iter().filter(|p| p.page == page) {
+            let h = afe_graph::RequestHandle::from_index(p.handle);
+            let used = mgr
+                .request_parameters(h)
+                .is_ok_and(|used| used.contains_key(&name));
+            if used {
+                let mut params = p.params.clone();
+                params.insert(name.clone(), value.clone());
+                old.push(p.handle);
+                new.push((p.name.clone(), params));
+            }
+        }
+        if old.is_empty() {
+            return Err(format!(
+                "no request this page placed uses parameter '{name}' (a page changes only \
+                 the requests it added)"
+            ));
+        }
+        match self.shape.filter(|_| self.cap.has_deadline()) {
+            None => {
+                let outcome = self.replace(mgr, page, &name, &old, &new, Ok(Cost::free()));
+                self.reply(page, "set", outcome);
+            }
+            Some(shape) => {
+                let ticket = self.ticket();
+                let freed: f64 = self.cost_of(&old);
+                self.trials
+                    .submit(ticket, shape, new.clone(), self.cap.headroom_ms() + freed)
+                    .map_err(|e| e.to_string())?;
+                self.measured.insert(
+                    ticket,
+                    Measured::Set {
+                        page,
+                        param: name,
+                        old,
+                        new,
+                    },
+                );
+            }
+        }
+        Ok(())
+    }
+
+    /// The measured cost of these placed requests, ms per block.
+    fn cost_of(&self, handles: &[usize]) -> f64 {
+        self.placed
+            .iter()
+            .filter(|p| handles.contains(&p.handle))
+            .map(|p| p.cost_ms)
+            .sum()
+    }
+
+    /// Places `new` in place of `page`'s requests `old` (those still there), if their
+    /// measured cost fits once the old ones have gone; all or none.
+    fn replace(
+        &mut self,
+        mgr: &mut Manager,
+        page: u64,
+        param: &str,
+        old: &[usize],
+        new: &[(String, afe_core::ParamMap)],
+        cost: Result<Cost, TrialError>,
+    ) -> Result<String, String> {
+        let old: Vec<usize> = old
+            .iter()
+            .copied()
+            .filter(|h| self.placed.iter().any(|p| p.handle == *h && p.page == page))
+            .collect();
+        if old.len() != new.len() {
+            return Err(format!(
+                "the requests using '{param}' changed meanwhile: set it again"
+            ));
+        }
+        let cost = cost.map_err(|e| e.to_string())?;
+        let freed = self.cost_of(&old);
+        let what = afe::trial::describe(new);
+        self.cap
+            .admit(&what, cost.less(freed))
+            .map_err(|e| e.to_string())?;
+        let mut placed = Vec::new();
+        for (name, params) in new {
+            match mgr.add_request(name, params) {
+                Ok(h) => placed.push(h),
+                Err(e) => {
+                    for h in placed {
+                        let _ = mgr.remove_request(h);
+                    }
+                    return Err(format!("request '{name}': {e}"));
+                }
+            }
+        }
+        let each = cost.ms / new.len() as f64;
+        for (h, (name, params)) in placed.iter().zip(new) {
+            self.placed.push(Placed {
+                handle: h.index(),
+                page,
+                name: name.clone(),
+                params: params.clone(),
+                cost_ms: each,
+            });
+        }
+        for &h in &old {
+            let _ = mgr.remove_request(afe_graph::RequestHandle::from_index(h));
+        }
+        self.placed.retain(|p| !old.contains(&p.handle));
+        let now: Vec<String> = placed.iter().map(|h| h.index().to_string()).collect();
+        Ok(format!(
+            "{param} = {} in {} request(s) of this page, placed again as request(s) {}",
+            new[0].1[param],
+            new.len(),
+            now.join(", ")
+        ))
     }
 
     /// Sends the layout if the graph's signals changed (placed, removed, rebuilt), with
@@ -312,34 +603,14 @@ impl Tap {
     }
 }
 
-/// Sets parameter `name` in every request that uses it (the AFE's `modifyParameter`
-/// applied to the whole graph); an error if none does or the value is invalid.
-fn set_everywhere(mgr: &mut Manager, name: &str, value: Value) -> afe_core::Result<String> {
-    let handles: Vec<_> = mgr.handles().collect();
-    let mut changed = 0;
-    for h in handles {
-        match mgr.modify_parameter(h, name, value.clone()) {
-            Ok(()) => changed += 1,
-            Err(e) if e.to_string().contains("uses this parameter") => {}
-            Err(e) => return Err(e),
-        }
-    }
-    if changed == 0 {
-        return Err(afe_core::Error::InvalidInput(format!(
-            "no request in place uses parameter '{name}'"
-        )));
-    }
-    Ok(format!("{name} = {value} in {changed} request(s)"))
-}
-
 impl Observer for Tap {
     fn block(&mut self, timing: &Timing, mgr: &mut Manager, input: &[Vec<f64>]) {
-        let (ms, budget) = timing.last_block_ms();
-        if budget > 0.0 {
-            // a first-order average with a time constant of about a second
-            let alpha = (budget / 1000.0).min(1.0);
-            self.load += alpha * (ms / budget - self.load);
-        }
+        self.cap.observe(timing);
+        self.shape = Some(Shape {
+            fs: mgr.fs(),
+            ears: mgr.ears(),
+            block_frames: timing.block_frames(),
+        });
         self.check_layout(mgr, timing);
         if self.batch.is_none() {
             self.batch = self.pool.try_recv().ok();

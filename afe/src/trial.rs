@@ -50,9 +50,7 @@ pub enum TrialError {
         source: afe_core::Error,
     },
     /// Every trial slot is taken.
-    #[error(
-        "busy: {0} requests are being measured before they are placed; try again in a moment"
-    )]
+    #[error("busy: {0} requests are being measured before they are placed; try again in a moment")]
     Busy(usize),
     /// The trial thread has gone (the server is stopping).
     #[error("the server is stopping: no request is measured any more")]
@@ -100,6 +98,24 @@ pub struct Cost {
     pub ms: f64,
     /// Whether the trial stopped early (too slow to finish): the cost is at least `ms`.
     pub partial: bool,
+}
+
+impl Cost {
+    /// Nothing: what a stream without a deadline is charged.
+    pub fn free() -> Cost {
+        Cost {
+            ms: 0.0,
+            partial: false,
+        }
+    }
+
+    /// This cost less what goes at the same time (requests it replaces).
+    pub fn less(self, freed_ms: f64) -> Cost {
+        Cost {
+            ms: (self.ms - freed_ms).max(0.0),
+            partial: self.partial,
+        }
+    }
 }
 
 /// The stream a trial imitates.
@@ -369,8 +385,8 @@ mod tests {
 
     #[test]
     fn a_trial_costs_a_heavy_request_more_than_a_light_one() {
-        let light = measure(shape(), &[("ild".into(), ParamMap::new())], f64::INFINITY)
-            .expect("ild");
+        let light =
+            measure(shape(), &[("ild".into(), ParamMap::new())], f64::INFINITY).expect("ild");
         let heavy_params: ParamMap = [
             ("fb_nChannels".to_string(), serde_json::json!(64)),
             ("ac_wSizeSec".to_string(), serde_json::json!(0.05)),
@@ -401,6 +417,9 @@ mod tests {
     fn requests_are_described_for_messages() {
         let r = |n: &str| (n.to_string(), ParamMap::new());
         assert_eq!(describe(&[r("ild")]), "'ild'");
-        assert_eq!(describe(&[r("ild"), r("itd"), r("ic")]), "'ild', 'itd' and 'ic'");
+        assert_eq!(
+            describe(&[r("ild"), r("itd"), r("ic")]),
+            "'ild', 'itd' and 'ic'"
+        );
     }
 }
