@@ -88,13 +88,58 @@ fn set_ftz_daz() -> Option<u32> {
     })
 }
 
+/// Puts the FTZ and DAZ bits back as `saved` held them; the exception flags raised
+/// meanwhile stay.
+#[cfg(target_arch = "x86_64")]
+fn restore(saved: Option<u32>) {
+    if let Some(saved) = saved {
+        mxcsr::write((mxcsr::read() & !FTZ_DAZ) | (saved & FTZ_DAZ));
+    }
+}
+
 impl Drop for FlushDenormals {
     fn drop(&mut self) {
         #[cfg(target_arch = "x86_64")]
-        if let Some(saved) = self.saved {
-            // The two bits as they were; the exception flags raised meanwhile stay.
-            mxcsr::write((mxcsr::read() & !FTZ_DAZ) | (saved & FTZ_DAZ));
+        restore(self.saved);
+    }
+}
+
+/// The IEEE arithmetic (subnormal results and inputs kept: FTZ and DAZ cleared) on this
+/// thread while it lives, inside a [`FlushDenormals`]: for the few computations that must
+/// give what the AFE's arithmetic gives where values sink into the subnormals (the
+/// autocorrelation of a frame that holds only a filter's decay, whose powers underflow in
+/// the AFE). The code it covers belongs in a function that is not inlined, so that no
+/// floating-point operation moves across the change. Not `Send`.
+#[must_use = "the setting lasts as long as the guard"]
+#[derive(Debug)]
+pub struct GradualUnderflow {
+    /// The control register's value before, when this guard changed it.
+    #[cfg(target_arch = "x86_64")]
+    saved: Option<u32>,
+    _thread: PhantomData<*const ()>,
+}
+
+impl GradualUnderflow {
+    /// Keeps subnormals on this thread until the guard drops.
+    pub fn enable() -> Self {
+        GradualUnderflow {
+            #[cfg(target_arch = "x86_64")]
+            saved: {
+                let csr = mxcsr::read();
+                (csr & FTZ_DAZ != 0).then(|| {
+                    mxcsr::write(csr & !FTZ_DAZ);
+                    csr
+                })
+            },
+            _thread: PhantomData,
         }
+    }
+}
+
+impl Drop for GradualUnderflow {
+    fn drop(&mut self) {
+        #[cfg(target_arch = "x86_64")]
+        restore(self.saved);
     }
 }
 
@@ -176,6 +221,26 @@ mod tests {
             black_box(subnormal) * black_box(4.0),
             2.0 * f64::MIN_POSITIVE
         );
+    }
+
+    #[test]
+    fn gradual_underflow_keeps_subnormals_inside_a_flushing_guard() {
+        if !flushing() {
+            return eprintln!("AFE_KEEP_SUBNORMALS is set: the flushing guard does nothing");
+        }
+        let subnormal = halved();
+        let _flush = FlushDenormals::enable();
+        assert_eq!(halved(), 0.0);
+        {
+            let _ieee = GradualUnderflow::enable();
+            assert!(halved().is_subnormal(), "results kept");
+            assert_eq!(
+                black_box(subnormal) * black_box(4.0),
+                2.0 * f64::MIN_POSITIVE,
+                "inputs read as they are"
+            );
+        }
+        assert_eq!(halved(), 0.0, "the flushing setting back after it");
     }
 
     #[test]

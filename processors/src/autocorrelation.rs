@@ -243,29 +243,39 @@ impl Autocorrelation {
     fn correlate(&mut self, c: usize, out: &mut [f64]) {
         // the windowed frame's largest magnitude; sign clipping makes every sample ±1
         let top = self.peaks[c].abs().max(self.troughs[c].abs());
-        let signs = self.params.clip_method == ClipMethod::Sign;
+        let method = self.params.clip_method;
         // An all-zero frame gives 0/0 = NaN at every lag, as in the AFE (after digital
         // silence most frames are such: no transform for them).
-        if top == 0.0 && !signs {
+        if top == 0.0 && method != ClipMethod::Sign {
             out.fill(f64::NAN);
             return;
         }
         self.load(c);
+        let w = self.win.len();
+        // the clipped frame's largest magnitude: the windowed one's where kept samples keep
+        // their value, 1 where they become ±1
+        let clipped_top = match method {
+            ClipMethod::Keep => top,
+            ClipMethod::Sign => 1.0,
+            ClipMethod::Compress => (self.fft.input()[..w].iter()).fold(0.0, |m, v| v.abs().max(m)),
+        };
         let k = self.params.spectral_exponent;
+        match tail_regime(clipped_top, w, k) {
+            Tail::Underflows => return out.fill(f64::NAN),
+            Tail::Subnormal => return self.ieee_acf(out),
+            Tail::Normal => {}
+        }
         if k == 2.0 {
             // A frame far from 1 (the decay after digital silence) is brought near it by a
             // power of two, which changes no bit of the normalised ACF and keeps lag 0 in
             // range, where one transform does.
-            if !UNSCALED.contains(&top) && !signs {
-                to_unit(&mut self.fft.input()[..self.win.len()], top);
+            if !UNSCALED.contains(&top) && method != ClipMethod::Sign {
+                to_unit(&mut self.fft.input()[..w], top);
             }
             self.inverse
                 .run_squares(self.fft.transform(), &mut self.acf);
         } else {
-            self.fft.run(&mut self.re, &mut self.im);
-            let power = self.power.iter_mut().zip(self.re.iter().zip(&self.im));
-            power.for_each(|(p, (re, im))| *p = re.hypot(*im).powf(k));
-            self.inverse.run(&self.power, &mut self.acf);
+            self.powers(k);
         }
         // W ≥ 2 (check_framing), so there is a lag 0
         let lag0 = self.acf[0];
@@ -277,6 +287,42 @@ impl Autocorrelation {
         let inv = 1.0 / lag0;
         for ((o, v), s) in out.iter_mut().zip(&self.acf).zip(&self.scale) {
             *o = v * s * inv;
+        }
+    }
+
+    /// The unnormalised ACF of the clipped frame in the transform's input through
+    /// `|X|^K` (by magnitude and power per bin), into `self.acf`.
+    #[inline(always)]
+    fn powers(&mut self, k: f64) {
+        self.fft.run(&mut self.re, &mut self.im);
+        let power = self.power.iter_mut().zip(self.re.iter().zip(&self.im));
+        power.for_each(|(p, (re, im))| *p = re.hypot(*im).powf(k));
+        self.inverse.run(&self.power, &mut self.acf);
+    }
+
+    /// The normalised ACF of the clipped frame in the transform's input as the AFE's
+    /// arithmetic gives it where its powers sink into the subnormals: the powers and
+    /// their inverse in IEEE arithmetic (subnormals kept, whatever the thread's
+    /// flushing), then the AFE's divisions: the inverse's `1/N`, `a[j] = c[j]/(W − 1 − j)`
+    /// and `a[j]/a[0]`. Lag 0 may underflow to 0 there while other lags do not (±Inf, as
+    /// in the AFE).
+    #[cold]
+    #[inline(never)]
+    fn ieee_acf(&mut self, out: &mut [f64]) {
+        let _ieee = afe_core::denormals::GradualUnderflow::enable();
+        let k = self.params.spectral_exponent;
+        if k == 2.0 {
+            self.inverse
+                .run_squares(self.fft.transform(), &mut self.acf);
+        } else {
+            self.powers(k);
+        }
+        // the inverse transform's 1/N, where the AFE's lag 0 underflows first
+        let n = self.fft.len() as f64;
+        let top = (self.win.len() - 1) as f64;
+        let a0 = self.acf[0] / n / top;
+        for (j, (o, v)) in out.iter_mut().zip(&self.acf).enumerate() {
+            *o = (v / n / (top - j as f64)) / a0;
         }
     }
 
@@ -308,6 +354,42 @@ impl Autocorrelation {
             self.inverse.run(&self.power, &mut self.acf);
         }
         self.acf[0]
+    }
+}
+
+/// Where a clipped frame's ACF stands against the AFE's arithmetic, which computes the
+/// powers `|X|^K` of its spectrum in IEEE double precision.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Tail {
+    /// Every power underflows to 0 in the AFE (`|X| ≤ W·max|g|`, and
+    /// `(W·max|g|)^K < 2^−1075`): its ACF is 0/0 = NaN at every lag.
+    Underflows,
+    /// Some powers may be subnormal, none can overflow: the AFE's result is its
+    /// arithmetic's, computed so.
+    Subnormal,
+    /// The AFE's powers are exact to well below the tolerance (or could overflow, where
+    /// the rescaled computation keeps the output finite).
+    Normal,
+}
+
+/// log2 of the smallest power `|X|^K` that the AFE computes to well below the tolerance
+/// (1e−300: a subnormal's error, 2^−1075, is below 1e−10 of a lag 0 that large).
+const EXACT_POWER_LOG2: f64 = -996.5;
+
+/// The regime of a clipped frame whose largest magnitude is `top` (> 0), over a window of
+/// `w` samples, with spectral exponent `k`: the AFE's arithmetic where the frame only
+/// holds a decay whose powers sink into the subnormals; a frame whose powers could also
+/// overflow (a large `k`) keeps the rescaled computation (conformance: "Non-finite").
+fn tail_regime(top: f64, w: usize, k: f64) -> Tail {
+    // log2 of a bound on every power, (W·top)^K, and of the largest sample's own power
+    let bound = k * (w as f64 * top).log2();
+    let own = k * top.log2();
+    if bound < -1075.0 {
+        Tail::Underflows
+    } else if own < EXACT_POWER_LOG2 && bound < -EXACT_POWER_LOG2 {
+        Tail::Subnormal
+    } else {
+        Tail::Normal
     }
 }
 
@@ -560,25 +642,37 @@ mod tests {
     }
 
     #[test]
-    fn powers_that_overflow_or_sink_into_the_subnormals_are_rescaled() {
-        // the normalised ACF does not depend on the frame's scale: a frame near 0, or a
-        // spectral exponent whose powers overflow, gives the same ACF as a plain frame
+    fn far_from_one_frames_are_rescaled_and_tails_follow_the_afes_arithmetic() {
         let x = signal(40, 3);
-        let (_, plain) = run(&AutocorrelationParams::default(), 1, &x, &[40]);
-        let tiny: Vec<f64> = x.iter().map(|v| v * 1e-160).collect();
-        let (_, scaled) = run(&AutocorrelationParams::default(), 1, &tiny, &[40]);
-        for (a, b) in plain.iter().zip(&scaled) {
-            assert!((a - b).abs() < 1e-12, "{a} vs {b}");
-        }
-        // scaled by powers of two, down to 1e-301 and up to 1e307 (two steps of scaling),
-        // the frames give the plain frame's ACF bit for bit
-        for e in [-1000, -530, 600, 990, 1020] {
-            let factor = 2f64.powi(e / 2) * 2f64.powi(e - e / 2);
+        let scaled = |factor: f64| -> Vec<f64> {
             let x2: Vec<f64> = x.iter().map(|v| v * factor).collect();
-            let (_, scaled) = run(&AutocorrelationParams::default(), 1, &x2, &[40]);
-            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-            assert_eq!(bits(&scaled), bits(&plain), "2^{e}");
+            run(&AutocorrelationParams::default(), 1, &x2, &[40]).1
+        };
+        let plain = scaled(1.0);
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        // scaled by powers of two down to 1e-135 and up to 1e307 (two steps of scaling),
+        // where the AFE's powers keep their precision: the plain frame's ACF bit for bit
+        for e in [-450, -300, 600, 990, 1020] {
+            let factor = 2f64.powi(e / 2) * 2f64.powi(e - e / 2);
+            assert_eq!(bits(&scaled(factor)), bits(&plain), "2^{e}");
         }
+        // every power below the smallest subnormal, as the AFE computes them: 0/0
+        for factor in [1e-170, 2f64.powi(-1000), 1e-320] {
+            assert!(scaled(factor).iter().all(|v| v.is_nan()), "{factor:e}");
+        }
+        // powers in the subnormals: the AFE's arithmetic, imprecise but finite, whether
+        // the thread flushes subnormals (as processors run) or not
+        let tail = scaled(3e-160);
+        assert!(tail.iter().all(|v| v.is_finite()));
+        assert_ne!(bits(&tail), bits(&plain), "the subnormals' round-off");
+        let worst = (tail.iter().zip(&plain)).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        assert!(worst < 1e-3, "{worst}");
+        let flushed = {
+            let _flush = afe_core::denormals::FlushDenormals::enable();
+            scaled(3e-160)
+        };
+        assert_eq!(bits(&flushed), bits(&tail));
+        // spectral exponents whose powers overflow: rescaled, finite
         for k in [465.0, 5e5, 1e-9] {
             let p = AutocorrelationParams {
                 spectral_exponent: k,
@@ -591,6 +685,19 @@ mod tests {
             );
             assert!((out[0] - 1.0).abs() < 1e-15, "K = {k}: lag 0 is {}", out[0]);
         }
+    }
+
+    #[test]
+    fn the_tail_regimes_follow_the_bound_on_the_powers() {
+        // K = 2, W = 882: every power (W·top)^2 below 2^-1075 from top < 1.8e-165
+        assert_eq!(tail_regime(1.7e-165, 882, 2.0), Tail::Underflows);
+        assert_eq!(tail_regime(1.9e-165, 882, 2.0), Tail::Subnormal);
+        assert_eq!(tail_regime(1e-151, 882, 2.0), Tail::Subnormal);
+        assert_eq!(tail_regime(1e-149, 882, 2.0), Tail::Normal);
+        assert_eq!(tail_regime(1e100, 882, 2.0), Tail::Normal);
+        // a large exponent: powers that could overflow keep the rescaled computation
+        assert_eq!(tail_regime(0.2, 882, 465.0), Tail::Normal);
+        assert_eq!(tail_regime(1e-10, 882, 465.0), Tail::Underflows);
     }
 
     #[test]
