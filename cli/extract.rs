@@ -120,9 +120,11 @@ fn extract(
         None => None,
     };
     // both outputs or neither: a trace that cannot be written leaves no .npz either
-    let mut staged = vec![output.stage(|file| rec.write_npz_as(file, dtype))?];
+    let mut staged = vec![output.stage_unless_interrupted(|file| rec.write_npz_as(file, dtype))?];
     if let (Some(t), Some(events)) = (&trace, events) {
-        staged.push(t.stage(|file| file.write_all(events.to_string().as_bytes()))?);
+        staged.push(
+            t.stage_unless_interrupted(|file| file.write_all(events.to_string().as_bytes()))?,
+        );
     }
     afe::output::commit_all(staged)?;
     report_saved(&rec, &output);

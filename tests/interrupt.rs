@@ -128,6 +128,48 @@ fn sigterm_during_extract_writes_nothing() {
     std::fs::remove_dir_all(&dir).expect("clean");
 }
 
+/// A signal that comes while the output is being written (its temporary file exists)
+/// abandons the write: no output, no temporary (the probe's 437-MB autocorrelation was
+/// still written in full, exit 130).
+#[test]
+fn sigint_while_the_output_is_written_writes_nothing() {
+    let dir = tmp("interrupted-write");
+    std::fs::create_dir_all(&dir).expect("dir");
+    let input = dir.join("five.wav");
+    write_wav(&input, 2, 44100, 44100 * 5, tone);
+    let out = dir.join("out.npz");
+    // 5 s of autocorrelation: 218 MB to write, computed in a fraction of that time
+    let child = spawn(&[
+        "extract",
+        input.to_str().expect("utf-8"),
+        "-r",
+        "autocorrelation",
+        "--threads",
+        "0",
+        "-o",
+        out.to_str().expect("utf-8"),
+    ]);
+    let writing = || {
+        std::fs::read_dir(&dir)
+            .expect("dir")
+            .filter_map(Result::ok)
+            .any(|e| e.file_name().to_string_lossy().contains("partial"))
+    };
+    let start = Instant::now();
+    while !writing() {
+        assert!(start.elapsed() < Duration::from_secs(60), "no write began");
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    signal(&child, "-INT");
+    let res = child.wait_with_output().expect("wait");
+    let stderr = String::from_utf8_lossy(&res.stderr);
+    assert_eq!(res.status.code(), Some(130), "{stderr}");
+    assert!(stderr.contains("nothing was written"), "{stderr}");
+    assert!(!out.exists(), "the output was written: {stderr}");
+    no_temporaries(&dir);
+    std::fs::remove_dir_all(&dir).expect("clean");
+}
+
 #[test]
 fn sigint_during_a_batch_keeps_finished_files_and_resumes() {
     let dir = tmp("interrupted-batch");

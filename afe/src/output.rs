@@ -29,6 +29,10 @@ pub enum OutputError {
     /// The input would be overwritten.
     #[error("'{0}' is the input file: give the output another name")]
     IsInput(PathBuf),
+    /// A stop was asked for (SIGINT, Ctrl-C) before the file was in place; nothing was
+    /// left behind.
+    #[error("interrupted while writing '{0}': nothing was written")]
+    Interrupted(PathBuf),
     /// Writing failed (disk full, permissions, ...); nothing was left behind.
     #[error("cannot write '{path}': {source}")]
     Write {
@@ -150,18 +154,50 @@ impl OutputFile {
         &self,
         write: impl FnOnce(&mut dyn WriteSeek) -> std::io::Result<()>,
     ) -> Result<Staged<'_>, OutputError> {
+        self.stage_as(write, false)
+    }
+
+    /// As [`OutputFile::stage`], for a run that a stop (SIGINT, Ctrl-C) abandons: asked
+    /// for before or while the contents are written, or before they are put in place, it
+    /// leaves nothing and gives [`OutputError::Interrupted`]. (A stream that saves what
+    /// it computed when stopped uses [`OutputFile::stage`].)
+    pub fn stage_unless_interrupted(
+        &self,
+        write: impl FnOnce(&mut dyn WriteSeek) -> std::io::Result<()>,
+    ) -> Result<Staged<'_>, OutputError> {
+        self.stage_as(write, true)
+    }
+
+    fn stage_as(
+        &self,
+        write: impl FnOnce(&mut dyn WriteSeek) -> std::io::Result<()>,
+        interruptible: bool,
+    ) -> Result<Staged<'_>, OutputError> {
+        let stopped = || interruptible && crate::interrupt::requested();
+        if stopped() {
+            return Err(OutputError::Interrupted(self.given.clone()));
+        }
+        let failed = |e| {
+            if stopped() {
+                OutputError::Interrupted(self.given.clone())
+            } else {
+                self.failed(e)
+            }
+        };
         if self.in_place {
             let mut buf = Cursor::new(Vec::new());
-            write(&mut buf).map_err(|e| self.failed(e))?;
+            write(&mut Interruptible(&mut buf, interruptible)).map_err(failed)?;
             return Ok(Staged {
                 out: self,
                 content: Content::Memory(buf.into_inner()),
+                interruptible,
             });
         }
         let tmp = self.temporary();
         let staged = Staged {
             out: self,
             content: Content::Temporary(tmp.clone()),
+            interruptible,
         };
         std::fs::OpenOptions::new()
             .write(true)
@@ -169,10 +205,10 @@ impl OutputFile {
             .open(&tmp)
             .and_then(|f| {
                 let mut w = BufWriter::new(f);
-                write(&mut w)?;
+                write(&mut Interruptible(&mut w, interruptible))?;
                 w.into_inner().map_err(|e| e.into_error())?.sync_all()
             })
-            .map_err(|e| self.failed(e))?;
+            .map_err(failed)?;
         Ok(staged)
     }
 
@@ -198,10 +234,39 @@ impl OutputFile {
     }
 }
 
+/// Bytes handed on per write by [`Interruptible`]: a stop is noticed within this much.
+const INTERRUPT_GRAIN: usize = 1 << 20;
+
+/// A writer that, where the run is interruptible (the flag), stops with an error once a
+/// stop is asked for, so that a large output being written is abandoned (and its
+/// temporary file removed) within [`INTERRUPT_GRAIN`] bytes.
+struct Interruptible<'a, W: ?Sized>(&'a mut W, bool);
+
+impl<W: Write + ?Sized> Write for Interruptible<'_, W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        if self.1 && crate::interrupt::requested() {
+            return Err(std::io::Error::other("interrupted"));
+        }
+        self.0.write(&buf[..buf.len().min(INTERRUPT_GRAIN)])
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.0.flush()
+    }
+}
+
+impl<W: Seek + ?Sized> Seek for Interruptible<'_, W> {
+    fn seek(&mut self, pos: std::io::SeekFrom) -> std::io::Result<u64> {
+        self.0.seek(pos)
+    }
+}
+
 /// An output's contents, complete, waiting to be put in place.
 pub struct Staged<'a> {
     out: &'a OutputFile,
     content: Content,
+    /// Whether a stop asked for before the commit abandons it.
+    interruptible: bool,
 }
 
 /// Where staged contents wait.
@@ -218,6 +283,9 @@ impl Staged<'_> {
     /// Puts the contents in place: renames the temporary file onto the target, or writes
     /// the bytes to the device.
     pub fn commit(mut self) -> Result<(), OutputError> {
+        if self.interruptible && crate::interrupt::requested() {
+            return Err(OutputError::Interrupted(self.out.given.clone()));
+        }
         match std::mem::replace(&mut self.content, Content::Committed) {
             Content::Temporary(tmp) => {
                 let renamed = std::fs::rename(&tmp, &self.out.target);
