@@ -38,11 +38,21 @@ impl Recorded {
             d["first_frame"] = serde_json::json!(f + frames as u64);
         }
         if let Some(list) = d.get_mut("segments").and_then(Value::as_array_mut) {
-            for seg in list {
+            for seg in list.iter_mut() {
                 let row = seg["first_row"].as_u64().unwrap_or(0) as usize;
                 seg["first_row"] = serde_json::json!(row.saturating_sub(frames));
             }
+            // segments whose rows are all gone: the last one starting at row 0 holds
+            // the first row kept
+            let first_kept = list.iter().rposition(|seg| seg["first_row"] == 0);
+            list.drain(..first_kept.unwrap_or(0));
         }
+    }
+
+    /// The time (s) just after the last row.
+    fn end_s(&self) -> f64 {
+        let first = self.description["first_time_s"].as_f64().unwrap_or(0.0);
+        first + self.data.frames() as f64 / self.info.fs_hz
     }
 
     /// Marks the next row as the start of a segment described by `now` (its output's
@@ -109,15 +119,33 @@ impl Recorder {
     }
 
     /// Drops the rows older than the bound, once a history holds twice as many (so that
-    /// each row is moved at most once on average).
+    /// each row is moved at most once on average). The bound counts back from the newest
+    /// row of any history, so that the histories an edit closed (`key@time`) age too and
+    /// go once all their rows are older than the bound: a live run that edits its
+    /// requests keeps its memory bounded.
     fn trim(&mut self) {
         let Some(keep_s) = self.keep_s else { return };
-        for r in &mut self.signals {
+        let now = (self.signals.iter())
+            .filter(|r| r.source.is_some())
+            .map(Recorded::end_s)
+            .fold(f64::NEG_INFINITY, f64::max);
+        self.signals.retain_mut(|r| {
             let keep = ((keep_s * r.info.fs_hz).ceil() as usize).max(1);
-            if r.data.frames() > 2 * keep {
+            if r.source.is_none() && now.is_finite() {
+                // rows of a closed history still within the bound
+                let late = ((now - r.end_s()) * r.info.fs_hz).max(0.0);
+                let left = keep.saturating_sub(late.floor() as usize);
+                if left == 0 {
+                    return false;
+                }
+                if r.data.frames() > 2 * left {
+                    r.drop_oldest(r.data.frames() - left);
+                }
+            } else if r.data.frames() > 2 * keep {
                 r.drop_oldest(r.data.frames() - keep);
             }
-        }
+            true
+        });
     }
 
     /// Sizes each signal's history when it starts for a run of `samples` input samples in
@@ -277,6 +305,52 @@ impl Recorder {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A bounded history stays bounded across edits (the probe: a request removed and
+    /// added again every second, or a parameter changed every second, grew the history
+    /// without bound: 3,600 closed histories and 3,602 segments in 30 min).
+    #[test]
+    fn a_bounded_history_stays_bounded_across_edits() {
+        let fs = 16000.0;
+        let chunk: Vec<f64> = (0..160).map(|t| (0.05 * t as f64).sin()).collect();
+        let params = afe_core::ParamMap::new();
+        let keep_s = 3.0;
+        for modify in [false, true] {
+            let mut mgr = Manager::new(fs, 1).expect("manager");
+            let mut h = mgr.add_request("ratemap", &params).expect("request");
+            let mut rec = Recorder::new(false);
+            rec.keep_last(Some(keep_s));
+            for second in 0..30 {
+                for _ in 0..100 {
+                    mgr.process_chunk(&[&chunk]).expect("chunk");
+                    rec.record(&mgr);
+                }
+                if modify {
+                    let value = serde_json::json!(0.5 + 0.01 * f64::from(second % 2));
+                    mgr.modify_parameter(h, "rm_decaySec", value)
+                        .expect("modify");
+                    rec.follow_edit(&mgr, &["ratemap_mono".to_string()]);
+                } else {
+                    mgr.remove_request(h).expect("remove");
+                    rec.follow_edit(&mgr, &[]);
+                    h = mgr.add_request("ratemap", &params).expect("request");
+                    rec.follow_edit(&mgr, &[]);
+                }
+            }
+            let rows: usize = rec.signals().iter().map(|s| s.data.frames()).sum();
+            // at most twice the bound's 300 rows, over at most bound + 1 histories
+            assert!(rows <= 2 * 300 + 100, "modify {modify}: {rows} rows");
+            assert!(
+                rec.signals().len() <= keep_s as usize + 2,
+                "modify {modify}: {} histories",
+                rec.signals().len()
+            );
+            for s in rec.signals() {
+                let segments = s.description["segments"].as_array().map_or(0, Vec::len);
+                assert!(segments <= 2 * keep_s as usize + 2, "{}: {segments}", s.key);
+            }
+        }
+    }
 
     /// With the input's length known, every history is sized when it starts: the chunks
     /// of a whole run are appended without moving it (written once, never copied), for
