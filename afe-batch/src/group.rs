@@ -7,19 +7,23 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
-use afe::bounded_read::read_text;
-
 use serde_json::{json, Value};
-use zarrs::array::{Array, ArrayBuilder, DataType, FillValue};
+use zarrs::array::codec::CodecOptions;
+use zarrs::array::{Array, ArrayBuilder, ArrayMetadata, DataType, FillValue};
 use zarrs::array_subset::ArraySubset;
 use zarrs::filesystem::FilesystemStore;
-use zarrs::group::{Group, GroupBuilder};
+use zarrs::group::GroupBuilder;
 
-use super::store::{StoredArray, CHUNK_BYTES, META_MAX_BYTES};
+use super::store::{StoredArray, CHUNK_BYTES};
+use super::verify::{read_json, Layout};
 use super::BatchError;
 
 /// The root attribute that marks a saved group and keeps its arrays' order.
 const SAVED: &str = "afe_saved";
+
+/// The version of the saved groups written now: 2 stores every chunk, zeros too (a
+/// missing chunk is damage); groups of version 1 left chunks of zeros out.
+const SAVED_VERSION: u64 = 2;
 
 /// How the values of a [`SavedArray`] are laid out.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -82,10 +86,7 @@ pub struct SavedArray {
 
 /// Whether `root` is a group written by [`write_group`].
 pub fn is_saved_group(root: &Path) -> bool {
-    read_text(&root.join("zarr.json"), META_MAX_BYTES)
-        .ok()
-        .and_then(|t| serde_json::from_str::<Value>(&t).ok())
-        .is_some_and(|v| v["attributes"][SAVED].is_object())
+    read_json(&root.join("zarr.json")).is_ok_and(|v| v["attributes"][SAVED].is_object())
 }
 
 /// Writes `arrays` as the Zarr v3 group `root`, replacing a group this function wrote
@@ -154,12 +155,7 @@ fn sibling(root: &Path, tag: &str) -> PathBuf {
 
 /// Refuses an array whose name cannot be a Zarr node or whose bytes do not fill its shape.
 fn check(a: &SavedArray) -> Result<(), BatchError> {
-    let reserved = ["", ".", "..", "zarr.json"];
-    if reserved.contains(&a.key.as_str())
-        || a.key.contains(['/', '\\'])
-        || a.key.chars().any(char::is_control)
-        || a.key.starts_with("__")
-    {
+    if !is_array_name(&a.key) {
         return Err(BatchError::Usage(format!(
             "'{}' cannot name an array of a Zarr group: give a name without '/', '\\' or control characters, not starting with '__', other than '.', '..' and 'zarr.json'",
             a.key
@@ -184,12 +180,24 @@ fn check(a: &SavedArray) -> Result<(), BatchError> {
     Ok(())
 }
 
+/// Whether `key` can name an array of a group: a folder name of its own, not a reserved one.
+fn is_array_name(key: &str) -> bool {
+    let reserved = ["", ".", "..", "zarr.json"];
+    !(reserved.contains(&key)
+        || key.contains(['/', '\\'])
+        || key.chars().any(char::is_control)
+        || key.starts_with("__"))
+}
+
 fn write_into(root: &Path, arrays: &[SavedArray]) -> Result<(), BatchError> {
     std::fs::create_dir_all(root).map_err(|e| BatchError::store(root, &e))?;
     let store = Arc::new(FilesystemStore::new(root).map_err(|e| BatchError::store(root, &e))?);
     let order: Vec<&str> = arrays.iter().map(|a| a.key.as_str()).collect();
     let mut attrs = serde_json::Map::new();
-    attrs.insert(SAVED.into(), json!({ "version": 1, "order": order }));
+    attrs.insert(
+        SAVED.into(),
+        json!({ "version": SAVED_VERSION, "order": order }),
+    );
     GroupBuilder::new()
         .attributes(attrs)
         .build(store.clone(), "/")
@@ -218,90 +226,250 @@ fn write_into(root: &Path, arrays: &[SavedArray]) -> Result<(), BatchError> {
         if a.bytes.is_empty() {
             continue;
         }
+        // chunks of zeros are stored too (zarr would leave them out): a chunk missing on
+        // disk is then damage, which reading reports
+        let mut options = CodecOptions::default();
+        options.set_store_empty_chunks(true);
         array
-            .store_array_subset(&ArraySubset::new_with_shape(shape), a.bytes.as_slice())
+            .store_array_subset_opt(
+                &ArraySubset::new_with_shape(shape),
+                a.bytes.as_slice(),
+                &options,
+            )
             .map_err(|e| BatchError::store(root, &e))?;
     }
     Ok(())
 }
 
 /// The arrays of the group `root` written by [`write_group`], in their saved order.
+///
+/// Each is read within the bounds its metadata declares, checked against the files first:
+/// every chunk the shape implies must be on disk (version 1 groups: those found), a regular
+/// file of an uncompressed chunk's size ([`BatchError::Damaged`] naming the array and
+/// chunk otherwise), and all the values must fit the memory available
+/// ([`BatchError::TooLarge`]). An interrupt ([`afe::interrupt`]) stops the read between
+/// chunks.
 pub fn read_group(root: &Path) -> Result<Vec<StoredArray>, BatchError> {
-    if !is_saved_group(root) {
-        return Err(BatchError::NotAStore {
-            path: root.to_path_buf(),
-            reason:
-                "it is not a group written by afe.save (a batch store opens with afe.open_store)"
-                    .into(),
-        });
+    let arrays = check_group(root)?;
+    read_planned(root, &arrays)
+}
+
+/// Checks the group `root` written by [`write_group`] as [`read_group`] does, without
+/// reading a value: what it would read, or what is wrong.
+pub fn check_group(root: &Path) -> Result<Vec<ArrayOnDisk>, BatchError> {
+    let not_saved = || BatchError::NotAStore {
+        path: root.to_path_buf(),
+        reason: "it is not a group written by afe.save (a batch store opens with afe.open_store)"
+            .into(),
+    };
+    let meta = read_json(&root.join("zarr.json")).map_err(|_| not_saved())?;
+    let saved = &meta["attributes"][SAVED];
+    if !saved.is_object() {
+        return Err(not_saved());
+    }
+    let order = names(&saved["order"]).ok_or_else(|| BatchError::Damaged {
+        path: root.to_path_buf(),
+        reason: format!("its '{SAVED}' attribute has no list of array names"),
+    })?;
+    let every_chunk = saved["version"].as_u64().unwrap_or(1) >= SAVED_VERSION;
+    plan_arrays(root, "", &order, every_chunk)
+}
+
+/// The names in the JSON list `v`, if it is a list of names of arrays.
+fn names(v: &Value) -> Option<Vec<String>> {
+    v.as_array()?
+        .iter()
+        .map(|k| k.as_str().filter(|k| is_array_name(k)).map(str::to_string))
+        .collect()
+}
+
+/// One array found whole on disk by [`check_group`], to be read.
+#[derive(Debug, Clone)]
+pub struct ArrayOnDisk {
+    key: String,
+    /// Its path in the Zarr hierarchy (`/<group>/<key>`).
+    node: String,
+    meta: Value,
+    layout: Layout,
+}
+
+/// The arrays `keys` of the group at `node` (`""`: the root) of the hierarchy `root`,
+/// each checked against its files (see [`read_group`]).
+fn plan_arrays(
+    root: &Path,
+    node: &str,
+    keys: &[String],
+    every_chunk: bool,
+) -> Result<Vec<ArrayOnDisk>, BatchError> {
+    let group = if node.is_empty() {
+        root.to_path_buf()
+    } else {
+        root.join(node)
+    };
+    let damaged = |key: &str, why: String| BatchError::Damaged {
+        path: group.clone(),
+        reason: format!("array '{key}': {why}"),
+    };
+    keys.iter()
+        .map(|key| {
+            let dir = group.join(key);
+            let meta = read_json(&dir.join("zarr.json"))
+                .map_err(|e| damaged(key, format!("its metadata cannot be read: {e}")))?;
+            let layout = Layout::of(&meta).map_err(|e| damaged(key, e))?;
+            layout
+                .check_chunks(&dir, every_chunk)
+                .map_err(|e| damaged(key, e))?;
+            Ok(ArrayOnDisk {
+                key: key.clone(),
+                node: if node.is_empty() {
+                    format!("/{key}")
+                } else {
+                    format!("/{node}/{key}")
+                },
+                meta,
+                layout,
+            })
+        })
+        .collect()
+}
+
+/// Reads the arrays checked by [`plan_arrays`] from the hierarchy `root`, once their
+/// values (as f64, and their copy handed on) are known to fit the memory available.
+pub(crate) fn read_planned(
+    root: &Path,
+    arrays: &[ArrayOnDisk],
+) -> Result<Vec<StoredArray>, BatchError> {
+    // the values widened to f64, and the copy a caller (numpy) makes of them
+    let needed: f64 = arrays.iter().map(|a| a.layout.values as f64 * 16.0).sum();
+    if let Some(available) = afe::memory::available_bytes() {
+        if needed > available {
+            return Err(BatchError::TooLarge {
+                path: root.to_path_buf(),
+                needed_bytes: needed,
+                available_bytes: Some(available),
+            });
+        }
     }
     let store = Arc::new(FilesystemStore::new(root).map_err(|e| BatchError::store(root, &e))?);
-    let group = Group::open(store.clone(), "/").map_err(|e| BatchError::store(root, &e))?;
-    let order: Vec<String> = group.attributes()[SAVED]["order"]
-        .as_array()
-        .map(|o| {
-            o.iter()
-                .filter_map(|k| k.as_str().map(str::to_string))
-                .collect()
-        })
-        .unwrap_or_default();
-    let mut arrays = read_arrays(&group, root)?;
-    arrays.sort_by_key(|a| order.iter().position(|k| *k == a.key).unwrap_or(usize::MAX));
-    Ok(arrays)
+    arrays.iter().map(|a| read_array(&store, root, a)).collect()
 }
 
-/// Every array of `group` with its `afe` attribute, float32 values widened to f64 (their
-/// `info` says which they were), sorted by name.
-pub(crate) fn read_arrays(
-    group: &Group<FilesystemStore>,
+fn read_array(
+    store: &Arc<FilesystemStore>,
     root: &Path,
-) -> Result<Vec<StoredArray>, BatchError> {
-    let mut out = Vec::new();
-    for array in group
-        .child_arrays()
-        .map_err(|e| BatchError::store(root, &e))?
-    {
-        out.push(read_array(&array, root)?);
-    }
-    out.sort_by(|a, b| a.key.cmp(&b.key));
-    Ok(out)
-}
-
-fn read_array(array: &Array<FilesystemStore>, root: &Path) -> Result<StoredArray, BatchError> {
-    let shape: Vec<usize> = array.shape().iter().map(|&n| n as usize).collect();
-    let bytes = array
-        .retrieve_array_subset(&ArraySubset::new_with_shape(array.shape().to_vec()))
-        .map_err(|e| BatchError::store(root, &e))?
-        .into_fixed()
-        .map_err(|e| BatchError::store(root, &e))?;
-    let narrow = matches!(array.data_type(), DataType::Float32 | DataType::Complex64);
-    let data = if narrow {
-        bytes
-            .chunks_exact(4)
-            .map(|b| f64::from(f32::from_ne_bytes(b.try_into().unwrap_or([0; 4]))))
-            .collect()
-    } else {
-        bytes
-            .chunks_exact(8)
-            .map(|b| f64::from_ne_bytes(b.try_into().unwrap_or([0; 8])))
-            .collect()
+    a: &ArrayOnDisk,
+) -> Result<StoredArray, BatchError> {
+    let damaged = |why: &dyn std::fmt::Display| BatchError::Damaged {
+        path: root.join(a.node.trim_start_matches('/')),
+        reason: why.to_string(),
     };
+    let metadata: ArrayMetadata =
+        serde_json::from_value(a.meta.clone()).map_err(|e| damaged(&e))?;
+    let array =
+        Array::new_with_metadata(store.clone(), &a.node, metadata).map_err(|e| damaged(&e))?;
+    let layout = &a.layout;
+    let too_large = || BatchError::TooLarge {
+        path: root.to_path_buf(),
+        needed_bytes: layout.values as f64 * 8.0,
+        available_bytes: None,
+    };
+    let mut data: Vec<f64> = Vec::new();
+    data.try_reserve_exact(usize::try_from(layout.values).map_err(|_| too_large())?)
+        .map_err(|_| too_large())?;
+    let row_bytes = layout.chunk_bytes / layout.rows_per_chunk;
+    let float = if layout.complex {
+        layout.element / 2
+    } else {
+        layout.element
+    };
+    for k in 0..layout.chunks {
+        if afe::interrupt::requested() {
+            return Err(BatchError::Afe(afe_core::Error::Interrupted));
+        }
+        let bytes = array
+            .retrieve_chunk(&layout.indices(k))
+            .map_err(|e| damaged(&e))?
+            .into_fixed()
+            .map_err(|e| damaged(&e))?;
+        let rows = layout
+            .rows_per_chunk
+            .min(layout.shape[0] - k * layout.rows_per_chunk);
+        let part = usize::try_from(rows * row_bytes)
+            .ok()
+            .and_then(|n| bytes.get(..n))
+            .ok_or_else(|| damaged(&format!("chunk {k} decodes short")))?;
+        if float == 4 {
+            data.extend(
+                part.chunks_exact(4)
+                    .map(|b| f64::from(f32::from_ne_bytes([b[0], b[1], b[2], b[3]]))),
+            );
+        } else {
+            data.extend(
+                part.chunks_exact(8)
+                    .map(|b| f64::from_ne_bytes(b.try_into().unwrap_or([0; 8]))),
+            );
+        }
+    }
     Ok(StoredArray {
-        key: array
-            .path()
-            .as_str()
-            .rsplit('/')
-            .next()
-            .unwrap_or_default()
-            .to_string(),
-        shape,
+        key: a.key.clone(),
+        shape: layout
+            .shape
+            .iter()
+            .map(|&n| usize::try_from(n).map_err(|_| too_large()))
+            .collect::<Result<_, _>>()?,
         data,
-        info: array
-            .attributes()
+        info: a.meta["attributes"]
             .get("afe")
             .cloned()
             .unwrap_or(Value::Null),
     })
+}
+
+/// The arrays of the file group `id` of a batch store at `root`, each checked against
+/// its files and read as [`read_group`] does: those its metadata lists (`afe.arrays`),
+/// every chunk of which must be on disk, or for a group of an earlier version the arrays
+/// and chunks found; sorted by name. `None`: the store holds no such group.
+pub(crate) fn read_file_group(
+    root: &Path,
+    id: &str,
+) -> Result<Option<Vec<StoredArray>>, BatchError> {
+    let dir = root.join(id);
+    let Ok(meta) = read_json(&dir.join("zarr.json")) else {
+        return Ok(None);
+    };
+    if meta["node_type"] != "group" {
+        return Ok(None);
+    }
+    let (mut keys, every_chunk) = match meta["attributes"]["afe"].get("arrays") {
+        Some(listed) => (
+            names(listed).ok_or_else(|| BatchError::Damaged {
+                path: dir.clone(),
+                reason: "its metadata lists an array without a usable name".into(),
+            })?,
+            true,
+        ),
+        None => (arrays_found(&dir), false),
+    };
+    keys.sort();
+    let arrays = plan_arrays(root, id, &keys, every_chunk)?;
+    read_planned(root, &arrays).map(Some)
+}
+
+/// The names of the folders of `dir` holding an array's metadata.
+fn arrays_found(dir: &Path) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .map(|entries| {
+            entries
+                .filter_map(Result::ok)
+                .filter_map(|e| e.file_name().into_string().ok())
+                .filter(|name| {
+                    is_array_name(name)
+                        && read_json(&dir.join(name).join("zarr.json"))
+                            .is_ok_and(|m| m["node_type"] == "array")
+                })
+                .collect()
+        })
+        .unwrap_or_default()
 }
 
 #[cfg(test)]
@@ -367,5 +535,124 @@ mod tests {
             "{err}"
         );
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// A saved group of one 3000 x 100 float64 array (three chunks: 1 MiB holds 1310 rows)
+    /// in a fresh folder; its path and the array's folder.
+    fn saved(name: &str) -> (PathBuf, PathBuf) {
+        let dir = std::env::temp_dir().join(format!("afe-group-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        let root = dir.join("g.zarr");
+        let values = vec![0.0; 3000 * 100];
+        write_group(&root, &[floats("x", vec![3000, 100], &values)]).expect("written");
+        let array = root.join("x");
+        (root, array)
+    }
+
+    fn edit_meta(array: &Path, edit: impl FnOnce(&mut Value)) {
+        let path = array.join("zarr.json");
+        let mut meta: Value =
+            serde_json::from_str(&std::fs::read_to_string(&path).expect("read")).expect("json");
+        edit(&mut meta);
+        std::fs::write(&path, meta.to_string()).expect("write");
+    }
+
+    #[test]
+    fn a_hostile_shape_is_refused_before_anything_is_allocated() {
+        let (root, array) = saved("shape");
+        // the chunks of zeros are on disk: 3 of them
+        assert_eq!(read_group(&root).expect("read")[0].data.len(), 300_000);
+        // the probe's shapes (their trailing axis no longer the chunks'), then one whose
+        // chunks the files do not hold
+        for (shape, why) in [
+            (
+                json!([1_000_000_000_000u64, 1_000_000]),
+                "does not match its chunks [1310, 100]",
+            ),
+            (
+                json!([40_000_000, 32]),
+                "does not match its chunks [1310, 100]",
+            ),
+            (json!([40_000_000, 100]), "chunk [3, 0] is missing"),
+        ] {
+            edit_meta(&array, |m| m["shape"] = shape.clone());
+            let e = read_group(&root).expect_err("refused").to_string();
+            assert!(
+                e.contains("is damaged: array 'x': ") && e.contains(why),
+                "{e}"
+            );
+        }
+        // chunks of the right size (sparse files) for a shape the memory does not hold
+        for k in 3..8 {
+            std::fs::create_dir_all(array.join(format!("c/{k}"))).expect("dir");
+            std::fs::File::create(array.join(format!("c/{k}/0")))
+                .and_then(|f| f.set_len(1310 * 100 * 8))
+                .expect("sparse chunk");
+        }
+        edit_meta(&array, |m| m["shape"] = json!([8 * 1310, 100]));
+        // 10,480 x 100 values: 16.8 MB once read, against 1 MB available
+        std::env::set_var("AFE_MEMORY_AVAILABLE_GB", "0.001");
+        let e = read_group(&root).expect_err("refused");
+        std::env::remove_var("AFE_MEMORY_AVAILABLE_GB");
+        assert!(matches!(e, BatchError::TooLarge { .. }), "{e}");
+        assert!(
+            e.to_string().contains("more than the 0.00 GB available"),
+            "{e}"
+        );
+        assert_eq!(read_group(&root).expect("read")[0].shape, [8 * 1310, 100]);
+        let _ = std::fs::remove_dir_all(root.parent().expect("dir"));
+    }
+
+    #[test]
+    fn a_missing_or_fifo_chunk_is_damage_naming_the_array_and_chunk() {
+        let (root, array) = saved("chunk");
+        std::fs::remove_file(array.join("c/1/0")).expect("rm");
+        let e = read_group(&root).expect_err("refused");
+        assert!(matches!(e, BatchError::Damaged { .. }), "{e}");
+        assert!(
+            e.to_string().contains("array 'x': chunk [1, 0] is missing"),
+            "{e}"
+        );
+        assert!(check_group(&root).is_err());
+        let made = std::process::Command::new("mkfifo")
+            .arg(array.join("c/1/0"))
+            .status();
+        assert!(made.is_ok_and(|s| s.success()), "mkfifo");
+        let e = read_group(&root).expect_err("refused").to_string();
+        assert!(
+            e.contains("chunk [1, 0] is not a regular file (a FIFO or a device)"),
+            "{e}"
+        );
+        // a FIFO in place of the group's metadata: not a saved group, and nothing blocks
+        std::fs::remove_file(root.join("zarr.json")).expect("rm");
+        let made = std::process::Command::new("mkfifo")
+            .arg(root.join("zarr.json"))
+            .status();
+        assert!(made.is_ok_and(|s| s.success()), "mkfifo");
+        assert!(!is_saved_group(&root));
+        let _ = std::fs::remove_dir_all(root.parent().expect("dir"));
+    }
+
+    #[test]
+    fn a_version_1_group_reads_a_missing_chunk_as_zeros_and_a_listed_array_must_exist() {
+        let (root, array) = saved("v1");
+        std::fs::remove_file(array.join("c/1/0")).expect("rm");
+        let meta_path = root.join("zarr.json");
+        let mut meta: Value =
+            serde_json::from_str(&std::fs::read_to_string(&meta_path).expect("read"))
+                .expect("json");
+        meta["attributes"][SAVED]["version"] = json!(1);
+        std::fs::write(&meta_path, meta.to_string()).expect("write");
+        assert_eq!(read_group(&root).expect("read")[0].data.len(), 300_000);
+        meta["attributes"][SAVED]["order"] = json!(["x", "y"]);
+        std::fs::write(&meta_path, meta.to_string()).expect("write");
+        let e = read_group(&root).expect_err("refused").to_string();
+        assert!(e.contains("array 'y': its metadata cannot be read"), "{e}");
+        meta["attributes"][SAVED]["order"] = json!(["../x"]);
+        std::fs::write(&meta_path, meta.to_string()).expect("write");
+        let e = read_group(&root).expect_err("refused").to_string();
+        assert!(e.contains("no list of array names"), "{e}");
+        let _ = std::fs::remove_dir_all(root.parent().expect("dir"));
     }
 }

@@ -188,7 +188,7 @@ fn manifest(path: &Path) -> Result<Vec<(String, PathBuf)>, BatchError> {
 }
 
 /// Refuses ids that cannot name a group of the store (zarr node names).
-fn check_id(id: &str) -> Result<(), BatchError> {
+pub(crate) fn check_id(id: &str) -> Result<(), BatchError> {
     let bad = |why: &str| {
         Err(BatchError::BadId {
             id: id.to_string(),

@@ -35,7 +35,9 @@ use serde_json::{json, Value};
 use afe::extract::{run_into, Job};
 use afe::wav::open_input;
 
-pub use group::{is_saved_group, read_group, write_group, ElementType, SavedArray};
+pub use group::{
+    check_group, is_saved_group, read_group, write_group, ArrayOnDisk, ElementType, SavedArray,
+};
 pub use inputs::{discover, shard, InputFile};
 pub use ledger::{Ledger, LedgerView, Record, Status};
 pub use progress::{Progress, ProgressMode};
@@ -126,6 +128,25 @@ pub enum BatchError {
         /// Files this run finished.
         done: usize,
     },
+    /// A saved group, or a file of a store, whose arrays are not whole on disk or declare
+    /// more than their files hold.
+    #[error("'{}' is damaged: {reason}; save it again (a file of a batch store: run the batch again)", path.display())]
+    Damaged {
+        /// The group.
+        path: PathBuf,
+        /// What is wrong, naming the array and chunk.
+        reason: String,
+    },
+    /// Reading would take more memory than is available.
+    #[error("reading '{}' takes {:.2} GB of memory, more than {}: read it where there is more memory", path.display(), needed_bytes / 1e9, available_text(*available_bytes))]
+    TooLarge {
+        /// The group.
+        path: PathBuf,
+        /// Bytes the values take once read.
+        needed_bytes: f64,
+        /// Bytes of memory available, where known (else the allocation failed).
+        available_bytes: Option<f64>,
+    },
     /// A file id the store does not hold.
     #[error("the store holds no file '{0}'")]
     NoSuchFile(String),
@@ -149,6 +170,17 @@ pub enum BatchError {
         /// Its error.
         error: String,
     },
+}
+
+/// The memory available, for [`BatchError::TooLarge`].
+fn available_text(bytes: Option<f64>) -> String {
+    match bytes {
+        Some(b) => format!(
+            "the {:.2} GB available (MemAvailable, a cgroup's limit, ulimit -v or AFE_MEMORY_AVAILABLE_GB)",
+            b / 1e9
+        ),
+        None => "the system could allocate".into(),
+    }
 }
 
 impl BatchError {

@@ -14,10 +14,10 @@ use serde_json::{json, Value};
 use zarrs::array::codec::CodecOptions;
 use zarrs::array::{Array, ArrayBuilder, DataType, FillValue};
 use zarrs::filesystem::FilesystemStore;
-use zarrs::group::{Group, GroupBuilder};
+use zarrs::group::GroupBuilder;
 
-use super::group::read_arrays;
-use super::inputs::{fnv1a, InputFile};
+use super::group::read_file_group;
+use super::inputs::{check_id, fnv1a, InputFile};
 use super::ledger::LOG_DIR;
 use super::locks::{active_runs, StoreLock, LOCK_FILE};
 use super::BatchError;
@@ -751,16 +751,15 @@ impl Store {
     /// The arrays of file `id`, read back (zarr stores only; an npz store's files are
     /// read with numpy or [`afe::npy`]).
     pub fn read(&self, id: &str) -> Result<Vec<StoredArray>, BatchError> {
-        let Some(z) = &self.zarr else {
+        if self.zarr.is_none() {
             return Err(BatchError::Usage(format!(
                 "'{}' is an npz store: read {} with numpy",
                 self.root.display(),
                 self.file_path(id).display()
             )));
-        };
-        let path = format!("/{id}");
-        let group =
-            Group::open(z.clone(), &path).map_err(|_| BatchError::NoSuchFile(id.to_string()))?;
-        read_arrays(&group, &self.root)
+        }
+        // an id that is no store path ('../x') names no file of it
+        check_id(id).map_err(|_| BatchError::NoSuchFile(id.to_string()))?;
+        read_file_group(&self.root, id)?.ok_or_else(|| BatchError::NoSuchFile(id.to_string()))
     }
 }

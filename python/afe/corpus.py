@@ -257,9 +257,12 @@ class Store:
         self.dtype = "float32" if narrow else "float64"
         name = os.path.basename(self.path.rstrip("/"))
         file_id = name[: -len(suffix)] if name.endswith(suffix) else name
-        self.done = {file_id: {"id": file_id, "path": self.path, "status": "done"}}
+        record = {"id": file_id, "path": self.path, "status": "done"}
+        # a Zarr group is checked on disk as afe.load reads it (each chunk present, of its size)
+        damage = _afe.check_zarr(self.path) if format == "zarr-group" else None
+        self.done = {} if damage else {file_id: record}
         self.failed = {}
-        self.missing = {}
+        self.missing = {file_id: damage} if damage else {}
         self.warnings = []
 
     def _read_saved(self) -> Tuple[Dict[str, np.ndarray], Dict[str, Dict[str, Any]]]:
@@ -295,6 +298,8 @@ class Store:
             why = ""
             if file_id in self.failed:
                 why = f" (it failed: {self.failed[file_id]})"
+            elif file_id in self.missing and self.format == "zarr-group":
+                why = f" ({self.missing[file_id]})"
             elif file_id in self.missing:
                 why = (
                     f" (recorded as done, but {self.missing[file_id]}: "

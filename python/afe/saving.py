@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import os
+import stat
 from typing import Any, Dict, Mapping, Union
 
 import numpy as np
@@ -130,8 +131,12 @@ def read_descriptions(path: PathLike) -> Dict[str, Dict[str, Any]]:
 
 def zarr_attributes(folder: PathLike) -> Dict[str, Any]:
     """The attributes in the ``zarr.json`` of the Zarr node ``folder`` (``{}`` if none);
-    ``OSError`` or ``ValueError`` where it cannot be read."""
-    with open(os.path.join(os.fspath(folder), "zarr.json"), encoding="utf-8") as f:
+    ``OSError`` or ``ValueError`` where it cannot be read (a FIFO or a device in its place
+    is refused without blocking on it)."""
+    path = os.path.join(os.fspath(folder), "zarr.json")
+    if not stat.S_ISREG(os.stat(path).st_mode):
+        raise ValueError(f"'{path}' is not a regular file (a FIFO or a device)")
+    with open(path, encoding="utf-8") as f:
         node = json.load(f)
     return (node.get("attributes") if isinstance(node, dict) else None) or {}
 
@@ -142,7 +147,12 @@ def load(path: PathLike) -> Dict[str, Signal]:
     ``{name: Signal}``, each with its description, in the saved order. Raises
     ``FileNotFoundError`` for a missing path and ``ValueError`` for an ``.npz`` without
     afe's descriptions or a folder that is not such a group (a batch store opens with
-    :func:`afe.open_store`)."""
+    :func:`afe.open_store`).
+
+    A Zarr group is read within the bounds its metadata declares, checked against its
+    files before any value is read: a chunk missing, cut short, or not a regular file (a
+    FIFO) raises ``ValueError`` naming the array and chunk; values that would not fit the
+    memory available raise ``MemoryError``. Ctrl-C stops the read (``KeyboardInterrupt``)."""
     if not os.path.exists(os.fspath(path)):
         raise FileNotFoundError(f"no file or folder '{os.fspath(path)}'")
     reader = read_zarr if os.path.isdir(os.fspath(path)) else read_npz

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use afe_batch::{
     BatchError, BatchOptions, ElementType, InputFile, SavedArray, Store, StoreSpec, StoredArray,
 };
-use pyo3::exceptions::{PyKeyError, PyOSError, PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyKeyError, PyMemoryError, PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::pybacked::PyBackedBytes;
 use pyo3::types::PyDict;
@@ -23,6 +23,7 @@ fn to_py_batch(e: BatchError) -> PyErr {
             PyOSError::new_err(e.to_string())
         }
         BatchError::NoSuchFile(_) => PyKeyError::new_err(e.to_string()),
+        BatchError::TooLarge { .. } => PyMemoryError::new_err(e.to_string()),
         BatchError::Stopped { .. } => PyRuntimeError::new_err(e.to_string()),
         _ => PyValueError::new_err(e.to_string()),
     }
@@ -170,15 +171,15 @@ pub fn store_status(py: Python<'_>, store: PathBuf) -> PyResult<String> {
     .to_string())
 }
 
-/// File `id`'s arrays from a zarr store: `({name: array}, {name: metadata JSON text})`.
+/// File `id`'s arrays from a zarr store: `({name: array}, {name: metadata JSON text})`;
+/// Ctrl-C stops the read between chunks (KeyboardInterrupt).
 #[pyfunction]
 pub fn store_read<'py>(
     py: Python<'py>,
     store: PathBuf,
     id: String,
 ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
-    let arrays = py
-        .allow_threads(|| Store::open(&store)?.read(&id))
+    let arrays = crate::interrupt::interruptible(py, || Store::open(&store)?.read(&id))?
         .map_err(to_py_batch)?;
     numpy_dicts(py, arrays)
 }
@@ -237,16 +238,28 @@ pub fn save_zarr(py: Python<'_>, path: PathBuf, arrays: Vec<ToSave>) -> PyResult
         .map_err(to_py_batch)
 }
 
-/// The arrays of a Zarr group written by `afe.save`, as [`store_read`] gives them.
+/// The arrays of a Zarr group written by `afe.save`, as [`store_read`] gives them: a
+/// damaged group raises ValueError naming the array and chunk, one larger than the memory
+/// available MemoryError; Ctrl-C stops the read between chunks (KeyboardInterrupt).
 #[pyfunction]
 pub fn load_zarr<'py>(
     py: Python<'py>,
     path: PathBuf,
 ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
-    let arrays = py
-        .allow_threads(|| afe_batch::read_group(&path))
+    let arrays = crate::interrupt::interruptible(py, || afe_batch::read_group(&path))?
         .map_err(to_py_batch)?;
     numpy_dicts(py, arrays)
+}
+
+/// What is wrong with the Zarr group of `afe.save` at `path` (`None`: whole), checked as
+/// [`load_zarr`] reads it, without reading a value.
+#[pyfunction]
+pub fn check_zarr(py: Python<'_>, path: PathBuf) -> PyResult<Option<String>> {
+    match py.allow_threads(|| afe_batch::check_group(&path)) {
+        Ok(_) => Ok(None),
+        Err(e @ BatchError::Damaged { .. }) => Ok(Some(e.to_string())),
+        Err(e) => Err(to_py_batch(e)),
+    }
 }
 
 /// A float32 (or complex64) numpy array of `shape` from the widened values of a float32

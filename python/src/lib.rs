@@ -639,6 +639,7 @@ fn _afe(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(batch::store_read, m)?)?;
     m.add_function(wrap_pyfunction!(batch::save_zarr, m)?)?;
     m.add_function(wrap_pyfunction!(batch::load_zarr, m)?)?;
+    m.add_function(wrap_pyfunction!(batch::check_zarr, m)?)?;
     m.add_function(wrap_pyfunction!(wire::wire_read_audio, m)?)?;
     m.add_function(wrap_pyfunction!(wire::wire_read_frames, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

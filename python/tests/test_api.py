@@ -985,3 +985,114 @@ def test_the_loudest_accepted_input_gives_finite_output_and_louder_is_refused():
     assert _raises(lambda: afe.process(x * 3e58, 16000, ["stft"])).startswith(
         "invalid input: sample 0 of the left channel is "
     )
+
+
+def _saved_group(tmp_path, name="g.zarr"):
+    """A Zarr group of afe.save holding a 2-s ratemap (several chunks) and an ILD."""
+    out = afe.process(signal(32000), 16000, [("ratemap", {"fb_nChannels": 8}), "ild"])
+    path = tmp_path / name
+    afe.save(path, out)
+    return path, out
+
+
+def _set_shape(path, array, shape):
+    meta_path = path / array / "zarr.json"
+    meta = json.loads(meta_path.read_text())
+    meta["shape"] = shape
+    meta_path.write_text(json.dumps(meta))
+
+
+def test_a_hostile_shape_in_a_saved_group_is_an_error_not_an_abort(tmp_path):
+    """Issue 57, finding 4: a shape of [1e12, 1e6] or [4e7, 32] in an array's zarr.json
+    aborted afe.load and open_store(...)[id] (an allocation of 8e18 bytes); the shape is
+    now checked against the chunk files and the memory available before anything is
+    allocated. Run under a 2-GB address-space limit in a child, so that an abort could
+    not take the test run with it."""
+    import textwrap
+
+    path, _ = _saved_group(tmp_path)
+    code = textwrap.dedent(
+        f"""
+        import json, resource, sys
+        resource.setrlimit(resource.RLIMIT_AS, (2 << 30, 2 << 30))
+        import afe
+        path = {str(path)!r}
+        meta_path = path + "/ratemap_left/zarr.json"
+        meta = json.load(open(meta_path))
+        width = meta["shape"][1]
+        for shape in ([10**12, 10**6], [4 * 10**7, 32], [4 * 10**7, width]):
+            meta["shape"] = shape
+            json.dump(meta, open(meta_path, "w"))
+            try:
+                afe.load(path)
+            except ValueError as e:
+                print("load:", e)
+            store = afe.open_store(path)
+            print("store:", repr(store))
+            try:
+                store["g"]
+            except KeyError as e:
+                print("item:", e)
+        """
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
+    loads = [l for l in lines if l.startswith("load:")]
+    assert len(loads) == 3 and all("is damaged: array 'ratemap_left': " in l for l in loads), lines
+    assert "shape [1000000000000, 1000000] does not match its chunks" in loads[0]
+    assert "shape [40000000, 32] does not match its chunks" in loads[1]
+    assert "chunk [" in loads[2] and "] is missing" in loads[2]
+    assert sum("0 done, 0 failed, 1 missing" in l for l in lines if l.startswith("store:")) == 3
+    assert sum("is damaged" in l for l in lines if l.startswith("item:")) == 3
+
+
+def test_a_saved_group_larger_than_the_memory_available_is_a_memory_error(tmp_path):
+    """Issue 57, finding 4: a shape whose chunks are on disk (here as they were saved)
+    but whose values exceed the memory available raises MemoryError before reading."""
+    path, _ = _saved_group(tmp_path)
+    env = dict(os.environ, AFE_MEMORY_AVAILABLE_GB="0.00001")
+    code = f"import afe\ntry:\n    afe.load({str(path)!r})\nexcept MemoryError as e:\n    print(e)\n"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert "GB of memory, more than the 0.00 GB available" in done.stdout, done.stdout
+
+
+def test_a_missing_chunk_of_a_saved_group_is_an_error_naming_the_array_and_chunk(tmp_path):
+    """Issue 57, finding 7: removing one chunk file made afe.load return zeros and
+    open_store say '1 done, 0 missing'."""
+    path, out = _saved_group(tmp_path)
+    chunks = sorted((path / "ratemap_left" / "c").iterdir())
+    assert len(chunks) >= 1
+    (chunks[0] / "0").unlink()
+    message = _raises(lambda: afe.load(path))
+    assert message.startswith(f"'{path}' is damaged: array 'ratemap_left': chunk [0, 0] is missing"), message
+    store = afe.open_store(path)
+    assert repr(store).endswith("0 done, 0 failed, 1 missing)") and store.ids() == []
+    assert "chunk [0, 0] is missing" in store.missing["g"]
+    assert "chunk [0, 0] is missing" in _raises(lambda: store["g"], KeyError)
+    # saved whole again, a group of zeros loads (its chunks of zeros are stored too)
+    zeros = {k: afe.Signal(np.zeros_like(np.asarray(s)), s.meta) for k, s in out.items()}
+    afe.save(path, zeros)
+    assert all(not np.asarray(s).any() for s in afe.load(path).values())
+
+
+def test_a_fifo_chunk_of_a_saved_group_is_refused_without_blocking(tmp_path):
+    """Issue 57, minor: a FIFO in place of a chunk hung afe.load (and Ctrl-C did not end
+    it); it is refused as not a regular file. In a child with a timeout, so that a hang
+    fails the test instead of stalling the run."""
+    path, _ = _saved_group(tmp_path)
+    chunk = path / "ild_mono" / "c" / "0" / "0"
+    chunk.unlink()
+    os.mkfifo(chunk)
+    code = f"import afe\ntry:\n    afe.load({str(path)!r})\nexcept ValueError as e:\n    print(e)\n"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert "array 'ild_mono': chunk [0, 0] is not a regular file (a FIFO or a device)" in done.stdout, (
+        done.stdout + done.stderr
+    )
+    # a FIFO in place of the group's metadata: not a saved group, without blocking
+    (path / "zarr.json").unlink()
+    os.mkfifo(path / "zarr.json")
+    code = f"import afe\ntry:\n    afe.open_store({str(path)!r})\nexcept (ValueError, OSError) as e:\n    print(e)\n"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0 and done.stdout.strip(), done.stderr
