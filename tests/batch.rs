@@ -1249,3 +1249,64 @@ fn a_store_that_cannot_be_written_stops_the_run_and_leaves_the_files_to_resume()
         assert_same(&stored(&store, id), &want, id);
     }
 }
+
+/// Issue 57, finding 8: ids of two manifests that nest (`p` and `p/q`) never share one
+/// store, whichever comes first; and a store where they nest already (the ledger of one
+/// lost, as when two runs start at once) never has the inner file deleted by the outer
+/// one's redo.
+#[test]
+fn ids_that_nest_with_the_stores_are_refused_and_never_delete_a_finished_file() {
+    let tmp = TempDir::new("nest");
+    let corpus = tmp.join("corpus");
+    let files = good_corpus(&corpus, 2);
+    let outer = corpus.join("a.tsv");
+    std::fs::write(&outer, format!("p\t{}\n", files[0])).expect("write");
+    let inner = corpus.join("b.tsv");
+    std::fs::write(&inner, format!("p/q\t{}\n", files[1])).expect("write");
+    let run = |manifest: &Path, store: &Path| {
+        vec![
+            "batch".to_string(),
+            s(manifest).to_string(),
+            "-r".into(),
+            "ratemap".into(),
+            "-p".into(),
+            "fb_nChannels=4".into(),
+            "-o".into(),
+            s(store).to_string(),
+            "--progress".into(),
+            "none".into(),
+        ]
+    };
+    fn args(v: &[String]) -> Vec<&str> {
+        v.iter().map(String::as_str).collect()
+    }
+    for (first, second, id, stored) in [(&outer, &inner, "p/q", "p"), (&inner, &outer, "p", "p/q")]
+    {
+        let store = tmp.join(&format!("first-{}.zarr", stored.replace('/', "-")));
+        afe_ok(&args(&run(first, &store)));
+        let before = stored_ids(&store);
+        afe_err(
+            &args(&run(second, &store)),
+            &[
+                &format!("file id '{id}' nests with '{stored}', which the store"),
+                "redoing 'p' would delete 'p/q'",
+                "give",
+            ],
+        );
+        assert_eq!(stored_ids(&store), before);
+    }
+    // a store holding both (the inner one's record lost): the outer one's redo fails
+    // with the reason and leaves the inner one whole
+    let store = tmp.join("both.zarr");
+    afe_ok(&args(&run(&inner, &store)));
+    std::fs::remove_dir_all(store.join(".afe-batch")).expect("rm logs");
+    let out = afe_ok(&args(&run(&outer, &store)));
+    let err = stderr(&out) + &String::from_utf8_lossy(&out.stdout);
+    assert!(
+        err.contains("file id 'p' is also the folder of 'p/q'"),
+        "{err}"
+    );
+    assert!(stored_ids(&store).contains("p/q"));
+    let q = store.join("p/q/ratemap_left");
+    assert!(q.join("zarr.json").is_file() && q.join("c/0/0").is_file());
+}

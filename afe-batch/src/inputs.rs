@@ -1,7 +1,7 @@
 //! Which files a batch computes, under which ids: directories (searched recursively for
 //! `.wav` files), glob patterns, single WAV files and manifests (`id<TAB>path` lines).
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
 use super::BatchError;
@@ -56,17 +56,8 @@ pub fn discover(inputs: &[PathBuf]) -> Result<Vec<InputFile>, BatchError> {
         }
     }
     // an id cannot also be a folder of others ("a" and "a/b.wav")
-    for id in by_id.keys() {
-        let mut prefix = *id;
-        while let Some((parent, _)) = prefix.rsplit_once('/') {
-            if by_id.contains_key(parent) {
-                return Err(BatchError::IdIsFolder {
-                    id: parent.to_string(),
-                    child: id.to_string(),
-                });
-            }
-            prefix = parent;
-        }
+    if let Some((id, child)) = nesting(by_id.keys().copied(), |id| by_id.contains_key(id)) {
+        return Err(BatchError::IdIsFolder { id, child });
     }
     // a FIFO or device blocks the planning that measures it, and cannot be read again
     if let Some((_, path)) = found
@@ -86,6 +77,60 @@ pub fn discover(inputs: &[PathBuf]) -> Result<Vec<InputFile>, BatchError> {
             InputFile { id, path, audio_s }
         })
         .collect())
+}
+
+/// The first id of `ids` that has an ancestor folder `holds` (`(ancestor, id)`), as in
+/// `a` and `a/b.wav`.
+pub(crate) fn nesting<'a>(
+    ids: impl IntoIterator<Item = &'a str>,
+    holds: impl Fn(&str) -> bool,
+) -> Option<(String, String)> {
+    ids.into_iter().find_map(|id| {
+        let mut prefix = id;
+        while let Some((parent, _)) = prefix.rsplit_once('/') {
+            if holds(parent) {
+                return Some((parent.to_string(), id.to_string()));
+            }
+            prefix = parent;
+        }
+        None
+    })
+}
+
+/// Refuses files whose ids nest with an id `known` holds (the ids a store holds already):
+/// one would be a folder of the other's group, which redoing the outer one deletes.
+pub(crate) fn check_nesting(
+    files: &[InputFile],
+    known: &HashMap<String, impl Sized>,
+    store: &Path,
+) -> Result<(), BatchError> {
+    let refuse = |(outer, inner): (String, String), new: &str| {
+        let stored = if outer == new {
+            inner.clone()
+        } else {
+            outer.clone()
+        };
+        Err(BatchError::NestsInStore {
+            id: new.to_string(),
+            stored,
+            outer,
+            inner,
+            store: store.to_path_buf(),
+        })
+    };
+    // a new id under one the store holds
+    let new = files.iter().map(|f| f.id.as_str());
+    if let Some((outer, inner)) = nesting(new, |p| known.contains_key(p)) {
+        let id = inner.clone();
+        return refuse((outer, inner), &id);
+    }
+    // a new id that is a folder of one the store holds
+    let new: HashSet<&str> = files.iter().map(|f| f.id.as_str()).collect();
+    if let Some((outer, inner)) = nesting(known.keys().map(String::as_str), |p| new.contains(p)) {
+        let id = outer.clone();
+        return refuse((outer, inner), &id);
+    }
+    Ok(())
 }
 
 /// Keeps the files of shard `index` of `count` (0-based), chosen by a stable hash of

@@ -80,6 +80,21 @@ pub enum BatchError {
         /// An id under it.
         child: String,
     },
+    /// An id that nests with one the store holds already: one would be a folder of the
+    /// other's group, and redoing the outer file would delete the inner one.
+    #[error("file id '{id}' nests with '{stored}', which the store '{}' holds already ('{outer}' would be a folder of '{inner}', and redoing '{outer}' would delete '{inner}'): give '{id}' another id (a manifest: id<TAB>path), or another store", store.display())]
+    NestsInStore {
+        /// The id of this run's inputs.
+        id: String,
+        /// The id the store holds.
+        stored: String,
+        /// The one of them that is a folder of the other.
+        outer: String,
+        /// The one under it.
+        inner: String,
+        /// The store.
+        store: PathBuf,
+    },
     /// No input file was found.
     #[error("no input file: {0}")]
     NoInput(String),
@@ -393,6 +408,7 @@ pub fn plan(
     ledger
         .refresh(root)
         .map_err(|e| BatchError::store(root, &e))?;
+    inputs::check_nesting(&files, ledger.records(), root)?;
     let before = files.len();
     let mut incomplete = Vec::new();
     files.retain(|f| match ledger.get(&f.id) {

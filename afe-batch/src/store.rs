@@ -20,6 +20,7 @@ use super::group::read_file_group;
 use super::inputs::{check_id, fnv1a, InputFile};
 use super::ledger::LOG_DIR;
 use super::locks::{active_runs, StoreLock, LOCK_FILE};
+use super::verify::read_json;
 use super::BatchError;
 use afe::bounded_read::read_text;
 use afe::extract::Sink;
@@ -284,9 +285,16 @@ impl Store {
         }
     }
 
-    /// Removes what a run that died left of file `id`.
+    /// Removes what a run that died left of file `id`; refuses (and removes nothing) when
+    /// its folder holds the group of another file, whose id nests in `id`.
     pub fn clear(&self, id: &str) -> Result<(), BatchError> {
         let path = self.file_path(id);
+        if let Some(child) = nested_group(&path, id) {
+            return Err(BatchError::IdIsFolder {
+                id: id.to_string(),
+                child,
+            });
+        }
         let removed = if path.is_dir() {
             std::fs::remove_dir_all(&path)
         } else {
@@ -314,6 +322,14 @@ impl Store {
                 for part in &parts[..parts.len() - 1] {
                     path.push('/');
                     path.push_str(part);
+                    // a folder that is another file's group: that file's redo would delete
+                    // this one
+                    if is_file_group(&self.root.join(&path[1..])) {
+                        return Err(BatchError::IdIsFolder {
+                            id: path[1..].to_string(),
+                            child: file.id.clone(),
+                        });
+                    }
                     if is_group(&self.root.join(&path[1..])) {
                         continue;
                     }
@@ -352,6 +368,33 @@ impl Store {
 fn is_group(dir: &Path) -> bool {
     read_text(&dir.join("zarr.json"), META_MAX_BYTES)
         .is_ok_and(|t| serde_json::from_str::<Value>(&t).is_ok())
+}
+
+/// Whether `dir` holds the group metadata of a file (its facts: `afe.path`).
+fn is_file_group(dir: &Path) -> bool {
+    read_json(&dir.join("zarr.json"))
+        .is_ok_and(|v| v["node_type"] == "group" && v["attributes"]["afe"].get("path").is_some())
+}
+
+/// The id of a group found under the folder `dir` of file `id` (another file's, or a
+/// folder of other files): a file's folder holds only its arrays. Arrays' folders are
+/// not searched.
+fn nested_group(dir: &Path, id: &str) -> Option<String> {
+    let entries = std::fs::read_dir(dir).ok()?;
+    entries.filter_map(Result::ok).find_map(|e| {
+        let name = e.file_name().to_string_lossy().into_owned();
+        let path = e.path();
+        if !e.file_type().is_ok_and(|t| t.is_dir()) {
+            return None;
+        }
+        match read_json(&path.join("zarr.json")).map(|v| v["node_type"].clone()) {
+            Ok(kind) if kind == "array" => None,
+            Ok(kind) if kind == "group" => Some(format!("{id}/{name}")),
+            // an array whose metadata a kill tore holds only its chunks ('c')
+            _ if name == "c" => None,
+            _ => nested_group(&path, &format!("{id}/{name}")),
+        }
+    })
 }
 
 /// Whether two specs make the same store.
