@@ -99,6 +99,7 @@ impl ServeArgs {
                 config_file: self.zenoh_config,
                 max_clients: self.max_clients as usize,
                 max_subscriptions: self.max_subscriptions as usize,
+                max_load: afe_net::MAX_LOAD,
             }),
             endless: true,
         };

@@ -237,7 +237,9 @@ fn a_remote_source_gives_the_servers_samples_to_a_local_graph() {
 /// language would open it.
 fn raw_session(port: u16) -> zenoh::Session {
     let mut c = zenoh::Config::default();
-    c.insert_json5("mode", "\"client\"").expect("mode");
+    // a peer, as the server's clients are: its id is its session's zid
+    c.insert_json5("mode", "\"peer\"").expect("mode");
+    c.insert_json5("listen/endpoints", "[]").expect("listen");
     c.insert_json5("scouting/multicast/enabled", "false")
         .expect("scouting");
     c.insert_json5("connect/endpoints", &format!("[\"{}\"]", endpoint(port)))
@@ -410,9 +412,10 @@ fn hostile_subscriptions_get_error_replies_and_change_nothing_for_the_others() {
         sub.lost_messages()
     });
     let raw = raw_session(port);
+    let raw_id = raw.zid().to_string();
     let token = raw
         .liveliness()
-        .declare_token("afe/robot/client/raw")
+        .declare_token(format!("afe/robot/client/{raw_id}"))
         .wait()
         .expect("token");
     let ask = |payload: String| -> String {
@@ -439,16 +442,39 @@ fn hostile_subscriptions_get_error_replies_and_change_nothing_for_the_others() {
         .collect();
     let cases = [
         ("not json".to_string(), "invalid query JSON"),
-        (r#"{"client": "raw", "requests": []}"#.to_string(), "1 to 64 requests"),
-        (serde_json::json!({ "client": "raw", "requests": many }).to_string(), "1 to 64 requests"),
-        (r#"{"client": "raw", "requests": [{"name": "ild"}], "x": 1}"#.to_string(), "unknown field"),
-        (r#"{"client": "raw", "requests": [{"name": "nosuch"}]}"#.to_string(), "unknown request 'nosuch'"),
         (
-            r#"{"client": "raw", "requests": [{"name": "ild"}, {"name": "ratemap", "params": {"fb_nChannels": -3}}]}"#.to_string(),
+            format!(r#"{{"client": "{raw_id}", "requests": []}}"#),
+            "1 to 64 requests",
+        ),
+        (
+            serde_json::json!({ "client": raw_id, "requests": many }).to_string(),
+            "1 to 64 requests",
+        ),
+        (
+            format!(r#"{{"client": "{raw_id}", "requests": [{{"name": "ild"}}], "x": 1}}"#),
+            "unknown field",
+        ),
+        (
+            format!(r#"{{"client": "{raw_id}", "requests": [{{"name": "nosuch"}}]}}"#),
+            "unknown request 'nosuch'",
+        ),
+        (
+            format!(
+                r#"{{"client": "{raw_id}", "requests": [{{"name": "ild"}}, {{"name": "ratemap", "params": {{"fb_nChannels": -3}}}}]}}"#
+            ),
             "fb_nChannels",
         ),
-        (r#"{"client": "ghost", "requests": [{"name": "ild"}]}"#.to_string(), "no liveliness token"),
-        (format!(r#"{{"client": "raw", "pad": "{}"}}"#, "x".repeat(70_000)), "at most 65536"),
+        (
+            r#"{"client": "ghost", "requests": [{"name": "ild"}]}"#.to_string(),
+            "no liveliness token",
+        ),
+        (
+            format!(
+                r#"{{"client": "{raw_id}", "pad": "{}"}}"#,
+                "x".repeat(70_000)
+            ),
+            "at most 65536",
+        ),
     ];
     for (payload, expected) in cases {
         let message = ask(payload);

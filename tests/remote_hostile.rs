@@ -57,7 +57,9 @@ impl Drop for ServeProcess {
 /// A plain Zenoh session connected to the server, as a client in any language opens it.
 fn raw_session(port: u16) -> zenoh::Session {
     let mut c = zenoh::Config::default();
-    c.insert_json5("mode", "\"client\"").expect("mode");
+    // a peer, as the server's clients are: a client's id is its session's zid
+    c.insert_json5("mode", "\"peer\"").expect("mode");
+    c.insert_json5("listen/endpoints", "[]").expect("listen");
     c.insert_json5("scouting/multicast/enabled", "false")
         .expect("scouting");
     c.insert_json5("connect/endpoints", &format!("[\"{}\"]", endpoint(port)))
@@ -178,24 +180,24 @@ fn forty_stalled_queries_and_a_thousand_subscriptions_keep_the_catalogue_answeri
     eprintln!("catalogue with 40 stalled queries: {worst:?} at worst of 5");
     assert!(worst < Duration::from_millis(100), "{worst:?}");
 
-    // 40 clients of 25 subscriptions each: the first of each gives the client's token
-    let tokens: Vec<_> = (0..40)
-        .map(|i| {
-            session
-                .liveliness()
-                .declare_token(format!("afe/robot/client/c{i}"))
+    // 40 clients (sessions, a client's id its session's) of 25 subscriptions each: the
+    // first of each gives the client's token
+    let clients: Vec<zenoh::Session> = (0..40).map(|_| raw_session(port)).collect();
+    let ids: Vec<String> = clients.iter().map(|c| c.zid().to_string()).collect();
+    let tokens: Vec<_> = clients
+        .iter()
+        .zip(&ids)
+        .map(|(c, id)| {
+            c.liveliness()
+                .declare_token(format!("afe/robot/client/{id}"))
                 .wait()
                 .expect("token")
         })
         .collect();
-    let firsts: Vec<Replies> = (0..40)
-        .map(|i| {
-            send(
-                &session,
-                "subscribe",
-                Some(subscription(&format!("c{i}"), None)),
-            )
-        })
+    let firsts: Vec<Replies> = clients
+        .iter()
+        .zip(&ids)
+        .map(|(c, id)| send(c, "subscribe", Some(subscription(id, None))))
         .collect();
     let secrets: Vec<String> = firsts
         .into_iter()
@@ -209,8 +211,8 @@ fn forty_stalled_queries_and_a_thousand_subscriptions_keep_the_catalogue_answeri
         let replies: Vec<Replies> = (0..40)
             .flat_map(|i| std::iter::repeat_n(i, 6))
             .map(|i| {
-                let body = subscription(&format!("c{i}"), Some(&secrets[i]));
-                send(&session, "subscribe", Some(body))
+                let body = subscription(&ids[i], Some(&secrets[i]));
+                send(&clients[i], "subscribe", Some(body))
             })
             .collect();
         for r in replies {
@@ -220,19 +222,24 @@ fn forty_stalled_queries_and_a_thousand_subscriptions_keep_the_catalogue_answeri
     }
     assert_eq!(accepted, 1000);
     // beyond the limits: refused, naming them
-    let more = ask(&session, "subscribe", subscription("c0", Some(&secrets[0])));
+    let more = ask(
+        &clients[0],
+        "subscribe",
+        subscription(&ids[0], Some(&secrets[0])),
+    );
     assert!(
         more.as_ref()
             .is_err_and(|e| e.contains("already holds 25 subscriptions")
                 && e.contains("--max-subscriptions")),
         "{more:?}"
     );
+    let late_id = session.zid().to_string();
     let _late = session
         .liveliness()
-        .declare_token("afe/robot/client/late")
+        .declare_token(format!("afe/robot/client/{late_id}"))
         .wait()
         .expect("token");
-    let late = ask(&session, "subscribe", subscription("late", None));
+    let late = ask(&session, "subscribe", subscription(&late_id, None));
     assert!(
         late.as_ref()
             .is_err_and(|e| e.contains("at most 40 clients") && e.contains("--max-clients")),
@@ -319,7 +326,7 @@ fn a_subscription_is_cancelled_or_added_to_only_with_its_clients_token() {
     assert!(
         under
             .as_ref()
-            .is_err_and(|e| e.contains("held by another session")),
+            .is_err_and(|e| e.starts_with("the \"token\" is missing")),
         "{under:?}"
     );
 
@@ -357,8 +364,9 @@ fn a_departed_clients_subscriptions_are_removed_and_its_room_given_to_others() {
     let watcher = raw_session(port);
     wait_for_catalogue(&watcher);
     // two clients fill the server, three subscriptions each
-    let fill = |name: &str| {
+    let fill = || {
         let s = raw_session(port);
+        let name = &s.zid().to_string();
         let token = s
             .liveliness()
             .declare_token(format!("afe/robot/client/{name}"))
@@ -371,20 +379,21 @@ fn a_departed_clients_subscriptions_are_removed_and_its_room_given_to_others() {
         }
         (s, token)
     };
-    let a = fill("a");
-    let b = fill("b");
+    let a = fill();
+    let b = fill();
     assert_eq!(
         report(&watcher)["subscriptions"].as_array().map(Vec::len),
         Some(6)
     );
     let refused = {
         let s = raw_session(port);
+        let c = s.zid().to_string();
         let _t = s
             .liveliness()
-            .declare_token("afe/robot/client/c")
+            .declare_token(format!("afe/robot/client/{c}"))
             .wait()
             .expect("token");
-        ask(&s, "subscribe", subscription("c", None))
+        ask(&s, "subscribe", subscription(&c, None))
     };
     assert!(
         refused
@@ -409,10 +418,150 @@ fn a_departed_clients_subscriptions_are_removed_and_its_room_given_to_others() {
         );
     }
     // and two new clients get the whole room
-    let _c = fill("c");
-    let _d = fill("d");
+    let _c = fill();
+    let _d = fill();
     assert_eq!(
         report(&watcher)["subscriptions"].as_array().map(Vec::len),
         Some(6)
     );
+}
+
+/// Issue 57: one connection declaring eight liveliness tokens holds one client, not
+/// eight: a client's id is its session's, and an id of no connected session is refused,
+/// so `--max-clients` counts connections; the room left is another session's.
+#[test]
+fn one_connection_with_many_tokens_holds_one_client() {
+    let port = 17634;
+    let _server = ServeProcess::start(port, 30, &["--max-clients", "2"]);
+    let hostile = raw_session(port);
+    wait_for_catalogue(&hostile);
+    let own = hostile.zid().to_string();
+    let names: Vec<String> = (0..8)
+        .map(|i| format!("sock-{i}"))
+        .chain([own.clone()])
+        .collect();
+    let _tokens: Vec<_> = names
+        .iter()
+        .map(|n| {
+            hostile
+                .liveliness()
+                .declare_token(format!("afe/robot/client/{n}"))
+                .wait()
+                .expect("token")
+        })
+        .collect();
+    for n in &names[..8] {
+        let refused = ask(&hostile, "subscribe", subscription(n, None));
+        assert!(
+            refused.as_ref().is_err_and(|e| e.contains(&format!(
+                "client '{n}' is not the Zenoh id of a session connected to this server"
+            ))),
+            "{refused:?}"
+        );
+    }
+    ask(&hostile, "subscribe", subscription(&own, None)).expect("its own id");
+    assert_eq!(report(&hostile)["clients"], 1);
+    // another connection still finds room
+    let other = Client::connect(&endpoint(port), None).expect("client");
+    let mut sub = other
+        .subscribe(&[("ild", Default::default())])
+        .expect("room for another connection");
+    assert!(sub.recv(Duration::from_secs(5)).expect("recv").is_some());
+    assert_eq!(report(&hostile)["clients"], 2);
+}
+
+/// Issue 57: a liveliness token another session declared under a client's public id
+/// does not keep that client's subscriptions once its own session has gone.
+#[test]
+fn a_foreign_token_under_a_departed_clients_id_keeps_nothing_alive() {
+    let port = 17635;
+    let _server = ServeProcess::start(port, 30, &[]);
+    let watcher = raw_session(port);
+    wait_for_catalogue(&watcher);
+    let victim = raw_session(port);
+    let id = victim.zid().to_string();
+    let _own = victim
+        .liveliness()
+        .declare_token(format!("afe/robot/client/{id}"))
+        .wait()
+        .expect("token");
+    let placed = ask(&victim, "subscribe", subscription(&id, None)).expect("subscribed");
+    let key = placed["key"].as_str().expect("frames key").to_string();
+    let _foreign = watcher
+        .liveliness()
+        .declare_token(format!("afe/robot/client/{id}"))
+        .wait()
+        .expect("token");
+    assert_eq!(report(&watcher)["clients"], 1);
+    // the victim's session goes (as a killed process's link does)
+    victim.close().wait().expect("close");
+    let start = Instant::now();
+    loop {
+        let r = report(&watcher);
+        if r["subscriptions"].as_array().is_some_and(Vec::is_empty) && r["clients"] == 0 {
+            break;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(5),
+            "the departed client's subscription is still published: {r}"
+        );
+    }
+    // and its frames stop
+    let frames = watcher.declare_subscriber(&key).wait().expect("subscriber");
+    std::thread::sleep(Duration::from_millis(300));
+    while frames.try_recv().ok().flatten().is_some() {}
+    assert!(
+        frames
+            .recv_timeout(Duration::from_millis(500))
+            .ok()
+            .flatten()
+            .is_none(),
+        "frames still published"
+    );
+}
+
+/// Issue 57, item 11: a subscription whose measured cost would take the stream past
+/// its deadline is refused before it runs, with its cost, the budget and what to
+/// change; the clients already served keep every frame.
+#[test]
+fn a_subscription_too_heavy_for_the_deadline_is_refused_before_it_runs() {
+    let port = 17636;
+    let _server = ServeProcess::start(port, 30, &[]);
+    wait_for_catalogue(&raw_session(port));
+    let light = Client::connect(&endpoint(port), None).expect("client");
+    let mut served = light
+        .subscribe(&[("ild", Default::default())])
+        .expect("ild");
+    let heavy = Client::connect(&endpoint(port), None).expect("client");
+    let params: afe::ParamMap = [
+        ("fb_nChannels".to_string(), json!(64)),
+        ("ac_hSizeSec".to_string(), json!(0.002)),
+        ("ac_wSizeSec".to_string(), json!(0.05)),
+    ]
+    .into_iter()
+    .collect();
+    let refused = heavy
+        .subscribe(&[("autocorrelation", params)])
+        .map(|_| ())
+        .expect_err("refused");
+    let m = refused.to_string();
+    assert!(
+        m.contains("'autocorrelation' would cost ")
+            && m.contains(" of each 10.0-ms block (measured on a trial before placing it)")
+            && m.contains("ask for less (fewer channels, a longer hop"),
+        "{m}"
+    );
+    let seqs: Vec<u64> = (0..20)
+        .map(|_| {
+            served
+                .recv(Duration::from_secs(5))
+                .expect("recv")
+                .expect("a block")
+                .seq
+        })
+        .collect();
+    assert!(seqs.windows(2).all(|w| w[1] == w[0] + 1), "{seqs:?}");
+    let r = report(&raw_session(port));
+    assert_eq!(r["subscriptions"].as_array().map(Vec::len), Some(1), "{r}");
+    assert_eq!(r["stream"]["deadline_misses"], 0, "{r}");
 }

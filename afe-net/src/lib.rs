@@ -66,6 +66,10 @@ pub const MAX_SUBSCRIPTIONS_LIMIT: usize = 256;
 pub const MAX_CLIENTS_LIMIT: usize = 1024;
 /// Threads publishing every subscription's messages, however many there are.
 pub const PUBLISH_THREADS: usize = 4;
+/// The share of a block's budget requests may take unless [`ServeOptions::max_load`]
+/// says otherwise: a subscription whose measured cost would take the stream beyond it
+/// is refused before it runs.
+pub const MAX_LOAD: f64 = 0.8;
 /// Largest subscription message accepted, bytes.
 pub const MAX_QUERY_BYTES: usize = 64 * 1024;
 

@@ -3,6 +3,7 @@
 //! places and removes the subscribed requests between blocks and hands each block's
 //! messages to a fixed pool of publishing threads without ever waiting for them.
 
+use std::collections::HashMap;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, Sender, SyncSender};
@@ -23,16 +24,20 @@ mod queries;
 
 use super::wire::{self, Header, Kind};
 use super::{
-    check_name, config, key, RemoteError, MAX_CLIENTS, MAX_CLIENTS_LIMIT, MAX_SUBSCRIPTIONS,
-    MAX_SUBSCRIPTIONS_LIMIT, PUBLISH_THREADS,
+    check_name, config, key, RemoteError, MAX_CLIENTS, MAX_CLIENTS_LIMIT, MAX_LOAD,
+    MAX_SUBSCRIPTIONS, MAX_SUBSCRIPTIONS_LIMIT, PUBLISH_THREADS,
 };
 use afe::metadata::describe;
 use afe::stream::{Observer, Timing};
+use afe::trial::{LoadCap, Shape, Trials};
 use publish::{Pool, SubEnd};
 use queries::{answer, Edit, Event, Limits, Op, Outcome, QueryLoop, RequestSpec, QUERY_BACKLOG};
 
 /// Audio blocks on their way to the network before the next are dropped.
 const AUDIO_QUEUE: usize = 32;
+/// Subscriptions being measured (or waiting to be) before they are placed: as many as
+/// queries may wait to be read.
+const TRIAL_SLOTS: usize = QUERY_BACKLOG;
 
 /// Where and under which name to serve, and for how many clients.
 #[derive(Debug, Clone)]
@@ -48,6 +53,9 @@ pub struct ServeOptions {
     pub max_clients: usize,
     /// Subscriptions one client may hold, 1 to [`MAX_SUBSCRIPTIONS_LIMIT`].
     pub max_subscriptions: usize,
+    /// The share of a block's budget requests may take (0 to 1): a subscription whose
+    /// measured cost would take the stream beyond it is refused before it runs.
+    pub max_load: f64,
 }
 
 impl Default for ServeOptions {
@@ -58,6 +66,7 @@ impl Default for ServeOptions {
             config_file: None,
             max_clients: MAX_CLIENTS,
             max_subscriptions: MAX_SUBSCRIPTIONS,
+            max_load: MAX_LOAD,
         }
     }
 }
@@ -74,6 +83,12 @@ impl ServeOptions {
                 )))
             }
         };
+        if !(0.0..=1.0).contains(&self.max_load) {
+            return Err(RemoteError::Options(format!(
+                "max_load = {}: give a share of the block's budget, 0 to 1",
+                self.max_load
+            )));
+        }
         Ok(Limits {
             max_clients: check(self.max_clients, MAX_CLIENTS_LIMIT, "max_clients")?,
             max_subscriptions: check(
@@ -162,6 +177,7 @@ impl Server {
         let queued = Arc::new(AtomicUsize::new(0));
         let stop = Arc::new(AtomicBool::new(false));
         let query_loop = QueryLoop::new(
+            session.clone(),
             shared.clone(),
             edits_tx,
             limits,
@@ -207,6 +223,8 @@ impl Server {
             limits.max_clients,
             limits.max_subscriptions,
         )?;
+        let trials = Trials::start(TRIAL_SLOTS)
+            .map_err(|e| RemoteError::Zenoh(format!("cannot start the trial thread: {e}")))?;
         let tap = ServeTap {
             session: session.clone(),
             name: name.clone(),
@@ -223,6 +241,10 @@ impl Server {
             report,
             next_report: 0,
             started: false,
+            trials,
+            cap: LoadCap::new(options.max_load),
+            measured: HashMap::new(),
+            next_trial: 0,
         };
         Ok((
             Server {
@@ -347,6 +369,14 @@ pub struct ServeTap {
     report: Outlet,
     next_report: u64,
     started: bool,
+    /// Measures subscriptions before they are placed, off the audio path.
+    trials: Trials,
+    /// The stream's load and the share requests may take.
+    cap: LoadCap,
+    /// Subscriptions being measured, by trial: the query's ticket, the client and its
+    /// requests.
+    measured: HashMap<u64, (u64, String, Vec<RequestSpec>)>,
+    next_trial: u64,
 }
 
 impl ServeTap {
@@ -434,17 +464,74 @@ impl ServeTap {
         self.report.send(buf);
     }
 
+    /// Places the subscriptions whose trial says they fit, and refuses the others.
+    fn apply_measured(&mut self, timing: &Timing, mgr: &mut Manager) {
+        for (trial, cost) in self.trials.finished() {
+            let Some((ticket, client, requests)) = self.measured.remove(&trial) else {
+                continue;
+            };
+            let what = describe_specs(&requests);
+            // computed already meanwhile (by an equal subscription placed since)
+            let cost = if afe::trial::shared_entirely(&*mgr, &specs(&requests)) {
+                Ok(afe::trial::Cost::free())
+            } else {
+                cost
+            };
+            let outcome = match cost.and_then(|c| self.cap.admit(&what, c)) {
+                Ok(()) => self.subscribe(timing, mgr, client, requests),
+                Err(e) => Err(e.to_string()),
+            };
+            let _ = self.events.send(Event::Outcome(ticket, outcome));
+        }
+    }
+
+    /// Asks for the trial of a subscription (placed at once when the stream has no
+    /// deadline); its outcome goes to the query loop when it is placed or refused.
+    fn measure(
+        &mut self,
+        timing: &Timing,
+        mgr: &mut Manager,
+        ticket: u64,
+        client: String,
+        requests: Vec<RequestSpec>,
+    ) {
+        let tried = specs(&requests);
+        if !self.cap.has_deadline() || afe::trial::shared_entirely(&*mgr, &tried) {
+            // no deadline, or nothing new to compute: placed at once
+            let outcome = self.subscribe(timing, mgr, client, requests);
+            let _ = self.events.send(Event::Outcome(ticket, outcome));
+            return;
+        }
+        let shape = Shape {
+            fs: mgr.fs(),
+            ears: mgr.ears(),
+            block_frames: timing.block_frames(),
+        };
+        self.next_trial += 1;
+        let asked = self.cap.check_load().and_then(|()| {
+            self.trials
+                .submit(self.next_trial, shape, tried, self.cap.headroom_ms())
+        });
+        match asked {
+            Ok(()) => {
+                self.measured
+                    .insert(self.next_trial, (ticket, client, requests));
+            }
+            Err(e) => {
+                let _ = self.events.send(Event::Outcome(ticket, Err(e.to_string())));
+            }
+        }
+    }
+
     fn apply_edits(&mut self, timing: &Timing, mgr: &mut Manager) {
+        self.apply_measured(timing, mgr);
         while let Ok(edit) = self.edits.try_recv() {
             match edit {
                 Edit::Subscribe {
                     ticket,
                     client,
                     requests,
-                } => {
-                    let outcome = self.subscribe(timing, mgr, client, requests);
-                    let _ = self.events.send(Event::Outcome(ticket, outcome));
-                }
+                } => self.measure(timing, mgr, ticket, client, requests),
                 Edit::Unsubscribe {
                     ticket,
                     client,
@@ -468,6 +555,18 @@ impl ServeTap {
                     let _ = self.events.send(Event::Outcome(ticket, outcome));
                 }
                 Edit::ClientGone(client) => {
+                    let left: Vec<u64> = self
+                        .measured
+                        .iter()
+                        .filter(|(_, (_, c, _))| *c == client)
+                        .map(|(&trial, _)| trial)
+                        .collect();
+                    for trial in left {
+                        if let Some((ticket, _, _)) = self.measured.remove(&trial) {
+                            let why = format!("client '{client}' left while subscribing");
+                            let _ = self.events.send(Event::Outcome(ticket, Err(why)));
+                        }
+                    }
                     let (gone, kept) = std::mem::take(&mut self.subs)
                         .into_iter()
                         .partition(|s| s.client == client);
@@ -565,6 +664,19 @@ impl ServeTap {
     }
 }
 
+/// Requests as names and parameters.
+fn specs(requests: &[RequestSpec]) -> Vec<(String, afe_core::ParamMap)> {
+    requests
+        .iter()
+        .map(|r| (r.name.clone(), r.params.clone()))
+        .collect()
+}
+
+/// Requests as a short phrase for messages.
+fn describe_specs(requests: &[RequestSpec]) -> String {
+    afe::trial::describe(&specs(requests))
+}
+
 /// Removes requests; their processors go when no other request uses them.
 fn release(mgr: &mut Manager, handles: &[RequestHandle]) {
     for &h in handles {
@@ -590,6 +702,7 @@ impl Observer for ServeTap {
         if !self.started {
             self.start(timing, mgr);
         }
+        self.cap.observe(timing);
         self.publish_audio(timing, input);
         self.publish_frames(timing, mgr);
         self.publish_report(timing, mgr);

@@ -254,6 +254,13 @@ impl Tap {
             };
             match edit {
                 Measured::Add { page, name, params } => {
+                    let tried = [(name.clone(), params.clone())];
+                    // computed already meanwhile (by an equal request placed since)
+                    let cost = if afe::trial::shared_entirely(&*mgr, &tried) {
+                        Ok(Cost::free())
+                    } else {
+                        cost
+                    };
                     let outcome = cost
                         .and_then(|c| self.cap.admit(&format!("'{name}'"), c).map(|()| c))
                         .map_err(|e| e.to_string())
@@ -338,19 +345,20 @@ impl Tap {
             ));
         }
         self.cap.check_load().map_err(|e| e.to_string())?;
+        let tried = vec![(name.clone(), params.clone())];
         match self.shape.filter(|_| self.cap.has_deadline()) {
-            None => {
-                let outcome = self.place(mgr, page, &name, &params, 0.0);
-                self.reply(page, "add", outcome);
-            }
-            Some(shape) => {
+            Some(shape) if !afe::trial::shared_entirely(&*mgr, &tried) => {
                 let ticket = self.ticket();
-                let tried = vec![(name.clone(), params.clone())];
                 self.trials
                     .submit(ticket, shape, tried, self.cap.headroom_ms())
                     .map_err(|e| e.to_string())?;
                 self.measured
                     .insert(ticket, Measured::Add { page, name, params });
+            }
+            // no deadline, or nothing new to compute: placed at once
+            _ => {
+                let outcome = self.place(mgr, page, &name, &params, 0.0);
+                self.reply(page, "add", outcome);
             }
         }
         Ok(())

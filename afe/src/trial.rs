@@ -8,7 +8,8 @@
 //! The trial's cost is the least time of a few blocks after the longest window has
 //! filled (scheduling noise only ever adds time). It is an upper bound of what placing
 //! the request adds: in the stream's graph it shares the processors that equal ones
-//! already there, which the trial computes again.
+//! already there, which the trial computes again. Requests that add no processor at all
+//! ([`shared_entirely`]) need no trial.
 
 use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
 use std::thread::JoinHandle;
@@ -204,6 +205,37 @@ pub fn measure(
     Ok(Cost {
         ms: least,
         partial: false,
+    })
+}
+
+/// Whether `requests` would add no processor to `mgr`'s graph: each of their outputs is
+/// one of its requested signals already, computed through processors of the same
+/// parameters (an equal request is in place). Then they cost the stream next to
+/// nothing, and no trial is needed. Told from a graph of their own, built but not run;
+/// `mgr` is not touched.
+pub fn shared_entirely(mgr: &Manager, requests: &[(String, ParamMap)]) -> bool {
+    let there = mgr.signals(false);
+    // without a signal of the same name in place, no need to build anything
+    let named = |name: &str| there.iter().any(|s| s.name.starts_with(name));
+    if !requests.iter().all(|(name, _)| named(name)) {
+        return false;
+    }
+    let Ok(mut alone) = Manager::new(mgr.fs(), mgr.ears()) else {
+        return false;
+    };
+    let mut outputs = Vec::new();
+    for (name, params) in requests {
+        match alone
+            .add_request(name, params)
+            .and_then(|h| alone.request_signals(h))
+        {
+            Ok(signals) => outputs.extend(signals.iter().map(|s| s.source)),
+            Err(_) => return false,
+        }
+    }
+    outputs.iter().all(|&r| {
+        let chain = alone.signal_chain(r);
+        there.iter().any(|s| mgr.signal_chain(s.source) == chain)
     })
 }
 
@@ -411,6 +443,22 @@ mod tests {
             .collect();
         let e = measure(shape(), &[("ratemap".into(), bad)], 1.0).expect_err("refused");
         assert!(e.to_string().starts_with("request 'ratemap':"), "{e}");
+    }
+
+    #[test]
+    fn requests_computed_already_are_told_and_the_graph_is_left_alone() {
+        let mut mgr = Manager::new(16000.0, 2).expect("manager");
+        let ild = vec![("ild".to_string(), ParamMap::new())];
+        assert!(!shared_entirely(&mut mgr, &ild));
+        assert_eq!(mgr.handles().count(), 0);
+        mgr.add_request("ild", &ParamMap::new()).expect("ild");
+        let count = mgr.processor_count();
+        assert!(shared_entirely(&mut mgr, &ild));
+        assert!(!shared_entirely(
+            &mut mgr,
+            &[("itd".to_string(), ParamMap::new())]
+        ));
+        assert_eq!((mgr.processor_count(), mgr.handles().count()), (count, 1));
     }
 
     #[test]

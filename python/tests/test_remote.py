@@ -369,8 +369,10 @@ def test_another_session_cannot_cancel_or_add_to_a_clients_subscriptions(serve, 
         with pytest.raises(RemoteError, match="only the client that subscribed"):
             other._query("unsubscribe", dict(body, token="0" * 32))
         spec = {"client": robot.id, "requests": [{"name": "ratemap", "params": {}}]}
-        with pytest.raises(RemoteError, match="held by another session"):
+        with pytest.raises(RemoteError, match="the \"token\" is missing"):
             other._query("subscribe", spec)
+        with pytest.raises(RemoteError, match="held by another session"):
+            other._query("subscribe", dict(spec, token="0" * 32))
         assert next_report()["subscriptions"][0]["subscription"] == sub.id
         assert sub.recv(timeout=5) is not None
         sub.close()  # with its token: released

@@ -4,7 +4,9 @@
 //! before the stream has started, is parked and answered when it can be (or refused at
 //! its deadline), and an edit of the graph is passed to the audio thread and answered
 //! when its outcome comes back. It also holds each client's secret token and counts its
-//! subscriptions against the server's limits.
+//! subscriptions against the server's limits. A client's id is its session's Zenoh id,
+//! so that one connection holds one client whatever tokens it declares, and a client
+//! leaves when its session does, whatever tokens others declared under its id.
 
 use std::collections::{HashMap, HashSet};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -16,7 +18,7 @@ use afe_core::ParamMap;
 use serde::Deserialize;
 use serde_json::{json, Value};
 use zenoh::query::Query;
-use zenoh::Wait;
+use zenoh::{Session, Wait};
 
 use super::{lock, Shared};
 use crate::{MAX_QUERY_BYTES, MAX_REQUESTS};
@@ -28,6 +30,9 @@ const EDIT_WAIT: Duration = Duration::from_secs(5);
 const CLIENT_WAIT: Duration = Duration::from_secs(2);
 /// How often the loop looks whether its server has gone.
 const QUERY_POLL: Duration = Duration::from_millis(50);
+/// How often the loop looks which sessions are connected: a client whose session has
+/// gone leaves then, whatever liveliness tokens others declared under its id.
+const SESSIONS_POLL: Duration = Duration::from_millis(250);
 /// Queries on their way to the loop before the next are turned away.
 pub(super) const QUERY_BACKLOG: usize = 256;
 /// Queries parked (waiting for a client's token or the stream's start) before the next
@@ -143,6 +148,10 @@ struct Pending {
 
 /// The loop's state.
 pub(super) struct QueryLoop {
+    /// The server's session: which sessions are connected to it.
+    session: Session,
+    /// When the connected sessions were last looked at.
+    sessions_seen: Instant,
     shared: Arc<Shared>,
     edits: Sender<Edit>,
     limits: Limits,
@@ -158,6 +167,7 @@ pub(super) struct QueryLoop {
 
 impl QueryLoop {
     pub(super) fn new(
+        session: Session,
         shared: Arc<Shared>,
         edits: Sender<Edit>,
         limits: Limits,
@@ -165,6 +175,8 @@ impl QueryLoop {
         client_key: String,
     ) -> Self {
         QueryLoop {
+            session,
+            sessions_seen: Instant::now(),
             shared,
             edits,
             limits,
@@ -200,6 +212,37 @@ impl QueryLoop {
                 Err(RecvTimeoutError::Disconnected) => break,
             }
             self.expire(Instant::now());
+            if self.sessions_seen.elapsed() >= SESSIONS_POLL {
+                self.sessions_seen = Instant::now();
+                self.drop_disconnected();
+            }
+        }
+    }
+
+    /// The ids of the sessions connected to the server (peers).
+    fn connected(&self) -> HashSet<String> {
+        self.session
+            .info()
+            .peers_zid()
+            .wait()
+            .map(|z| z.to_string())
+            .collect()
+    }
+
+    /// Every client whose session is no longer connected leaves.
+    fn drop_disconnected(&mut self) {
+        if self.clients.is_empty() {
+            return;
+        }
+        let connected = self.connected();
+        let gone: Vec<String> = self
+            .clients
+            .keys()
+            .filter(|id| !connected.contains(*id))
+            .cloned()
+            .collect();
+        for id in gone {
+            self.client_gone(id);
         }
     }
 
@@ -264,20 +307,46 @@ impl QueryLoop {
         }
         let limits = self.limits;
         let state = match self.clients.get_mut(&s.client) {
-            Some(state) => {
-                if !s.token.as_deref().is_some_and(|t| same(t, &state.token)) {
+            Some(state) => match s.token.as_deref() {
+                None => {
                     return answer(
                         &q,
                         Err(format!(
-                            "client '{}' is held by another session: a further subscription \
-                             under its id needs the \"token\" of its first subscription's reply",
+                            "the \"token\" is missing: client '{}' already holds \
+                                 subscriptions, and a further one under its id must carry the \
+                                 \"token\" of its first subscription's reply (the Rust and \
+                                 Python clients send it themselves)",
+                            s.client
+                        )),
+                    )
+                }
+                Some(t) if !same(t, &state.token) => {
+                    return answer(
+                        &q,
+                        Err(format!(
+                            "the token is not client '{}''s: it is held by another session, \
+                                 and only the session that subscribed first may add to its \
+                                 subscriptions (subscribe under an id of your own, e.g. your \
+                                 Zenoh session id)",
+                            s.client
+                        )),
+                    )
+                }
+                Some(_) => state,
+            },
+            None => {
+                if !self.connected().contains(&s.client) {
+                    return answer(
+                        &q,
+                        Err(format!(
+                            "client '{}' is not the Zenoh id of a session connected to this \
+                             server: subscribe under your own session's id (its zid), from a \
+                             session in peer mode (the Rust and Python clients do), so that \
+                             each connection holds one client",
                             s.client
                         )),
                     );
                 }
-                state
-            }
-            None => {
                 if self.clients.len() >= limits.max_clients {
                     return answer(
                         &q,
