@@ -100,6 +100,11 @@ fn main() -> ExitCode {
         // interrupt handler's too), so that every thread shares the main heap
         memory_reuse::keep_freed_memory();
     }
+    // a limit variable set to a value it does not accept is refused before any work
+    if let Err(e) = afe::memory::check_settings() {
+        eprintln!("error: {e}");
+        return ExitCode::FAILURE;
+    }
     install_interrupt_handler();
     let result = match cli.command {
         Command::List(a) => a.run(),

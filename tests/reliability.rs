@@ -223,3 +223,218 @@ fn messages_name_what_is_wrong() {
         &npz,
     );
 }
+
+/// Runs `afe args...` under `ulimit -v` of `limit_kb` (none: unlimited) with `env`, the
+/// memory setting removed unless given.
+fn afe_limited(limit_kb: Option<u64>, args: &[&str], env: &[(&str, &str)]) -> std::process::Output {
+    let quoted: Vec<String> = args.iter().map(|a| format!("'{a}'")).collect();
+    let limit = limit_kb.map_or(String::new(), |kb| format!("ulimit -v {kb} && "));
+    let script = format!(
+        "{limit}exec '{}' {}",
+        env!("CARGO_BIN_EXE_afe"),
+        quoted.join(" ")
+    );
+    let mut cmd = std::process::Command::new("sh");
+    cmd.args(["-c", &script])
+        .env_remove("AFE_MEMORY_AVAILABLE_GB")
+        .env_remove("AFE_WHOLE_SIGNAL_LIMIT_MB")
+        .env("RUST_BACKTRACE", "0");
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    cmd.output().expect("run sh")
+}
+
+/// Issue 57, finding 2: a whole signal that processors take in one call (the MOC's
+/// chain, the Hilbert hair cell) aborted under `ulimit -v` (`memory allocation of
+/// 218736000 bytes failed`, SIGABRT), within the fixed limit of 2 GB and with it raised
+/// to 100 GB. It is refused before the computation, naming what it needs and the memory
+/// available (20 s at 44.1 kHz under 1 GB; 1024 channels of 1 s under 1.5 GB; 256 channels of 20 s
+/// under 6 GB with the limit raised).
+#[test]
+fn whole_signals_beyond_the_memory_available_are_refused_not_aborted() {
+    let wav = tmp("twenty.wav");
+    write_wav(&wav, 2, 44100, 20 * 44100, tone);
+    let one = tmp("one.wav");
+    write_wav(&one, 2, 44100, 44100, tone);
+    let out_file = tmp("whole-memory.npz");
+    let (w, s, o) = (
+        wav.to_str().expect("path"),
+        one.to_str().expect("path"),
+        out_file.to_str().expect("path"),
+    );
+    let cases: [(u64, &[&str], &[(&str, &str)]); 4] = [
+        (1_000_000, &["extract", w, "-r", "moc", "-o", o], &[]),
+        (
+            1_000_000,
+            &[
+                "extract",
+                w,
+                "-r",
+                "ratemap",
+                "-p",
+                "ihc_method=hilbert",
+                "-o",
+                o,
+            ],
+            &[],
+        ),
+        (
+            1_500_000,
+            &[
+                "extract",
+                s,
+                "-r",
+                "moc",
+                "-p",
+                "fb_nChannels=1024",
+                "-o",
+                o,
+            ],
+            &[],
+        ),
+        (
+            6_000_000,
+            &["extract", w, "-r", "moc", "-p", "fb_nChannels=256", "-o", o],
+            &[("AFE_WHOLE_SIGNAL_LIMIT_MB", "100000")],
+        ),
+    ];
+    for (limit, args, env) in cases {
+        let started = Instant::now();
+        let out = afe_limited(Some(limit), args, env);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {out:?}");
+        assert_clear_error(
+            &out,
+            "processing the signal in one call would take about ",
+            &out_file,
+        );
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains("of memory available: feed it in chunks"),
+            "{err}"
+        );
+        let need = number_between(&err, "would take about ", " GB");
+        let available = number_between(&err, "more than the ", " ")
+            * if err.contains("MB of memory available") {
+                1e-3
+            } else {
+                1.0
+            };
+        assert!(
+            need > available && available <= limit as f64 * 1.024e-6,
+            "{err}"
+        );
+        assert!(started.elapsed() < Duration::from_secs(20), "{args:?}");
+    }
+}
+
+/// The estimate bounds the memory a whole-signal call takes: under address-space limits
+/// from 250 MB to 1.3 GB, 5 s of the MOC's chain and of the Hilbert hair cell (one and
+/// two threads) are either computed or refused with the message, never aborted; and
+/// with the check passed by a large `AFE_MEMORY_AVAILABLE_GB`, the allocation that fails
+/// is an error naming what it was for, not an abort.
+#[test]
+fn whole_signals_under_any_address_space_limit_are_computed_or_refused() {
+    let wav = tmp("five.wav");
+    write_wav(&wav, 2, 44100, 5 * 44100, tone);
+    let out_file = tmp("five.npz");
+    let (w, o) = (
+        wav.to_str().expect("path"),
+        out_file.to_str().expect("path"),
+    );
+    let (mut computed, mut refused) = (0, 0);
+    for request in [
+        &["-r", "moc"][..],
+        &["-r", "ratemap", "-p", "ihc_method=hilbert"],
+    ] {
+        for threads in ["0", "2"] {
+            for limit_mb in (250..=1300).step_by(150) {
+                let mut args = vec!["extract", w, "-o", o, "--threads", threads];
+                args.extend_from_slice(request);
+                let out = afe_limited(Some(limit_mb * 1000), &args, &[]);
+                let err = String::from_utf8_lossy(&out.stderr);
+                match out.status.code() {
+                    Some(0) => computed += 1,
+                    Some(1) => {
+                        assert!(
+                            err.contains("of memory available"),
+                            "{args:?} {limit_mb}: {err}"
+                        );
+                        refused += 1;
+                    }
+                    _ => panic!("{args:?} under {limit_mb} MB: {out:?}"),
+                }
+                let _ = std::fs::remove_file(&out_file);
+            }
+        }
+    }
+    assert!(
+        computed > 0 && refused > 0,
+        "{computed} computed, {refused} refused"
+    );
+    let out = afe_limited(
+        Some(400_000),
+        &["extract", w, "-o", o, "-r", "moc"],
+        &[("AFE_MEMORY_AVAILABLE_GB", "1000")],
+    );
+    assert_eq!(out.status.code(), Some(1), "{out:?}");
+    assert_clear_error(&out, "could not allocate ", &out_file);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("the memory is short"));
+}
+
+/// Issue 57, minor: bad values of the limit variables (`abc`, `0`, `-1`, `nan`) were taken
+/// or ignored silently. Each is refused in one line naming the variable, its value and
+/// what it accepts, exit 1, before any work.
+#[test]
+fn bad_values_of_the_limit_variables_are_refused_by_name() {
+    let wav = tmp("settings.wav");
+    write_wav(&wav, 2, 16000, 1600, tone);
+    let out_file = tmp("settings.npz");
+    let (w, o) = (
+        wav.to_str().expect("path"),
+        out_file.to_str().expect("path"),
+    );
+    for variable in [
+        "AFE_MEMORY_AVAILABLE_GB",
+        "AFE_WORK_LIMIT",
+        "AFE_OUTPUT_LIMIT",
+        "AFE_WHOLE_SIGNAL_LIMIT_MB",
+    ] {
+        for value in ["abc", "0", "-1", "nan", "inf"] {
+            let out = afe_limited(
+                None,
+                &["extract", w, "-r", "ild", "-o", o],
+                &[(variable, value)],
+            );
+            assert_eq!(out.status.code(), Some(1), "{variable}={value}");
+            let needle = format!(
+                "the environment variable {variable} is \"{value}\": it must be a positive"
+            );
+            assert_clear_error(&out, &needle, &out_file);
+        }
+        // an accepted value runs
+        let value = if variable == "AFE_MEMORY_AVAILABLE_GB" {
+            "4"
+        } else {
+            "1e9"
+        };
+        let value = if variable == "AFE_WHOLE_SIGNAL_LIMIT_MB" {
+            "4096"
+        } else {
+            value
+        };
+        let out = afe_limited(
+            None,
+            &["extract", w, "-r", "ild", "-o", o],
+            &[(variable, value)],
+        );
+        assert!(out.status.success(), "{variable}={value}: {out:?}");
+        std::fs::remove_file(&out_file).expect("written");
+    }
+    let out = afe_limited(
+        None,
+        &["extract", w, "-r", "ild", "-o", o],
+        &[("AFE_WHOLE_SIGNAL_LIMIT_MB", "4.5")],
+    );
+    assert_clear_error(&out, "a positive whole number of MB", &out_file);
+}

@@ -242,12 +242,25 @@ pub fn run_into<S: Sink>(
         (Some(n), _) => (n, n),
         // a whole signal: one call where the AFE depends on chunk boundaries
         (None, None) => {
+            // the whole length, where known, checked before any of it is gathered; else
+            // each part as it grows
+            let known = sink.keeps_whole().filter(|n| *n > 0);
+            if let Some(samples) = known {
+                mgr.check_whole_signal(usize::try_from(samples).unwrap_or(usize::MAX))?;
+            }
             let mut part = vec![Vec::new(); ears];
             while next(GATHER_READ, &mut part)? > 0 {
                 for (all, p) in buf.iter_mut().zip(&part) {
+                    all.try_reserve(p.len())
+                        .map_err(|_| Error::AllocationFailed {
+                            need: afe_graph::work::size(8.0 * (all.len() + p.len()) as f64),
+                            what: "the whole input, gathered for one call".into(),
+                        })?;
                     all.extend_from_slice(p);
                 }
-                mgr.check_whole_signal(buf[0].len())?;
+                if known.is_none() {
+                    mgr.check_whole_signal(buf[0].len())?;
+                }
                 if crate::interrupt::requested() {
                     return Err(Error::Interrupted.into());
                 }

@@ -13,6 +13,7 @@ use afe_core::{interrupt, Block, Error, Processor, Result};
 
 use crate::engine::Engine;
 use crate::graph::{Graph, OutputRef};
+use crate::work;
 
 /// Which nodes of a whole-signal run take it how, and which outputs go on block by block.
 struct Plan<'a> {
@@ -62,7 +63,7 @@ impl Graph {
             Some(engine) => self.blocks_on(engine, blocks, whole, &plan, each_block)?,
             None => self.blocks_here(blocks, whole, &plan, each_block)?,
         }
-        self.run_per_chunk_nodes(whole, &plan, threads)
+        self.run_per_chunk_nodes(whole, &plan, threads, len)
     }
 
     /// The invariant and absorbing nodes over the signal's `blocks` (one slice per ear
@@ -191,6 +192,7 @@ impl Graph {
         whole: &mut [Vec<Option<Block>>],
         plan: &Plan<'_>,
         threads: usize,
+        len: usize,
     ) -> Result<()> {
         let order: Vec<usize> = (0..self.nodes.len())
             .filter(|&i| !plan.invariant[i])
@@ -207,6 +209,7 @@ impl Graph {
             }
         }
         // per node: its processor and outputs, for the thread that runs it
+        let fs = self.nodes[0].infos.first().map_or(1.0, |i| i.fs_hz);
         let mut jobs: Vec<Option<Mutex<Job<'_>>>> = self
             .nodes
             .iter_mut()
@@ -214,10 +217,13 @@ impl Graph {
             .map(|(i, node)| {
                 (!plan.invariant[i]).then(|| {
                     Mutex::new(Job {
+                        name: node.name,
                         processor: &mut node.processor,
                         outputs: &mut node.outputs,
+                        rates: node.infos.iter().map(|info| info.fs_hz / fs).collect(),
                         parents: &node.parents,
                         absorbing: plan.absorbing[i],
+                        samples: len,
                     })
                 })
             })
@@ -230,7 +236,7 @@ impl Graph {
                     return Err(Error::Interrupted);
                 }
                 if let Some(job) = jobs[i].as_mut() {
-                    run_job(job.get_mut().unwrap_or_else(|e| e.into_inner()), i, &joined);
+                    run_job(job.get_mut().unwrap_or_else(|e| e.into_inner()), i, &joined)?;
                 }
             }
             return Ok(());
@@ -242,6 +248,7 @@ impl Graph {
                 waiting,
                 left: order.len(),
                 panic: None,
+                failed: None,
             }),
             changed: Condvar::new(),
         };
@@ -257,6 +264,9 @@ impl Graph {
         if let Some(panic) = state.panic {
             resume_unwind(panic);
         }
+        if let Some(e) = state.failed {
+            return Err(e);
+        }
         match state.left {
             0 => Ok(()),
             _ => Err(Error::Interrupted),
@@ -266,15 +276,26 @@ impl Graph {
 
 /// One node that takes the whole signal in one call: what the thread running it needs.
 struct Job<'a> {
+    name: &'static str,
     processor: &'a mut Option<Box<dyn Processor>>,
     outputs: &'a mut Vec<Block>,
+    /// Per output, frames per input sample.
+    rates: Vec<f64>,
     parents: &'a [OutputRef],
     absorbing: bool,
+    /// Input samples of the whole signal.
+    samples: usize,
 }
 
 /// Runs node `i`'s job on its parents' joined outputs and moves its outputs into its
-/// buffers among the `joined` (those it has: the ones read later).
-fn run_job(job: &mut Job<'_>, i: usize, joined: &[RwLock<&mut Vec<Option<Block>>>]) {
+/// buffers among the `joined` (those it has: the ones read later). Its outputs are
+/// reserved for the whole signal first, so that memory that runs short is an
+/// [`Error::AllocationFailed`] rather than an abort in the processor.
+fn run_job(job: &mut Job<'_>, i: usize, joined: &[RwLock<&mut Vec<Option<Block>>>]) -> Result<()> {
+    for (out, rate) in job.outputs.iter_mut().zip(&job.rates) {
+        out.clear();
+        reserve(out, job.samples, *rate, job.name)?;
+    }
     {
         let _flush = FlushDenormals::enable();
         // parents are done: their buffers are only read from now on
@@ -302,6 +323,24 @@ fn run_job(job: &mut Job<'_>, i: usize, joined: &[RwLock<&mut Vec<Option<Block>>
             std::mem::swap(acc, out);
         }
     }
+    Ok(())
+}
+
+/// Makes room in `block` for the frames of `samples` input samples at `rate` frames per
+/// input sample, and one for rounding, or says which output of `node` did not fit.
+pub(crate) fn reserve(
+    block: &mut Block,
+    samples: usize,
+    rate: f64,
+    node: &'static str,
+) -> Result<()> {
+    let frames = (samples as f64 * rate).ceil() as usize + 1;
+    block
+        .try_reserve_frames(frames)
+        .map_err(|_| Error::AllocationFailed {
+            need: work::size(frames as f64 * block.width() as f64 * 8.0),
+            what: format!("the whole-signal output of {node}"),
+        })
 }
 
 /// The nodes still to run, shared by the threads that run them.
@@ -314,6 +353,8 @@ struct Progress {
     left: usize,
     /// The first processor panic: the others stop taking nodes.
     panic: Option<Box<dyn std::any::Any + Send>>,
+    /// The first error (an output the memory could not take): the others stop too.
+    failed: Option<Error>,
 }
 
 struct Board {
@@ -333,7 +374,8 @@ impl Board {
             let i = {
                 let mut s = self.state.lock().unwrap_or_else(|e| e.into_inner());
                 loop {
-                    if s.left == 0 || s.panic.is_some() || interrupt::requested() {
+                    let stopped = s.panic.is_some() || s.failed.is_some();
+                    if s.left == 0 || stopped || interrupt::requested() {
                         return;
                     }
                     if let Some(i) = s.ready.pop() {
@@ -342,16 +384,19 @@ impl Board {
                     s = self.changed.wait(s).unwrap_or_else(|e| e.into_inner());
                 }
             };
-            let ran = catch_unwind(AssertUnwindSafe(|| {
-                if let Some(job) = &jobs[i] {
-                    let mut job = job.lock().unwrap_or_else(|e| e.into_inner());
-                    run_job(&mut job, i, joined);
-                }
+            let ran = catch_unwind(AssertUnwindSafe(|| match &jobs[i] {
+                Some(job) => run_job(
+                    &mut job.lock().unwrap_or_else(|e| e.into_inner()),
+                    i,
+                    joined,
+                ),
+                None => Ok(()),
             }));
             let mut s = self.state.lock().unwrap_or_else(|e| e.into_inner());
             s.left -= 1;
             match ran {
-                Ok(()) => {
+                Ok(Err(e)) => s.failed = s.failed.take().or(Some(e)),
+                Ok(Ok(())) => {
                     for &c in &children[i] {
                         s.waiting[c] -= 1;
                         if s.waiting[c] == 0 {

@@ -10,34 +10,106 @@ use std::panic::{catch_unwind, resume_unwind, AssertUnwindSafe};
 use super::{BlockSink, Manager, WHOLE_SIGNAL_BLOCK, WHOLE_SIGNAL_LIMIT_MB};
 use crate::block_input::{BlockInput, BlockSource};
 use crate::graph::OutputRef;
+use crate::whole_run::reserve;
+use crate::work;
+
+/// The address space a thread of a whole-signal call takes beyond the signals: its stack
+/// (8 MiB by default) and the allocator's arena that its first allocation reserves
+/// (64 MiB with glibc), bytes.
+pub const THREAD_BYTES: f64 = 80e6;
 
 impl Manager {
-    /// Checks that a whole signal of `len` samples fits [`WHOLE_SIGNAL_LIMIT_MB`] (or
-    /// `AFE_WHOLE_SIGNAL_LIMIT_MB`) where [`Manager::process_signal`] must hold it in one
-    /// call: the joined inputs and the outputs of the processors that take their whole
-    /// input at once, requested outputs aside. A graph that runs in blocks (see
-    /// [`Manager::one_call_prefix`]) holds only its first block, which with a seeding time
-    /// longer than a block (the AGC's) holds every node's output over that time.
+    /// Checks that a whole signal of `len` samples fits where [`Manager::process_signal`]
+    /// must hold it in one call: the joined inputs and the outputs of the processors that
+    /// take their whole input at once, requested outputs aside, within
+    /// [`WHOLE_SIGNAL_LIMIT_MB`] (or `AFE_WHOLE_SIGNAL_LIMIT_MB`); and those with the
+    /// requested outputs and the processors' working copies (see
+    /// [`Manager::whole_signal_bytes`]) within the memory available
+    /// ([`work::memory_available`]), else an [`Error::WholeSignalOverMemory`]. A graph
+    /// that runs in blocks (see [`Manager::one_call_prefix`]) holds only its first block,
+    /// which with a seeding time longer than a block (the AGC's) holds every node's
+    /// output over that time; its outputs sized for the signal are reserved fallibly (an
+    /// [`Error::AllocationFailed`] rather than an abort). A limit variable set to a value
+    /// it does not accept is an [`Error::BadSetting`].
     pub fn check_whole_signal(&self, len: usize) -> Result<()> {
-        let (bytes, what) = match self.graph.one_call_prefix() {
-            Some(prefix) if prefix <= WHOLE_SIGNAL_BLOCK => return Ok(()),
-            Some(prefix) => self.first_block_bytes(prefix.min(len)),
-            None => self.one_call_bytes(len),
+        let limit_mb = match work::setting(&work::WHOLE_SIGNAL_LIMIT_SETTING)? {
+            Some(mb) => mb as u64,
+            None => WHOLE_SIGNAL_LIMIT_MB,
         };
-        let limit_mb = std::env::var("AFE_WHOLE_SIGNAL_LIMIT_MB")
-            .ok()
-            .and_then(|v| v.trim().parse().ok())
-            .unwrap_or(WHOLE_SIGNAL_LIMIT_MB);
-        let need_mb = (bytes / 1e6).ceil() as u64;
-        if need_mb <= limit_mb {
+        let Some((bytes, what)) = self.one_call_share(len) else {
             return Ok(());
+        };
+        let need_mb = (bytes / 1e6).ceil() as u64;
+        if need_mb > limit_mb {
+            return Err(Error::WholeSignalTooLarge {
+                seconds: len as f64 / self.fs,
+                need_mb,
+                limit_mb,
+                what: what.join(", "),
+            });
         }
-        Err(Error::WholeSignalTooLarge {
-            seconds: len as f64 / self.fs,
-            need_mb,
-            limit_mb,
-            what: what.join(", "),
-        })
+        let need = self.whole_signal_bytes(len);
+        match work::memory_available()? {
+            Some(available) if need > available => Err(Error::WholeSignalOverMemory {
+                seconds: len as f64 / self.fs,
+                need: work::size(need),
+                available: work::size(available),
+                what: what.join(", "),
+            }),
+            _ => Ok(()),
+        }
+    }
+
+    /// The bytes of intermediate signals a whole signal of `len` samples holds beyond the
+    /// blocks of a chunk (requested outputs aside), and the nodes that make it hold them:
+    /// `None` for a graph that runs in blocks of [`WHOLE_SIGNAL_BLOCK`].
+    fn one_call_share(&self, len: usize) -> Option<(f64, Vec<&'static str>)> {
+        match self.graph.one_call_prefix() {
+            Some(prefix) if prefix <= WHOLE_SIGNAL_BLOCK => None,
+            Some(prefix) => Some(self.first_block_bytes(prefix.min(len))),
+            None => Some(self.one_call_bytes(len)),
+        }
+    }
+
+    /// The memory a whole-signal call of `len` samples takes beyond its input (which the
+    /// caller holds already), bytes: the intermediate signals of
+    /// [`Manager::check_whole_signal`], the outputs it keeps (the requested ones, every
+    /// one with [`Manager::set_keep_all`]), a working copy of each whole input a
+    /// processor takes in one call (the ratemap smooths its whole input into a buffer
+    /// of that size before framing it) and, per thread, its stack and allocator arena
+    /// ([`THREAD_BYTES`]). 0 for a graph that runs in blocks, whose outputs are reserved
+    /// fallibly instead.
+    pub fn whole_signal_bytes(&self, len: usize) -> f64 {
+        let Some((intermediate, _)) = self.one_call_share(len) else {
+            return 0.0;
+        };
+        let nodes = &self.graph.nodes;
+        let kept: f64 = (nodes.iter().enumerate().skip(1))
+            .flat_map(|(i, n)| {
+                n.infos
+                    .iter()
+                    .enumerate()
+                    .map(move |(o, info)| (i, o, info))
+            })
+            .filter(|&(node, output, _)| {
+                self.keep_all || self.is_requested(OutputRef { node, output })
+            })
+            .map(|(_, _, info)| self.signal_bytes(info, len))
+            .sum();
+        let copies: f64 = match self.graph.one_call_prefix() {
+            Some(_) => 0.0,
+            None => {
+                let invariant = self.graph.invariant_nodes();
+                let absorbing = self.graph.absorbing_nodes(&invariant);
+                (nodes.iter().enumerate())
+                    .filter(|(i, _)| !invariant[*i] && !absorbing[*i])
+                    .flat_map(|(_, n)| &n.parents)
+                    .map(|p| self.signal_bytes(&nodes[p.node].infos[p.output], len))
+                    .sum()
+            }
+        };
+        let threads = self.threads().max(1) as f64;
+        intermediate + kept + copies + threads * THREAD_BYTES
     }
 
     /// Bytes of the blocks every node writes over a first block of `len` samples (a
@@ -131,7 +203,7 @@ impl Manager {
             let invariant = self.graph.invariant_nodes();
             self.edit(|m| {
                 let shown = m.kept_outputs(&invariant, false);
-                let mut whole = m.whole_buffers(&invariant, len, stream.is_some());
+                let mut whole = m.whole_buffers(&invariant, len, stream.is_some())?;
                 // the invariant outputs not joined are handed on, those shown streamed
                 let streamed: Vec<Vec<bool>> = (whole.iter().zip(&shown).enumerate())
                     .map(|(i, (acc, shown))| {
@@ -226,7 +298,7 @@ impl Manager {
             self.check_whole_signal(samples)?;
         }
         let invariant = vec![true; self.graph.nodes.len()];
-        let mut whole = self.whole_buffers(&invariant, samples, stream.is_some());
+        let mut whole = self.whole_buffers(&invariant, samples, stream.is_some())?;
         let streamed: Vec<OutputRef> = match stream {
             Some(_) => self
                 .kept_outputs(&invariant, false)
@@ -347,7 +419,7 @@ impl Manager {
         invariant: &[bool],
         samples: usize,
         stream: bool,
-    ) -> Vec<Vec<Option<Block>>> {
+    ) -> Result<Vec<Vec<Option<Block>>>> {
         let kept = self.kept_outputs(invariant, stream);
         let fs = self.fs;
         let mut whole = std::mem::take(&mut self.whole);
@@ -366,12 +438,11 @@ impl Manager {
                     (true, _) => *slot = Some(Block::new(info.width())),
                 }
                 if let (true, Some(b)) = (blocks, slot.as_mut()) {
-                    // the frames at this output's rate, and one for rounding
-                    b.reserve_frames((samples as f64 * info.fs_hz / fs).ceil() as usize + 1);
+                    reserve(b, samples, info.fs_hz / fs, node.name)?;
                 }
             }
         }
-        whole
+        Ok(whole)
     }
 
     /// Which outputs `process_signal` joins, per node and output: the requested ones
