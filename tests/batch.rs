@@ -1310,3 +1310,31 @@ fn ids_that_nest_with_the_stores_are_refused_and_never_delete_a_finished_file() 
     let q = store.join("p/q/ratemap_left");
     assert!(q.join("zarr.json").is_file() && q.join("c/0/0").is_file());
 }
+
+/// Issue 57, minor: a FIFO or a device as an input is "not a regular file", and an id
+/// with a part too long for a file name is refused before anything is written.
+#[test]
+fn a_device_or_fifo_input_and_an_overlong_id_are_refused_clearly() {
+    let tmp = TempDir::new("messages");
+    let store = tmp.join("s.zarr");
+    let fifo = tmp.join("live");
+    let made = Command::new("mkfifo").arg(&fifo).status();
+    assert!(made.is_ok_and(|s| s.success()), "mkfifo");
+    for input in [Path::new("/dev/null"), fifo.as_path()] {
+        afe_err(
+            &["batch", s(input), "-r", "ratemap", "-o", s(&store)],
+            &[s(input), "not a regular file (a FIFO or a device)"],
+        );
+    }
+    let files = good_corpus(&tmp.join("corpus"), 1);
+    let manifest = tmp.join("corpus/long.tsv");
+    std::fs::write(&manifest, format!("{}\t{}\n", "x".repeat(300), files[0])).expect("write");
+    afe_err(
+        &["batch", s(&manifest), "-r", "ratemap", "-o", s(&store)],
+        &[
+            "a part is 300 bytes long, more than the 200",
+            "give a shorter id",
+        ],
+    );
+    assert!(!store.exists());
+}

@@ -19,6 +19,15 @@ pub struct InputFile {
     pub audio_s: f64,
 }
 
+/// Why a FIFO or a device is not an input.
+const NOT_REGULAR: &str = "not a regular file (a FIFO or a device): afe batch takes WAV files \
+                           it can measure, read again and resume (afe extract reads one from \
+                           a device)";
+
+/// Longest part of an id, bytes: file systems hold names of 255 bytes, and the store names
+/// a file's `.npz` and its temporary files after the id's last part (`.<part>.npz.<pid>.<n>.partial`).
+const ID_PART_MAX_BYTES: usize = 200;
+
 /// Finds the files named by `inputs`, with their ids, in a stable order; refuses inputs
 /// that do not exist, manifest lines without an id, ids that are not usable as store
 /// paths, and two files under one id.
@@ -40,6 +49,8 @@ pub fn discover(inputs: &[PathBuf]) -> Result<Vec<InputFile>, BatchError> {
             }
         } else if text.contains(['*', '?', '[']) {
             found.extend(glob_files(&text)?);
+        } else if input.exists() {
+            return Err(BatchError::input(input, NOT_REGULAR));
         } else {
             return Err(BatchError::input(input, "no such file or directory"));
         }
@@ -64,11 +75,7 @@ pub fn discover(inputs: &[PathBuf]) -> Result<Vec<InputFile>, BatchError> {
         .iter()
         .find(|(_, p)| std::fs::metadata(p).is_ok_and(|m| !m.is_file()))
     {
-        return Err(BatchError::input(
-            path,
-            "not a regular file (a FIFO or a device): afe batch takes WAV files it can \
-             measure, read again and resume (afe extract reads one from a device)",
-        ));
+        return Err(BatchError::input(path, NOT_REGULAR));
     }
     Ok(found
         .into_iter()
@@ -256,6 +263,14 @@ pub(crate) fn check_id(id: &str) -> Result<(), BatchError> {
         if part == "zarr.json" || part.chars().any(char::is_control) {
             return bad("a part is 'zarr.json' or holds a control character");
         }
+        if part.len() > ID_PART_MAX_BYTES {
+            return bad(&format!(
+                "a part is {} bytes long, more than the {ID_PART_MAX_BYTES} a store's file \
+                 names leave for it (file systems hold names of 255 bytes): give a shorter id \
+                 (a manifest: id<TAB>path)",
+                part.len()
+            ));
+        }
     }
     Ok(())
 }
@@ -271,6 +286,7 @@ mod tests {
             "a/b.wav"
         );
         assert!(check_id("spk1/utt 2.wav").is_ok());
+        assert!(check_id(&format!("a/{}", "x".repeat(ID_PART_MAX_BYTES))).is_ok());
         for bad in [
             "",
             "/a",
@@ -280,6 +296,7 @@ mod tests {
             "a/zarr.json",
             "a\tb",
             ".afe-batch",
+            &"x".repeat(ID_PART_MAX_BYTES + 1),
         ] {
             assert!(check_id(bad).is_err(), "{bad:?} accepted");
         }

@@ -107,7 +107,16 @@ def _entries_of_signals(signals: Mapping[str, Any]) -> List[Dict[str, Any]]:
     """One entry per request instance: the signals' keys grouped by ``<name>[_k]``."""
     groups: Dict[str, Dict[str, Any]] = {}
     for key, s in signals.items():
-        meta = s.meta if hasattr(s, "meta") else dict(s)
+        if hasattr(s, "meta"):
+            meta = s.meta
+        elif isinstance(s, Mapping):
+            meta = dict(s)
+        else:
+            raise ValueError(
+                f"summary of signals: [{key!r}] is a {type(s).__name__}, not an afe.Signal "
+                "(or its meta dict): a plain array has no description of its processors; "
+                "give afe.process's output, afe.load's, or an afe.Manager"
+            )
         label = key.rsplit("_", 1)[0] if meta.get("ear") and key.endswith("_" + meta["ear"]) else key
         chain = list(meta.get("processors", []))
         g = groups.setdefault(

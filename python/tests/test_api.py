@@ -1096,3 +1096,10 @@ def test_a_fifo_chunk_of_a_saved_group_is_refused_without_blocking(tmp_path):
     code = f"import afe\ntry:\n    afe.open_store({str(path)!r})\nexcept (ValueError, OSError) as e:\n    print(e)\n"
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert done.returncode == 0 and done.stdout.strip(), done.stderr
+
+
+def test_summary_of_plain_arrays_says_what_it_accepts():
+    """Issue 57, minor: afe.summary({"a": np.zeros(3)}) raised a bare TypeError."""
+    message = _raises(lambda: afe.summary({"a": np.zeros(3)}))
+    assert message.startswith("summary of signals: ['a'] is a ndarray, not an afe.Signal"), message
+    assert "afe.Manager" in message
