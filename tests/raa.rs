@@ -354,3 +354,103 @@ fn the_cli_refuses_a_mono_file_and_a_misspelt_constant() {
         &out_file,
     );
 }
+
+/// Probe finding 6 of issue 57: `nu_ASW = -1` printed `"pASW": null` with exit 0, and 12
+/// other values of the constants gave NaN or infinite predictors. Every constant, with
+/// every hostile value, gives either finite predictors or an error naming it, its value
+/// and the range accepted.
+#[test]
+fn every_constant_gives_finite_predictors_or_a_clear_error() {
+    let audio = afe::wav::read_wav(&input()).expect("wav");
+    let ears: Vec<&[f64]> = audio.channels.iter().map(|c| &c[..16000]).collect();
+    let hostile = [
+        -1.0,
+        0.0,
+        1e-300,
+        -1e-300,
+        1e30,
+        -1e30,
+        1e308,
+        -1e308,
+        f64::MAX,
+    ];
+    let mut refused = 0;
+    for name in RaaConstants::names() {
+        for value in hostile {
+            let map = [(name.to_string(), serde_json::json!(value))]
+                .into_iter()
+                .collect();
+            let outcome = RaaConstants::from_params(&map)
+                .and_then(|c| raa(&ears, audio.fs, &c).map(|r| r.par));
+            match outcome {
+                Ok(par) => {
+                    for f in par.fields() {
+                        assert!(
+                            f.value.is_finite(),
+                            "{name}={value}: {} {}",
+                            f.name,
+                            f.value
+                        );
+                    }
+                }
+                Err(RaaError::ConstantOutOfRange {
+                    name: refused_name,
+                    value: got,
+                    ..
+                }) => {
+                    assert_eq!((refused_name, got), (name, value));
+                    refused += 1;
+                }
+                // a threshold beyond every sample: afeRAA fails there too
+                Err(e @ RaaError::NoPeakOrDip { .. }) => {
+                    assert!(name.starts_with("mu_psi"), "{name}={value}: {e}");
+                }
+                Err(e) => panic!("{name}={value}: {e}"),
+            }
+        }
+    }
+    // the magnitudes over 1e9 of every constant, and the signs the formulas exclude
+    assert!(refused >= 15 * 4, "{refused} refused");
+    // the constants made directly, not parsed, are checked too
+    let direct = RaaConstants {
+        mu_lev: -1e308,
+        ..RaaConstants::default()
+    };
+    let e = raa(&ears, audio.fs, &direct).expect_err("refused");
+    assert_eq!(
+        e.to_string(),
+        "RAA constant mu_LEV = -1e308: the predictors are finite for values from -1e9 up to \
+         1e9 (the AFE's value: 0.0276)"
+    );
+}
+
+/// The CLI refuses an out-of-range constant in one line with exit 1 (it printed
+/// `"pASW": null` and exited 0), and a NaN as not a number.
+#[test]
+fn the_cli_refuses_a_constant_outside_its_range() {
+    let input = input();
+    let out_file = tmp("raa_range.npz");
+    let o = out_file.to_str().expect("path");
+    let i = input.to_str().expect("path");
+    for (arg, needle) in [
+        (
+            "nu_ASW=-1",
+            "RAA constant nu_ASW = -1: the predictors are finite for values from 0 up to 1e9",
+        ),
+        (
+            "mu_psi=-1",
+            "RAA constant mu_psi = -1: the predictors are finite for values above 0",
+        ),
+        (
+            "mu_psi_dip=0.5",
+            "mu_psi_dip = 0.5: the predictors are finite for values from -1e9 below mu_psi (0.34)",
+        ),
+        ("T_min=-0.1", "T_min = -0.1"),
+        ("nu_LEV=NaN", "'nu_LEV'"),
+    ] {
+        let out = afe(&["raa", i, "--json", "-p", arg, "-o", o]);
+        assert_eq!(out.status.code(), Some(1), "{arg}");
+        assert!(out.stdout.is_empty(), "{arg}");
+        assert_clear_error(&out, needle, &out_file);
+    }
+}

@@ -106,3 +106,22 @@ def test_bad_input_is_refused_naming_what_is_wrong():
         with pytest.raises(ValueError) as e:
             call()
         assert needle in str(e.value), (needle, str(e.value))
+
+
+def test_constants_outside_their_range_are_refused_naming_them():
+    """Issue 57, finding 6: nu_ASW=-1 and 12 other values gave NaN or inf predictors."""
+    x, fs = afe.read_wav(WAV)
+    short = x[:16000]
+    for name in ("mu_psi", "mu_psi_dip", "T_min", "a_P_REV", "b_P_REV", "a_P_CLA", "b_P_CLA",
+                 "mu_ASW", "nu_ASW", "a_P_ASW", "b_P_ASW", "mu_LEV", "nu_LEV", "a_P_LEV",
+                 "b_P_LEV"):
+        for value in (-1.0, 0.0, 1e308, -1e308):
+            try:
+                par, _ = afe.raa(short, fs, **{name: value})
+            except ValueError as e:
+                text = str(e)
+                assert f"RAA constant {name} = " in text or "no sample of Psi" in text, text
+                continue
+            assert all(np.isfinite(v) for v in par.values()), (name, value, par)
+    with pytest.raises(ValueError, match="nu_ASW = -1: the predictors are finite for values"):
+        afe.raa(short, fs, nu_ASW=-1)

@@ -178,7 +178,130 @@ impl RaaConstants {
                 closest: closest(name, Self::names()).map(str::to_string),
             });
         }
-        Ok(Self::from_map(map)?)
+        let constants = Self::from_map(map)?;
+        constants.check()?;
+        Ok(constants)
+    }
+
+    /// Checks every constant against the range where the predictors stay finite (see
+    /// [`Self::range`]), refusing the first one outside it by name, value and range.
+    ///
+    /// ```
+    /// use afe::raa::RaaConstants;
+    /// let e = RaaConstants { nu_asw: -1.0, ..RaaConstants::default() }.check().unwrap_err();
+    /// assert!(e.to_string().contains("nu_ASW = -1"), "{e}");
+    /// ```
+    pub fn check(&self) -> Result<(), RaaError> {
+        let defaults = Self::default().values();
+        for ((name, value), (_, default)) in self.values().into_iter().zip(defaults) {
+            let range = self.range(name);
+            if !range.holds(value) {
+                return Err(RaaError::ConstantOutOfRange {
+                    name,
+                    value,
+                    accepted: range.to_string(),
+                    default,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Every constant under its AFE name, in the order of [`Self::names`].
+    fn values(&self) -> [(&'static str, f64); 15] {
+        [
+            ("mu_psi", self.mu_psi),
+            ("mu_psi_dip", self.mu_psi_dip),
+            ("T_min", self.t_min),
+            ("a_P_REV", self.a_p_rev),
+            ("b_P_REV", self.b_p_rev),
+            ("a_P_CLA", self.a_p_cla),
+            ("b_P_CLA", self.b_p_cla),
+            ("mu_ASW", self.mu_asw),
+            ("nu_ASW", self.nu_asw),
+            ("a_P_ASW", self.a_p_asw),
+            ("b_P_ASW", self.b_p_asw),
+            ("mu_LEV", self.mu_lev),
+            ("nu_LEV", self.nu_lev),
+            ("a_P_LEV", self.a_p_lev),
+            ("b_P_LEV", self.b_p_lev),
+        ]
+    }
+
+    /// The values of the constant `name` for which the predictors are finite: thresholds
+    /// that leave samples between peak and dip (`mu_psi` above 0, `mu_psi_dip` below
+    /// `mu_psi`: otherwise every sample is direct, `BL` is 0 and `pClar = FL/BL`
+    /// infinite), no negative duration, ITD weights of at least 0 (`log10(1 + nu·ITD·1e3)`
+    /// is NaN below -1), and every magnitude at most [`CONSTANT_LIMIT`] (`mu_ASW = 1e308`
+    /// overflows `mu_ASW·Llow`).
+    fn range(&self, name: &str) -> Range {
+        let (low, high) = (-CONSTANT_LIMIT, CONSTANT_LIMIT);
+        match name {
+            "mu_psi" => Range::new(Bound::Above(0.0), Bound::Upto(high)),
+            "mu_psi_dip" => Range::new(Bound::From(low), Bound::Below(self.mu_psi, "mu_psi")),
+            "T_min" | "nu_ASW" | "nu_LEV" => Range::new(Bound::From(0.0), Bound::Upto(high)),
+            _ => Range::new(Bound::From(low), Bound::Upto(high)),
+        }
+    }
+}
+
+/// The largest magnitude accepted for any RAA constant: far beyond the AFE's values (at
+/// most 680) and low enough that the weighted levels and ITDs stay finite.
+pub const CONSTANT_LIMIT: f64 = 1e9;
+
+/// One end of a [`Range`].
+#[derive(Debug, Clone, Copy)]
+enum Bound {
+    /// At least the value.
+    From(f64),
+    /// Above the value.
+    Above(f64),
+    /// At most the value.
+    Upto(f64),
+    /// Below another constant's value, named.
+    Below(f64, &'static str),
+}
+
+/// The values a constant accepts.
+#[derive(Debug, Clone, Copy)]
+struct Range {
+    low: Bound,
+    high: Bound,
+}
+
+impl Range {
+    fn new(low: Bound, high: Bound) -> Self {
+        Range { low, high }
+    }
+
+    fn holds(&self, v: f64) -> bool {
+        [self.low, self.high].iter().all(|b| match *b {
+            Bound::From(x) => v >= x,
+            Bound::Above(x) => v > x,
+            Bound::Upto(x) => v <= x,
+            Bound::Below(x, _) => v < x,
+        })
+    }
+}
+
+impl std::fmt::Display for Range {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let end = |b: Bound| match b {
+            Bound::From(x) => format!("from {}", compact(x)),
+            Bound::Above(x) => format!("above {}", compact(x)),
+            Bound::Upto(x) => format!("up to {}", compact(x)),
+            Bound::Below(x, name) => format!("below {name} ({})", compact(x)),
+        };
+        write!(f, "values {} {}", end(self.low), end(self.high))
+    }
+}
+
+/// `x` as written by hand: plain below a million in magnitude, else in exponent form
+/// (`1e308`, not 309 digits).
+pub(crate) fn compact(x: f64) -> String {
+    match x.abs() >= 1e6 {
+        true => format!("{x:e}"),
+        false => x.to_string(),
     }
 }
 
@@ -189,6 +312,18 @@ mod tests {
     #[test]
     fn specs_name_every_field_and_accept_the_defaults() {
         afe_core::params::check_param_specs::<RaaConstants>();
+    }
+
+    #[test]
+    fn values_follow_the_names() {
+        let c = RaaConstants::default();
+        let names: Vec<_> = c.values().iter().map(|(n, _)| *n).collect();
+        assert_eq!(names, RaaConstants::names().collect::<Vec<_>>());
+        let json = serde_json::to_value(&c).expect("json");
+        for (name, value) in c.values() {
+            assert_eq!(json[name].as_f64(), Some(value), "{name}");
+        }
+        c.check().expect("the AFE's constants are in range");
     }
 
     #[test]

@@ -95,6 +95,41 @@ pub enum RaaError {
         /// The constant it most likely misspells.
         closest: Option<String>,
     },
+    /// A constant outside the range where the predictors are finite (see
+    /// [`super::RaaConstants::check`]).
+    #[error(
+        "RAA constant {name} = {}: the predictors are finite for {accepted} (the AFE's \
+         value: {})",
+        super::constants::compact(*value),
+        super::constants::compact(*default)
+    )]
+    ConstantOutOfRange {
+        /// The constant's AFE name.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// The values accepted, e.g. `values from 0 up to 1e9`.
+        accepted: String,
+        /// The AFE's value.
+        default: f64,
+    },
+    /// A predictor came out NaN or infinite: the input (silent, or beyond the model's
+    /// range) or the constants leave it undefined.
+    #[error(
+        "the RAA's {name} is {value} ({formula}): the input (silent, or beyond the model's \
+         range) or the constants {constants} leave it undefined; check the input's level, \
+         or bring those constants nearer the AFE's values"
+    )]
+    UndefinedPredictor {
+        /// `afeRAA`'s name of the predictor, e.g. `pClar`.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// How it is computed, e.g. `FL/BL with BL = 0`.
+        formula: String,
+        /// The constants it depends on.
+        constants: &'static str,
+    },
     /// A constant's value, or the AFE processing under the RAA (its parameters, an
     /// interrupt, memory).
     #[error(transparent)]

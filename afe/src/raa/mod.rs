@@ -285,6 +285,7 @@ impl Raa {
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 pub fn raa(ears: &[&[f64]], fs: f64, constants: &RaaConstants) -> Result<Raa, RaaError> {
+    constants.check()?;
     let [left, right] = check_input(ears, fs)?;
     let [left, right] = headphone::apply(fs, left, right);
     let (adapt_l, adapt_r, f) = adaptation(fs, &left, &right)?;
@@ -328,10 +329,9 @@ pub fn raa(ears: &[&[f64]], fs: f64, constants: &RaaConstants) -> Result<Raa, Ra
         num_samples,
         itd_num_frames,
     };
-    Ok(Raa {
-        par: predictors::predictors(&psi, constants),
-        psi,
-    })
+    let par = predictors::predictors(&psi, constants);
+    predictors::check_finite(&par)?;
+    Ok(Raa { par, psi })
 }
 
 /// The two ears of `ears` once checked: two channels, as long as each other, not empty,

@@ -3,7 +3,7 @@
 
 use afe_core::Block;
 
-use super::{RaaConstants, RaaPar, RaaPsi};
+use super::{RaaConstants, RaaError, RaaPar, RaaPsi};
 
 /// Centre frequencies, Hz, whose nearest bands bound the low-frequency level `Llow`.
 const LOW_BAND_HZ: (f64, f64) = (168.0, 387.0);
@@ -40,6 +40,58 @@ pub fn predictors(psi: &RaaPsi, c: &RaaConstants) -> RaaPar {
 }
 
 /// `1 / (1 + exp(−a·(p − b)))`.
+/// Refuses predictors of which one is NaN or infinite, naming the first with how it is
+/// computed and the constants it depends on.
+pub fn check_finite(par: &RaaPar) -> Result<(), RaaError> {
+    let levels = "mu_psi, mu_psi_dip, T_min";
+    let how = |name| match name {
+        "sREV" => (format!("sigmoid of BL = {}", par.bl), "a_P_REV, b_P_REV"),
+        "pClar" => (format!("FL/BL = {}/{}", par.fl, par.bl), levels),
+        "sClar" => (
+            format!("sigmoid of pClar = {}", par.p_clar),
+            "a_P_CLA, b_P_CLA",
+        ),
+        "pASW" => (
+            format!(
+                "mu_ASW·Llow + log10(1 + nu_ASW·ITDf·1e3), Llow = {}, ITDf = {}",
+                par.l_low, par.itd_f
+            ),
+            "mu_ASW, nu_ASW",
+        ),
+        "sASW" => (
+            format!("sigmoid of pASW = {}", par.p_asw),
+            "a_P_ASW, b_P_ASW",
+        ),
+        "pLEV" => (
+            format!(
+                "mu_LEV·BL + log10(1 + nu_LEV·ITDb·1e3), BL = {}, ITDb = {}",
+                par.bl, par.itd_b
+            ),
+            "mu_LEV, nu_LEV",
+        ),
+        "sLEV" => (
+            format!("sigmoid of pLEV = {}", par.p_lev),
+            "a_P_LEV, b_P_LEV",
+        ),
+        _ => (
+            "a level or ITD fluctuation of the streams".to_string(),
+            levels,
+        ),
+    };
+    match par.fields().into_iter().find(|f| !f.value.is_finite()) {
+        None => Ok(()),
+        Some(f) => {
+            let (formula, constants) = how(f.name);
+            Err(RaaError::UndefinedPredictor {
+                name: f.name,
+                value: f.value,
+                formula,
+                constants,
+            })
+        }
+    }
+}
+
 fn sigmoid(a: f64, b: f64, p: f64) -> f64 {
     1.0 / (1.0 + (-a * (p - b)).exp())
 }
