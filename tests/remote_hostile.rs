@@ -565,3 +565,58 @@ fn a_subscription_too_heavy_for_the_deadline_is_refused_before_it_runs() {
     assert_eq!(r["subscriptions"].as_array().map(Vec::len), Some(1), "{r}");
     assert_eq!(r["stream"]["deadline_misses"], 0, "{r}");
 }
+
+/// Issue 57, item 1: a web page cannot change or remove a Zenoh client's request: its
+/// `set` finds no request of its own, its `remove` of the client's handle is refused, and
+/// the client keeps getting frames of the width it was announced.
+#[test]
+fn a_web_page_cannot_edit_a_zenoh_clients_subscription() {
+    let (port, http) = (17637, 17638);
+    let _server = ServeProcess::start(port, 30, &["--http", &format!("127.0.0.1:{http}")]);
+    wait_for_catalogue(&raw_session(port));
+    let client = Client::connect(&endpoint(port), None).expect("client");
+    let mut sub = client
+        .subscribe(&[("ratemap", Default::default())])
+        .expect("ratemap");
+    let width = |sub: &mut afe_net::Subscription| {
+        let f = sub
+            .recv(Duration::from_secs(5))
+            .expect("recv")
+            .expect("a block");
+        f.signals[0].frame_shape.iter().product::<usize>()
+    };
+    assert_eq!(width(&mut sub), 31);
+    // a script's WebSocket, no Origin header
+    let (mut page, _) = tungstenite::connect(format!("ws://127.0.0.1:{http}/ws")).expect("ws");
+    let mut ask = |msg: Value| {
+        page.send(tungstenite::Message::text(msg.to_string()))
+            .expect("send");
+        loop {
+            if let tungstenite::Message::Text(t) = page.read().expect("read") {
+                let v: Value = serde_json::from_str(t.as_str()).expect("json");
+                if v["type"] == "reply" {
+                    return v;
+                }
+            }
+        }
+    };
+    let set = ask(json!({"op": "set", "name": "fb_nChannels", "value": 8}));
+    assert_eq!(set["ok"], false, "{set}");
+    let removed = ask(json!({"op": "remove", "handle": 0}));
+    assert_eq!(removed["ok"], false, "{removed}");
+    assert!(
+        removed["message"]
+            .as_str()
+            .is_some_and(|m| m.contains("was not placed by this page")),
+        "{removed}"
+    );
+    for _ in 0..20 {
+        assert_eq!(width(&mut sub), 31);
+    }
+    assert_eq!(
+        report(&raw_session(port))["subscriptions"]
+            .as_array()
+            .map(Vec::len),
+        Some(1)
+    );
+}
