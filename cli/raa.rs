@@ -47,11 +47,14 @@ impl RaaArgs {
             e => e.into(),
         })?;
         if let Some(output) = &output {
-            let arrays = npz_arrays(&out);
-            let entries: Vec<(String, Vec<usize>, &[f64])> = arrays
-                .iter()
-                .map(|(name, shape, data)| (name.clone(), shape.clone(), data.as_slice()))
+            let (scalars, par) = npz_scalars(&out);
+            let mut entries: Vec<(String, Vec<usize>, &[f64])> = (out.psi.arrays().into_iter())
+                .map(|(name, shape, data)| (name.to_string(), shape, data))
                 .collect();
+            // the 0-d scalars after the arrays, borrowed as those are (Psi is not copied)
+            for (name, value) in scalars.iter().chain(&par) {
+                entries.push((name.clone(), Vec::new(), std::slice::from_ref(value)));
+            }
             output.write(|file| afe::npy::write_npz(file, &entries, None))?;
             eprintln!(
                 "wrote {} array(s) to {}",
@@ -68,28 +71,24 @@ impl RaaArgs {
     }
 }
 
-/// The arrays of an `-o` file: psi's arrays and scalars under afeRAA's names, and each
-/// predictor as `par_<name>` (0-d).
-fn npz_arrays(out: &Raa) -> Vec<(String, Vec<usize>, Vec<f64>)> {
+/// Named 0-d values of an `-o` file.
+type Scalars = Vec<(String, f64)>;
+
+/// The 0-d entries of an `-o` file: `psi`'s scalars under afeRAA's names, and each
+/// predictor as `par_<name>`.
+fn npz_scalars(out: &Raa) -> (Scalars, Scalars) {
     let psi = &out.psi;
-    let mut arrays: Vec<(String, Vec<usize>, Vec<f64>)> = psi
-        .arrays()
-        .into_iter()
-        .map(|(name, shape, data)| (name.to_string(), shape, data.to_vec()))
-        .collect();
     let scalars = [
         ("fs", psi.fs),
         ("numSamples", psi.num_samples as f64),
         ("numBands", psi.num_bands as f64),
         ("itdNumFrames", psi.itd_num_frames as f64),
     ];
-    for (name, value) in scalars {
-        arrays.push((name.to_string(), Vec::new(), vec![value]));
-    }
-    for f in out.par.fields() {
-        arrays.push((format!("par_{}", f.name), Vec::new(), vec![f.value]));
-    }
-    arrays
+    let scalars = scalars.iter().map(|(n, v)| (n.to_string(), *v)).collect();
+    let par = (out.par.fields().iter())
+        .map(|f| (format!("par_{}", f.name), f.value))
+        .collect();
+    (scalars, par)
 }
 
 /// The predictors as a table: afeRAA's field name, value, unit, meaning; then what they

@@ -454,3 +454,52 @@ fn the_cli_refuses_a_constant_outside_its_range() {
         assert_clear_error(&out, needle, &out_file);
     }
 }
+
+/// Issue 57, finding 3: 10 minutes at 16 kHz aborted after 60 s at 7.4 GB, at once under
+/// `ulimit -v` 2 GB. The RAA's memory is estimated by the signal's length and a signal
+/// beyond the memory available refused at once, naming what it needs, what is available
+/// and the longest excerpt that fits: 60 s (about 0.9 GB) under an address-space limit
+/// of 600 MB, and the reference file with 50 MB set available.
+#[test]
+fn a_signal_too_long_for_the_memory_is_refused_before_the_raa_runs() {
+    let long = tmp("raa_sixty.wav");
+    write_wav(&long, 2, 16000, 60 * 16000, tone);
+    let out_file = tmp("raa_memory.npz");
+    let script = format!(
+        "ulimit -v 600000 && exec '{}' raa '{}' -o '{}'",
+        env!("CARGO_BIN_EXE_afe"),
+        long.display(),
+        out_file.display()
+    );
+    let started = std::time::Instant::now();
+    let out = std::process::Command::new("sh")
+        .args(["-c", &script])
+        .env_remove("AFE_MEMORY_AVAILABLE_GB")
+        .output()
+        .expect("run sh");
+    assert_eq!(out.status.code(), Some(1), "{out:?}");
+    assert_clear_error(
+        &out,
+        "the RAA of 60.0 s of signal would take about ",
+        &out_file,
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("MB available: analyse an excerpt of at most "),
+        "{err}"
+    );
+    assert!(started.elapsed() < std::time::Duration::from_secs(10));
+    let input = input();
+    let out = common::afe_env(
+        &["raa", input.to_str().expect("path")],
+        &[("AFE_MEMORY_AVAILABLE_GB", Path::new("0.05"))],
+    );
+    assert_clear_error(
+        &out,
+        "more than the 50.0 MB available: analyse an excerpt of at most ",
+        &out_file,
+    );
+    // the estimate covers the whole run: 1.05 times what it counts, and 64 MB
+    let per_second = afe::raa::memory_bytes(16000) - afe::raa::memory_bytes(0);
+    assert!(per_second > 13e6 && per_second < 14.5e6, "{per_second}");
+}

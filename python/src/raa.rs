@@ -2,7 +2,7 @@
 
 use afe::raa::{RaaConstants, RaaError};
 use numpy::{PyReadonlyArray2, PyUntypedArrayMethods};
-use pyo3::exceptions::PyValueError;
+use pyo3::exceptions::{PyMemoryError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -13,6 +13,11 @@ use crate::{columns, interrupt, owned_array, parse_params, to_py};
 /// constants.
 fn raa_error(e: RaaError) -> PyErr {
     match e {
+        RaaError::TooLarge { .. }
+        | RaaError::Afe(afe::Error::AllocationFailed { .. })
+        | RaaError::Afe(afe::Error::WholeSignalOverMemory { .. }) => {
+            PyMemoryError::new_err(e.to_string())
+        }
         RaaError::Afe(e) => to_py(e),
         e => PyValueError::new_err(e.to_string()),
     }
@@ -45,12 +50,19 @@ pub fn raa<'py>(
         par.set_item(f.name, f.value)?;
     }
     let psi = PyDict::new(py);
-    for (name, shape, data) in out.psi.arrays() {
-        psi.set_item(name, owned_array(py, &shape, data.to_vec(), false)?)?;
+    let (fs, samples, bands, frames) = (
+        out.psi.fs,
+        out.psi.num_samples,
+        out.psi.num_bands,
+        out.psi.itd_num_frames,
+    );
+    // each array moves into numpy, not copied: Psi and its streams are held once
+    for (name, shape, data) in out.psi.into_arrays() {
+        psi.set_item(name, owned_array(py, &shape, data, false)?)?;
     }
-    psi.set_item("fs", out.psi.fs)?;
-    psi.set_item("numSamples", out.psi.num_samples)?;
-    psi.set_item("numBands", out.psi.num_bands)?;
-    psi.set_item("itdNumFrames", out.psi.itd_num_frames)?;
+    psi.set_item("fs", fs)?;
+    psi.set_item("numSamples", samples)?;
+    psi.set_item("numBands", bands)?;
+    psi.set_item("itdNumFrames", frames)?;
     Ok((par, psi))
 }

@@ -5,6 +5,7 @@ exactly; the CLI's --json equal to it; the errors of inputs afeRAA cannot take."
 import json
 import os
 import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -125,3 +126,33 @@ def test_constants_outside_their_range_are_refused_naming_them():
             assert all(np.isfinite(v) for v in par.values()), (name, value, par)
     with pytest.raises(ValueError, match="nu_ASW = -1: the predictors are finite for values"):
         afe.raa(short, fs, nu_ASW=-1)
+
+
+def test_a_signal_too_long_for_the_memory_is_a_memory_error(monkeypatch):
+    """Issue 57, finding 3: afe.raa under 3 GB killed Python; now refused before it runs."""
+    x, fs = afe.read_wav(WAV)
+    monkeypatch.setenv("AFE_MEMORY_AVAILABLE_GB", "0.05")
+    with pytest.raises(MemoryError, match="more than the 50.0 MB available: analyse an excerpt"):
+        afe.raa(x, fs)
+    monkeypatch.setenv("AFE_MEMORY_AVAILABLE_GB", "abc")
+    with pytest.raises(ValueError, match='AFE_MEMORY_AVAILABLE_GB is "abc"'):
+        afe.raa(x, fs)
+
+
+def test_raa_under_an_address_space_limit_raises_and_the_interpreter_lives():
+    """60 s at 16 kHz under RLIMIT_AS of what the interpreter holds plus 300 MB."""
+    code = (
+        "import resource, numpy as np, afe\n"
+        "used = int(open('/proc/self/status').read().split('VmSize:')[1].split()[0]) * 1024\n"
+        "resource.setrlimit(resource.RLIMIT_AS, (used + 300_000_000, resource.RLIM_INFINITY))\n"
+        "x = 0.1 * np.sin(0.05 * np.arange(60 * 16000))[:, None] * np.ones(2)\n"
+        "try:\n"
+        "    afe.raa(x, 16000)\n"
+        "except MemoryError as e:\n"
+        "    print('refused:', e)\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "AFE_MEMORY_AVAILABLE_GB"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         env=env, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert "refused: the RAA of 60.0 s of signal would take about" in out.stdout, out.stdout

@@ -95,6 +95,23 @@ pub enum RaaError {
         /// The constant it most likely misspells.
         closest: Option<String>,
     },
+    /// The signal is too long for the memory available: the RAA holds six `[sample,
+    /// band]` arrays of Psi and its streams at once.
+    #[error(
+        "the RAA of {seconds:.1} s of signal would take about {need} of memory (Psi and its \
+         direct and reverberant streams, 16 bands per ear, are kept whole), more than the \
+         {available} available: analyse an excerpt of at most {max_seconds} s, or free memory"
+    )]
+    TooLarge {
+        /// Length of the signal, s.
+        seconds: f64,
+        /// Memory it would take, e.g. `7.9 GB`.
+        need: String,
+        /// Memory available, e.g. `2.0 GB`.
+        available: String,
+        /// The longest signal that would fit, whole seconds.
+        max_seconds: f64,
+    },
     /// A constant outside the range where the predictors are finite (see
     /// [`super::RaaConstants::check`]).
     #[error(

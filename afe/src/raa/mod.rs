@@ -234,6 +234,30 @@ impl RaaPsi {
         ]
     }
 
+    /// As [`RaaPsi::arrays`], the arrays moved out rather than borrowed (a caller that
+    /// hands them on, as Python does to numpy, then holds each once).
+    pub fn into_arrays(self) -> Vec<(&'static str, Vec<usize>, Vec<f64>)> {
+        let block = |name, b: Block| {
+            let shape = vec![b.frames(), b.width()];
+            (name, shape, b.into_vec())
+        };
+        let vector = |name, v: Vec<f64>| (name, vec![v.len()], v);
+        vec![
+            block("PsiL", self.psi_l),
+            block("PsiR", self.psi_r),
+            block("PsiLdir", self.psi_l_dir),
+            block("PsiRdir", self.psi_r_dir),
+            block("PsiLrev", self.psi_l_rev),
+            block("PsiRrev", self.psi_r_rev),
+            block("ITD", self.itd),
+            block("ITDdir", self.itd_dir),
+            block("ITDrev", self.itd_rev),
+            vector("f", self.f),
+            vector("t_psi", self.t_psi),
+            vector("t_itd", self.t_itd),
+        ]
+    }
+
     /// The scalars under `afeRAA`'s field names: `fs`, `numSamples`, `numBands`,
     /// `itdNumFrames`.
     pub fn scalars_json(&self) -> Value {
@@ -287,35 +311,41 @@ impl Raa {
 pub fn raa(ears: &[&[f64]], fs: f64, constants: &RaaConstants) -> Result<Raa, RaaError> {
     constants.check()?;
     let [left, right] = check_input(ears, fs)?;
+    check_memory(left.len(), fs)?;
     let [left, right] = headphone::apply(fs, left, right);
     let (adapt_l, adapt_r, f) = adaptation(fs, &left, &right)?;
     drop((left, right));
 
     let itd = itd::itd(&adapt_l, &adapt_r, fs);
-    let psi_l = envelope(&adapt_l, fs);
-    let psi_r = envelope(&adapt_r, fs);
-    let segment = |ear, psi: &Block, adaptation: &Block| {
+    // each band's mean |adaptation output| sets its thresholds; Psi then takes the
+    // adaptation output's place
+    let (level_l, level_r) = (
+        streams::mean_levels(&adapt_l),
+        streams::mean_levels(&adapt_r),
+    );
+    let psi_l = envelope(adapt_l, fs);
+    let psi_r = envelope(adapt_r, fs);
+    let segment = |ear, psi: &Block, levels: &[f64]| {
         streams::Segmentation {
             constants,
             fs,
             ear,
             cf_hz: &f,
         }
-        .direct_mask(psi, adaptation)
+        .direct_mask(psi, levels)
     };
-    let mask_l = segment("left", &psi_l, &adapt_l)?;
-    let mask_r = segment("right", &psi_r, &adapt_r)?;
-    drop((adapt_l, adapt_r));
+    let mask_l = segment("left", &psi_l, &level_l)?;
+    let mask_r = segment("right", &psi_r, &level_r)?;
 
     let (itd_dir, itd_rev) = itd::split(&itd, &mask_l, &mask_r, fs);
     let num_samples = psi_l.frames();
     let itd_num_frames = itd.frames();
     let frame_rate = 1.0 / itd::HOP_S;
     let psi = RaaPsi {
-        psi_l_dir: streams::masked(&psi_l, &mask_l, true),
-        psi_r_dir: streams::masked(&psi_r, &mask_r, true),
-        psi_l_rev: streams::masked(&psi_l, &mask_l, false),
-        psi_r_rev: streams::masked(&psi_r, &mask_r, false),
+        psi_l_dir: streams::masked(&psi_l, &mask_l, true)?,
+        psi_r_dir: streams::masked(&psi_r, &mask_r, true)?,
+        psi_l_rev: streams::masked(&psi_l, &mask_l, false)?,
+        psi_r_rev: streams::masked(&psi_r, &mask_r, false)?,
         psi_l,
         psi_r,
         itd,
@@ -332,6 +362,35 @@ pub fn raa(ears: &[&[f64]], fs: f64, constants: &RaaConstants) -> Result<Raa, Ra
     let par = predictors::predictors(&psi, constants);
     predictors::check_finite(&par)?;
     Ok(Raa { par, psi })
+}
+
+/// Bytes the RAA of `samples` samples per ear holds at its peak: the six `[sample, band]`
+/// arrays of Psi and its streams, the two direct-stream masks, `t_psi`, and the input
+/// four times over (the caller's two ears and the headphone filter's output), with a
+/// twentieth more and 64 MB for the rest (measured: 1.60 GB for 120 s at 16 kHz, of
+/// 1.61 GB counted so).
+pub fn memory_bytes(samples: usize) -> f64 {
+    let bands = FB_N_CHANNELS as f64;
+    let counted = samples as f64 * (6.0 * 8.0 * bands + 2.0 * bands + 8.0 + 4.0 * 8.0);
+    1.05 * counted + 64e6
+}
+
+/// Refuses a signal of `samples` samples per ear at `fs` Hz whose RAA would not fit the
+/// memory available ([`afe_graph::work::memory_available`]), before anything is
+/// computed.
+fn check_memory(samples: usize, fs: f64) -> Result<(), RaaError> {
+    let need = memory_bytes(samples);
+    match afe_graph::work::memory_available()? {
+        Some(available) if need > available => Err(RaaError::TooLarge {
+            seconds: samples as f64 / fs,
+            need: afe_graph::work::size(need),
+            available: afe_graph::work::size(available),
+            max_seconds: ((available - memory_bytes(0)) / (memory_bytes(1) - memory_bytes(0)) / fs)
+                .floor()
+                .max(0.0),
+        }),
+        _ => Ok(()),
+    }
 }
 
 /// The two ears of `ears` once checked: two channels, as long as each other, not empty,
@@ -380,11 +439,14 @@ fn adaptation(fs: f64, left: &[f64], right: &[f64]) -> Result<(Block, Block, Vec
     let mut mgr = Manager::new(fs, 2)?;
     let handle = mgr.add_request("adaptation", &adaptation_params())?;
     mgr.process_signal(&[left, right])?;
-    let signals = mgr.request_signals(handle)?;
-    let ear = |channel| {
-        signals
-            .iter()
-            .find(|s| s.channel == channel)
+    let signals: Vec<_> = (mgr.request_signals(handle)?.iter())
+        .map(|s| (s.channel, s.source, s.info.cf_hz.clone()))
+        .collect();
+    // each ear's whole output moves out of the manager rather than being copied
+    let mut ear = |channel| {
+        let found = signals.iter().find(|s| s.0 == channel);
+        found
+            .and_then(|(_, source, cf)| Some((mgr.take_whole(*source)?, cf.clone())))
             .ok_or_else(|| {
                 afe_core::Error::InvalidInput(format!(
                     "the adaptation request gave no {} signal",
@@ -392,15 +454,15 @@ fn adaptation(fs: f64, left: &[f64], right: &[f64]) -> Result<(Block, Block, Vec
                 ))
             })
     };
-    let (l, r) = (ear(Channel::Left)?, ear(Channel::Right)?);
-    Ok((l.new.clone(), r.new.clone(), l.info.cf_hz.clone()))
+    let ((l, f), (r, _)) = (ear(Channel::Left)?, ear(Channel::Right)?);
+    Ok((l, r, f))
 }
 
 /// Psi: `adaptation` (`[sample][band]`) through the first-order low-pass of time constant
 /// [`ENVELOPE_TAU_S`], `y[n] = (1 − e)·x[n] + e·y[n−1]` with `e = exp(−1/(τ·fs))`.
-fn envelope(adaptation: &Block, fs: f64) -> Block {
+/// The adaptation output is filtered in place.
+fn envelope(mut adaptation: Block, fs: f64) -> Block {
     let e = (-1.0 / (ENVELOPE_TAU_S * fs)).exp();
-    let mut out = adaptation.clone();
-    Df2t::new(&[1.0 - e], &[1.0, -e], out.width()).process(out.as_mut_slice());
-    out
+    Df2t::new(&[1.0 - e], &[1.0, -e], adaptation.width()).process(adaptation.as_mut_slice());
+    adaptation
 }

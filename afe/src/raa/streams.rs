@@ -21,17 +21,18 @@ pub struct Segmentation<'a> {
 impl Segmentation<'_> {
     /// The direct-stream mask of `psi` (`[sample][band]`, true where direct and nonzero,
     /// the AFE's `PsiLdir ~= 0`), with the
-    /// thresholds `mu_psi · L` and `mu_psi_dip · L` of each band, `L` being the mean of
-    /// `|adaptation|` over all samples of that band (the adaptation output before the
-    /// low-pass that gives Psi). A band with no sample on the far side of a threshold is
-    /// an error, as in the AFE.
-    pub fn direct_mask(&self, psi: &Block, adaptation: &Block) -> Result<Vec<bool>, RaaError> {
+    /// thresholds `mu_psi · L` and `mu_psi_dip · L` of each band, `L` being its entry of
+    /// `levels` (see [`mean_levels`]). A band with no sample on the far side of a
+    /// threshold is an error, as in the AFE; a mask the memory cannot take, an
+    /// allocation error.
+    pub fn direct_mask(&self, psi: &Block, levels: &[f64]) -> Result<Vec<bool>, RaaError> {
         let bands = psi.width();
         let samples = psi.frames();
-        let mut mask = vec![false; samples * bands];
-        for band in 0..bands {
-            let level =
-                (1.0 / samples as f64) * adaptation.rows().map(|r| r[band].abs()).sum::<f64>();
+        let mut mask = Vec::new();
+        mask.try_reserve_exact(samples * bands)
+            .map_err(|_| too_large(samples * bands, "a direct-stream mask"))?;
+        mask.resize(samples * bands, false);
+        for (band, &level) in levels.iter().enumerate().take(bands) {
             let column: Vec<f64> = psi.rows().map(|r| r[band]).collect();
             let peak = self.constants.mu_psi * level;
             let dip = self.constants.mu_psi_dip * level;
@@ -99,14 +100,36 @@ fn runs(x: &[f64], passes: &dyn Fn(f64) -> bool) -> Vec<(usize, usize)> {
 
 /// `psi` where `mask` is `keep`, 0 elsewhere: the direct stream (`keep` true) or the
 /// reverberant one (false).
-pub fn masked(psi: &Block, mask: &[bool], keep: bool) -> Block {
-    let data = psi
-        .as_slice()
-        .iter()
-        .zip(mask)
-        .map(|(v, m)| if *m == keep { *v } else { 0.0 })
-        .collect();
-    Block::from_vec(data, psi.width())
+pub fn masked(psi: &Block, mask: &[bool], keep: bool) -> Result<Block, RaaError> {
+    let values = psi.as_slice();
+    let mut data = Vec::new();
+    data.try_reserve_exact(values.len())
+        .map_err(|_| too_large(8 * values.len(), "a stream of Psi"))?;
+    data.extend(
+        values
+            .iter()
+            .zip(mask)
+            .map(|(v, m)| if *m == keep { *v } else { 0.0 }),
+    );
+    Ok(Block::from_vec(data, psi.width()))
+}
+
+/// The mean of `|adaptation|` over all samples of each band (`[sample][band]`, the
+/// adaptation output before the low-pass that gives Psi): the scale of the band's
+/// thresholds.
+pub fn mean_levels(adaptation: &Block) -> Vec<f64> {
+    let samples = adaptation.frames();
+    (0..adaptation.width())
+        .map(|band| (1.0 / samples as f64) * adaptation.rows().map(|r| r[band].abs()).sum::<f64>())
+        .collect()
+}
+
+/// The error of an allocation of `bytes` for `what` that the memory could not take.
+fn too_large(bytes: usize, what: &str) -> RaaError {
+    RaaError::Afe(afe_core::Error::AllocationFailed {
+        need: afe_graph::work::size(bytes as f64),
+        what: format!("{what} of the RAA"),
+    })
 }
 
 #[cfg(test)]
@@ -138,13 +161,15 @@ mod tests {
         // mean |adaptation| = 1: thresholds +1 and -1
         let adaptation = Block::from_vec(vec![1.0; 10], 1);
         let psi = Block::from_vec(vec![2.0, 2.0, 0.0, 2.0, 2.0, 2.0, 0.0, -1.0, -1.0, -1.0], 1);
-        let mask = seg.direct_mask(&psi, &adaptation).expect("peaks and dips");
+        let mask = seg
+            .direct_mask(&psi, &mean_levels(&adaptation))
+            .expect("peaks and dips");
         let expect = [
             false, false, false, true, true, true, false, true, true, true,
         ];
         assert_eq!(mask, expect);
-        let direct = masked(&psi, &mask, true);
-        let reverberant = masked(&psi, &mask, false);
+        let direct = masked(&psi, &mask, true).expect("memory");
+        let reverberant = masked(&psi, &mask, false).expect("memory");
         for t in 0..10 {
             assert_eq!(direct.row(t)[0] + reverberant.row(t)[0], psi.row(t)[0]);
         }
@@ -160,7 +185,10 @@ mod tests {
             cf_hz: &[167.8],
         };
         let ones = Block::from_vec(vec![1.0; 100], 1);
-        let e = seg.direct_mask(&ones, &ones).unwrap_err().to_string();
+        let e = seg
+            .direct_mask(&ones, &mean_levels(&ones))
+            .unwrap_err()
+            .to_string();
         assert!(
             e.contains("right ear's band 0 (167.8 Hz)") && e.contains("mu_psi_dip"),
             "{e}"
