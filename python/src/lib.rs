@@ -25,7 +25,10 @@ fn to_py(e: afe::Error) -> PyErr {
     match e {
         afe::Error::UnknownHandle(_) => PyKeyError::new_err(e.to_string()),
         afe::Error::Interrupted => pyo3::exceptions::PyKeyboardInterrupt::new_err(e.to_string()),
-        afe::Error::WholeSignalTooLarge { .. } | afe::Error::OutputsTooLarge { .. } => {
+        afe::Error::WholeSignalTooLarge { .. }
+        | afe::Error::WholeSignalOverMemory { .. }
+        | afe::Error::AllocationFailed { .. }
+        | afe::Error::OutputsTooLarge { .. } => {
             pyo3::exceptions::PyMemoryError::new_err(e.to_string())
         }
         afe::Error::WorkerPanicked | afe::Error::Stalled(_) | afe::Error::Scheduler(_) => {
