@@ -119,6 +119,7 @@ fn extract(
         Some(_) => Some(mgr.trace()?.unwrap_or_default()),
         None => None,
     };
+    rec.check_dtype(dtype)?;
     // both outputs or neither: a trace that cannot be written leaves no .npz either
     let mut staged = vec![output.stage_unless_interrupted(|file| rec.write_npz_as(file, dtype))?];
     if let (Some(t), Some(events)) = (&trace, events) {

@@ -758,6 +758,7 @@ impl ArrayOut {
         self.array.set_shape(shape)?;
         let mut indices = vec![self.chunks];
         indices.extend(self.frame_shape.iter().map(|_| 0));
+        self.dtype.check(self.array.path().as_str(), chunk)?;
         let bytes: Vec<u8> = match self.dtype {
             Dtype::Float64 => chunk.iter().flat_map(|v| v.to_ne_bytes()).collect(),
             Dtype::Float32 => chunk

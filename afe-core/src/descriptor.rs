@@ -31,6 +31,11 @@ pub struct Built {
     pub processor: Box<dyn Processor>,
     /// One description per output (one per ear for preProc, one otherwise).
     pub outputs: Vec<SignalInfo>,
+    /// The largest factor by which the processor can raise the amplitude of the signal
+    /// it reads (preProc's level scaling, pre-emphasis and middle-ear gain; 1 for the
+    /// others): the graph lowers the input amplitude it accepts by it, so that the
+    /// processing stays finite.
+    pub input_gain: f64,
 }
 
 /// Everything the graph needs to know about one request name.
@@ -75,6 +80,16 @@ impl Built {
         Built {
             processor: Box::new(processor),
             outputs,
+            input_gain: 1.0,
+        }
+    }
+
+    /// The same, raising its input's amplitude by at most `gain` (see
+    /// [`Built::input_gain`]).
+    pub fn with_input_gain(self, gain: f64) -> Self {
+        Built {
+            input_gain: gain,
+            ..self
         }
     }
 }

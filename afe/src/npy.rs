@@ -59,6 +59,33 @@ impl Dtype {
         }
     }
 
+    /// The first of `values` that this type cannot hold (finite in float64, beyond
+    /// float32's ±3.4e38: rounding would store ±Inf), if any.
+    pub fn first_unstorable(self, values: &[f64]) -> Option<f64> {
+        match self {
+            Dtype::Float64 => None,
+            Dtype::Float32 => {
+                let top = f64::from(f32::MAX);
+                values
+                    .iter()
+                    .copied()
+                    .find(|v| v.is_finite() && v.abs() > top)
+            }
+        }
+    }
+
+    /// An error naming output `key` if one of its `values` cannot be stored as this type.
+    pub fn check(self, key: &str, values: &[f64]) -> afe_core::Result<()> {
+        match self.first_unstorable(values) {
+            None => Ok(()),
+            Some(v) => Err(afe_core::Error::InvalidInput(format!(
+                "{key} holds {v:e}, beyond what float32 can hold (±{:e}): store it as \
+                 float64 (--dtype f64, dtype=\"float64\"), or scale the input down",
+                f32::MAX
+            ))),
+        }
+    }
+
     /// Bytes per stored value (a complex value is two).
     fn size(self) -> usize {
         match self {

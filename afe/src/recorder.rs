@@ -287,6 +287,12 @@ impl Recorder {
         crate::npy::write_npz_as(out, &arrays, Some(&meta), dtype)
     }
 
+    /// Checks that every recorded value can be stored as `dtype` (float32 holds at most
+    /// ±3.4e38): an error naming the first output that cannot.
+    pub fn check_dtype(&self, dtype: Dtype) -> crate::Result<()> {
+        (self.signals.iter()).try_for_each(|s| dtype.check(&s.key, s.data.as_slice()))
+    }
+
     /// [`Recorder::metadata`], each description's `dtype` that of values stored as `dtype`.
     pub fn metadata_as(&self, dtype: Dtype) -> Value {
         let mut meta = self.metadata();

@@ -75,6 +75,9 @@ pub(crate) struct Node {
     pub infos: Vec<SignalInfo>,
     /// Ear of each output.
     pub channels: Vec<Channel>,
+    /// The largest factor by which the processor raises its input's amplitude (see
+    /// `Built::input_gain`).
+    pub input_gain: f64,
 }
 
 /// The nodes in creation order, which is a topological order (parents come first).
@@ -105,8 +108,17 @@ impl Graph {
             outputs: vec![Block::new(1); ears],
             infos: vec![SignalInfo::time_domain(fs); ears],
             channels,
+            input_gain: 1.0,
         };
         Graph { nodes: vec![input] }
+    }
+
+    /// The node that raises the input's amplitude most, and by how much (the input
+    /// node, by 1, where none does).
+    pub fn largest_input_gain(&self) -> (&'static str, f64) {
+        (self.nodes.iter())
+            .map(|n| (n.name, n.input_gain))
+            .fold(("input", 1.0), |a, b| if b.1 > a.1 { b } else { a })
     }
 
     /// Copies the new input of a chunk into the input node (one slice per ear).

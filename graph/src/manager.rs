@@ -154,12 +154,14 @@ impl FrameClock {
     }
 }
 
-/// Largest input amplitude accepted (full scale is 1.0): far above any real recording
-/// (raw 32-bit PCM counts are 2.1e9), and low enough that the processing stays finite,
-/// including the STFT, stored in single precision as the AFE stores it: a window of 2^16
-/// samples at 1e30 sums to below its largest value, 3.4e38 (at 3e58 it was Inf, and the
-/// spectral features NaN).
-pub const MAX_AMPLITUDE: f64 = 1e30;
+/// Largest amplitude accepted (full scale is 1.0) of the input times the gain of its
+/// pre-processing (level scaling, pre-emphasis, middle-ear filter): far above any real
+/// recording (raw 32-bit PCM counts are 2.1e9), and low enough that every representation
+/// stays finite, the spectral features of the square-law hair cell's ratemap (the 16th
+/// power of the input) and the STFT, stored in single precision as the AFE stores it,
+/// among them: at 1e18 the DRNL's spectral features were Inf, at 1e22 the gammatone's
+/// kurtosis NaN.
+pub const MAX_AMPLITUDE: f64 = 1e15;
 
 /// Block length in samples in which a whole signal goes through a chunk-invariant graph:
 /// bit-identical to one call, and the intermediate signals stay in cache.
@@ -493,14 +495,21 @@ impl Manager {
             )));
         }
         let names = ["left", "right"];
+        let (node, gain) = self.graph.largest_input_gain();
+        let limit = MAX_AMPLITUDE / gain;
         for (e, ear) in chunk.iter().enumerate() {
-            if let Some(i) = ear
-                .iter()
-                .position(|v| v.is_nan() || v.abs() > MAX_AMPLITUDE)
-            {
+            if let Some(i) = ear.iter().position(|v| v.is_nan() || v.abs() > limit) {
                 let which = if self.ears == 2 { names[e] } else { "mono" };
                 let at = self.position + i as u64;
-                return Err(Error::InvalidInput(if ear[i].is_finite() {
+                return Err(Error::InvalidInput(if ear[i].is_finite() && gain > 1.0 {
+                    format!(
+                        "sample {at} of the {which} channel is {:e}: '{node}' raises it by up \
+                         to {gain:e} (its level scaling, pre-emphasis and middle-ear filter), \
+                         beyond ±{MAX_AMPLITUDE:e}, where the processing overflows: scale the \
+                         input down (full scale is 1.0) or lower that gain (pp_refSPLdB)",
+                        ear[i]
+                    )
+                } else if ear[i].is_finite() {
                     format!(
                         "sample {at} of the {which} channel is {:e}: beyond ±{MAX_AMPLITUDE:e} \
                          the processing overflows (full scale is 1.0: scale the input)",
@@ -1208,6 +1217,22 @@ mod tests {
         assert!(msg.contains("scale the input"), "{msg}");
         m.process_chunk(&[&[MAX_AMPLITUDE; 2], &[-MAX_AMPLITUDE; 2]])
             .expect("the largest accepted amplitude");
+        // issue 57, item 5: a level-scaling gain of 1e20 (accepted) lowers the amplitude
+        // accepted by as much (float32 noise at 1e18 through it gave an Inf STFT)
+        let mut loud = Manager::new(16000.0, 2).expect("manager");
+        let params: ParamMap = serde_json::from_value(serde_json::json!({
+            "pp_bLevelScaling": true, "pp_refSPLdB": -300.0
+        }))
+        .expect("params");
+        loud.add_request("stft", &params).expect("stft");
+        let e = loud
+            .process_chunk(&[&[1e-4; 4], &[0.0; 4]])
+            .expect_err("1e16 after the gain");
+        let msg = e.to_string();
+        assert!(msg.contains("'time' raises it by up to 1e20"), "{msg}");
+        assert!(msg.contains("pp_refSPLdB"), "{msg}");
+        loud.process_chunk(&[&[1e-5; 4], &[-1e-5; 4]])
+            .expect("1e15 after the gain");
         let e = m.process_chunk(&[&x]).expect_err("mono chunk");
         assert!(e.to_string().contains("got 1 channel(s)"), "{e}");
         let e = m.process_signal(&[&[], &[]]).expect_err("empty");

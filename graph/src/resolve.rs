@@ -199,6 +199,7 @@ impl Graph {
             outputs,
             infos: built.outputs,
             channels,
+            input_gain: built.input_gain,
         });
         Ok(self.nodes.len() - 1)
     }
@@ -319,6 +320,7 @@ impl Graph {
                 .map(|info| Block::new(info.width()))
                 .collect();
             node.infos = b.outputs;
+            node.input_gain = b.input_gain;
             node.absorbs = b.processor.absorbs_whole_signal();
             node.processor = Some(b.processor);
             if let Some(request) = request {

@@ -188,6 +188,7 @@ fn random_graph(seed: u64, nodes: usize) -> Graph {
             outputs: vec![Block::new(width)],
             infos: vec![SignalInfo::time_domain(1000.0)],
             channels: vec![Channel::Mono],
+            input_gain: 1.0,
         });
     }
     // feedback edges, as the MOC's to the filterbank: a node takes a later node's output

@@ -163,6 +163,8 @@ pub struct PreProc {
     alpha: f64,
     seed_len: usize,
     middle_ear_gain: f64,
+    /// The most the processing raises the input's amplitude (see `Built::input_gain`).
+    amplitude_gain: f64,
     /// Per-ear normaliser scratch.
     norm: [Vec<f64>; 2],
 }
@@ -247,12 +249,14 @@ impl PreProc {
             .pre_emphasis
             .then(|| Df2t::new(&[1.0, -p.coef_pre_emphasis.abs()], &[1.0], 1));
         let alpha = (-1.0 / (p.int_time_sec_rms * fs)).exp();
+        let mut middle_ear_l1 = 1.0;
         let middle_ear = p.middle_ear_filtering.then(|| {
             let b = if p.middle_ear_model == "lopezpoveda" {
                 middle_ear::lopezpoveda(fs)
             } else {
                 middle_ear::jepsen(fs)
             };
+            middle_ear_l1 = b.iter().map(|v| v.abs()).sum();
             Df2t::new(&b, &[1.0], 1)
         });
         let middle_ear_gain = if p.unity_comp {
@@ -260,7 +264,7 @@ impl PreProc {
         } else {
             1.0
         };
-        let ear_states = (0..ears)
+        let ear_states: Vec<Ear> = (0..ears)
             .map(|e| Ear {
                 dc: dc.clone(),
                 emphasis: emphasis.clone(),
@@ -271,12 +275,30 @@ impl PreProc {
                 middle_ear: middle_ear.clone(),
             })
             .collect();
+        // the most each stage can raise the amplitude: the level scaling, the
+        // pre-emphasis (1 + |c|) and the middle-ear filter (the sum of its taps' magnitudes)
+        let level = if p.level_scaling {
+            (ear_states.iter()).fold(0.0f64, |m, e| m.max(e.level_gain))
+        } else {
+            1.0
+        };
+        let emphasis_gain = if p.pre_emphasis {
+            1.0 + p.coef_pre_emphasis.abs()
+        } else {
+            1.0
+        };
+        let middle_ear_bound = if p.middle_ear_filtering {
+            middle_ear_gain * middle_ear_l1
+        } else {
+            1.0
+        };
         let pre = PreProc {
             params: p.clone(),
             ears: ear_states,
             alpha,
             seed_len: (p.int_time_sec_rms * fs).round().max(0.0) as usize,
             middle_ear_gain,
+            amplitude_gain: level * emphasis_gain * middle_ear_bound,
             norm: [Vec::new(), Vec::new()],
         };
         let info = SignalInfo::time_domain(fs)
@@ -392,7 +414,8 @@ impl Descriptor for PreProc {
 
     fn build(params: &PreProcParams, inputs: &[SignalInfo]) -> Result<Built> {
         let (p, outputs) = PreProc::new(params, inputs[0].fs_hz, inputs.len())?;
-        Ok(Built::new(p, outputs))
+        let gain = p.amplitude_gain;
+        Ok(Built::new(p, outputs).with_input_gain(gain))
     }
 
     /// The AGC seeds its running mean from the first chunk.

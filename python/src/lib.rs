@@ -102,6 +102,7 @@ fn recorded<'py>(
     rec: afe::Recorder,
     dtype: Dtype,
 ) -> PyResult<(Bound<'py, PyDict>, String)> {
+    rec.check_dtype(dtype).map_err(to_py)?;
     let meta = rec.metadata_as(dtype).to_string();
     let d = PyDict::new(py);
     for r in rec.into_signals() {

@@ -972,19 +972,31 @@ def test_nan_where_names_every_representation_that_is_nan_on_silence():
 
 
 def test_the_loudest_accepted_input_gives_finite_output_and_louder_is_refused():
-    """Issue 44, item 10: noise at 3e58 made the STFT Inf (it is stored in single
-    precision, as by the AFE) and the spectral features NaN; the largest amplitude
-    accepted, 1e30, gives finite output in every request (NaN only where nan_where says,
-    here the unvoiced pitch), and beyond it the input is refused."""
+    """Issues 44 (item 10) and 57 (item 5): the largest amplitude accepted, 1e15 after the
+    pre-processing's gain, gives finite output in every request (NaN only where nan_where
+    says, here the unvoiced pitch), with the square-law hair cell whose spectral features
+    take the input's 16th power too; beyond it the input is refused, and so is float32
+    noise at 1e18 through a level-scaling gain of 1e20 (it gave 61,000 Inf STFT values),
+    and a float32 result that float32 cannot hold (a square-law ratemap at 1e15, 1e60)."""
     x = np.random.default_rng(0).uniform(-1, 1, (16000, 2))
-    out = afe.process(x * 1e30, 16000, afe.requests())
-    for s in out.values():
-        values = np.asarray(s)
-        assert not np.isinf(values.real).any() and not np.isinf(values.imag).any(), s.key
-        assert s.name == "pitch" or not np.isnan(values.real).any(), s.key
-    assert _raises(lambda: afe.process(x * 3e58, 16000, ["stft"])).startswith(
-        "invalid input: sample 0 of the left channel is "
+    for params in [{}, {"ihc_method": "square"}]:
+        out = afe.process(x * 1e15, 16000, afe.requests(), params)
+        for s in out.values():
+            values = np.asarray(s)
+            assert not np.isinf(values.real).any() and not np.isinf(values.imag).any(), s.key
+            assert s.name == "pitch" or not np.isnan(values.real).any(), s.key
+    for amp in [3e58, 1e30, 1e22, 1.1e15]:
+        message = _raises(lambda: afe.process(x * amp, 16000, ["spectralFeatures"]))
+        assert message.startswith("invalid input: sample ") and "beyond ±1e15" in message, amp
+    gain = {"pp_bLevelScaling": True, "pp_refSPLdB": -300}
+    message = _raises(lambda: afe.process(x.astype(np.float32) * 1e18, 16000, ["stft"], gain))
+    assert "raises it by up to 1e20" in message and "pp_refSPLdB" in message, message
+    out = afe.process(x * 1e-6, 16000, ["stft"], gain)
+    assert np.isfinite(np.asarray(out["stft_left"])).all()
+    message = _raises(
+        lambda: afe.process(x * 1e15, 16000, ["ratemap"], {"ihc_method": "square"}, dtype="float32")
     )
+    assert "beyond what float32 can hold" in message and "float64" in message, message
 
 
 def _saved_group(tmp_path, name="g.zarr"):
