@@ -245,6 +245,9 @@ fn afe_limited(limit_kb: Option<u64>, args: &[&str], env: &[(&str, &str)]) -> st
     cmd.output().expect("run sh")
 }
 
+/// An address-space limit (kB), the arguments and the environment of one run.
+type Case<'a> = (u64, &'a [&'a str], &'a [(&'a str, &'a str)]);
+
 /// Issue 57, finding 2: a whole signal that processors take in one call (the MOC's
 /// chain, the Hilbert hair cell) aborted under `ulimit -v` (`memory allocation of
 /// 218736000 bytes failed`, SIGABRT), within the fixed limit of 2 GB and with it raised
@@ -263,7 +266,7 @@ fn whole_signals_beyond_the_memory_available_are_refused_not_aborted() {
         one.to_str().expect("path"),
         out_file.to_str().expect("path"),
     );
-    let cases: [(u64, &[&str], &[(&str, &str)]); 4] = [
+    let cases: [Case; 4] = [
         (1_000_000, &["extract", w, "-r", "moc", "-o", o], &[]),
         (
             1_000_000,
