@@ -798,7 +798,7 @@ fn value_for(rng: &mut Rng, kind: ParamKind, default: Option<&Value>) -> Value {
             Some(x) if !rng.one_in(4) => json!(scale(rng, if x == 0.0 { 1.0 } else { x })),
             _ => random_number(rng),
         },
-        ParamKind::Count => json!(*rng.pick(&[
+        ParamKind::Count | ParamKind::CountUpTo(_) => json!(*rng.pick(&[
             0.0,
             1.0,
             2.0,
@@ -1381,7 +1381,7 @@ fn accepted_draw(rng: &mut Rng, spec: &afe_core::ParamSpec, default: Option<&Val
                 _ => magnitude(rng, x),
             })
         }
-        ParamKind::Count => json!(match rng.below(4) {
+        ParamKind::Count | ParamKind::CountUpTo(_) => json!(match rng.below(4) {
             0 => 1 + rng.below(4),
             1 => *rng.pick(&[256, 512, 1000, 1024, 4096, 65_536]),
             _ => 1 + rng.below(128),

@@ -22,6 +22,8 @@ pub enum ParamKind {
     Number,
     /// A positive integer.
     Count,
+    /// A positive integer up to the given one.
+    CountUpTo(u64),
     /// A flag: `true`/`false` or `1`/`0`, as in MATLAB.
     Flag,
     /// One string out of the listed choices.
@@ -39,6 +41,7 @@ impl ParamKind {
         match self {
             ParamKind::Number => "a number".into(),
             ParamKind::Count => "a positive integer".into(),
+            ParamKind::CountUpTo(n) => format!("an integer from 1 to {n}"),
             ParamKind::Flag => "a flag (true/false or 1/0)".into(),
             ParamKind::Choice(c) => format!("one of {}", quoted(c)),
             ParamKind::Choices(c) => format!("one or a list of {}", quoted(c)),
@@ -50,7 +53,7 @@ impl ParamKind {
     pub fn type_name(&self) -> &'static str {
         match self {
             ParamKind::Number => "number",
-            ParamKind::Count => "integer",
+            ParamKind::Count | ParamKind::CountUpTo(_) => "integer",
             ParamKind::Flag => "flag",
             ParamKind::Choice(_) => "string",
             ParamKind::Choices(_) => "strings",
@@ -202,9 +205,13 @@ impl ParamSpec {
         let finite = |v: &Value| v.as_f64().filter(|x| x.is_finite());
         let out = match self.kind {
             ParamKind::Number => Value::from(finite(value).ok_or_else(bad)?),
-            ParamKind::Count => {
+            ParamKind::Count | ParamKind::CountUpTo(_) => {
+                let top = match self.kind {
+                    ParamKind::CountUpTo(n) => n as f64,
+                    _ => u32::MAX as f64,
+                };
                 let x = finite(value).ok_or_else(bad)?;
-                if x < 1.0 || x.fract() != 0.0 || x > u32::MAX as f64 {
+                if x < 1.0 || x.fract() != 0.0 || x > top {
                     return Err(bad());
                 }
                 Value::from(x as u64)
@@ -350,6 +357,24 @@ mod tests {
         assert_eq!(FLAG.normalize(&json!(false)).ok(), Some(Some(json!(false))));
         assert!(FLAG.normalize(&json!(2)).is_err());
         assert!(FLAG.normalize(&json!("yes")).is_err());
+    }
+
+    #[test]
+    fn bounded_counts_name_their_range() {
+        let spec = ParamSpec {
+            name: "fb_nGamma",
+            kind: ParamKind::CountUpTo(8),
+            unit: "",
+            description: "",
+        };
+        assert_eq!(spec.normalize(&json!(8)).ok(), Some(Some(json!(8))));
+        for bad in [json!(0), json!(9), json!(2.5)] {
+            let e = spec.normalize(&bad).expect_err("refused").to_string();
+            assert!(
+                e.contains("fb_nGamma") && e.contains("an integer from 1 to 8"),
+                "{e}"
+            );
+        }
     }
 
     #[test]

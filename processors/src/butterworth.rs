@@ -7,6 +7,10 @@ use afe_core::filter::Df2t;
 use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
 
+/// Largest `bw_order` accepted: beyond it the roll-off is steeper than double precision
+/// resolves.
+const MAX_ORDER: u64 = 32;
+
 /// Parameters of the Butterworth filter (`bw_` prefix, in the AFE naming style).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -42,7 +46,7 @@ impl Params for ButterworthParams {
         },
         ParamSpec {
             name: "bw_order",
-            kind: ParamKind::Count,
+            kind: ParamKind::CountUpTo(MAX_ORDER),
             unit: "",
             description: "filter order (band designs have twice this order)",
         },
@@ -88,7 +92,7 @@ impl ButterworthParams {
                 "cut-offs must be increasing and lie strictly between 0 and the Nyquist frequency ({nyq} Hz)"
             )));
         }
-        if self.order > 32 {
+        if u64::from(self.order) > MAX_ORDER {
             return Err(Error::InvalidParameter {
                 name: "bw_order".into(),
                 value: self.order.to_string(),

@@ -8,6 +8,10 @@ use afe_core::{Error, ParamKind, ParamMap, ParamSpec, Params, Result};
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 
+/// Largest gammatone order accepted (`fb_nGamma`): higher orders' expanded denominators
+/// lose the filter's stability in double precision.
+pub const MAX_N_GAMMA: u64 = 8;
+
 /// The filterbank class of a `filterbank` request (AFE `fb_type`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum FbType {
@@ -141,7 +145,7 @@ impl Params for FilterbankParams {
         },
         ParamSpec {
             name: "fb_nGamma",
-            kind: ParamKind::Count,
+            kind: ParamKind::CountUpTo(MAX_N_GAMMA),
             unit: "",
             description: "gammatone filter order (gammatone only)",
         },

@@ -111,7 +111,7 @@ fn design_channel(cf: f64, bw_erbs: f64, n: usize, fs: f64, align: bool) -> Chan
 /// in cache while every group writes its lanes of them (a 32-channel block is 128 KiB).
 const TIME_BLOCK: usize = 512;
 /// Largest supported `fb_nGamma`.
-pub const MAX_ORDER: usize = 8;
+pub const MAX_ORDER: usize = crate::filterbank_params::MAX_N_GAMMA as usize;
 
 /// Coefficients and state of `W` channels, lane-major so that every operation of the
 /// recursion runs across the channels (unused lanes of the last group have zero
