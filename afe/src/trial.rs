@@ -141,10 +141,9 @@ pub fn describe(requests: &[(String, ParamMap)]) -> String {
 }
 
 /// Places `requests` in a graph of their own shaped as the stream and times its blocks
-/// on noise: blocks until the longest window has filled, then [`TIMED_BLOCKS`] more;
-/// the cost is the least of these. Stops early, with the cost so far, once two timed
-/// blocks in a row took more than `enough_ms` (the answer is known) or after
-/// [`MAX_TRIAL`].
+/// on noise: blocks until the longest window has filled, then three more; the cost is
+/// the least of these. Stops early, with the cost so far, once two timed blocks in a row
+/// took more than `enough_ms` (the answer is known) or after 1.5 s.
 pub fn measure(
     shape: Shape,
     requests: &[(String, ParamMap)],
@@ -449,13 +448,13 @@ mod tests {
     fn requests_computed_already_are_told_and_the_graph_is_left_alone() {
         let mut mgr = Manager::new(16000.0, 2).expect("manager");
         let ild = vec![("ild".to_string(), ParamMap::new())];
-        assert!(!shared_entirely(&mut mgr, &ild));
+        assert!(!shared_entirely(&mgr, &ild));
         assert_eq!(mgr.handles().count(), 0);
         mgr.add_request("ild", &ParamMap::new()).expect("ild");
         let count = mgr.processor_count();
-        assert!(shared_entirely(&mut mgr, &ild));
+        assert!(shared_entirely(&mgr, &ild));
         assert!(!shared_entirely(
-            &mut mgr,
+            &mgr,
             &[("itd".to_string(), ParamMap::new())]
         ));
         assert_eq!((mgr.processor_count(), mgr.handles().count()), (count, 1));

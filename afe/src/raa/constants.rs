@@ -183,8 +183,8 @@ impl RaaConstants {
         Ok(constants)
     }
 
-    /// Checks every constant against the range where the predictors stay finite (see
-    /// [`Self::range`]), refusing the first one outside it by name, value and range.
+    /// Checks every constant against the range where the predictors stay finite,
+    /// refusing the first one outside it by name, value and range.
     ///
     /// ```
     /// use afe::raa::RaaConstants;

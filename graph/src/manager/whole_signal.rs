@@ -77,7 +77,7 @@ impl Manager {
     /// one with [`Manager::set_keep_all`]), a working copy of each whole input a
     /// processor takes in one call (the ratemap smooths its whole input into a buffer
     /// of that size before framing it) and, per thread, its stack and allocator arena
-    /// ([`THREAD_BYTES`]). 0 for a graph that runs in blocks, whose outputs are reserved
+    /// (80 MB). 0 for a graph that runs in blocks, whose outputs are reserved
     /// fallibly instead.
     pub fn whole_signal_bytes(&self, len: usize) -> f64 {
         let Some((intermediate, _)) = self.one_call_share(len) else {
