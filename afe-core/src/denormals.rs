@@ -136,6 +136,15 @@ impl GradualUnderflow {
     }
 }
 
+/// Sets the subnormal values of `values` to zero (their sign kept), as a flushing thread
+/// would have stored them: what a [`GradualUnderflow`] computation hands on keeps the
+/// promise that no output holds a subnormal.
+pub fn flush_subnormals(values: &mut [f64]) {
+    for v in values.iter_mut().filter(|v| v.is_subnormal()) {
+        *v = 0f64.copysign(*v);
+    }
+}
+
 impl Drop for GradualUnderflow {
     fn drop(&mut self) {
         #[cfg(target_arch = "x86_64")]
@@ -241,6 +250,17 @@ mod tests {
             );
         }
         assert_eq!(halved(), 0.0, "the flushing setting back after it");
+    }
+
+    #[test]
+    fn flushing_values_zeroes_the_subnormals_only() {
+        let tiny = f64::MIN_POSITIVE / 4.0;
+        let mut v = [tiny, -tiny, f64::MIN_POSITIVE, 1.0, f64::NAN, 0.0];
+        flush_subnormals(&mut v);
+        assert_eq!(v[0].to_bits(), 0f64.to_bits());
+        assert_eq!(v[1].to_bits(), (-0f64).to_bits());
+        assert_eq!(v[2..4], [f64::MIN_POSITIVE, 1.0]);
+        assert!(v[4].is_nan());
     }
 
     #[test]

@@ -324,6 +324,7 @@ impl Autocorrelation {
         for (j, (o, v)) in out.iter_mut().zip(&self.acf).enumerate() {
             *o = (v / n / (top - j as f64)) / a0;
         }
+        afe_core::denormals::flush_subnormals(out);
     }
 
     /// Writes channel `c`'s windowed frame, centre-clipped and zero-padded, into the

@@ -290,6 +290,34 @@ impl Direct {
     /// Correlates the channels of its groups of one frame pair (`[time][channel]`, over
     /// the frames' columns) into `out` (`[channel][lag]`, from their first column on).
     fn correlate(&mut self, frame_l: Frame<'_>, frame_r: Frame<'_>, out: &mut [f64]) {
+        for g in 0..self.starts.len() {
+            let (ml, mr) = self.correlate_group(frame_l, frame_r, g, out);
+            let lanes = LANES.min(frame_l.width());
+            if (0..lanes).any(|l| in_subnormal_band(ml[l], mr[l])) {
+                self.correlate_group_ieee(frame_l, frame_r, g, out);
+            }
+        }
+    }
+
+    /// [`Direct::correlate_group`] in IEEE arithmetic, for a group whose products sink
+    /// into the subnormals where the thread flushes them (see [`in_subnormal_band`]).
+    #[cold]
+    #[inline(never)]
+    fn correlate_group_ieee(&mut self, fl: Frame<'_>, fr: Frame<'_>, g: usize, out: &mut [f64]) {
+        let _ieee = afe_core::denormals::GradualUnderflow::enable();
+        self.correlate_group(fl, fr, g, out);
+    }
+
+    /// Correlates group `g`'s channels of one frame pair into their rows of `out`;
+    /// returns each lane's largest windowed magnitudes, left and right.
+    #[inline(always)]
+    fn correlate_group(
+        &mut self,
+        frame_l: Frame<'_>,
+        frame_r: Frame<'_>,
+        g: usize,
+        out: &mut [f64],
+    ) -> ([f64; LANES], [f64; LANES]) {
         let (nc, first) = (frame_l.width(), frame_l.first_column());
         let half = self.win.len() / 2;
         let (rows_l, k) = (half + self.half_lags, self.half_lags);
@@ -308,40 +336,61 @@ impl Direct {
         } else {
             window_frames::<true>
         };
-        for &c0 in &self.starts {
-            let (left, right) = (&mut self.left, &mut self.right);
-            let (el, er) = window(&self.win, (frame_l, frame_r), self.max_lag, c0, left, right);
-            let phases = left.chunks_exact(rows_l).zip(right.chunks_exact(half));
-            for ((l, r), acc) in phases.zip(self.acc.chunks_exact_mut(k)) {
-                dot(l, r, acc);
-            }
-            let (e, rest) = self.acc.split_at(k);
-            let (o, d) = rest.split_at(k);
-            for l in 0..LANES.min(nc) {
-                let norm = f64::EPSILON + (el[l] * er[l]).sqrt();
-                let c = c0 + l - first;
-                let out = &mut out[c * nl..(c + 1) * nl];
-                for (i, v) in out.iter_mut().enumerate() {
-                    let j = i / 2;
-                    let sum = if i % 2 == 0 {
-                        e[j].0[l] + o[j].0[l]
-                    } else {
-                        d[j].0[l] + o[j].0[l] + e[j + 1].0[l]
-                    };
-                    *v = sum / norm;
-                }
+        let c0 = self.starts[g];
+        let (left, right) = (&mut self.left, &mut self.right);
+        let (el, er, ml, mr) = window(&self.win, (frame_l, frame_r), self.max_lag, c0, left, right);
+        let phases = left.chunks_exact(rows_l).zip(right.chunks_exact(half));
+        for ((l, r), acc) in phases.zip(self.acc.chunks_exact_mut(k)) {
+            dot(l, r, acc);
+        }
+        let (e, rest) = self.acc.split_at(k);
+        let (o, d) = rest.split_at(k);
+        for l in 0..LANES.min(nc) {
+            let norm = f64::EPSILON + (el[l] * er[l]).sqrt();
+            let c = c0 + l - first;
+            let out = &mut out[c * nl..(c + 1) * nl];
+            for (i, v) in out.iter_mut().enumerate() {
+                let j = i / 2;
+                let sum = if i % 2 == 0 {
+                    e[j].0[l] + o[j].0[l]
+                } else {
+                    d[j].0[l] + o[j].0[l] + e[j + 1].0[l]
+                };
+                *v = sum / norm;
             }
         }
+        (ml, mr)
     }
 }
 
-/// A group's energies `Σ (win·x)²` of the left and right frames.
-type Energy = ([f64; LANES], [f64; LANES]);
+/// Whether a frame pair whose largest windowed magnitudes are `left` and `right` has
+/// products that flushing subnormals to zero would change beyond the round-off (it
+/// drops them whole) while IEEE arithmetic, the AFE's, keeps them: the decay after
+/// digital silence, 300 dB and more below the signal, whose correlation's shape (its
+/// peak, the ITD) the AFE still computes. Not where every product underflows to 0 in
+/// IEEE arithmetic too (below 2^−1076), nor where the thread keeps subnormals.
+fn in_subnormal_band(left: f64, right: f64) -> bool {
+    // log2 of the largest product (the product itself could flush)
+    let product = left.log2() + right.log2();
+    left > 0.0
+        && right > 0.0
+        && (-1076.0..SUBNORMAL_PRODUCT_LOG2).contains(&product)
+        && afe_core::denormals::flushing()
+}
+
+/// log2 of the largest product below which a frame pair is correlated in IEEE
+/// arithmetic (1e−280: its products a window's edge away, 1e−10 smaller, stay normal).
+const SUBNORMAL_PRODUCT_LOG2: f64 = -930.1;
+
+/// A group's energies `Σ (win·x)²` of the left and right frames, and their largest
+/// windowed magnitudes.
+type Energy = ([f64; LANES], [f64; LANES], [f64; LANES], [f64; LANES]);
 
 afe_core::simd_kernel!(
     /// Windows the frame pair (`[time][channel]`) into the polyphase rows of the group
     /// whose first input channel is `start` (`left` and `right` laid out as in [`Direct`]),
-    /// and returns the frames' energies, summed in time order in registers. Row `n` of the
+    /// and returns the frames' energies, summed in time order in registers, and their
+    /// largest windowed magnitudes. Row `n` of the
     /// left frame is row `p = n + maxLag` of `L`: row `p / 2` of `L_even` or `L_odd`, and of
     /// the differences with its neighbour (`L[p−1] − L[p]` at row `p/2 − 1` for an even `p`,
     /// `r[n−1] − r[n]` at row `n / 2` for an odd `n`). `WIDE`: at least `LANES` channels
@@ -356,6 +405,7 @@ afe_core::simd_kernel!(
     ) -> Energy {
         let (rows_l, half) = (left.len() / 3, right.len() / 3);
         let (mut el, mut er) = ([0.0; LANES], [0.0; LANES]);
+        let (mut ml, mut mr) = ([0.0f64; LANES], [0.0f64; LANES]);
         // the previous row (zero before the frame)
         let (mut prev_l, mut prev_r) = ([0.0; LANES], [0.0; LANES]);
         let (nc, first) = (frame_l.width(), frame_l.first_column());
@@ -379,6 +429,8 @@ afe_core::simd_kernel!(
                     xr[l] *= w;
                     el[l] += xl[l] * xl[l];
                     er[l] += xr[l] * xr[l];
+                    ml[l] = ml[l].max(xl[l].abs());
+                    mr[l] = mr[l].max(xr[l].abs());
                 }
                 left[(p % 2) * rows_l + p / 2].0 = xl;
                 right[(n % 2) * half + n / 2].0 = xr;
@@ -403,7 +455,7 @@ afe_core::simd_kernel!(
         if p % 2 == 0 {
             left[2 * rows_l + p / 2 - 1].0 = prev_l;
         }
-        (el, er)
+        (el, er, ml, mr)
     }
 );
 
@@ -469,9 +521,33 @@ impl FftEngine {
 
     /// Correlates column `c` of the current frames into `out` (one value per lag).
     fn correlate(&mut self, frame_l: Frame<'_>, frame_r: Frame<'_>, c: usize, out: &mut [f64]) {
+        let (ml, mr) = self.correlate_column(frame_l, frame_r, c, out);
+        if in_subnormal_band(ml, mr) {
+            self.correlate_column_ieee(frame_l, frame_r, c, out);
+        }
+    }
+
+    /// [`FftEngine::correlate_column`] in IEEE arithmetic (see [`in_subnormal_band`]).
+    #[cold]
+    #[inline(never)]
+    fn correlate_column_ieee(&mut self, fl: Frame<'_>, fr: Frame<'_>, c: usize, out: &mut [f64]) {
+        let _ieee = afe_core::denormals::GradualUnderflow::enable();
+        self.correlate_column(fl, fr, c, out);
+    }
+
+    /// Correlates column `c` into `out`; returns its largest windowed magnitudes, left
+    /// and right.
+    fn correlate_column(
+        &mut self,
+        frame_l: Frame<'_>,
+        frame_r: Frame<'_>,
+        c: usize,
+        out: &mut [f64],
+    ) -> (f64, f64) {
         let w = self.win.len();
         let nfft = self.time_l.len();
         let (mut el, mut er) = (0.0, 0.0);
+        let (mut ml, mut mr) = (0.0f64, 0.0f64);
         let rows = frame_l.rows().zip(frame_r.rows());
         for (n, (rl, rr)) in rows.enumerate() {
             let l = self.win[n] * rl[c];
@@ -480,7 +556,10 @@ impl FftEngine {
             self.time_r[n] = r;
             el += l * l;
             er += r * r;
+            ml = ml.max(l.abs());
+            mr = mr.max(r.abs());
         }
+
         self.time_l[w..].fill(0.0);
         self.time_r[w..].fill(0.0);
         // Lengths match by construction, so the FFTs cannot fail.
@@ -511,6 +590,7 @@ impl FftEngine {
                 0.0
             };
         }
+        (ml, mr)
     }
 }
 

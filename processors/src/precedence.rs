@@ -87,8 +87,14 @@ pub struct Precedence {
     model: Model,
 }
 
+/// One frame's outputs: ITD and ILD per channel, and the cross-correlation.
+type Cues<'a> = (&'a mut [f64], &'a mut [f64], &'a mut [f64]);
+
 /// Everything but the framing: constants, FFT plans, cumulative state and scratch.
 struct Model {
+    /// Each ear's largest magnitude per channel of the current frame (the subnormal
+    /// band's test).
+    tail_peaks: [Vec<f64>; 2],
     win: Vec<f64>,
     nc: usize,
     max_lag: usize,
@@ -493,6 +499,7 @@ impl Precedence {
             })
             .collect();
         let model = Model {
+            tail_peaks: [vec![0.0; nc], vec![0.0; nc]],
             win: window("hanning", w, "prec_wSizeSec")?,
             nc,
             max_lag,
@@ -624,6 +631,50 @@ impl Model {
 
     /// Steps B and C on the analysed frame pair: the LLAR mode, then each channel's
     /// correlation (into `cc`, `[channel][lag]`), ITD (s) and ILD (dB).
+    /// One frame pair's cues into `(itd, ild, cc)`.
+    #[inline(always)]
+    fn frame(&mut self, left: Frame<'_>, right: Frame<'_>, out: Cues<'_>) {
+        self.analyse(0, left);
+        self.analyse(1, right);
+        self.cues(out.0, out.1, out.2);
+        self.first = false;
+    }
+
+    /// [`Model::frame`] in IEEE arithmetic, for a frame pair whose products sink into
+    /// the subnormals where the thread flushes them: the decay after digital silence,
+    /// whose ITD and ILD the AFE still computes from them.
+    #[cold]
+    #[inline(never)]
+    fn frame_ieee(&mut self, left: Frame<'_>, right: Frame<'_>, out: Cues<'_>) {
+        let (itd, ild, cc) = out;
+        {
+            let _ieee = afe_core::denormals::GradualUnderflow::enable();
+            self.frame(left, right, (&mut *itd, &mut *ild, &mut *cc));
+        }
+        for o in [itd, ild, cc] {
+            afe_core::denormals::flush_subnormals(o);
+        }
+    }
+
+    /// Whether some channel's largest magnitudes in the two frames, multiplied, lie
+    /// where flushing subnormals would change the cues (as the cross-correlation's
+    /// `in_subnormal_band`: between 2^−1076 and 1e−280).
+    fn in_subnormal_band(&mut self, left: Frame<'_>, right: Frame<'_>) -> bool {
+        for (peaks, frame) in self.tail_peaks.iter_mut().zip([left, right]) {
+            peaks.fill(0.0);
+            for row in frame.rows() {
+                for (p, v) in peaks.iter_mut().zip(row) {
+                    *p = p.max(v.abs());
+                }
+            }
+        }
+        let [l, r] = &self.tail_peaks;
+        l.iter().zip(r).any(|(&a, &b)| {
+            let product = a.log2() + b.log2();
+            a > 0.0 && b > 0.0 && (-1076.0..-930.1).contains(&product)
+        })
+    }
+
     fn cues(&mut self, itd: &mut [f64], ild: &mut [f64], cc: &mut [f64]) {
         let (nc, w) = (self.nc, self.win.len());
         for ear in &mut self.ears {
@@ -849,16 +900,19 @@ impl Processor for Precedence {
             return;
         };
         let (itd, ild, cc) = (itd.resize_to(n), ild.resize_to(n), cc.resize_to(n));
+        let flushing = afe_core::denormals::flushing();
         for k in 0..n {
             let (left, right) = self.frames.frame(ears, k);
-            m.analyse(0, left);
-            m.analyse(1, right);
-            m.cues(
+            let out = (
                 &mut itd[k * nc..(k + 1) * nc],
                 &mut ild[k * nc..(k + 1) * nc],
                 &mut cc[k * nc * nl..(k + 1) * nc * nl],
             );
-            m.first = false;
+            if flushing && m.in_subnormal_band(left, right) {
+                m.frame_ieee(left, right, out);
+            } else {
+                m.frame(left, right, out);
+            }
         }
         self.frames.advance(ears.0, ears.1, n);
     }

@@ -125,3 +125,29 @@ def test_tails_follow_it_with_subnormals_kept_too(tmp_path):
     subprocess.run([sys.executable, "-c", code, str(npz), here], check=True, env=env)
     z = np.load(npz)
     check_against_the_spec({k: z[k] for k in z.files})
+
+
+def cues():
+    out = afe.process(tones_with_silences(), FS, ["itd", "ic", "precedence"])
+    return {k: np.asarray(v) for k, v in out.items()}
+
+
+def test_the_cues_of_tails_are_those_of_the_ieee_arithmetic(tmp_path):
+    """The ITD, IC and precedence cues of the decays in the gap: computed where the
+    thread flushes subnormals (the default), they equal those of the IEEE arithmetic
+    throughout (AFE_KEEP_SUBNORMALS=1, as the AFE computes), where the flushed products
+    had made the diotic tail's ITD -1.1 ms instead of 0 and precedence's ILD NaN."""
+    npz = tmp_path / "keep.npz"
+    code = (
+        "import sys, numpy as np; sys.path.insert(0, sys.argv[2]);"
+        "import test_silence as t; np.savez(sys.argv[1], **t.cues())"
+    )
+    here = os.path.dirname(os.path.abspath(__file__))
+    env = dict(os.environ, AFE_KEEP_SUBNORMALS="1")
+    subprocess.run([sys.executable, "-c", code, str(npz), here], check=True, env=env)
+    keep = np.load(npz)
+    flushed = cues()
+    for key in ["itd_mono", "ic_mono", "precedence_itd_mono", "precedence_ild_mono"]:
+        a, b = flushed[key], keep[key]
+        same = (a == b) | (np.isnan(a) & np.isnan(b)) | (np.abs(a - b) <= 1e-12)
+        assert same.all(), (key, np.argwhere(~same)[:5])
