@@ -287,3 +287,39 @@ fn a_signal_stops_the_wait_on_a_fifo() {
         drop(writer);
     }
 }
+
+/// `--params` naming a FIFO that no one writes (issue 57): the first SIGINT or SIGTERM
+/// ends the wait at once (it was ignored).
+#[test]
+fn a_signal_stops_the_wait_on_a_params_fifo() {
+    let dir = tmp("params-fifo");
+    std::fs::create_dir_all(&dir).expect("dir");
+    let input = dir.join("in.wav");
+    write_wav(&input, 2, 16000, 16000, tone);
+    for sig in ["-INT", "-TERM"] {
+        let fifo = dir.join(format!("params{sig}.fifo"));
+        let _ = std::fs::remove_file(&fifo);
+        let made = Command::new("mkfifo").arg(&fifo).status().expect("mkfifo");
+        assert!(made.success());
+        let out = dir.join("out.npz");
+        let child = spawn(&[
+            "extract",
+            input.to_str().expect("utf-8"),
+            "-r",
+            "ild",
+            "--params",
+            fifo.to_str().expect("utf-8"),
+            "-o",
+            out.to_str().expect("utf-8"),
+        ]);
+        std::thread::sleep(Duration::from_millis(500));
+        let signalled = Instant::now();
+        signal(&child, sig);
+        let res = child.wait_with_output().expect("wait");
+        let stderr = String::from_utf8_lossy(&res.stderr);
+        assert_eq!(res.status.code(), Some(130), "{sig}: {stderr}");
+        assert!(signalled.elapsed() < Duration::from_secs(1), "{sig}");
+        assert!(!out.exists(), "{sig}: an output was written");
+    }
+    std::fs::remove_dir_all(&dir).expect("clean");
+}

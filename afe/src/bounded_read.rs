@@ -7,7 +7,9 @@ use std::path::Path;
 
 /// The text of `path`, if it holds at most `max_bytes` bytes of UTF-8. Beyond the bound,
 /// an error of kind `InvalidData` saying `larger than N KiB`, after reading at most
-/// `max_bytes + 1` bytes.
+/// `max_bytes + 1` bytes. A FIFO or device is opened and read inside an
+/// [`afe_core::interrupt::InputWait`], so that the CLI's first SIGINT or SIGTERM ends a
+/// wait for a writer that never comes (`--params` naming a FIFO).
 ///
 /// ```
 /// let e = afe::bounded_read::read_text(std::path::Path::new("/dev/zero"), 1024).unwrap_err();
@@ -15,6 +17,8 @@ use std::path::Path;
 /// ```
 pub fn read_text(path: &Path, max_bytes: u64) -> std::io::Result<String> {
     let mut bytes = Vec::new();
+    let blocking = std::fs::metadata(path).is_ok_and(|m| !m.is_file());
+    let _wait = blocking.then(afe_core::interrupt::InputWait::start);
     std::fs::File::open(path)?
         .take(max_bytes + 1)
         .read_to_end(&mut bytes)?;

@@ -1115,3 +1115,25 @@ def test_summary_of_plain_arrays_says_what_it_accepts():
     message = _raises(lambda: afe.summary({"a": np.zeros(3)}))
     assert message.startswith("summary of signals: ['a'] is a ndarray, not an afe.Signal"), message
     assert "afe.Manager" in message
+
+
+def test_a_whole_signal_beyond_the_memory_raises_and_the_interpreter_lives():
+    """Issue 57, item 2: afe.process of 20 s of moc at 44.1 kHz under an address-space
+    limit of what the interpreter holds plus 700 MB killed the interpreter ("memory
+    allocation ... failed"); it raises MemoryError naming what it would take."""
+    code = (
+        "import resource, numpy as np, afe\n"
+        "used = int(open('/proc/self/status').read().split('VmSize:')[1].split()[0]) * 1024\n"
+        "x = 0.1 * np.sin(0.05 * np.arange(20 * 44100))[:, None] * np.ones(2)\n"
+        "resource.setrlimit(resource.RLIMIT_AS, (used + 700_000_000, resource.RLIM_INFINITY))\n"
+        "try:\n"
+        "    afe.process(x, 44100, ['moc'])\n"
+        "    print('computed')\n"
+        "except MemoryError as e:\n"
+        "    print('refused:', e)\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "AFE_MEMORY_AVAILABLE_GB"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         env=env, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.startswith("refused: "), out.stdout
