@@ -369,7 +369,7 @@ impl Direct {
 /// digital silence, 300 dB and more below the signal, whose correlation's shape (its
 /// peak, the ITD) the AFE still computes. Not where every product underflows to 0 in
 /// IEEE arithmetic too (below 2^−1076), nor where the thread keeps subnormals.
-fn in_subnormal_band(left: f64, right: f64) -> bool {
+pub(crate) fn in_subnormal_band(left: f64, right: f64) -> bool {
     // log2 of the largest product (the product itself could flush)
     let product = left.log2() + right.log2();
     left > 0.0

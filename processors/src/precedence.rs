@@ -656,9 +656,8 @@ impl Model {
         }
     }
 
-    /// Whether some channel's largest magnitudes in the two frames, multiplied, lie
-    /// where flushing subnormals would change the cues (as the cross-correlation's
-    /// `in_subnormal_band`: between 2^−1076 and 1e−280).
+    /// Whether some channel's largest magnitudes in the two frames lie where flushing
+    /// subnormals would change the cues (the cross-correlation's `in_subnormal_band`).
     fn in_subnormal_band(&mut self, left: Frame<'_>, right: Frame<'_>) -> bool {
         for (peaks, frame) in self.tail_peaks.iter_mut().zip([left, right]) {
             peaks.fill(0.0);
@@ -669,10 +668,7 @@ impl Model {
             }
         }
         let [l, r] = &self.tail_peaks;
-        l.iter().zip(r).any(|(&a, &b)| {
-            let product = a.log2() + b.log2();
-            a > 0.0 && b > 0.0 && (-1076.0..-930.1).contains(&product)
-        })
+        (l.iter().zip(r)).any(|(&a, &b)| crate::crosscorrelation::in_subnormal_band(a, b))
     }
 
     fn cues(&mut self, itd: &mut [f64], ild: &mut [f64], cc: &mut [f64]) {

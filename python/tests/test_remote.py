@@ -447,7 +447,9 @@ def test_eight_clients_lose_nothing_for_30_s_while_a_stalled_one_loses_counted_f
                 got.append(frames)
         assert got, "the stalled client got nothing after it resumed"
         lost = slow.lost_messages
-        assert lost > 0 and got[0].seq >= lost, (lost, [f.seq for f in got[:3]])
+        # (blocks can still be lost after it resumed, on a loaded machine: the count
+        # covers every block up to the last received)
+        assert lost > 0 and got[0].seq > 0, (lost, [f.seq for f in got[:3]])
         assert lost == got[-1].seq + 1 - len(got), "each block not received is counted once"
         assert slow.lost_frames == {"innerhaircell_left": lost * BLOCK,
                                     "innerhaircell_right": lost * BLOCK}, \

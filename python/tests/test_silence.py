@@ -113,18 +113,23 @@ def test_tails_after_digital_silence_follow_the_afes_arithmetic():
     check_against_the_spec(run())
 
 
-def test_tails_follow_it_with_subnormals_kept_too(tmp_path):
-    """AFE_KEEP_SUBNORMALS=1 (read once per process): the same, in a process of its own."""
-    npz = tmp_path / "out.npz"
+def keeping_subnormals(function, tmp_path):
+    """`function()` of this module (a dict of arrays) in a process of its own with
+    AFE_KEEP_SUBNORMALS=1, which afe reads once per process."""
+    npz = tmp_path / f"{function}.npz"
     code = (
         "import sys, numpy as np; sys.path.insert(0, sys.argv[2]);"
-        "import test_silence as t; np.savez(sys.argv[1], **t.run())"
+        f"import test_silence as t; np.savez(sys.argv[1], **t.{function}())"
     )
     here = os.path.dirname(os.path.abspath(__file__))
     env = dict(os.environ, AFE_KEEP_SUBNORMALS="1")
     subprocess.run([sys.executable, "-c", code, str(npz), here], check=True, env=env)
     z = np.load(npz)
-    check_against_the_spec({k: z[k] for k in z.files})
+    return {k: z[k] for k in z.files}
+
+
+def test_tails_follow_it_with_subnormals_kept_too(tmp_path):
+    check_against_the_spec(keeping_subnormals("run", tmp_path))
 
 
 def cues():
@@ -137,15 +142,7 @@ def test_the_cues_of_tails_are_those_of_the_ieee_arithmetic(tmp_path):
     thread flushes subnormals (the default), they equal those of the IEEE arithmetic
     throughout (AFE_KEEP_SUBNORMALS=1, as the AFE computes), where the flushed products
     had made the diotic tail's ITD -1.1 ms instead of 0 and precedence's ILD NaN."""
-    npz = tmp_path / "keep.npz"
-    code = (
-        "import sys, numpy as np; sys.path.insert(0, sys.argv[2]);"
-        "import test_silence as t; np.savez(sys.argv[1], **t.cues())"
-    )
-    here = os.path.dirname(os.path.abspath(__file__))
-    env = dict(os.environ, AFE_KEEP_SUBNORMALS="1")
-    subprocess.run([sys.executable, "-c", code, str(npz), here], check=True, env=env)
-    keep = np.load(npz)
+    keep = keeping_subnormals("cues", tmp_path)
     flushed = cues()
     for key in ["itd_mono", "ic_mono", "precedence_itd_mono", "precedence_ild_mono"]:
         a, b = flushed[key], keep[key]
