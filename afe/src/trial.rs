@@ -263,6 +263,23 @@ pub struct Trials {
     thread: Option<JoinHandle<()>>,
 }
 
+/// Puts the calling thread (the trials') below the stream's threads, so that a trial
+/// never takes their cores: the ordinary policy (not the SCHED_FIFO that threads started
+/// after `--rt` inherit) at nice 10. Best effort: neither step needs a privilege, and a
+/// trial that runs at the stream's own priority still measures the same cost.
+fn below_the_stream() {
+    use thread_priority::{
+        set_thread_priority_and_policy, thread_native_id, NormalThreadSchedulePolicy,
+        ThreadPriority, ThreadPriorityValue, ThreadSchedulePolicy,
+    };
+    let normal = ThreadSchedulePolicy::Normal(NormalThreadSchedulePolicy::Other);
+    // 22 on the crate's 0-99 scale is nice 10 for the ordinary policy
+    if let Ok(value) = ThreadPriorityValue::try_from(22u8) {
+        let priority = ThreadPriority::Crossplatform(value);
+        let _ = set_thread_priority_and_policy(thread_native_id(), priority, normal);
+    }
+}
+
 impl Trials {
     /// Starts the thread; at most `slots` trials wait or run at once.
     pub fn start(slots: usize) -> std::io::Result<Trials> {
@@ -272,6 +289,7 @@ impl Trials {
         let thread = std::thread::Builder::new()
             .name("afe-trials".into())
             .spawn(move || {
+                below_the_stream();
                 for (ticket, shape, requests, enough_ms) in from {
                     if back
                         .send((ticket, measure(shape, &requests, enough_ms)))
