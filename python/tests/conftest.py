@@ -1,6 +1,8 @@
 """Shared fixtures: paths of the repository's data and of the `afe` CLI binary."""
 import os
 import shutil
+import subprocess
+import sys
 
 import pytest
 
@@ -30,3 +32,24 @@ def cli():
     if found:
         return found
     pytest.fail("the afe CLI is not built: run `cargo build --release` (or set AFE_CLI)")
+
+
+def under_address_limit(setup, call, headroom_bytes, timeout):
+    """Runs `setup` (Python source, which may define `x`), then, under an address-space
+    limit of what the interpreter then holds plus `headroom_bytes`, `call` (one
+    expression), in an interpreter of its own without AFE_MEMORY_AVAILABLE_GB; prints
+    `computed` or `refused: <the MemoryError>`. Returns the finished process."""
+    code = (
+        "import resource, numpy as np, afe\n"
+        f"{setup}\n"
+        "used = int(open('/proc/self/status').read().split('VmSize:')[1].split()[0]) * 1024\n"
+        f"resource.setrlimit(resource.RLIMIT_AS, (used + {headroom_bytes}, resource.RLIM_INFINITY))\n"
+        "try:\n"
+        f"    {call}\n"
+        "    print('computed')\n"
+        "except MemoryError as e:\n"
+        "    print('refused:', e)\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "AFE_MEMORY_AVAILABLE_GB"}
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env=env, timeout=timeout)

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import afe
+from conftest import under_address_limit
 
 
 def signal(n=8000, fs=16000):
@@ -1121,19 +1122,8 @@ def test_a_whole_signal_beyond_the_memory_raises_and_the_interpreter_lives():
     """Issue 57, item 2: afe.process of 20 s of moc at 44.1 kHz under an address-space
     limit of what the interpreter holds plus 700 MB killed the interpreter ("memory
     allocation ... failed"); it raises MemoryError naming what it would take."""
-    code = (
-        "import resource, numpy as np, afe\n"
-        "used = int(open('/proc/self/status').read().split('VmSize:')[1].split()[0]) * 1024\n"
-        "x = 0.1 * np.sin(0.05 * np.arange(20 * 44100))[:, None] * np.ones(2)\n"
-        "resource.setrlimit(resource.RLIMIT_AS, (used + 700_000_000, resource.RLIM_INFINITY))\n"
-        "try:\n"
-        "    afe.process(x, 44100, ['moc'])\n"
-        "    print('computed')\n"
-        "except MemoryError as e:\n"
-        "    print('refused:', e)\n"
-    )
-    env = {k: v for k, v in os.environ.items() if k != "AFE_MEMORY_AVAILABLE_GB"}
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         env=env, timeout=120)
+    out = under_address_limit(
+        "x = 0.1 * np.sin(0.05 * np.arange(20 * 44100))[:, None] * np.ones(2)",
+        "afe.process(x, 44100, ['moc'])", 700_000_000, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.startswith("refused: "), out.stdout

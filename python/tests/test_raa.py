@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import afe
+from conftest import under_address_limit
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 WAV = os.path.join(ROOT, "data", "raa_speech_16k.wav")
@@ -141,18 +142,9 @@ def test_a_signal_too_long_for_the_memory_is_a_memory_error(monkeypatch):
 
 def test_raa_under_an_address_space_limit_raises_and_the_interpreter_lives():
     """60 s at 16 kHz under RLIMIT_AS of what the interpreter holds plus 300 MB."""
-    code = (
-        "import resource, numpy as np, afe\n"
-        "used = int(open('/proc/self/status').read().split('VmSize:')[1].split()[0]) * 1024\n"
-        "resource.setrlimit(resource.RLIMIT_AS, (used + 300_000_000, resource.RLIM_INFINITY))\n"
-        "x = 0.1 * np.sin(0.05 * np.arange(60 * 16000))[:, None] * np.ones(2)\n"
-        "try:\n"
-        "    afe.raa(x, 16000)\n"
-        "except MemoryError as e:\n"
-        "    print('refused:', e)\n"
-    )
-    env = {k: v for k, v in os.environ.items() if k != "AFE_MEMORY_AVAILABLE_GB"}
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         env=env, timeout=60)
+    # the signal made under the limit, as the RAA's own input
+    out = under_address_limit(
+        "", "afe.raa(0.1 * np.sin(0.05 * np.arange(60 * 16000))[:, None] * np.ones(2), 16000)",
+        300_000_000, timeout=60)
     assert out.returncode == 0, out.stderr
     assert "refused: the RAA of 60.0 s of signal would take about" in out.stdout, out.stdout
