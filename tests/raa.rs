@@ -9,7 +9,7 @@ use std::path::Path;
 use afe::raa::{raa, Raa, RaaConstants, RaaError};
 
 mod common;
-use common::{afe, assert_clear_error, npz_arrays, tmp, tone, write_wav};
+use common::{afe, afe_under_ulimit, assert_clear_error, npz_arrays, tmp, tone, write_wav};
 
 /// The reference arrays by name (shape, values as float64).
 fn reference() -> BTreeMap<String, (Vec<usize>, Vec<f64>)> {
@@ -465,18 +465,9 @@ fn a_signal_too_long_for_the_memory_is_refused_before_the_raa_runs() {
     let long = tmp("raa_sixty.wav");
     write_wav(&long, 2, 16000, 60 * 16000, tone);
     let out_file = tmp("raa_memory.npz");
-    let script = format!(
-        "ulimit -v 600000 && exec '{}' raa '{}' -o '{}'",
-        env!("CARGO_BIN_EXE_afe"),
-        long.display(),
-        out_file.display()
-    );
     let started = std::time::Instant::now();
-    let out = std::process::Command::new("sh")
-        .args(["-c", &script])
-        .env_remove("AFE_MEMORY_AVAILABLE_GB")
-        .output()
-        .expect("run sh");
+    let (long_s, out_s) = (long.display().to_string(), out_file.display().to_string());
+    let out = afe_under_ulimit(Some(600_000), &["raa", &long_s, "-o", &out_s], &[]);
     assert_eq!(out.status.code(), Some(1), "{out:?}");
     assert_clear_error(
         &out,

@@ -6,7 +6,7 @@ mod common;
 
 use std::time::{Duration, Instant};
 
-use common::{afe, assert_clear_error, tmp, tone, write_wav};
+use common::{afe, afe_under_ulimit, assert_clear_error, tmp, tone, write_wav};
 
 /// The number in `text` between `before` and the next `after`.
 fn number_between(text: &str, before: &str, after: &str) -> f64 {
@@ -224,27 +224,6 @@ fn messages_name_what_is_wrong() {
     );
 }
 
-/// Runs `afe args...` under `ulimit -v` of `limit_kb` (none: unlimited) with `env`, the
-/// memory setting removed unless given.
-fn afe_limited(limit_kb: Option<u64>, args: &[&str], env: &[(&str, &str)]) -> std::process::Output {
-    let quoted: Vec<String> = args.iter().map(|a| format!("'{a}'")).collect();
-    let limit = limit_kb.map_or(String::new(), |kb| format!("ulimit -v {kb} && "));
-    let script = format!(
-        "{limit}exec '{}' {}",
-        env!("CARGO_BIN_EXE_afe"),
-        quoted.join(" ")
-    );
-    let mut cmd = std::process::Command::new("sh");
-    cmd.args(["-c", &script])
-        .env_remove("AFE_MEMORY_AVAILABLE_GB")
-        .env_remove("AFE_WHOLE_SIGNAL_LIMIT_MB")
-        .env("RUST_BACKTRACE", "0");
-    for (k, v) in env {
-        cmd.env(k, v);
-    }
-    cmd.output().expect("run sh")
-}
-
 /// An address-space limit (kB), the arguments and the environment of one run.
 type Case<'a> = (u64, &'a [&'a str], &'a [(&'a str, &'a str)]);
 
@@ -304,7 +283,7 @@ fn whole_signals_beyond_the_memory_available_are_refused_not_aborted() {
     ];
     for (limit, args, env) in cases {
         let started = Instant::now();
-        let out = afe_limited(Some(limit), args, env);
+        let out = afe_under_ulimit(Some(limit), args, env);
         assert_eq!(out.status.code(), Some(1), "{args:?}: {out:?}");
         assert_clear_error(
             &out,
@@ -354,7 +333,7 @@ fn whole_signals_under_any_address_space_limit_are_computed_or_refused() {
             for limit_mb in (250..=1300).step_by(150) {
                 let mut args = vec!["extract", w, "-o", o, "--threads", threads];
                 args.extend_from_slice(request);
-                let out = afe_limited(Some(limit_mb * 1000), &args, &[]);
+                let out = afe_under_ulimit(Some(limit_mb * 1000), &args, &[]);
                 let err = String::from_utf8_lossy(&out.stderr);
                 match out.status.code() {
                     Some(0) => computed += 1,
@@ -375,7 +354,7 @@ fn whole_signals_under_any_address_space_limit_are_computed_or_refused() {
         computed > 0 && refused > 0,
         "{computed} computed, {refused} refused"
     );
-    let out = afe_limited(
+    let out = afe_under_ulimit(
         Some(400_000),
         &["extract", w, "-o", o, "-r", "moc"],
         &[("AFE_MEMORY_AVAILABLE_GB", "1000")],
@@ -404,7 +383,7 @@ fn bad_values_of_the_limit_variables_are_refused_by_name() {
         "AFE_WHOLE_SIGNAL_LIMIT_MB",
     ] {
         for value in ["abc", "0", "-1", "nan", "inf"] {
-            let out = afe_limited(
+            let out = afe_under_ulimit(
                 None,
                 &["extract", w, "-r", "ild", "-o", o],
                 &[(variable, value)],
@@ -426,7 +405,7 @@ fn bad_values_of_the_limit_variables_are_refused_by_name() {
         } else {
             value
         };
-        let out = afe_limited(
+        let out = afe_under_ulimit(
             None,
             &["extract", w, "-r", "ild", "-o", o],
             &[(variable, value)],
@@ -434,7 +413,7 @@ fn bad_values_of_the_limit_variables_are_refused_by_name() {
         assert!(out.status.success(), "{variable}={value}: {out:?}");
         std::fs::remove_file(&out_file).expect("written");
     }
-    let out = afe_limited(
+    let out = afe_under_ulimit(
         None,
         &["extract", w, "-r", "ild", "-o", o],
         &[("AFE_WHOLE_SIGNAL_LIMIT_MB", "4.5")],

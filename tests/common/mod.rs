@@ -141,3 +141,28 @@ pub fn assert_clear_error(out: &Output, needle: &str, output_file: &Path) {
     assert!(!err.contains("panicked"), "{err}");
     assert!(!output_file.exists(), "no output file on error");
 }
+
+/// Runs `afe args...` under `ulimit -v` of `limit_kb` (none: unlimited) with `env`, the
+/// memory setting removed unless given.
+pub fn afe_under_ulimit(
+    limit_kb: Option<u64>,
+    args: &[&str],
+    env: &[(&str, &str)],
+) -> std::process::Output {
+    let quoted: Vec<String> = args.iter().map(|a| format!("'{a}'")).collect();
+    let limit = limit_kb.map_or(String::new(), |kb| format!("ulimit -v {kb} && "));
+    let script = format!(
+        "{limit}exec '{}' {}",
+        env!("CARGO_BIN_EXE_afe"),
+        quoted.join(" ")
+    );
+    let mut cmd = std::process::Command::new("sh");
+    cmd.args(["-c", &script])
+        .env_remove("AFE_MEMORY_AVAILABLE_GB")
+        .env_remove("AFE_WHOLE_SIGNAL_LIMIT_MB")
+        .env("RUST_BACKTRACE", "0");
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    cmd.output().expect("run sh")
+}
