@@ -406,17 +406,11 @@ fn a_departed_clients_subscriptions_are_removed_and_its_room_given_to_others() {
     for (session, _token) in [a, b] {
         session.close().wait().expect("close");
     }
-    let start = Instant::now();
-    loop {
-        let r = report(&watcher);
-        if r["subscriptions"].as_array().is_some_and(Vec::is_empty) && r["clients"] == 0 {
-            break;
-        }
-        assert!(
-            start.elapsed() < Duration::from_secs(10),
-            "the departed clients' subscriptions stayed: {r}"
-        );
-    }
+    until_no_client(
+        &watcher,
+        Duration::from_secs(10),
+        "the departed clients' subscriptions stayed",
+    );
     // and two new clients get the whole room
     let _c = fill();
     let _d = fill();
@@ -495,17 +489,11 @@ fn a_foreign_token_under_a_departed_clients_id_keeps_nothing_alive() {
     assert_eq!(report(&watcher)["clients"], 1);
     // the victim's session goes (as a killed process's link does)
     victim.close().wait().expect("close");
-    let start = Instant::now();
-    loop {
-        let r = report(&watcher);
-        if r["subscriptions"].as_array().is_some_and(Vec::is_empty) && r["clients"] == 0 {
-            break;
-        }
-        assert!(
-            start.elapsed() < Duration::from_secs(5),
-            "the departed client's subscription is still published: {r}"
-        );
-    }
+    until_no_client(
+        &watcher,
+        Duration::from_secs(5),
+        "the departed client's subscription is still published",
+    );
     // and its frames stop
     let frames = watcher.declare_subscriber(&key).wait().expect("subscriber");
     std::thread::sleep(Duration::from_millis(300));
@@ -518,6 +506,19 @@ fn a_foreign_token_under_a_departed_clients_id_keeps_nothing_alive() {
             .is_none(),
         "frames still published"
     );
+}
+
+/// Polls the server's report through `watcher` until it has no client and no
+/// subscription, failing with `what` and the last report after `within`.
+fn until_no_client(watcher: &zenoh::Session, within: Duration, what: &str) {
+    let start = Instant::now();
+    loop {
+        let r = report(watcher);
+        if r["subscriptions"].as_array().is_some_and(Vec::is_empty) && r["clients"] == 0 {
+            return;
+        }
+        assert!(start.elapsed() < within, "{what}: {r}");
+    }
 }
 
 /// Issue 57, item 11: a subscription whose measured cost would take the stream past
