@@ -5,8 +5,10 @@
 //! runs, so that one heavy request is refused instead of costing every client its
 //! deadlines.
 //!
-//! The trial's cost is the least time of a few blocks after the longest window has
-//! filled (scheduling noise only ever adds time). It is an upper bound of what placing
+//! The trial's cost is the least CPU time its thread spends on a block, over a few blocks
+//! after the longest window has filled: the trial runs below the stream's priority, and
+//! the time it waits for a core is not what the request costs (cache misses only ever
+//! add time, hence the least). It is an upper bound of what placing
 //! the request adds: in the stream's graph it shares the processors that equal ones
 //! already there, which the trial computes again. Requests that add no processor at all
 //! ([`shared_entirely`]) need no trial.
@@ -25,8 +27,12 @@ use crate::stream::Timing;
 const TIMED_BLOCKS: usize = 3;
 /// Longest warm-up, in seconds of signal: a longer window is costed before it fills.
 const MAX_WARMUP_S: f64 = 2.0;
-/// Longest a trial runs, wall time; a slower one stops with the cost measured so far.
+/// Longest a trial computes (CPU time of its thread); a slower one stops with the cost
+/// measured so far.
 const MAX_TRIAL: Duration = Duration::from_millis(1500);
+/// Longest a trial waits and computes together (wall time): a trial starved of the cores
+/// for this long stops too, rather than keep its client waiting.
+const MAX_TRIAL_WALL: Duration = Duration::from_secs(10);
 /// Peak amplitude of the trial's noise (a silent input would take the shortcuts of
 /// silence and cost less than a signal).
 const NOISE: f64 = 0.1;
@@ -141,9 +147,10 @@ pub fn describe(requests: &[(String, ParamMap)]) -> String {
 }
 
 /// Places `requests` in a graph of their own shaped as the stream and times its blocks
-/// on noise: blocks until the longest window has filled, then three more; the cost is
-/// the least of these. Stops early, with the cost so far, once two timed blocks in a row
-/// took more than `enough_ms` (the answer is known) or after 1.5 s.
+/// on noise (CPU time of the calling thread): blocks until the longest window has
+/// filled, then three more; the cost is the least of these. Stops early, with the cost
+/// so far, once two timed blocks in a row took more than `enough_ms` (the answer is
+/// known), after 1.5 s of computing or after 10 s in all.
 pub fn measure(
     shape: Shape,
     requests: &[(String, ParamMap)],
@@ -171,6 +178,8 @@ pub fn measure(
     let mut noise = Noise(0x9E37_79B9_7F4A_7C15);
     let mut input = vec![vec![0.0; block]; shape.ears];
     let start = Instant::now();
+    let started = thread_cpu();
+    let out_of_time = || thread_cpu() - started > MAX_TRIAL || start.elapsed() > MAX_TRIAL_WALL;
     let mut least = f64::INFINITY;
     let mut over = 0;
     for k in 0..warmup + TIMED_BLOCKS {
@@ -178,23 +187,23 @@ pub fn measure(
             ear.iter_mut().for_each(|v| *v = NOISE * noise.next());
         }
         let chunk: Vec<&[f64]> = input.iter().map(Vec::as_slice).collect();
-        let t = Instant::now();
+        let t = thread_cpu();
         mgr.process_chunk(&chunk)
             .map_err(|source| TrialError::Run {
                 what: describe(requests),
                 source,
             })?;
-        let ms = t.elapsed().as_secs_f64() * 1e3;
+        let ms = (thread_cpu() - t).as_secs_f64() * 1e3;
         if k + 1 < warmup {
             // the windows are filling: a block may cost less than it will
-            if start.elapsed() > MAX_TRIAL {
+            if out_of_time() {
                 return Ok(Cost { ms, partial: true });
             }
             continue;
         }
         least = least.min(ms);
         over = if ms > enough_ms { over + 1 } else { 0 };
-        if over >= 2 || start.elapsed() > MAX_TRIAL {
+        if over >= 2 || out_of_time() {
             return Ok(Cost {
                 ms: least,
                 partial: k + 1 < warmup + TIMED_BLOCKS,
@@ -236,6 +245,15 @@ pub fn shared_entirely(mgr: &Manager, requests: &[(String, ParamMap)]) -> bool {
         let chain = alone.signal_chain(r);
         there.iter().any(|s| mgr.signal_chain(s.source) == chain)
     })
+}
+
+/// The CPU time the calling thread has used: what a trial's blocks cost, whatever time
+/// the thread spent waiting for a core.
+fn thread_cpu() -> Duration {
+    use nix::time::{clock_gettime, ClockId};
+    clock_gettime(ClockId::CLOCK_THREAD_CPUTIME_ID)
+        .map(Duration::from)
+        .unwrap_or_default()
 }
 
 /// A small xorshift generator: uniform noise in [-1, 1), the same every trial.
