@@ -24,8 +24,12 @@ pub(super) const SUB_QUEUE: usize = 32;
 /// How long a new subscription's messages wait for its client's subscriber.
 const MATCH_WAIT: Duration = Duration::from_secs(2);
 /// A put that takes longer than this met a full link (a put waits up to 20 ms for room
-/// before it drops, see `Server::start`): the client's link is congested.
+/// before it drops, see `Server::start`), or its thread lost its core meanwhile.
 const CONGESTED_PUT: Duration = Duration::from_millis(18);
+/// Slow puts in a row that tell a congested link: a congested link makes every put wait,
+/// while a thread that lost its core for a while (a busy or virtual host) makes one slow
+/// put and then catches up.
+const CONGESTED_PUTS: u32 = 2;
 /// How long a congested client's messages are dropped without a put, so that its link
 /// holds no publishing thread (a client that reads again gets messages after this).
 const CONGESTION_BACKOFF: Duration = Duration::from_millis(100);
@@ -62,8 +66,33 @@ pub(super) struct ClientOut {
     /// Messages sent and not yet taken: the client is in the ready queue or held by a
     /// thread exactly while this is above zero.
     pending: AtomicUsize,
-    /// Until when its messages are dropped (a congested link), for the serving thread.
-    congested_until: Mutex<Option<Instant>>,
+    /// Its link's state, for the serving thread.
+    link: Mutex<Link>,
+}
+
+/// A client's link as its puts tell it.
+#[derive(Default)]
+struct Link {
+    /// Slow puts in a row.
+    slow_puts: u32,
+    /// Until when its messages are dropped without a put (a congested link).
+    congested_until: Option<Instant>,
+}
+
+impl Link {
+    /// Counts a put that took `took`: the link is congested after [`CONGESTED_PUTS`]
+    /// slow ones in a row, and its messages are then dropped for [`CONGESTION_BACKOFF`].
+    fn put_took(&mut self, took: Duration) {
+        self.slow_puts = if took > CONGESTED_PUT {
+            self.slow_puts + 1
+        } else {
+            0
+        };
+        self.congested_until = (self.slow_puts >= CONGESTED_PUTS).then(|| {
+            self.slow_puts = 0;
+            Instant::now() + CONGESTION_BACKOFF
+        });
+    }
 }
 
 /// The audio thread's end of a subscription: its buffers, and where they go.
@@ -138,7 +167,7 @@ impl Pool {
             queue,
             inbox: Mutex::new(inbox),
             pending: AtomicUsize::new(0),
-            congested_until: Mutex::new(None),
+            link: Mutex::new(Link::default()),
         })
     }
 
@@ -254,15 +283,39 @@ fn deliver(client: &ClientOut, sub: &SubOutlet, message: Vec<u8>) {
         sub.matched.store(true, Ordering::Relaxed);
     }
     while let Some(m) = held.pop_front() {
-        let mut congested = lock(&client.congested_until);
-        if congested.is_some_and(|until| Instant::now() < until) {
+        let mut link = lock(&client.link);
+        if link
+            .congested_until
+            .is_some_and(|until| Instant::now() < until)
+        {
             sub.dropped.fetch_add(1, Ordering::Relaxed);
         } else {
             let start = Instant::now();
             let _ = sub.publisher.put(m.as_slice()).wait();
-            *congested =
-                (start.elapsed() > CONGESTED_PUT).then(|| Instant::now() + CONGESTION_BACKOFF);
+            link.put_took(start.elapsed());
         }
         let _ = sub.back.try_send(m);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn one_slow_put_is_a_lost_core_and_two_in_a_row_a_congested_link() {
+        let slow = CONGESTED_PUT + Duration::from_millis(80);
+        let fast = Duration::from_micros(50);
+        let mut link = Link::default();
+        link.put_took(slow);
+        assert!(link.congested_until.is_none(), "one slow put");
+        link.put_took(fast);
+        link.put_took(slow);
+        assert!(link.congested_until.is_none(), "slow puts apart");
+        link.put_took(slow);
+        let until = link.congested_until.expect("two slow puts in a row");
+        assert!(until > Instant::now() + CONGESTION_BACKOFF / 2);
+        link.put_took(fast);
+        assert!(link.congested_until.is_none(), "a fast put clears it");
     }
 }
