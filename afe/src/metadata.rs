@@ -119,7 +119,8 @@ pub fn nan_where(name: &str) -> Option<&'static str> {
         "duet" => "in a block of silence: the histogram is divided by its largest bin, 0 there",
         "autocorrelation" => {
             "at every lag of a frame whose input is all zero (digital silence, or a channel the \
-             hair cell rectified to 0): 0/0, as in the AFE"
+             hair cell rectified to 0): 0/0, as in the AFE; and of a frame whose lag 0 \
+             underflows to 0 in the AFE's arithmetic (a filter's decay, or a large ac_K)"
         }
         "precedence_ild" => "in a window whose input is all zero in both ears: 0/0, as in the AFE",
         "gabor" => {

@@ -304,8 +304,9 @@ impl Autocorrelation {
     /// arithmetic gives it where its powers sink into the subnormals: the powers and
     /// their inverse in IEEE arithmetic (subnormals kept, whatever the thread's
     /// flushing), then the AFE's divisions: the inverse's `1/N`, `a[j] = c[j]/(W − 1 − j)`
-    /// and `a[j]/a[0]`. Lag 0 may underflow to 0 there while other lags do not (±Inf, as
-    /// in the AFE).
+    /// and `a[j]/a[0]`. Where lag 0 underflows to 0 the AFE divides by it (±Inf at the lags
+    /// that did not underflow, NaN at the others): such a frame has no ACF, and is NaN at
+    /// every lag, as a frame whose every power underflows.
     #[cold]
     #[inline(never)]
     fn ieee_acf(&mut self, out: &mut [f64]) {
@@ -321,6 +322,10 @@ impl Autocorrelation {
         let n = self.fft.len() as f64;
         let top = (self.win.len() - 1) as f64;
         let a0 = self.acf[0] / n / top;
+        if a0 == 0.0 {
+            out.fill(f64::NAN);
+            return;
+        }
         for (j, (o, v)) in out.iter_mut().zip(&self.acf).enumerate() {
             *o = (v / n / (top - j as f64)) / a0;
         }
@@ -686,6 +691,31 @@ mod tests {
             );
             assert!((out[0] - 1.0).abs() < 1e-15, "K = {k}: lag 0 is {}", out[0]);
         }
+    }
+
+    #[test]
+    fn a_frame_whose_lag_0_underflows_is_nan_never_inf() {
+        // K = 45.5 sinks the powers of a frame near 1e-7 into the subnormals, where the
+        // AFE's lag 0 can round to 0 while later lags do not (a fuzz case)
+        let x = signal(40, 3);
+        let p = AutocorrelationParams {
+            spectral_exponent: 45.5,
+            ..Default::default()
+        };
+        let mut nan_frames = 0;
+        // the subnormal regime from 2.5e-7 to 3.7e-9, in steps of 0.8 in the powers
+        for e in 0..900 {
+            let factor = 3e-7 * 0.995f64.powi(e);
+            let x2: Vec<f64> = x.iter().map(|v| v * factor).collect();
+            let (lags, out) = run(&p, 1, &x2, &[40]);
+            assert!(out.iter().all(|v| !v.is_infinite()), "{factor:e}");
+            for frame in out.chunks(lags) {
+                let nan = frame.iter().filter(|v| v.is_nan()).count();
+                assert!(nan == 0 || nan == frame.len(), "{factor:e}: {frame:?}");
+                nan_frames += usize::from(nan > 0);
+            }
+        }
+        assert!(nan_frames > 0);
     }
 
     #[test]
