@@ -3,7 +3,7 @@
 //! must hold exactly what `afe extract` computes for each file; resume after a SIGKILL;
 //! shards; a store made with other parameters; npz stores; `--on-error stop`; manifests.
 
-mod common;
+use crate::common;
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};

@@ -1,7 +1,7 @@
 //! The `afe` command line contract: outputs, and one clear error line (non-zero exit, no
 //! output file) for every kind of bad input.
 
-mod common;
+use crate::common;
 
 use common::{
     afe, assert_clear_error, library_arrays, npz_arrays, npz_metadata, sorted, tmp, tone, write_wav,

@@ -11,7 +11,7 @@
 //!
 //! Environment: `AFE_FUZZ_SECONDS` (budget per target, default [`DEFAULT_SECONDS`]),
 //! `AFE_FUZZ_SEED` (run only this seed, for the whole budget), `AFE_FUZZ_CASE` (run only
-//! this case of that seed). A longer run: `AFE_FUZZ_SECONDS=600 cargo test --test fuzz`.
+//! this case of that seed). A longer run: `AFE_FUZZ_SECONDS=600 cargo test --test integration fuzz::`.
 
 use std::collections::VecDeque;
 use std::io::Write;
@@ -207,7 +207,7 @@ fn fuzz(target: &str, mut case: impl FnMut(&mut Rng, &Path) -> Result<(), String
         }
     };
     for (seed, label, part) in seeds {
-        let rerun = format!("AFE_FUZZ_SEED={seed} cargo test --test fuzz {target}");
+        let rerun = format!("AFE_FUZZ_SEED={seed} cargo test --test integration fuzz::{target}");
         say(&format!(
             "fuzz {target}: {label} seed {seed} (reproduce: {rerun})"
         ));

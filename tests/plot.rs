@@ -2,7 +2,7 @@
 //! content; SVG too; bad outputs and times are clear errors.
 #![cfg(feature = "plot")]
 
-mod common;
+use crate::common;
 
 use std::collections::HashSet;
 use std::path::Path;

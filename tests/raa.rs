@@ -8,7 +8,7 @@ use std::path::Path;
 
 use afe::raa::{raa, Raa, RaaConstants, RaaError};
 
-mod common;
+use crate::common;
 use common::{afe, afe_under_ulimit, assert_clear_error, npz_arrays, tmp, tone, write_wav};
 
 /// The reference arrays by name (shape, values as float64).

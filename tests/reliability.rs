@@ -2,7 +2,7 @@
 //! instead of an abort (4), bounded reads (8), several outputs written together or not at
 //! all (12), and messages that name what is wrong (12).
 
-mod common;
+use crate::common;
 
 use std::time::{Duration, Instant};
 

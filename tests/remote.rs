@@ -5,7 +5,7 @@
 //! frames, counted, without costing the others or the server a deadline.
 #![cfg(feature = "remote")]
 
-mod common;
+use crate::common;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

@@ -1,7 +1,7 @@
 //! The `afe stream` and `afe devices` command lines: a replayed file gives what `afe
 //! extract` gives, the JSON report holds exact counts, and bad input is one clear line.
 
-mod common;
+use crate::common;
 
 use std::process::Output;
 use std::time::{Duration, Instant};
