@@ -18,6 +18,8 @@ pub(crate) enum CliError {
     Wav(#[from] afe::wav::WavError),
     #[error(transparent)]
     Source(#[from] afe::bass_source::Error),
+    #[error(transparent)]
+    Spatial(#[from] afe_spatial::SpatialError),
     #[cfg(feature = "view")]
     #[error(transparent)]
     View(#[from] afe_view::ViewError),

@@ -10,6 +10,7 @@ mod error;
 mod extract;
 mod files;
 mod list;
+mod locate;
 mod memory_reuse;
 #[cfg(feature = "plot")]
 mod plot;
@@ -63,6 +64,9 @@ enum Command {
     /// clarity, apparent source width and listener envelopment, unscaled and scaled, with
     /// the levels and ITD fluctuations they come from.
     Raa(raa::RaaArgs),
+    /// Where the sources of a binaural WAV file are: azimuths for a head model (a measured
+    /// SOFA set or the rigid sphere), with their salience and per frame.
+    Locate(locate::LocateArgs),
     /// List the ALSA capture devices (needs a build with `--features alsa`).
     Devices,
     /// Run requests on a live stream (BASS port and block reader): WAV replay, a
@@ -113,6 +117,7 @@ fn main() -> ExitCode {
         Command::Plot(a) => a.run(),
         Command::Bench(a) => a.run(),
         Command::Raa(a) => a.run(),
+        Command::Locate(a) => a.run(),
         Command::Devices => devices::run(),
         Command::Batch(a) => a.run(),
         Command::Stream(a) => a.run(),

@@ -13,6 +13,7 @@ mod cli;
 mod custom_processor;
 mod determinism;
 mod fuzz;
+mod locate;
 mod moc_feedback;
 mod oracle;
 mod plot;

@@ -1,0 +1,426 @@
+//! Localisation by projection on the head's transfer functions, without training: per
+//! frame and frequency bin, how much of the binaural spectrum lies along a direction's
+//! steering vector V = [H_L, H_R] (the energy of the projection V V^H / V^H V over the
+//! bin's energy, 1 for a single source from there in a free field), averaged over the
+//! bins of the band; per frame a normalised score over azimuth, and the sources as the
+//! peaks of its average over the active frames.
+
+use realfft::num_complex::Complex64;
+use realfft::RealFftPlanner;
+
+use crate::head::Head;
+use crate::SpatialError;
+
+/// The localiser's parameters (AFE-style names through serde elsewhere: `loc_*`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LocaliserParams {
+    /// Frame length, s (`loc_wSizeSec`).
+    pub w_size_sec: f64,
+    /// Hop between frames, s (`loc_hSizeSec`).
+    pub h_size_sec: f64,
+    /// Lowest frequency used, Hz (`loc_fLowHz`).
+    pub f_low_hz: f64,
+    /// Highest frequency used, Hz (`loc_fHighHz`): the pinnae's cues lie above 5 kHz.
+    pub f_high_hz: f64,
+    /// Azimuth step of the sphere's grid, deg (`loc_stepDeg`; a measured head has its own).
+    pub step_deg: f64,
+    /// Frames quieter than the loudest by more than this are inactive, dB
+    /// (`loc_activityDb`).
+    pub activity_db: f64,
+}
+
+impl Default for LocaliserParams {
+    fn default() -> Self {
+        LocaliserParams {
+            w_size_sec: 0.04,
+            h_size_sec: 0.02,
+            f_low_hz: 100.0,
+            f_high_hz: 8000.0,
+            step_deg: 1.0,
+            activity_db: 30.0,
+        }
+    }
+}
+
+/// A source found: its head-relative azimuth and how salient it is.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Source {
+    /// Azimuth, deg in [0, 360) (0 = front, 90 = left).
+    pub azimuth_deg: f64,
+    /// Its peak's mean score over the active frames, 0 to 1.
+    pub salience: f64,
+}
+
+/// One frame's outcome.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Frame {
+    /// Its centre, s from the start.
+    pub t_s: f64,
+    /// Whether it holds sound (within `activity_db` of the loudest frame).
+    pub active: bool,
+    /// The azimuth of its best score, deg.
+    pub azimuth_deg: f64,
+}
+
+/// What [`locate`] found.
+#[derive(Debug, Clone)]
+pub struct Located {
+    /// The grid of the scores, deg.
+    pub azimuths_deg: Vec<f64>,
+    /// The sources, most salient first.
+    pub sources: Vec<Source>,
+    /// Every frame.
+    pub frames: Vec<Frame>,
+    /// The mean score over the active frames, per azimuth of the grid.
+    pub mean_score: Vec<f64>,
+}
+
+/// The sources in `ears` (left, right at `fs_hz`) as `head` hears them: at most
+/// `max_sources` (`None`: the salient ones, at least half the first's salience).
+pub fn locate(
+    head: &Head,
+    ears: [&[f64]; 2],
+    fs_hz: f64,
+    params: &LocaliserParams,
+    max_sources: Option<usize>,
+) -> Result<Located, SpatialError> {
+    let [left, right] = ears;
+    if left.len() != right.len() {
+        return Err(SpatialError::Invalid(format!(
+            "the ears have {} and {} samples: they must have as many",
+            left.len(),
+            right.len()
+        )));
+    }
+    if let Some(t) = left.iter().chain(right).position(|v| !v.is_finite()) {
+        return Err(SpatialError::Invalid(format!(
+            "sample {} is NaN or Inf",
+            t % left.len().max(1)
+        )));
+    }
+    let plan = Plan::new(head, fs_hz, params)?;
+    let (w, hop) = (plan.window.len(), plan.hop);
+    if left.len() < w {
+        return Err(SpatialError::Invalid(format!(
+            "{} samples are shorter than one {w}-sample frame ({} s)",
+            left.len(),
+            params.w_size_sec
+        )));
+    }
+    let n_frames = (left.len() - w) / hop + 1;
+    let mut scores = vec![0.0; n_frames * plan.azimuths.len()];
+    let mut energy = vec![0.0; n_frames];
+    let mut work = plan.work();
+    for t in 0..n_frames {
+        let at = t * hop;
+        let row = &mut scores[t * plan.azimuths.len()..(t + 1) * plan.azimuths.len()];
+        energy[t] = plan.frame(&left[at..at + w], &right[at..at + w], &mut work, row)?;
+    }
+    let loudest = energy.iter().fold(0.0f64, |m, &e| m.max(e));
+    let floor = loudest * 10f64.powf(-params.activity_db / 10.0);
+    let na = plan.azimuths.len();
+    let mut mean_score = vec![0.0; na];
+    let mut active_frames = 0usize;
+    let frames: Vec<Frame> = (0..n_frames)
+        .map(|t| {
+            let row = &scores[t * na..(t + 1) * na];
+            let active = loudest > 0.0 && energy[t] >= floor;
+            if active {
+                active_frames += 1;
+                mean_score.iter_mut().zip(row).for_each(|(m, s)| *m += s);
+            }
+            let best = argmax(row);
+            Frame {
+                t_s: (t * hop + w / 2) as f64 / fs_hz,
+                active,
+                azimuth_deg: refine(&plan.azimuths, row, best),
+            }
+        })
+        .collect();
+    if active_frames > 0 {
+        mean_score
+            .iter_mut()
+            .for_each(|m| *m /= active_frames as f64);
+    }
+    let sources = peaks(&plan.azimuths, &mean_score, max_sources);
+    Ok(Located {
+        azimuths_deg: plan.azimuths,
+        sources,
+        frames,
+        mean_score,
+    })
+}
+
+/// The designed localiser: window, transform, band and unit steering vectors.
+struct Plan {
+    azimuths: Vec<f64>,
+    window: Vec<f64>,
+    hop: usize,
+    fft: std::sync::Arc<dyn realfft::RealToComplex<f64>>,
+    /// First bin of the band.
+    first_bin: usize,
+    /// Per azimuth, per bin of the band: V/|V|.
+    steering: Vec<[Complex64; 2]>,
+    bins: usize,
+}
+
+/// A frame's scratch: the transform's input and the two spectra.
+struct Work {
+    time: Vec<f64>,
+    spectra: [Vec<Complex64>; 2],
+}
+
+impl Plan {
+    fn new(head: &Head, fs_hz: f64, p: &LocaliserParams) -> Result<Plan, SpatialError> {
+        let bad = |what: &str| Err(SpatialError::Invalid(what.to_string()));
+        if !(fs_hz.is_finite() && fs_hz >= 8000.0) {
+            return bad("the sampling rate must be at least 8000 Hz");
+        }
+        if !(p.w_size_sec > 0.0 && p.w_size_sec <= 1.0) {
+            return bad("loc_wSizeSec must be above 0 and at most 1 s");
+        }
+        if !(p.h_size_sec > 0.0 && p.h_size_sec <= p.w_size_sec) {
+            return bad("loc_hSizeSec must be above 0 and at most loc_wSizeSec");
+        }
+        if !(p.step_deg >= 0.1 && p.step_deg <= 30.0) {
+            return bad("loc_stepDeg must be between 0.1 and 30 degrees");
+        }
+        if !(p.activity_db > 0.0 && p.activity_db.is_finite()) {
+            return bad("loc_activityDb must be a positive number of dB");
+        }
+        let top = p.f_high_hz.min(fs_hz / 2.0).min(head.max_frequency_hz());
+        if !(p.f_low_hz >= 0.0 && p.f_low_hz < top) {
+            return Err(SpatialError::Invalid(format!(
+                "loc_fLowHz ({} Hz) must be below the band's top, {top} Hz (loc_fHighHz, \
+                 the Nyquist frequency and the head's)",
+                p.f_low_hz
+            )));
+        }
+        let w = ((p.w_size_sec * fs_hz).round() as usize).max(16);
+        let hop = ((p.h_size_sec * fs_hz).round() as usize).max(1);
+        let n = w.next_power_of_two();
+        let fft = RealFftPlanner::<f64>::new().plan_fft_forward(n);
+        let df = fs_hz / n as f64;
+        let first_bin = ((p.f_low_hz / df).ceil() as usize).max(1);
+        let last_bin = ((top / df).floor() as usize).min(n / 2 - 1);
+        let bins = last_bin + 1 - first_bin;
+        let freqs: Vec<f64> = (first_bin..=last_bin).map(|k| k as f64 * df).collect();
+        let azimuths = head.azimuths_deg(p.step_deg);
+        let mut steering = Vec::with_capacity(azimuths.len() * bins);
+        for &az in &azimuths {
+            for [l, r] in head.transfer(az, &freqs) {
+                let norm = (l.norm_sqr() + r.norm_sqr()).sqrt();
+                let unit = if norm > 0.0 { 1.0 / norm } else { 0.0 };
+                steering.push([l * unit, r * unit]);
+            }
+        }
+        // a periodic Hann window
+        let window = (0..w)
+            .map(|k| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * k as f64 / w as f64).cos())
+            .collect();
+        Ok(Plan {
+            azimuths,
+            window,
+            hop,
+            fft,
+            first_bin,
+            steering,
+            bins,
+        })
+    }
+
+    fn work(&self) -> Work {
+        Work {
+            time: self.fft.make_input_vec(),
+            spectra: [self.fft.make_output_vec(), self.fft.make_output_vec()],
+        }
+    }
+
+    /// Scores one frame into `row` (per azimuth: the mean over the band's bins of the
+    /// share of the bin's energy along its steering vector); returns the band's energy.
+    fn frame(
+        &self,
+        left: &[f64],
+        right: &[f64],
+        work: &mut Work,
+        row: &mut [f64],
+    ) -> Result<f64, SpatialError> {
+        for (ear, x) in [left, right].into_iter().enumerate() {
+            let w = self.window.len();
+            work.time[..w]
+                .iter_mut()
+                .zip(x.iter().zip(&self.window))
+                .for_each(|(t, (v, h))| *t = v * h);
+            work.time[w..].fill(0.0);
+            self.fft
+                .process(&mut work.time, &mut work.spectra[ear])
+                .map_err(|e| SpatialError::Transform(e.to_string()))?;
+        }
+        let band = self.first_bin..self.first_bin + self.bins;
+        let (xl, xr) = (&work.spectra[0][band.clone()], &work.spectra[1][band]);
+        let mut energy = 0.0;
+        let mut used = 0usize;
+        row.fill(0.0);
+        for (b, (l, r)) in xl.iter().zip(xr).enumerate() {
+            let e = l.norm_sqr() + r.norm_sqr();
+            if e <= 0.0 {
+                continue;
+            }
+            energy += e;
+            used += 1;
+            let inv = 1.0 / e;
+            for (a, score) in row.iter_mut().enumerate() {
+                let [vl, vr] = self.steering[a * self.bins + b];
+                *score += (vl.conj() * l + vr.conj() * r).norm_sqr() * inv;
+            }
+        }
+        if used > 0 {
+            row.iter_mut().for_each(|s| *s /= used as f64);
+        }
+        Ok(energy)
+    }
+}
+
+fn argmax(v: &[f64]) -> usize {
+    (0..v.len())
+        .max_by(|&a, &b| v[a].total_cmp(&v[b]))
+        .unwrap_or(0)
+}
+
+/// The azimuth of the peak at `k` of `scores` on the circular grid `azimuths`, refined
+/// by the parabola through it and its neighbours.
+fn refine(azimuths: &[f64], scores: &[f64], k: usize) -> f64 {
+    let n = scores.len();
+    if n < 3 {
+        return azimuths[k];
+    }
+    let (a, b, c) = (scores[(k + n - 1) % n], scores[k], scores[(k + 1) % n]);
+    let curve = a - 2.0 * b + c;
+    let shift = if curve < 0.0 {
+        (0.5 * (a - c) / curve).clamp(-0.5, 0.5)
+    } else {
+        0.0
+    };
+    // the step towards the neighbour the shift leans to (grids may be uneven)
+    let next = if shift >= 0.0 {
+        (k + 1) % n
+    } else {
+        (k + n - 1) % n
+    };
+    let step = (azimuths[next] - azimuths[k] + 540.0).rem_euclid(360.0) - 180.0;
+    (azimuths[k] + shift.abs() * step).rem_euclid(360.0)
+}
+
+/// The local maxima of the circular `scores`, most salient first: at most `max`, or the
+/// ones at least half as salient as the first.
+fn peaks(azimuths: &[f64], scores: &[f64], max: Option<usize>) -> Vec<Source> {
+    let n = scores.len();
+    let mut found: Vec<(usize, f64)> = (0..n)
+        .filter(|&k| {
+            let (a, c) = (scores[(k + n - 1) % n], scores[(k + 1) % n]);
+            scores[k] > a && scores[k] >= c
+        })
+        .map(|k| (k, scores[k]))
+        .collect();
+    found.sort_by(|a, b| b.1.total_cmp(&a.1));
+    let first = found.first().map_or(0.0, |p| p.1);
+    let keep = match max {
+        Some(m) => m,
+        None => found.iter().take_while(|p| p.1 >= 0.5 * first).count(),
+    };
+    found
+        .into_iter()
+        .take(keep)
+        .map(|(k, s)| Source {
+            azimuth_deg: refine(azimuths, scores, k),
+            salience: s,
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sphere::Sphere;
+
+    /// Front-back folding: the azimuth a head without pinnae cannot tell from `az`'s
+    /// mirror image, in [−90, 90].
+    fn folded(az: f64) -> f64 {
+        let a = (az + 180.0).rem_euclid(360.0) - 180.0;
+        if a > 90.0 {
+            180.0 - a
+        } else if a < -90.0 {
+            -180.0 - a
+        } else {
+            a
+        }
+    }
+
+    fn noise(len: usize, mut seed: u64) -> Vec<f64> {
+        (0..len)
+            .map(|_| {
+                seed ^= seed << 13;
+                seed ^= seed >> 7;
+                seed ^= seed << 17;
+                (seed >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_sphere_locates_its_own_renders_within_2_degrees_folded() {
+        let head = Head::Sphere(Sphere::antipodal(0.075));
+        let fs = 24414.0;
+        let x = noise(12000, 7);
+        for az in [0.0, 17.0, 40.0, 75.0, 110.0, 200.0, 263.0, 331.5] {
+            let [l, r] = head.render(az, &x, fs).expect("render");
+            let found =
+                locate(&head, [&l, &r], fs, &LocaliserParams::default(), Some(1)).expect("located");
+            let got = found.sources[0].azimuth_deg;
+            let err = (folded(got) - folded(az)).abs();
+            assert!(err < 2.0, "{az}: found {got}");
+            assert!(found.sources[0].salience > 0.9, "{az}: {:?}", found.sources);
+        }
+    }
+
+    #[test]
+    fn bad_input_is_named() {
+        let head = Head::Sphere(Sphere::antipodal(0.075));
+        let p = LocaliserParams::default();
+        let e = locate(&head, [&[0.0; 100], &[0.0; 99]], 16000.0, &p, None).expect_err("lengths");
+        assert!(e.to_string().contains("100 and 99 samples"), "{e}");
+        let mut x = vec![0.0; 2000];
+        x[1500] = f64::NAN;
+        let e = locate(&head, [&x, &x], 16000.0, &p, None).expect_err("nan");
+        assert!(e.to_string().contains("sample 1500 is NaN"), "{e}");
+        let e = locate(&head, [&[0.0; 100], &[0.0; 100]], 16000.0, &p, None).expect_err("short");
+        assert!(
+            e.to_string().contains("shorter than one 640-sample frame"),
+            "{e}"
+        );
+        let low = LocaliserParams {
+            f_low_hz: 9000.0,
+            ..p
+        };
+        let quiet = vec![0.0; 2000];
+        let e = locate(&head, [&quiet, &quiet], 16000.0, &low, None).expect_err("band");
+        assert!(e.to_string().contains("loc_fLowHz (9000 Hz)"), "{e}");
+    }
+
+    #[test]
+    fn heads_are_parsed_or_refused_by_name() {
+        assert!(matches!(Head::parse("sphere"), Ok(Head::Sphere(s)) if s.radius_m == 0.075));
+        let s = Head::parse("sphere:radius=0.09,ears=100").expect("sphere");
+        assert_eq!(s.name(), "sphere:radius=0.09,ears=100");
+        for bad in ["sphere:radius=-1", "sphere:size=3", "sphere:radius=abc"] {
+            let e = Head::parse(bad).expect_err(bad).to_string();
+            assert!(e.starts_with("bad sphere parameter"), "{e}");
+        }
+        let e = Head::parse("dummy").expect_err("unknown").to_string();
+        assert!(e.starts_with("unknown head 'dummy'"), "{e}");
+        let e = Head::parse("/nonexistent/head.sofa")
+            .expect_err("missing")
+            .to_string();
+        assert!(e.contains("cannot read it"), "{e}");
+    }
+}

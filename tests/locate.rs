@@ -1,0 +1,154 @@
+//! `afe locate` on renders the test makes itself: a talker (the example file's left ear)
+//! through the MIT KEMAR set (Debian's libmysofa1, which `.ci/run` installs) at every 30
+//! degrees, and through the 15-cm sphere; each found within 5 degrees of the truth, front
+//! from back folded for the sphere (it has no pinnae), and how often KEMAR's pinnae tell
+//! them apart counted.
+
+use std::path::Path;
+
+use afe_spatial::Head;
+use serde_json::Value;
+
+use crate::common::{afe, assert_clear_error, tmp};
+
+/// The example file's left ear: a second of speech at 44.1 kHz.
+fn talker() -> (Vec<f64>, u32) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/example_binaural.wav");
+    let mut reader = hound::WavReader::open(path).expect("example file");
+    let spec = reader.spec();
+    let scale = f64::from(1u32 << (spec.bits_per_sample - 1));
+    let samples: Vec<i32> = reader
+        .samples::<i32>()
+        .map(|s| s.expect("sample"))
+        .collect();
+    let left = samples
+        .chunks(usize::from(spec.channels))
+        .map(|f| f64::from(f[0]) / scale)
+        .collect();
+    (left, spec.sample_rate)
+}
+
+fn write_binaural(path: &Path, [l, r]: &[Vec<f64>; 2], fs: u32) {
+    let spec = hound::WavSpec {
+        channels: 2,
+        sample_rate: fs,
+        bits_per_sample: 32,
+        sample_format: hound::SampleFormat::Float,
+    };
+    let mut w = hound::WavWriter::create(path, spec).expect("wav");
+    for (a, b) in l.iter().zip(r) {
+        w.write_sample(*a as f32).expect("sample");
+        w.write_sample(*b as f32).expect("sample");
+    }
+    w.finalize().expect("finalize");
+}
+
+/// The signed gap from `truth` to `found`, deg in (−180, 180].
+fn gap(found: f64, truth: f64) -> f64 {
+    180.0 - (180.0 - (found - truth)).rem_euclid(360.0)
+}
+
+/// `az`'s front-back image's folded position: the same lateral angle, in [−90, 90].
+fn lateral(az: f64) -> f64 {
+    let a = gap(az, 0.0);
+    if a > 90.0 {
+        180.0 - a
+    } else if a < -90.0 {
+        -180.0 - a
+    } else {
+        a
+    }
+}
+
+/// `afe locate --json` of `ears` at `fs` through `head`: the first source's azimuth.
+fn located(name: &str, ears: &[Vec<f64>; 2], fs: u32, head: &str) -> f64 {
+    let wav = tmp(&format!("locate-{name}.wav"));
+    write_binaural(&wav, ears, fs);
+    let out = afe(&[
+        "locate",
+        wav.to_str().expect("path"),
+        "--head",
+        head,
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Value = serde_json::from_slice(&out.stdout).expect("json");
+    let first = &v["sources"][0];
+    let az = first["azimuth_deg"].as_f64().expect("azimuth");
+    assert!((0.0..360.0).contains(&az), "{v}");
+    assert!(first["salience"].as_f64().is_some_and(|s| s > 0.0), "{v}");
+    assert!(v["frames"].as_array().is_some_and(|f| !f.is_empty()), "{v}");
+    az
+}
+
+#[test]
+fn a_talker_on_kemar_is_found_within_5_degrees_at_every_30() {
+    let head = Head::parse("kemar").unwrap_or_else(|e| panic!("{e}"));
+    let (x, fs) = talker();
+    let mut front_back_right = 0;
+    for az in (0..360).step_by(30).map(f64::from) {
+        let ears = head.render(az, &x, f64::from(fs)).expect("render");
+        let found = located(&format!("kemar-{az}"), &ears, fs, "kemar");
+        let folded = (lateral(found) - lateral(az)).abs();
+        assert!(folded <= 5.0, "{az} deg: found {found}");
+        if gap(found, az).abs() <= 5.0 {
+            front_back_right += 1;
+        }
+    }
+    eprintln!("KEMAR's pinnae told front from back for {front_back_right} of 12 azimuths");
+}
+
+#[test]
+fn a_talker_on_the_sphere_is_found_within_5_degrees_folded_off_the_grid() {
+    let head = Head::parse("sphere").expect("sphere");
+    let (x, fs) = talker();
+    for az in [7.0, 33.5, 61.0, 118.0, 200.0, 284.5] {
+        let ears = head.render(az, &x, f64::from(fs)).expect("render");
+        let found = located(&format!("sphere-{az}"), &ears, fs, "sphere");
+        let folded = (lateral(found) - lateral(az)).abs();
+        assert!(folded <= 5.0, "{az} deg: found {found}");
+    }
+}
+
+#[test]
+fn locate_refuses_what_it_cannot_use_in_one_line() {
+    // locate writes no file: nothing may appear here
+    let none = tmp("locate-nothing.npz");
+    let mono = tmp("locate-mono.wav");
+    crate::common::write_wav(&mono, 1, 16000, 16000, crate::common::tone);
+    let m = mono.to_str().expect("path");
+    assert_clear_error(
+        &afe(&["locate", m, "--head", "sphere"]),
+        "has 1 channel(s): locating needs two (left ear, right ear)",
+        &none,
+    );
+    let stereo = tmp("locate-stereo.wav");
+    crate::common::write_wav(&stereo, 2, 16000, 16000, crate::common::tone);
+    let s = stereo.to_str().expect("path");
+    assert_clear_error(
+        &afe(&["locate", s, "--head", "cube"]),
+        "unknown head 'cube': use kemar, sphere:radius=M",
+        &none,
+    );
+    assert_clear_error(
+        &afe(&["locate", s, "--head", "sphere:radius=5"]),
+        "bad sphere parameter 'radius=5'",
+        &none,
+    );
+    let not_sofa = tmp("locate-not.sofa");
+    std::fs::write(&not_sofa, b"not an HDF5 file").expect("write");
+    assert_clear_error(
+        &afe(&["locate", s, "--head", not_sofa.to_str().expect("path")]),
+        "not a SOFA file",
+        &none,
+    );
+    assert_clear_error(
+        &afe(&["locate", s, "--head", "sphere", "--sources", "0"]),
+        "--sources must be at least 1",
+        &none,
+    );
+}
