@@ -20,7 +20,7 @@ pub(crate) struct LocateArgs {
     /// ears at +-90 deg) or a SimpleFreeFieldHRIR .sofa file.
     #[arg(long, default_value = "kemar")]
     head: String,
-    /// How many sources to report (default: every one at least half as salient as the
+    /// How many sources to report (default: every one at least 0.9 as salient as the
     /// first).
     #[arg(long, value_name = "N")]
     sources: Option<usize>,

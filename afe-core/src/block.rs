@@ -338,7 +338,7 @@ impl Block {
     /// If `data.len()` is not a multiple of `width`.
     pub fn from_vec(data: Vec<f64>, width: usize) -> Self {
         assert!(
-            width > 0 && data.len() % width == 0,
+            width > 0 && data.len().is_multiple_of(width),
             "block data length {} is not a multiple of its width {width}",
             data.len()
         );

@@ -21,7 +21,7 @@ impl SavitzkyGolay {
     ///
     /// `frame` must be odd and larger than `order` (MATLAB's conditions).
     pub fn new(order: usize, frame: usize) -> Result<Self> {
-        if frame % 2 == 0 || frame <= order {
+        if frame.is_multiple_of(2) || frame <= order {
             return Err(Error::InvalidParameter {
                 name: "Savitzky-Golay frame".into(),
                 value: frame.to_string(),

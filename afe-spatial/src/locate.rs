@@ -76,7 +76,7 @@ pub struct Located {
 }
 
 /// The sources in `ears` (left, right at `fs_hz`) as `head` hears them: at most
-/// `max_sources` (`None`: the salient ones, at least half the first's salience).
+/// `max_sources` (`None`: the salient ones, at least 0.9 of the first's salience).
 pub fn locate(
     head: &Head,
     ears: [&[f64]; 2],
@@ -311,8 +311,13 @@ fn refine(azimuths: &[f64], scores: &[f64], k: usize) -> f64 {
     (azimuths[k] + shift.abs() * step).rem_euclid(360.0)
 }
 
+/// Salience, as a share of the first source's, that another source needs to be reported
+/// by default: a single source's side lobes reach 0.8 of its peak on the sphere, and its
+/// front-back image (a head without pinnae) equals it.
+const SALIENT_SHARE: f64 = 0.9;
+
 /// The local maxima of the circular `scores`, most salient first: at most `max`, or the
-/// ones at least half as salient as the first.
+/// ones at least [`SALIENT_SHARE`] as salient as the first.
 fn peaks(azimuths: &[f64], scores: &[f64], max: Option<usize>) -> Vec<Source> {
     let n = scores.len();
     let mut found: Vec<(usize, f64)> = (0..n)
@@ -326,7 +331,10 @@ fn peaks(azimuths: &[f64], scores: &[f64], max: Option<usize>) -> Vec<Source> {
     let first = found.first().map_or(0.0, |p| p.1);
     let keep = match max {
         Some(m) => m,
-        None => found.iter().take_while(|p| p.1 >= 0.5 * first).count(),
+        None => found
+            .iter()
+            .take_while(|p| p.1 >= SALIENT_SHARE * first)
+            .count(),
     };
     found
         .into_iter()

@@ -108,7 +108,7 @@ pub fn core_to_core_ns() -> Option<f64> {
                 let mut spins = 0u32;
                 while line.0.load(Ordering::Acquire) != next + 2 {
                     spins = spins.wrapping_add(1);
-                    if spins % 1024 == 0 && late() {
+                    if spins.is_multiple_of(1024) && late() {
                         break 'batches;
                     }
                     std::hint::spin_loop();

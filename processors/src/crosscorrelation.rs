@@ -257,7 +257,10 @@ impl Direct {
             matches!(lag_block, 4 | 5 | 8..=12),
             "no dot-product kernel for {lag_block} lags per pass"
         );
-        assert!(win.len() % 2 == 0, "the AFE's windows have an even length");
+        assert!(
+            win.len().is_multiple_of(2),
+            "the AFE's windows have an even length"
+        );
         let starts = (0..nc.div_ceil(LANES))
             .map(|g| vector_start(g, LANES, nc))
             .collect();
@@ -434,7 +437,7 @@ afe_core::simd_kernel!(
                 }
                 left[(p % 2) * rows_l + p / 2].0 = xl;
                 right[(n % 2) * half + n / 2].0 = xr;
-                if p % 2 == 0 && p >= 2 {
+                if p.is_multiple_of(2) && p >= 2 {
                     let s = &mut left[2 * rows_l + p / 2 - 1].0;
                     for l in 0..LANES {
                         s[l] = prev_l[l] - xl[l];
@@ -452,7 +455,7 @@ afe_core::simd_kernel!(
         }
         // a last row of odd parity: its difference with the zero after the frame (row `p`)
         let p = n + max_lag;
-        if p % 2 == 0 {
+        if p.is_multiple_of(2) {
             left[2 * rows_l + p / 2 - 1].0 = prev_l;
         }
         (el, er, ml, mr)

@@ -44,7 +44,10 @@ impl EvenInverse {
     /// # Panics
     /// If `n` is not a positive multiple of 4.
     pub fn new(n: usize) -> Self {
-        assert!(n >= 4 && n % 4 == 0, "a positive multiple of 4, not {n}");
+        assert!(
+            n >= 4 && n.is_multiple_of(4),
+            "a positive multiple of 4, not {n}"
+        );
         let m = n / 2;
         let angle = |j: usize| PI * j as f64 / m as f64;
         EvenInverse {

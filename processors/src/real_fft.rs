@@ -48,7 +48,7 @@ pub fn fast_len(n: usize) -> usize {
 /// If `n` is odd or below 2.
 fn half_length_plan(n: usize, inverse: bool) -> (Arc<dyn Fft<f64>>, Vec<f64>, Vec<f64>) {
     assert!(
-        n >= 2 && n % 2 == 0,
+        n >= 2 && n.is_multiple_of(2),
         "an even length of at least 2, not {n}"
     );
     let mut planner = FftPlanner::new();
@@ -223,7 +223,7 @@ impl RealIfft {
         (re[0], im[0]) = (sum_re - sum_im, diff_re - diff_im);
         // pairs (k, M − k) for 0 < k < M/2, and with M even X[M/2] doubled and conjugated
         let pairs = (m - 1) / 2;
-        if m % 2 == 0 && m >= 2 {
+        if m.is_multiple_of(2) && m >= 2 {
             let c = m / 2;
             (re[c], im[c]) = (re[c] + re[c], -(im[c] + im[c]));
         }

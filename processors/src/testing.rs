@@ -66,7 +66,7 @@ pub(crate) fn plain_dft(x: &[f64], nfft: usize) -> Vec<Complex64> {
                 .sum()
         })
         .collect();
-    if nfft % 2 == 0 {
+    if nfft.is_multiple_of(2) {
         spectrum[nfft / 2].im = 0.0;
     }
     spectrum

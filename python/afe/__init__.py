@@ -47,14 +47,17 @@ __all__ = [
     "Subscription",
     "batch",
     "connect",
+    "heads",
     "host",
     "load",
+    "locate",
     "open_store",
     "parameters",
     "plot",
     "process",
     "raa",
     "read_wav",
+    "render",
     "requests",
     "save",
     "stream",
@@ -507,18 +510,66 @@ def raa(
     for name, value in constants.items():
         if _non_finite(value):
             raise ValueError(f"constant '{name}' is {value!r}: the RAA takes finite numbers")
-    if isinstance(ear_signals, (str, os.PathLike)):
-        x, file_fs = read_wav(ear_signals)
+    x, fs = _signal_at_rate(ear_signals, fs)
+    return _afe.raa(x, fs, _json(constants))
+
+
+def _signal_at_rate(signal: Audio, fs: Optional[float]) -> Tuple[np.ndarray, float]:
+    """``[samples, channels]`` float64 and its rate, from an array and ``fs`` or from the
+    path of a WAV file (whose rate ``fs``, if given, must equal)."""
+    if isinstance(signal, (str, os.PathLike)):
+        x, file_fs = read_wav(signal)
         if fs is not None and float(fs) != file_fs:
-            raise ValueError(
-                f"fs = {fs} Hz, but '{os.fspath(ear_signals)}' is sampled at {file_fs} Hz"
-            )
-        fs = file_fs
-    elif fs is None:
+            raise ValueError(f"fs = {fs} Hz, but '{os.fspath(signal)}' is sampled at {file_fs} Hz")
+        return _as_channels(x), file_fs
+    if fs is None:
         raise ValueError("fs is required when the signal is an array")
-    else:
-        x = ear_signals
-    return _afe.raa(_as_channels(x), float(fs), _json(constants))
+    return _as_channels(signal), float(fs)
+
+
+def locate(
+    ear_signals: Audio,
+    fs: Optional[float] = None,
+    head: str = "kemar",
+    sources: Optional[int] = None,
+) -> Dict[str, Any]:
+    """Where the sources of a binaural signal are, for the head that heard it (as
+    ``afe locate``; docs/localisation.md).
+
+    ``ear_signals``: ``[samples, 2]`` (left, right) or the path of a binaural WAV file.
+    ``head``: ``"kemar"`` (the MIT KEMAR set from Debian's libmysofa1),
+    ``"sphere:radius=M[,ears=DEG]"`` (a rigid sphere; ``"sphere"``: the 15-cm ball) or
+    the path of a SimpleFreeFieldHRIR ``.sofa`` file (:func:`heads` lists the built-in
+    ones). ``sources``: how many to report (default: those at least 0.9 as salient as
+    the first).
+
+    Returns a dict: ``sources`` (a list of ``{"azimuth_deg", "salience"}``, most salient
+    first; azimuth 0 = front, 90 = left, in [0, 360)), per frame ``t_s`` (centres, s),
+    ``active`` (bool) and ``azimuth_deg`` (its best direction), and the score grid
+    ``azimuths_deg`` with the active frames' ``mean_score``. Raises ``ValueError``
+    naming the problem: an unknown head, a bad SOFA file, not two channels, NaN, a signal
+    shorter than a 40-ms frame.
+    """
+    if sources is not None and (not isinstance(sources, int) or sources < 1):
+        raise ValueError(f"sources = {sources!r}: a number of sources, at least 1")
+    x, fs = _signal_at_rate(ear_signals, fs)
+    return _afe.locate(x, fs, str(head), sources)
+
+
+def render(x: Any, fs: float, azimuth_deg: float, head: str = "sphere") -> np.ndarray:
+    """The mono signal ``x`` at ``fs`` Hz as the two ears of ``head`` hear it from
+    ``azimuth_deg`` (0 = front, 90 = left): ``[samples, 2]``. Any head renders at any
+    rate below its Nyquist frequency; a measured head takes its nearest direction."""
+    mono = np.ascontiguousarray(np.asarray(x, dtype=np.float64))
+    if mono.ndim != 1:
+        raise ValueError(f"x of shape {mono.shape}: render takes a mono signal [samples]")
+    return _afe.render(mono, float(fs), str(head), float(azimuth_deg))
+
+
+def heads() -> List[Tuple[str, str]]:
+    """The heads :func:`locate` and :func:`render` name without a file: ``(name,
+    description)`` pairs."""
+    return [tuple(h) for h in _afe.heads()]
 
 
 from .corpus import Store, batch, open_store  # noqa: E402  (uses _params_json above)

@@ -6,6 +6,7 @@
 mod batch;
 mod interrupt;
 mod raa;
+mod spatial;
 mod wire;
 
 use std::path::PathBuf;
@@ -636,6 +637,9 @@ fn _afe(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(process_file, m)?)?;
     m.add_function(wrap_pyfunction!(read_wav, m)?)?;
     m.add_function(wrap_pyfunction!(raa::raa, m)?)?;
+    m.add_function(wrap_pyfunction!(spatial::locate, m)?)?;
+    m.add_function(wrap_pyfunction!(spatial::render, m)?)?;
+    m.add_function(wrap_pyfunction!(spatial::heads, m)?)?;
     m.add_function(wrap_pyfunction!(batch::batch_run, m)?)?;
     m.add_function(wrap_pyfunction!(batch::batch_plan, m)?)?;
     m.add_function(wrap_pyfunction!(batch::batch_compute, m)?)?;

@@ -49,7 +49,8 @@ def test_catalogue_matches_the_afe_names():
 def test_dir_shows_the_public_api_only():
     assert dir(afe) == sorted(
         ["Audio", "AudioBlock", "Frames", "Manager", "Remote", "RemoteError", "Signal", "Store", "Subscription", "batch", "connect",
-         "host", "load", "open_store", "parameters", "plot", "process", "raa", "read_wav", "requests", "save", "stream", "summary", "__version__"]
+         "heads", "host", "load", "locate", "open_store", "parameters", "plot", "process", "raa", "read_wav", "render", "requests",
+         "save", "stream", "summary", "__version__"]
     )
 
 

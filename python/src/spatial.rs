@@ -1,0 +1,100 @@
+//! `afe.locate`, `afe.render` and `afe.heads`: head models and localisation
+//! (`afe-spatial`) on numpy arrays.
+
+use afe_spatial::{Head, LocaliserParams, SpatialError};
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use crate::columns;
+
+fn value_error(e: SpatialError) -> PyErr {
+    PyValueError::new_err(e.to_string())
+}
+
+/// The sources of the `[samples, 2]` signal `x` at `fs` Hz as `head` hears them: a dict
+/// of `sources` (a list of dicts with `azimuth_deg` and `salience`), per frame `t_s`,
+/// `active` and `azimuth_deg` (arrays), and the score grid `azimuths_deg` with the
+/// active frames' `mean_score`.
+#[pyfunction]
+#[pyo3(signature = (x, fs, head, sources))]
+pub fn locate<'py>(
+    py: Python<'py>,
+    x: PyReadonlyArray2<'py, f64>,
+    fs: f64,
+    head: &str,
+    sources: Option<usize>,
+) -> PyResult<Bound<'py, PyDict>> {
+    if x.shape()[1] != 2 {
+        return Err(PyValueError::new_err(format!(
+            "x has {} channel(s): locating needs two (left ear, right ear)",
+            x.shape()[1]
+        )));
+    }
+    let head = Head::parse(head).map_err(value_error)?;
+    let ears = columns(&x);
+    let found = py
+        .allow_threads(|| {
+            afe_spatial::locate(
+                &head,
+                [&ears[0], &ears[1]],
+                fs,
+                &LocaliserParams::default(),
+                sources,
+            )
+        })
+        .map_err(value_error)?;
+    let out = PyDict::new(py);
+    out.set_item("head", head.name())?;
+    let list = PyList::empty(py);
+    for s in &found.sources {
+        let d = PyDict::new(py);
+        d.set_item("azimuth_deg", s.azimuth_deg)?;
+        d.set_item("salience", s.salience)?;
+        list.append(d)?;
+    }
+    out.set_item("sources", list)?;
+    let frames = &found.frames;
+    let column = |f: fn(&afe_spatial::locate::Frame) -> f64| frames.iter().map(f).collect();
+    out.set_item("t_s", PyArray1::from_vec(py, column(|f| f.t_s)))?;
+    out.set_item(
+        "azimuth_deg",
+        PyArray1::from_vec(py, column(|f| f.azimuth_deg)),
+    )?;
+    let active: Vec<bool> = frames.iter().map(|f| f.active).collect();
+    out.set_item("active", PyArray1::from_vec(py, active))?;
+    out.set_item("azimuths_deg", PyArray1::from_vec(py, found.azimuths_deg))?;
+    out.set_item("mean_score", PyArray1::from_vec(py, found.mean_score))?;
+    Ok(out)
+}
+
+/// The mono `x` at `fs` Hz as the two ears of `head` hear it from `azimuth_deg`:
+/// `[samples, 2]`.
+#[pyfunction]
+pub fn render<'py>(
+    py: Python<'py>,
+    x: PyReadonlyArray1<'py, f64>,
+    fs: f64,
+    head: &str,
+    azimuth_deg: f64,
+) -> PyResult<Bound<'py, PyAny>> {
+    let head = Head::parse(head).map_err(value_error)?;
+    let mono = x.as_slice()?.to_vec();
+    if let Some(t) = mono.iter().position(|v| !v.is_finite()) {
+        return Err(PyValueError::new_err(format!("sample {t} is NaN or Inf")));
+    }
+    let [l, r] = py
+        .allow_threads(|| head.render(azimuth_deg, &mono, fs))
+        .map_err(value_error)?;
+    let data: Vec<f64> = l.iter().zip(&r).flat_map(|(a, b)| [*a, *b]).collect();
+    Ok(PyArray1::from_vec(py, data)
+        .reshape(vec![l.len(), 2])?
+        .into_any())
+}
+
+/// The heads named without a file: `(name, description)` pairs.
+#[pyfunction]
+pub fn heads() -> Vec<(&'static str, &'static str)> {
+    afe_spatial::head::BUILT_IN.to_vec()
+}

@@ -1,0 +1,68 @@
+"""afe.locate and afe.render (issue 59): renders through the rigid sphere, made here, are
+located within 5 degrees after front-back folding; bad input raises ValueError naming it."""
+
+import numpy as np
+import pytest
+
+import afe
+
+FS = 24414.0
+
+
+def folded(az):
+    """The lateral angle of ``az`` in [-90, 90]: a sphere cannot tell it from its mirror."""
+    a = (az + 180.0) % 360.0 - 180.0
+    return 180.0 - a if a > 90 else (-180.0 - a if a < -90 else a)
+
+
+def noise(n, seed=3):
+    return np.random.default_rng(seed).uniform(-0.5, 0.5, n)
+
+
+@pytest.mark.parametrize("az", [0.0, 25.0, 52.5, 95.0, 233.0, 305.0])
+def test_a_sphere_render_is_located_within_5_degrees(az):
+    ears = afe.render(noise(int(FS)), FS, az, head="sphere")
+    assert ears.shape == (int(FS), 2)
+    found = afe.locate(ears, FS, head="sphere", sources=1)
+    src = found["sources"][0]
+    assert abs(folded(src["azimuth_deg"]) - folded(az)) <= 5.0, found["sources"]
+    assert 0.0 <= src["azimuth_deg"] < 360.0 and src["salience"] > 0.5
+    assert found["t_s"].shape == found["azimuth_deg"].shape == found["active"].shape
+    assert found["active"].dtype == bool and found["active"].any()
+    assert found["mean_score"].shape == found["azimuths_deg"].shape == (360,)
+
+
+def test_the_left_ear_leads_for_a_source_on_the_left():
+    x = np.zeros(4096)
+    x[2048] = 1.0
+    ears = afe.render(x, FS, 90.0, head="sphere:radius=0.0875")
+    lead = np.argmax(np.abs(ears[:, 1])) - np.argmax(np.abs(ears[:, 0]))
+    # Woodworth: (a/c)(pi/2 + 1) = 0.656 ms, 16 samples at 24414 Hz
+    assert 13 <= lead <= 19, lead
+
+
+def test_heads_are_listed():
+    names = [n for n, _ in afe.heads()]
+    assert names[0] == "kemar" and names[1].startswith("sphere:")
+
+
+def test_bad_input_is_named():
+    ears = afe.render(noise(8000), FS, 30.0)
+    with pytest.raises(ValueError, match="unknown head 'cube'"):
+        afe.locate(ears, FS, head="cube")
+    with pytest.raises(ValueError, match="locating needs two"):
+        afe.locate(ears[:, :1], FS, head="sphere")
+    with pytest.raises(ValueError, match="shorter than one"):
+        afe.locate(ears[:100], FS, head="sphere")
+    with pytest.raises(ValueError, match="sources = 0"):
+        afe.locate(ears, FS, head="sphere", sources=0)
+    with pytest.raises(ValueError, match="fs is required"):
+        afe.locate(ears, head="sphere")
+    bad = ears.copy()
+    bad[10, 0] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        afe.locate(bad, FS, head="sphere")
+    with pytest.raises(ValueError, match="render takes a mono signal"):
+        afe.render(ears, FS, 30.0)
+    with pytest.raises(ValueError, match="bad sphere parameter"):
+        afe.render(noise(100), FS, 30.0, head="sphere:ears=500")
