@@ -629,8 +629,6 @@ impl Model {
         ear.lag = LagRemoval::new(tau, b, self.decay[tau - 1]);
     }
 
-    /// Steps B and C on the analysed frame pair: the LLAR mode, then each channel's
-    /// correlation (into `cc`, `[channel][lag]`), ITD (s) and ILD (dB).
     /// One frame pair's cues into `(itd, ild, cc)`.
     #[inline(always)]
     fn frame(&mut self, left: Frame<'_>, right: Frame<'_>, out: Cues<'_>) {
@@ -671,6 +669,8 @@ impl Model {
         (l.iter().zip(r)).any(|(&a, &b)| crate::crosscorrelation::in_subnormal_band(a, b))
     }
 
+    /// Steps B and C on the analysed frame pair: the LLAR mode, then each channel's
+    /// correlation (into `cc`, `[channel][lag]`), ITD (s) and ILD (dB).
     fn cues(&mut self, itd: &mut [f64], ild: &mut [f64], cc: &mut [f64]) {
         let (nc, w) = (self.nc, self.win.len());
         for ear in &mut self.ears {
