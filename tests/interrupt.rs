@@ -47,6 +47,27 @@ fn no_temporaries(dir: &Path) {
     assert!(left.is_empty(), "temporaries left: {left:?}");
 }
 
+/// A FIFO at `path`, made anew.
+fn new_fifo(path: &Path) {
+    let _ = std::fs::remove_file(path);
+    let made = Command::new("mkfifo").arg(path).status().expect("mkfifo");
+    assert!(made.success());
+}
+
+/// Half a second into `child`'s wait for its input, `sig` ends it at once: exit 130 within
+/// a second, and no output at `out`.
+fn assert_signal_ends_the_wait(child: Child, sig: &str, out: &Path) {
+    std::thread::sleep(Duration::from_millis(500));
+    let signalled = Instant::now();
+    signal(&child, sig);
+    let res = child.wait_with_output().expect("wait");
+    let took = signalled.elapsed();
+    let stderr = String::from_utf8_lossy(&res.stderr);
+    assert_eq!(res.status.code(), Some(130), "{sig}: {stderr}");
+    assert!(took < Duration::from_secs(1), "{sig}: {took:?}");
+    assert!(!out.exists(), "{sig}: an output was written");
+}
+
 #[test]
 fn sigint_on_a_stream_saves_what_it_computed() {
     let out = tmp("interrupted-stream.npz");
@@ -247,9 +268,7 @@ fn sigint_during_a_batch_keeps_finished_files_and_resumes() {
 fn a_signal_stops_the_wait_on_a_fifo() {
     for (sig, stall_after_header) in [("-TERM", false), ("-INT", false), ("-TERM", true)] {
         let fifo = tmp(&format!("wait{sig}{stall_after_header}.fifo"));
-        let _ = std::fs::remove_file(&fifo);
-        let made = Command::new("mkfifo").arg(&fifo).status().expect("mkfifo");
-        assert!(made.success());
+        new_fifo(&fifo);
         let out = tmp(&format!("wait{sig}{stall_after_header}.npz"));
         let child = spawn(&[
             "extract",
@@ -274,15 +293,7 @@ fn a_signal_stops_the_wait_on_a_fifo() {
                 std::thread::sleep(Duration::from_secs(5));
             })
         });
-        std::thread::sleep(Duration::from_millis(500));
-        let signalled = Instant::now();
-        signal(&child, sig);
-        let res = child.wait_with_output().expect("wait");
-        let took = signalled.elapsed();
-        let stderr = String::from_utf8_lossy(&res.stderr);
-        assert_eq!(res.status.code(), Some(130), "{sig}: {stderr}");
-        assert!(took < Duration::from_secs(1), "{sig}: {took:?}");
-        assert!(!out.exists(), "{sig}: an output was written");
+        assert_signal_ends_the_wait(child, sig, &out);
         no_temporaries(out.parent().expect("dir"));
         drop(writer);
     }
@@ -298,9 +309,7 @@ fn a_signal_stops_the_wait_on_a_params_fifo() {
     write_wav(&input, 2, 16000, 16000, tone);
     for sig in ["-INT", "-TERM"] {
         let fifo = dir.join(format!("params{sig}.fifo"));
-        let _ = std::fs::remove_file(&fifo);
-        let made = Command::new("mkfifo").arg(&fifo).status().expect("mkfifo");
-        assert!(made.success());
+        new_fifo(&fifo);
         let out = dir.join("out.npz");
         let child = spawn(&[
             "extract",
@@ -312,14 +321,7 @@ fn a_signal_stops_the_wait_on_a_params_fifo() {
             "-o",
             out.to_str().expect("utf-8"),
         ]);
-        std::thread::sleep(Duration::from_millis(500));
-        let signalled = Instant::now();
-        signal(&child, sig);
-        let res = child.wait_with_output().expect("wait");
-        let stderr = String::from_utf8_lossy(&res.stderr);
-        assert_eq!(res.status.code(), Some(130), "{sig}: {stderr}");
-        assert!(signalled.elapsed() < Duration::from_secs(1), "{sig}");
-        assert!(!out.exists(), "{sig}: an output was written");
+        assert_signal_ends_the_wait(child, sig, &out);
     }
     std::fs::remove_dir_all(&dir).expect("clean");
 }

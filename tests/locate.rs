@@ -6,6 +6,7 @@
 
 use std::path::Path;
 
+use afe_spatial::locate::lateral_deg;
 use afe_spatial::Head;
 use serde_json::Value;
 
@@ -48,18 +49,6 @@ fn gap(found: f64, truth: f64) -> f64 {
     180.0 - (180.0 - (found - truth)).rem_euclid(360.0)
 }
 
-/// `az`'s front-back image's folded position: the same lateral angle, in [−90, 90].
-fn lateral(az: f64) -> f64 {
-    let a = gap(az, 0.0);
-    if a > 90.0 {
-        180.0 - a
-    } else if a < -90.0 {
-        -180.0 - a
-    } else {
-        a
-    }
-}
-
 /// `afe locate --json` of `ears` at `fs` through `head`: the first source's azimuth.
 fn located(name: &str, ears: &[Vec<f64>; 2], fs: u32, head: &str) -> f64 {
     let wav = tmp(&format!("locate-{name}.wav"));
@@ -93,7 +82,7 @@ fn a_talker_on_kemar_is_found_within_5_degrees_at_every_30() {
     for az in (0..360).step_by(30).map(f64::from) {
         let ears = head.render(az, &x, f64::from(fs)).expect("render");
         let found = located(&format!("kemar-{az}"), &ears, fs, "kemar");
-        let folded = (lateral(found) - lateral(az)).abs();
+        let folded = (lateral_deg(found) - lateral_deg(az)).abs();
         assert!(folded <= 5.0, "{az} deg: found {found}");
         if gap(found, az).abs() <= 5.0 {
             front_back_right += 1;
@@ -109,7 +98,7 @@ fn a_talker_on_the_sphere_is_found_within_5_degrees_folded_off_the_grid() {
     for az in [7.0, 33.5, 61.0, 118.0, 200.0, 284.5] {
         let ears = head.render(az, &x, f64::from(fs)).expect("render");
         let found = located(&format!("sphere-{az}"), &ears, fs, "sphere");
-        let folded = (lateral(found) - lateral(az)).abs();
+        let folded = (lateral_deg(found) - lateral_deg(az)).abs();
         assert!(folded <= 5.0, "{az} deg: found {found}");
     }
 }

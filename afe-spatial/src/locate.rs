@@ -11,7 +11,7 @@ use realfft::RealFftPlanner;
 use crate::head::Head;
 use crate::SpatialError;
 
-/// The localiser's parameters (AFE-style names through serde elsewhere: `loc_*`).
+/// The localiser's parameters; messages name them in the AFE's style (`loc_*`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct LocaliserParams {
     /// Frame length, s (`loc_wSizeSec`).
@@ -316,6 +316,20 @@ fn refine(azimuths: &[f64], scores: &[f64], k: usize) -> f64 {
 /// front-back image (a head without pinnae) equals it.
 const SALIENT_SHARE: f64 = 0.9;
 
+/// The lateral angle of `azimuth_deg`, deg in [−90, 90] (positive to the left): the same
+/// for a direction and its front-back image (`a` and `180 − a`), which a head without
+/// pinnae cannot tell apart. Scores errors "folded".
+pub fn lateral_deg(azimuth_deg: f64) -> f64 {
+    let a = (azimuth_deg + 180.0).rem_euclid(360.0) - 180.0;
+    if a > 90.0 {
+        180.0 - a
+    } else if a < -90.0 {
+        -180.0 - a
+    } else {
+        a
+    }
+}
+
 /// The local maxima of the circular `scores`, most salient first: at most `max`, or the
 /// ones at least [`SALIENT_SHARE`] as salient as the first.
 fn peaks(azimuths: &[f64], scores: &[f64], max: Option<usize>) -> Vec<Source> {
@@ -351,19 +365,6 @@ mod tests {
     use super::*;
     use crate::sphere::Sphere;
 
-    /// Front-back folding: the azimuth a head without pinnae cannot tell from `az`'s
-    /// mirror image, in [−90, 90].
-    fn folded(az: f64) -> f64 {
-        let a = (az + 180.0).rem_euclid(360.0) - 180.0;
-        if a > 90.0 {
-            180.0 - a
-        } else if a < -90.0 {
-            -180.0 - a
-        } else {
-            a
-        }
-    }
-
     fn noise(len: usize, mut seed: u64) -> Vec<f64> {
         (0..len)
             .map(|_| {
@@ -385,7 +386,7 @@ mod tests {
             let found =
                 locate(&head, [&l, &r], fs, &LocaliserParams::default(), Some(1)).expect("located");
             let got = found.sources[0].azimuth_deg;
-            let err = (folded(got) - folded(az)).abs();
+            let err = (lateral_deg(got) - lateral_deg(az)).abs();
             assert!(err < 2.0, "{az}: found {got}");
             assert!(found.sources[0].salience > 0.9, "{az}: {:?}", found.sources);
         }
