@@ -477,3 +477,68 @@ fn silence_after_sound_leaves_no_subnormal_on_any_thread() {
         "the caller's floating-point setting restored"
     );
 }
+
+/// The AVX2 clones that `AFE_NO_AVX512=1` switches an AVX-512 CPU to give the AVX-512
+/// kernels' bits, for every representation whose processors have kernels (the gammatone
+/// and DRNL filterbanks, DF2T lanes, adaptation, frame power, autocorrelation, pitch,
+/// cross-correlation, precedence, AMS, Gabor). Where the CPU has no AVX-512 both runs
+/// take the AVX2 clones and the test says so.
+#[test]
+fn the_avx2_clones_give_the_avx512_kernels_bits() {
+    #[cfg(target_arch = "x86_64")]
+    let avx512 = std::arch::is_x86_feature_detected!("avx512f")
+        && std::arch::is_x86_feature_detected!("avx512vl");
+    #[cfg(not(target_arch = "x86_64"))]
+    let avx512 = false;
+    if !avx512 {
+        eprintln!("no AVX-512 here: both runs take the AVX2 clones");
+    }
+    let input = crate::common::tmp("paths.wav");
+    let (l, r) = signal(8000);
+    crate::common::write_wav(&input, 2, FS as u32, l.len(), |i| {
+        [l[i / 2], r[i / 2]][i % 2] as f32
+    });
+    let requests = "ratemap,ild,itd,ic,crosscorrelation,precedence,pitch,amsFeatures,gabor,moc";
+    let run = |switch: &str| {
+        let out = crate::common::tmp(&format!("paths-{switch}.npz"));
+        let done = crate::common::afe_env(
+            &[
+                "extract",
+                input.to_str().expect("utf-8 path"),
+                "-r",
+                requests,
+                "-o",
+                out.to_str().expect("utf-8 path"),
+            ],
+            &[("AFE_NO_AVX512", std::path::Path::new(switch))],
+        );
+        assert!(done.status.success(), "{done:?}");
+        crate::common::npz_arrays(&out)
+    };
+    let (wide, narrow) = (run("0"), run("1"));
+    // the switched run took the AVX2 clones (the dispatch reports the clone it picked)
+    let bench = crate::common::afe_env(
+        &[
+            "bench",
+            input.to_str().expect("utf-8 path"),
+            "-r",
+            "ild",
+            "--repeat",
+            "1",
+            "--json",
+        ],
+        &[("AFE_NO_AVX512", std::path::Path::new("1"))],
+    );
+    let host: serde_json::Value = serde_json::from_slice(&bench.stdout).expect("bench json");
+    assert_eq!(host["host"]["simd"], "avx2", "{host}");
+    assert_eq!(wide.len(), narrow.len());
+    assert!(wide.len() >= 12, "{} arrays", wide.len());
+    for ((name, shape, a), (other, other_shape, b)) in wide.iter().zip(&narrow) {
+        assert_eq!((name, shape), (other, other_shape));
+        let same = a
+            .iter()
+            .zip(b)
+            .all(|(p, q)| p.to_bits() == q.to_bits() || (p.is_nan() && q.is_nan()));
+        assert!(same, "{name} differs between the AVX-512 and AVX2 kernels");
+    }
+}

@@ -4,6 +4,9 @@
 //! (DF2T filtering, Butterworth and `fir2` design, windows, the ERB scale, framing, the
 //! analytic signal, Savitzky–Golay smoothing). Nothing here knows a processor by name.
 
+// the kernels' clones name `::afe_core::cpu`, here as in the crates that call them
+extern crate self as afe_core;
+
 pub mod block;
 pub mod butter;
 pub mod cpu;

@@ -2,14 +2,18 @@
 
 /// Compiles the function item it wraps once per instruction set and picks the clone for
 /// the CPU at run time (`multiversion`): AVX-512 (F and VL) and AVX2, or AVX2 only when
-/// the calling crate's `no-avx512` feature is on (the AVX2 path on an AVX-512 host).
+/// the calling crate's `no-avx512` feature is on. A second AVX2 set is what an AVX-512 CPU
+/// runs under `AFE_NO_AVX512=1` ([`avx512_switched_off`](crate::cpu::avx512_switched_off)):
+/// the AVX2 path on an AVX-512 host, in the same build.
 /// Kernels written over const-generic lane arrays so get vector code without `unsafe`
 /// and give the same bits on every path (each clone runs the same operations in the
 /// same order).
 ///
 /// `fma,` before the item adds FMA to the AVX2 clone (AVX-512F implies it), for a
 /// kernel that calls `mul_add` and should get the instruction rather than the library
-/// call. The calling crate depends on `multiversion` and declares a `no-avx512` feature.
+/// call. The item is a free function whose argument types name their generics (no
+/// `impl Trait`); the calling crate depends on `multiversion` and declares a `no-avx512`
+/// feature.
 ///
 /// ```ignore
 /// afe_core::simd_kernel!(
@@ -24,25 +28,14 @@
 #[macro_export]
 macro_rules! simd_kernel {
     (fma, $kernel:item) => {
-        #[cfg_attr(
-            not(feature = "no-avx512"),
-            multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2+fma"))
-        )]
-        #[cfg_attr(
-            feature = "no-avx512",
-            multiversion::multiversion(targets("x86_64+avx2+fma"))
-        )]
+        #[$crate::simd::kernel(fma)]
         $kernel
     };
     ($kernel:item) => {
-        #[cfg_attr(
-            not(feature = "no-avx512"),
-            multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))
-        )]
-        #[cfg_attr(
-            feature = "no-avx512",
-            multiversion::multiversion(targets("x86_64+avx2"))
-        )]
+        #[$crate::simd::kernel]
         $kernel
     };
 }
+
+#[doc(hidden)]
+pub use afe_simd_macro::kernel;
