@@ -2,7 +2,7 @@
 //! [`Descriptor`] a processor module declares for its request, AFE parameters, the error
 //! type, and the DSP primitives the processors are built from
 //! (DF2T filtering, Butterworth and `fir2` design, windows, the ERB scale, framing, the
-//! analytic signal, Savitzky–Golay smoothing). Nothing here knows a processor by name.
+//! analytic signal, the real FFT, Savitzky–Golay smoothing). Nothing here knows a processor by name.
 
 // the kernels' clones name `::afe_core::cpu`, here as in the crates that call them
 extern crate self as afe_core;
@@ -24,6 +24,7 @@ pub mod lanes;
 pub mod params;
 pub mod power;
 pub mod processor;
+pub mod real_fft;
 pub mod sgolay;
 pub mod simd;
 pub mod window;

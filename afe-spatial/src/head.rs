@@ -3,8 +3,8 @@
 
 use std::path::{Path, PathBuf};
 
-use realfft::num_complex::Complex64;
-use realfft::RealFftPlanner;
+use afe_core::real_fft::{RealFft, RealIfft};
+use num_complex::Complex64;
 
 use crate::sofa::{self, Measured};
 use crate::sphere::Sphere;
@@ -143,31 +143,23 @@ impl Head {
         // leads its centre)
         let pad = (0.02 * fs_hz) as usize;
         let n = (x.len() + 2 * pad).next_power_of_two();
-        let mut planner = RealFftPlanner::<f64>::new();
-        let forward = planner.plan_fft_forward(n);
-        let inverse = planner.plan_fft_inverse(n);
-        let mut time = vec![0.0; n];
-        time[pad..pad + x.len()].copy_from_slice(x);
-        let mut spectrum = forward.make_output_vec();
-        forward
-            .process(&mut time, &mut spectrum)
-            .map_err(|e| SpatialError::Transform(e.to_string()))?;
-        let freqs: Vec<f64> = (0..spectrum.len())
-            .map(|k| k as f64 * fs_hz / n as f64)
-            .collect();
+        let mut forward = RealFft::new(n);
+        forward.input().fill(0.0);
+        forward.input()[pad..pad + x.len()].copy_from_slice(x);
+        let (mut re, mut im) = (vec![0.0; n / 2 + 1], vec![0.0; n / 2 + 1]);
+        forward.run(&mut re, &mut im);
+        let freqs: Vec<f64> = (0..re.len()).map(|k| k as f64 * fs_hz / n as f64).collect();
         let h = self.transfer(azimuth_deg, &freqs);
+        let mut inverse = RealIfft::new(n);
         let mut ears = [Vec::new(), Vec::new()];
         for (ear, out) in ears.iter_mut().enumerate() {
-            let mut s: Vec<Complex64> = spectrum.iter().zip(&h).map(|(x, h)| x * h[ear]).collect();
-            // the real transform's DC and Nyquist bins are real
-            s[0].im = 0.0;
-            if let Some(last) = s.last_mut() {
-                last.im = 0.0;
+            // (the inverse takes the DC and Nyquist bins as real)
+            let (out_re, out_im) = inverse.spectrum();
+            for (k, h) in h.iter().enumerate() {
+                let y = Complex64::new(re[k], im[k]) * h[ear];
+                (out_re[k], out_im[k]) = (y.re, y.im);
             }
-            let mut y = inverse.make_output_vec();
-            inverse
-                .process(&mut s, &mut y)
-                .map_err(|e| SpatialError::Transform(e.to_string()))?;
+            let y = inverse.run();
             *out = y[pad..pad + x.len()].iter().map(|v| v / n as f64).collect();
         }
         Ok(ears)

@@ -57,7 +57,4 @@ pub enum SpatialError {
     /// Bad localiser input or parameters.
     #[error("{0}")]
     Invalid(String),
-    /// A transform failed (lengths).
-    #[error("transform: {0}")]
-    Transform(String),
 }

@@ -5,8 +5,8 @@
 //! bins of the band; per frame a normalised score over azimuth, and the sources as the
 //! peaks of its average over the active frames.
 
-use realfft::num_complex::Complex64;
-use realfft::RealFftPlanner;
+use afe_core::real_fft::RealFft;
+use num_complex::Complex64;
 
 use crate::head::Head;
 use crate::SpatialError;
@@ -114,7 +114,7 @@ pub fn locate(
     for t in 0..n_frames {
         let at = t * hop;
         let row = &mut scores[t * plan.azimuths.len()..(t + 1) * plan.azimuths.len()];
-        energy[t] = plan.frame(&left[at..at + w], &right[at..at + w], &mut work, row)?;
+        energy[t] = plan.frame(&left[at..at + w], &right[at..at + w], &mut work, row);
     }
     let loudest = energy.iter().fold(0.0f64, |m, &e| m.max(e));
     let floor = loudest * 10f64.powf(-params.activity_db / 10.0);
@@ -156,7 +156,8 @@ struct Plan {
     azimuths: Vec<f64>,
     window: Vec<f64>,
     hop: usize,
-    fft: std::sync::Arc<dyn realfft::RealToComplex<f64>>,
+    /// Points of the transform (the window zero-padded to a power of two).
+    n: usize,
     /// First bin of the band.
     first_bin: usize,
     /// Per azimuth, per bin of the band: V/|V|.
@@ -164,10 +165,11 @@ struct Plan {
     bins: usize,
 }
 
-/// A frame's scratch: the transform's input and the two spectra.
+/// A frame's scratch: the transform with its input, and the two spectra (real and
+/// imaginary parts).
 struct Work {
-    time: Vec<f64>,
-    spectra: [Vec<Complex64>; 2],
+    fft: RealFft,
+    spectra: [(Vec<f64>, Vec<f64>); 2],
 }
 
 impl Plan {
@@ -199,7 +201,6 @@ impl Plan {
         let w = ((p.w_size_sec * fs_hz).round() as usize).max(16);
         let hop = ((p.h_size_sec * fs_hz).round() as usize).max(1);
         let n = w.next_power_of_two();
-        let fft = RealFftPlanner::<f64>::new().plan_fft_forward(n);
         let df = fs_hz / n as f64;
         let first_bin = ((p.f_low_hz / df).ceil() as usize).max(1);
         let last_bin = ((top / df).floor() as usize).min(n / 2 - 1);
@@ -222,7 +223,7 @@ impl Plan {
             azimuths,
             window,
             hop,
-            fft,
+            n,
             first_bin,
             steering,
             bins,
@@ -230,38 +231,32 @@ impl Plan {
     }
 
     fn work(&self) -> Work {
+        let half = || (vec![0.0; self.n / 2 + 1], vec![0.0; self.n / 2 + 1]);
         Work {
-            time: self.fft.make_input_vec(),
-            spectra: [self.fft.make_output_vec(), self.fft.make_output_vec()],
+            fft: RealFft::new(self.n),
+            spectra: [half(), half()],
         }
     }
 
     /// Scores one frame into `row` (per azimuth: the mean over the band's bins of the
     /// share of the bin's energy along its steering vector); returns the band's energy.
-    fn frame(
-        &self,
-        left: &[f64],
-        right: &[f64],
-        work: &mut Work,
-        row: &mut [f64],
-    ) -> Result<f64, SpatialError> {
-        for (ear, x) in [left, right].into_iter().enumerate() {
-            let w = self.window.len();
-            work.time[..w]
+    fn frame(&self, left: &[f64], right: &[f64], work: &mut Work, row: &mut [f64]) -> f64 {
+        let w = self.window.len();
+        for (x, (re, im)) in [left, right].into_iter().zip(&mut work.spectra) {
+            let time = work.fft.input();
+            time[..w]
                 .iter_mut()
                 .zip(x.iter().zip(&self.window))
                 .for_each(|(t, (v, h))| *t = v * h);
-            work.time[w..].fill(0.0);
-            self.fft
-                .process(&mut work.time, &mut work.spectra[ear])
-                .map_err(|e| SpatialError::Transform(e.to_string()))?;
+            time[w..].fill(0.0);
+            work.fft.run(re, im);
         }
-        let band = self.first_bin..self.first_bin + self.bins;
-        let (xl, xr) = (&work.spectra[0][band.clone()], &work.spectra[1][band]);
+        let [(lr, li), (rr, ri)] = &work.spectra;
         let mut energy = 0.0;
         let mut used = 0usize;
         row.fill(0.0);
-        for (b, (l, r)) in xl.iter().zip(xr).enumerate() {
+        for (b, k) in (self.first_bin..self.first_bin + self.bins).enumerate() {
+            let (l, r) = (Complex64::new(lr[k], li[k]), Complex64::new(rr[k], ri[k]));
             let e = l.norm_sqr() + r.norm_sqr();
             if e <= 0.0 {
                 continue;
@@ -277,7 +272,7 @@ impl Plan {
         if used > 0 {
             row.iter_mut().for_each(|s| *s /= used as f64);
         }
-        Ok(energy)
+        energy
     }
 }
 

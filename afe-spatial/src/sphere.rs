@@ -4,7 +4,7 @@
 //! spherical Hankel functions. Two microphones on the sphere make a head model without
 //! pinnae: the robots' polystyrene balls.
 
-use realfft::num_complex::Complex64;
+use num_complex::Complex64;
 
 /// Speed of sound, m/s (20 °C).
 pub const SPEED_OF_SOUND: f64 = 343.0;

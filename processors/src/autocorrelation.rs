@@ -14,7 +14,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::even_inverse::EvenInverse;
 use crate::framed::{check_framing, check_work};
-use crate::real_fft::{fast_len, transform_values, RealFft};
+use afe_core::real_fft::{fast_len, transform_values, RealFft};
 
 /// Outside these bounds on the ACF's lag 0 (the sum of the spectral powers |X|^K) the
 /// powers overflowed or lost their precision in the subnormals: the spectrum is then
@@ -155,7 +155,7 @@ impl std::fmt::Debug for Autocorrelation {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Autocorrelation")
             .field("params", &self.params)
-            .field("fft_len", &self.fft.len())
+            .field("fft_len", &self.fft.points())
             .finish_non_exhaustive()
     }
 }
@@ -319,7 +319,7 @@ impl Autocorrelation {
             self.powers(k);
         }
         // the inverse transform's 1/N, where the AFE's lag 0 underflows first
-        let n = self.fft.len() as f64;
+        let n = self.fft.points() as f64;
         let top = (self.win.len() - 1) as f64;
         let a0 = self.acf[0] / n / top;
         if a0 == 0.0 {

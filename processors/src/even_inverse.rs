@@ -15,7 +15,7 @@ use std::f64::consts::PI;
 
 use num_complex::Complex64;
 
-use crate::real_fft::{split_pair, RealFft};
+use afe_core::real_fft::{split_pair, RealFft};
 
 /// A planned inverse of length `N` for real, even spectra, with its buffers.
 pub struct EvenInverse {
@@ -32,7 +32,7 @@ pub struct EvenInverse {
 impl std::fmt::Debug for EvenInverse {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("EvenInverse")
-            .field("len", &(2 * self.fft.len()))
+            .field("len", &(2 * self.fft.points()))
             .finish_non_exhaustive()
     }
 }
@@ -68,7 +68,7 @@ impl EvenInverse {
     /// If `p` does not hold `M + 1` values or `out` more than `M + 1`.
     #[inline(always)]
     pub fn run(&mut self, p: &[f64], out: &mut [f64]) {
-        let m = self.fft.len();
+        let m = self.fft.points();
         assert_eq!(p.len(), m + 1, "the spectrum's first half, M + 1 values");
         assert!(out.len() <= m + 1, "at most M + 1 values of the inverse");
         // `P[M − j]` for `j < M`: `p[1..]` backwards.
@@ -96,7 +96,7 @@ impl EvenInverse {
         (z, (tw_re, tw_im)): (&[Complex64], (&[f64], &[f64])),
         out: &mut [f64],
     ) {
-        let m = self.fft.len();
+        let m = self.fft.points();
         assert_eq!(z.len(), m, "the forward transform's M values");
         assert!(out.len() <= m + 1, "at most M + 1 values of the inverse");
         let z: &[f64] = bytemuck::cast_slice(z);

@@ -30,7 +30,6 @@ pub mod pitch;
 pub mod pre_proc;
 pub mod precedence;
 pub mod ratemap;
-mod real_fft;
 mod registry;
 pub mod spectral_features;
 pub mod stft;

@@ -22,7 +22,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::even_inverse::EvenInverse;
 use crate::framed::{check_framing, check_work, EarFrames};
-use crate::real_fft::{fast_len, transform_values, RealFft, RealIfft};
+use afe_core::real_fft::{fast_len, transform_values, RealFft, RealIfft};
 
 /// Parameters of the precedence model, under their AFE names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -409,7 +409,7 @@ impl std::fmt::Debug for Precedence {
         let m = &self.model;
         f.debug_struct("Precedence")
             .field("window", &m.win.len())
-            .field("fft_len", &m.fft.len())
+            .field("fft_len", &m.fft.points())
             .field("max_lag", &m.max_lag)
             .field("ac_lag", &m.ac_lag)
             .finish_non_exhaustive()
@@ -551,14 +551,14 @@ impl Precedence {
 impl Model {
     /// Bins of each spectrum, `nfft/2 + 1`.
     fn bins(&self) -> usize {
-        self.fft.len() / 2 + 1
+        self.fft.points() / 2 + 1
     }
 
     /// Step A for ear `e`: windows frame `x`, updates the cumulative autocorrelations
     /// and estimates the lag's delay and amplitude ratio.
     fn analyse(&mut self, e: usize, x: Frame<'_>) {
         let (nc, w, first) = (self.nc, self.win.len(), self.first);
-        let (nfft, bins) = (self.fft.len(), self.bins());
+        let (nfft, bins) = (self.fft.points(), self.bins());
         let ear = &mut self.ears[e];
         window_columns(&self.win, x, &mut ear.cols, &mut ear.peaks);
         // Active bandwidth: channels whose peak is within 12 dB of the frame's.

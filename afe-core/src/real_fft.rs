@@ -22,7 +22,7 @@ use num_complex::Complex64;
 use rustfft::{Fft, FftPlanner};
 
 /// At most the `f64` values a planned transform of `n` points here holds ([`RealFft`],
-/// [`RealIfft`], [`crate::even_inverse::EvenInverse`]): its buffers, scratch and the FFT
+/// [`RealIfft`], and the processors' even inverse built on them): its buffers, scratch and the FFT
 /// plan's own twiddles, for the processors' working-memory bounds.
 pub fn transform_values(n: usize) -> usize {
     n.saturating_mul(6)
@@ -81,7 +81,7 @@ pub struct RealFft {
 impl std::fmt::Debug for RealFft {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("RealFft")
-            .field("len", &self.len())
+            .field("points", &self.points())
             .finish_non_exhaustive()
     }
 }
@@ -104,7 +104,7 @@ impl RealFft {
     }
 
     /// `N`, the number of real values transformed.
-    pub fn len(&self) -> usize {
+    pub fn points(&self) -> usize {
         2 * self.pairs.len()
     }
 
@@ -247,7 +247,7 @@ impl RealIfft {
     }
 }
 
-afe_core::simd_kernel!(
+crate::simd_kernel!(
     fma,
     /// The split pass (forward) or merge pass (`INVERSE`) over the pairs `(k, M − k)`,
     /// `0 < k < M/2`, in `realfft`'s order of operations: `low` holds the values of
@@ -296,8 +296,14 @@ pub fn split_pair<const INVERSE: bool>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testing::noise;
     use realfft::RealFftPlanner;
+
+    /// `len` values of a chirp whose start phase is `seed`: every bin non-zero.
+    fn chirp(len: usize, seed: u64) -> Vec<f64> {
+        (0..len)
+            .map(|k| (seed as f64 + 0.37 * k as f64 + 0.011 * (k * k) as f64).sin())
+            .collect()
+    }
 
     #[test]
     fn transform_lengths_are_the_smallest_of_four_families() {
@@ -335,7 +341,7 @@ mod tests {
             let mut ours = RealFft::new(n);
             let theirs = RealFftPlanner::<f64>::new().plan_fft_forward(n);
             for seed in [n as u64, 1] {
-                let x = noise(n, seed);
+                let x = chirp(n, seed);
                 let got = spectrum(&mut ours, &x);
                 let mut input = x.clone();
                 let mut want = theirs.make_output_vec();
@@ -356,9 +362,9 @@ mod tests {
     #[test]
     fn matches_the_definition() {
         let n = 12;
-        let x = noise(n, 3);
+        let x = chirp(n, 3);
         let mut fft = RealFft::new(n);
-        assert_eq!(format!("{fft:?}"), "RealFft { len: 12, .. }");
+        assert_eq!(format!("{fft:?}"), "RealFft { points: 12, .. }");
         for (k, g) in spectrum(&mut fft, &x).iter().enumerate() {
             let want: Complex64 = x
                 .iter()
@@ -375,7 +381,7 @@ mod tests {
             let mut ours = RealIfft::new(n);
             let theirs = RealFftPlanner::<f64>::new().plan_fft_inverse(n);
             for seed in [n as u64, 1] {
-                let x = noise(n + 2, seed);
+                let x = chirp(n + 2, seed);
                 let spectrum: Vec<Complex64> = x
                     .chunks_exact(2)
                     .map(|p| Complex64::new(p[0], p[1]))
