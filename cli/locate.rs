@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use afe_spatial::{locate, Head, LocaliserParams, Located};
+use afe_spatial::{locate, Head, HeadYaw, LocaliserParams, Located};
 use serde_json::json;
 
 use crate::error::CliError;
@@ -10,7 +10,7 @@ use crate::files::read_input;
 use crate::outln;
 
 /// `afe locate IN.wav [--head kemar|sphere:radius=M[,ears=DEG]|FILE.sofa] [--sources N]
-/// [--json]`.
+/// [--head-yaw FILE.csv] [--json]`.
 #[derive(clap::Args)]
 pub(crate) struct LocateArgs {
     /// Input WAV file, two channels (left ear, right ear).
@@ -24,8 +24,14 @@ pub(crate) struct LocateArgs {
     /// first).
     #[arg(long, value_name = "N")]
     sources: Option<usize>,
+    /// The head's yaw over time: a CSV of rows `t_s,yaw_deg` (yaw positive to the left,
+    /// times increasing; a header row of those names may come first). Azimuths are then
+    /// in the world (world = relative + yaw), and a turning head tells front from back.
+    #[arg(long, value_name = "FILE.csv")]
+    head_yaw: Option<PathBuf>,
     /// Print the sources and the frames as JSON: {"sources": [{"azimuth_deg",
-    /// "salience"}, ...], "frames": [{"t_s", "active", "azimuth_deg"}, ...], ...}.
+    /// "salience"}, ...], "frames": [{"t_s", "active", "azimuth_deg", "yaw_deg"}, ...],
+    /// ...}.
     #[arg(long)]
     json: bool,
 }
@@ -36,6 +42,17 @@ impl LocateArgs {
             return Err("--sources must be at least 1".into());
         }
         let head = Head::parse(&self.head)?;
+        let yaw = match &self.head_yaw {
+            Some(path) => {
+                let text = std::fs::read_to_string(path).map_err(|e| {
+                    CliError::Message(format!("cannot read {}: {e}", path.display()))
+                })?;
+                let track = HeadYaw::parse_csv(&text)
+                    .map_err(|e| CliError::Message(format!("{}: {e}", path.display())))?;
+                Some(track)
+            }
+            None => None,
+        };
         let audio = read_input(&self.input)?;
         let [left, right] = audio.channels.as_slice() else {
             return Err(CliError::Message(format!(
@@ -50,11 +67,12 @@ impl LocateArgs {
             audio.fs,
             &LocaliserParams::default(),
             self.sources,
+            yaw.as_ref(),
         )?;
         if self.json {
             outln!("{}", to_json(&head, audio.fs, &found));
         } else {
-            outln!("{}", table(&head, &found));
+            outln!("{}", table(&head, &found, yaw.is_some()));
         }
         Ok(())
     }
@@ -72,14 +90,20 @@ fn to_json(head: &Head, fs_hz: f64, found: &Located) -> serde_json::Value {
             "t_s": f.t_s,
             "active": f.active,
             "azimuth_deg": f.azimuth_deg,
+            "yaw_deg": f.yaw_deg,
         })).collect::<Vec<_>>(),
     })
 }
 
-fn table(head: &Head, found: &Located) -> String {
+fn table(head: &Head, found: &Located, world: bool) -> String {
     let active = found.frames.iter().filter(|f| f.active).count();
+    let frame = if world {
+        "in the world, the head's yaw added"
+    } else {
+        "relative to the head"
+    };
     let mut lines = vec![format!(
-        "{} source(s), head {}, {} of {} frames active; azimuth 0 = front, 90 = left",
+        "{} source(s), head {}, {} of {} frames active; azimuth 0 = front, 90 = left, {frame}",
         found.sources.len(),
         head.name(),
         active,

@@ -273,7 +273,7 @@ crate::simd_kernel!(
     }
 );
 
-/// One pair of [`split`]: from `x` at `k`, `y` at `M − k` and the twiddle of `k` (real,
+/// One pair of the split pass: from `x` at `k`, `y` at `M − k` and the twiddle of `k` (real,
 /// imaginary parts), the values at `k` and at `M − k`, in `realfft`'s order of
 /// operations (the inverse's signs are the forward's negated, which changes no bit).
 #[inline(always)]

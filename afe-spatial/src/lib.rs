@@ -6,9 +6,11 @@ pub mod head;
 pub mod locate;
 pub mod sofa;
 pub mod sphere;
+pub mod yaw;
 
 pub use head::Head;
 pub use locate::{locate, LocaliserParams, Located, Source};
+pub use yaw::HeadYaw;
 
 use thiserror::Error;
 

@@ -9,6 +9,7 @@ use afe_core::real_fft::RealFft;
 use num_complex::Complex64;
 
 use crate::head::Head;
+use crate::yaw::{score_at, HeadYaw};
 use crate::SpatialError;
 
 /// The localiser's parameters; messages name them in the AFE's style (`loc_*`).
@@ -42,10 +43,11 @@ impl Default for LocaliserParams {
     }
 }
 
-/// A source found: its head-relative azimuth and how salient it is.
+/// A source found: its azimuth and how salient it is.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Source {
-    /// Azimuth, deg in [0, 360) (0 = front, 90 = left).
+    /// Azimuth, deg in [0, 360) (0 = front, 90 = left): head-relative, or in the world
+    /// when the head's yaw is given.
     pub azimuth_deg: f64,
     /// Its peak's mean score over the active frames, 0 to 1.
     pub salience: f64,
@@ -58,8 +60,10 @@ pub struct Frame {
     pub t_s: f64,
     /// Whether it holds sound (within `activity_db` of the loudest frame).
     pub active: bool,
-    /// The azimuth of its best score, deg.
+    /// The azimuth of its best score, deg (in the world when the head's yaw is given).
     pub azimuth_deg: f64,
+    /// The head's yaw then, deg (0 without a yaw track: world and head agree).
+    pub yaw_deg: f64,
 }
 
 /// What [`locate`] found.
@@ -71,18 +75,23 @@ pub struct Located {
     pub sources: Vec<Source>,
     /// Every frame.
     pub frames: Vec<Frame>,
-    /// The mean score over the active frames, per azimuth of the grid.
+    /// The mean score over the active frames, per azimuth of the grid (in the world
+    /// when the head's yaw is given).
     pub mean_score: Vec<f64>,
 }
 
 /// The sources in `ears` (left, right at `fs_hz`) as `head` hears them: at most
-/// `max_sources` (`None`: the salient ones, at least 0.9 of the first's salience).
+/// `max_sources` (`None`: the salient ones, at least 0.9 of the first's salience). With
+/// the head's `yaw`, each frame's scores turn into the world (world = relative + yaw)
+/// before they are averaged: a source that stays put adds up while its front-back image,
+/// which moves against the turn, spreads out.
 pub fn locate(
     head: &Head,
     ears: [&[f64]; 2],
     fs_hz: f64,
     params: &LocaliserParams,
     max_sources: Option<usize>,
+    yaw: Option<&HeadYaw>,
 ) -> Result<Located, SpatialError> {
     let [left, right] = ears;
     if left.len() != right.len() {
@@ -121,19 +130,32 @@ pub fn locate(
     let na = plan.azimuths.len();
     let mut mean_score = vec![0.0; na];
     let mut active_frames = 0usize;
+    let mut world = vec![0.0; if yaw.is_some() { na } else { 0 }];
     let frames: Vec<Frame> = (0..n_frames)
         .map(|t| {
-            let row = &scores[t * na..(t + 1) * na];
+            let t_s = (t * hop + w / 2) as f64 / fs_hz;
+            let yaw_deg = yaw.map_or(0.0, |y| y.at(t_s));
+            let relative = &scores[t * na..(t + 1) * na];
+            let row = match yaw {
+                Some(_) => {
+                    for (g, &az) in world.iter_mut().zip(&plan.azimuths) {
+                        *g = score_at(&plan.azimuths, relative, az - yaw_deg);
+                    }
+                    &world[..]
+                }
+                None => relative,
+            };
             let active = loudest > 0.0 && energy[t] >= floor;
             if active {
                 active_frames += 1;
                 mean_score.iter_mut().zip(row).for_each(|(m, s)| *m += s);
             }
-            let best = argmax(row);
+            let best = argmax(relative);
             Frame {
-                t_s: (t * hop + w / 2) as f64 / fs_hz,
+                t_s,
                 active,
-                azimuth_deg: refine(&plan.azimuths, row, best),
+                azimuth_deg: (refine(&plan.azimuths, relative, best) + yaw_deg).rem_euclid(360.0),
+                yaw_deg,
             }
         })
         .collect();
@@ -378,8 +400,15 @@ mod tests {
         let x = noise(12000, 7);
         for az in [0.0, 17.0, 40.0, 75.0, 110.0, 200.0, 263.0, 331.5] {
             let [l, r] = head.render(az, &x, fs).expect("render");
-            let found =
-                locate(&head, [&l, &r], fs, &LocaliserParams::default(), Some(1)).expect("located");
+            let found = locate(
+                &head,
+                [&l, &r],
+                fs,
+                &LocaliserParams::default(),
+                Some(1),
+                None,
+            )
+            .expect("located");
             let got = found.sources[0].azimuth_deg;
             let err = (lateral_deg(got) - lateral_deg(az)).abs();
             assert!(err < 2.0, "{az}: found {got}");
@@ -391,13 +420,15 @@ mod tests {
     fn bad_input_is_named() {
         let head = Head::Sphere(Sphere::antipodal(0.075));
         let p = LocaliserParams::default();
-        let e = locate(&head, [&[0.0; 100], &[0.0; 99]], 16000.0, &p, None).expect_err("lengths");
+        let e =
+            locate(&head, [&[0.0; 100], &[0.0; 99]], 16000.0, &p, None, None).expect_err("lengths");
         assert!(e.to_string().contains("100 and 99 samples"), "{e}");
         let mut x = vec![0.0; 2000];
         x[1500] = f64::NAN;
-        let e = locate(&head, [&x, &x], 16000.0, &p, None).expect_err("nan");
+        let e = locate(&head, [&x, &x], 16000.0, &p, None, None).expect_err("nan");
         assert!(e.to_string().contains("sample 1500 is NaN"), "{e}");
-        let e = locate(&head, [&[0.0; 100], &[0.0; 100]], 16000.0, &p, None).expect_err("short");
+        let e =
+            locate(&head, [&[0.0; 100], &[0.0; 100]], 16000.0, &p, None, None).expect_err("short");
         assert!(
             e.to_string().contains("shorter than one 640-sample frame"),
             "{e}"
@@ -407,7 +438,7 @@ mod tests {
             ..p
         };
         let quiet = vec![0.0; 2000];
-        let e = locate(&head, [&quiet, &quiet], 16000.0, &low, None).expect_err("band");
+        let e = locate(&head, [&quiet, &quiet], 16000.0, &low, None, None).expect_err("band");
         assert!(e.to_string().contains("loc_fLowHz (9000 Hz)"), "{e}");
     }
 

@@ -532,6 +532,7 @@ def locate(
     fs: Optional[float] = None,
     head: str = "kemar",
     sources: Optional[int] = None,
+    head_yaw: Any = None,
 ) -> Dict[str, Any]:
     """Where the sources of a binaural signal are, for the head that heard it (as
     ``afe locate``; docs/localisation.md).
@@ -541,19 +542,29 @@ def locate(
     ``"sphere:radius=M[,ears=DEG]"`` (a rigid sphere; ``"sphere"``: the 15-cm ball) or
     the path of a SimpleFreeFieldHRIR ``.sofa`` file (:func:`heads` lists the built-in
     ones). ``sources``: how many to report (default: those at least 0.9 as salient as
-    the first).
+    the first). ``head_yaw``: the head's yaw over time, ``[points, 2]`` rows of
+    ``(t_s, yaw_deg)`` (yaw positive to the left, times increasing): azimuths are then in
+    the world (world = relative + yaw), and a turning head tells front from back.
 
     Returns a dict: ``sources`` (a list of ``{"azimuth_deg", "salience"}``, most salient
     first; azimuth 0 = front, 90 = left, in [0, 360)), per frame ``t_s`` (centres, s),
-    ``active`` (bool) and ``azimuth_deg`` (its best direction), and the score grid
-    ``azimuths_deg`` with the active frames' ``mean_score``. Raises ``ValueError``
+    ``active`` (bool), ``azimuth_deg`` (its best direction) and ``yaw_deg``, and the score
+    grid ``azimuths_deg`` with the active frames' ``mean_score``. Raises ``ValueError``
     naming the problem: an unknown head, a bad SOFA file, not two channels, NaN, a signal
-    shorter than a 40-ms frame.
+    shorter than a 40-ms frame, a yaw track that is not ``[points, 2]`` with increasing
+    times.
     """
     if sources is not None and (not isinstance(sources, int) or sources < 1):
         raise ValueError(f"sources = {sources!r}: a number of sources, at least 1")
     x, fs = _signal_at_rate(ear_signals, fs)
-    return _afe.locate(x, fs, str(head), sources)
+    yaw = None
+    if head_yaw is not None:
+        yaw = np.ascontiguousarray(np.asarray(head_yaw, dtype=np.float64))
+        if yaw.ndim != 2 or yaw.shape[1] != 2:
+            raise ValueError(
+                f"head_yaw of shape {yaw.shape}: rows of (t_s, yaw_deg), [points, 2]"
+            )
+    return _afe.locate(x, fs, str(head), sources, yaw)
 
 
 def render(x: Any, fs: float, azimuth_deg: float, head: str = "sphere") -> np.ndarray:

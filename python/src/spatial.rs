@@ -1,7 +1,7 @@
 //! `afe.locate`, `afe.render` and `afe.heads`: head models and localisation
 //! (`afe-spatial`) on numpy arrays.
 
-use afe_spatial::{Head, LocaliserParams, SpatialError};
+use afe_spatial::{Head, HeadYaw, LocaliserParams, SpatialError};
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -15,16 +15,18 @@ fn value_error(e: SpatialError) -> PyErr {
 
 /// The sources of the `[samples, 2]` signal `x` at `fs` Hz as `head` hears them: a dict
 /// of `sources` (a list of dicts with `azimuth_deg` and `salience`), per frame `t_s`,
-/// `active` and `azimuth_deg` (arrays), and the score grid `azimuths_deg` with the
-/// active frames' `mean_score`.
+/// `active`, `azimuth_deg` and `yaw_deg` (arrays), and the score grid `azimuths_deg`
+/// with the active frames' `mean_score`; in the world with the `[points, 2]` track
+/// `head_yaw` of `(t_s, yaw_deg)`.
 #[pyfunction]
-#[pyo3(signature = (x, fs, head, sources))]
+#[pyo3(signature = (x, fs, head, sources, head_yaw))]
 pub fn locate<'py>(
     py: Python<'py>,
     x: PyReadonlyArray2<'py, f64>,
     fs: f64,
     head: &str,
     sources: Option<usize>,
+    head_yaw: Option<PyReadonlyArray2<'py, f64>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     if x.shape()[1] != 2 {
         return Err(PyValueError::new_err(format!(
@@ -33,6 +35,19 @@ pub fn locate<'py>(
         )));
     }
     let head = Head::parse(head).map_err(value_error)?;
+    let yaw = match &head_yaw {
+        Some(track) => {
+            let [t, yaw]: [Vec<f64>; 2] = columns(track).try_into().map_err(|c: Vec<_>| {
+                PyValueError::new_err(format!(
+                    "head_yaw has {} column(s): rows of (t_s, yaw_deg)",
+                    c.len()
+                ))
+            })?;
+            let points: Vec<(f64, f64)> = t.into_iter().zip(yaw).collect();
+            Some(HeadYaw::new(&points).map_err(value_error)?)
+        }
+        None => None,
+    };
     let ears = columns(&x);
     let found = py
         .allow_threads(|| {
@@ -42,6 +57,7 @@ pub fn locate<'py>(
                 fs,
                 &LocaliserParams::default(),
                 sources,
+                yaw.as_ref(),
             )
         })
         .map_err(value_error)?;
@@ -62,6 +78,7 @@ pub fn locate<'py>(
         "azimuth_deg",
         PyArray1::from_vec(py, column(|f| f.azimuth_deg)),
     )?;
+    out.set_item("yaw_deg", PyArray1::from_vec(py, column(|f| f.yaw_deg)))?;
     let active: Vec<bool> = frames.iter().map(|f| f.active).collect();
     out.set_item("active", PyArray1::from_vec(py, active))?;
     out.set_item("azimuths_deg", PyArray1::from_vec(py, found.azimuths_deg))?;

@@ -41,6 +41,18 @@ def test_the_left_ear_leads_for_a_source_on_the_left():
     assert 13 <= lead <= 19, lead
 
 
+def test_a_yaw_track_turns_the_azimuths_into_the_world():
+    ears = afe.render(noise(int(FS)), FS, 40.0, head="sphere")
+    found = afe.locate(ears, FS, head="sphere", sources=1, head_yaw=[[0.0, 30.0]])
+    assert np.all(found["yaw_deg"] == 30.0)
+    world = found["sources"][0]["azimuth_deg"]
+    # the head, turned 30 deg to the left, hears the source 40 deg to its left (or its
+    # front-back image: the track holds still)
+    assert abs(folded(world - 30.0) - 40.0) <= 5.0, found["sources"]
+    still = afe.locate(ears, FS, head="sphere", sources=1)
+    assert np.all(still["yaw_deg"] == 0.0)
+
+
 def test_heads_are_listed():
     names = [n for n, _ in afe.heads()]
     assert names[0] == "kemar" and names[1].startswith("sphere:")
@@ -62,6 +74,10 @@ def test_bad_input_is_named():
     bad[10, 0] = np.nan
     with pytest.raises(ValueError, match="NaN"):
         afe.locate(bad, FS, head="sphere")
+    with pytest.raises(ValueError, match="rows of \\(t_s, yaw_deg\\)"):
+        afe.locate(ears, FS, head="sphere", head_yaw=[0.0, 1.0])
+    with pytest.raises(ValueError, match="times must increase"):
+        afe.locate(ears, FS, head="sphere", head_yaw=[[1.0, 0.0], [0.5, 10.0]])
     with pytest.raises(ValueError, match="render takes a mono signal"):
         afe.render(ears, FS, 30.0)
     with pytest.raises(ValueError, match="bad sphere parameter"):
