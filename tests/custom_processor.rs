@@ -1,7 +1,7 @@
 //! A representation added from outside the workspace's crates: a processor defined in
-//! this file (its own module) and one registration. Its metadata, its figure and its
-//! live-view panel come from its own description, with nothing in the facade taught
-//! about it.
+//! this file (its own module) and one registration. Its metadata (its NaN rule among
+//! them), its figure and its live-view panel come from its own description, with nothing
+//! in the facade taught about it.
 #![cfg(all(feature = "plot", feature = "view"))]
 
 use std::time::Duration;
@@ -54,10 +54,14 @@ mod centred {
             let info = inputs[0]
                 .clone()
                 .with_unit(Self::OUTPUT_UNIT)
-                .drawn_as(DrawAs::Signed);
+                .drawn_as(DrawAs::Signed)
+                .nan_where(NAN_WHERE);
             Ok(Built::new(Centred, vec![info]))
         }
     }
+
+    /// Where it is NaN: a rule of its own, which no code outside this module knows.
+    pub const NAN_WHERE: &str = "never, unless a test's processor says so";
 
     /// Its registry entry: the one line a new representation adds.
     pub static REQUEST: RequestDef = request_def::<Centred>();
@@ -95,6 +99,7 @@ fn a_processor_defined_here_gets_metadata_a_figure_and_a_panel() {
     assert_eq!(d["window_s"], 0.02);
     assert_eq!(d["hop_s"], 0.01);
     assert_eq!(d["display"], json!({"draw": "signed"}));
+    assert_eq!(d["nan_where"], centred::NAN_WHERE);
     assert_eq!(d["processors"][0], "testCentred");
     assert_eq!(s.data.width(), 8);
 

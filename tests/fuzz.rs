@@ -1448,7 +1448,7 @@ fn accepted_params(rng: &mut Rng, request: &str) -> ParamMap {
 /// whose features do not vary.
 fn check_finite(mgr: &Manager) -> Result<(), String> {
     for s in mgr.signals(false) {
-        let nan_allowed = afe::metadata::nan_where(s.name).is_some();
+        let nan_allowed = s.info.nan_where.is_some();
         let inf_allowed = s.name == "gabor";
         let wrong = |v: &f64| {
             !(v.is_finite() || (nan_allowed && v.is_nan()) || (inf_allowed && v.is_infinite()))

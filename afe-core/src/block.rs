@@ -155,6 +155,9 @@ pub struct SignalInfo {
     pub window_s: Option<f64>,
     /// How the values are best drawn.
     pub display: DrawAs,
+    /// Where the values are NaN from finite input, as the AFE's are (docs/conformance.md),
+    /// in a sentence a reader of the metadata sees; `None` where they never are.
+    pub nan_where: Option<&'static str>,
 }
 
 impl SignalInfo {
@@ -216,6 +219,14 @@ impl SignalInfo {
     pub fn named(self, name: &'static str) -> Self {
         SignalInfo {
             name: Some(name),
+            ..self
+        }
+    }
+
+    /// The same signal, NaN where `nan_where` says (see [`SignalInfo::nan_where`]).
+    pub fn nan_where(self, nan_where: &'static str) -> Self {
+        SignalInfo {
+            nan_where: Some(nan_where),
             ..self
         }
     }

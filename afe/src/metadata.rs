@@ -100,38 +100,8 @@ pub fn describe(manager: &Manager, s: &Signal<'_>) -> Value {
             ("n_channels".to_string(), json!(s.info.cf_hz.len())),
             ("processors".to_string(), json!(processors)),
             ("parameters".to_string(), Value::Object(parameters)),
-            ("nan_where".to_string(), json!(nan_where(s.name))),
+            ("nan_where".to_string(), json!(s.info.nan_where)),
         ]);
     }
     d
-}
-
-/// Where the representation `name` holds NaN from finite input, as the AFE's does
-/// (docs/conformance.md); `None` where it never does.
-///
-/// ```
-/// assert!(afe::metadata::nan_where("pitch").is_some_and(|w| w.contains("unvoiced")));
-/// assert_eq!(afe::metadata::nan_where("ratemap"), None);
-/// ```
-pub fn nan_where(name: &str) -> Option<&'static str> {
-    Some(match name {
-        "pitch" => "in the first column where a frame is unvoiced (the raw pitch and the confidence stay numbers)",
-        "duet" => "in a block of silence: the histogram is divided by its largest bin, 0 there",
-        "autocorrelation" => {
-            "at every lag of a frame whose input is all zero (digital silence, or a channel the \
-             hair cell rectified to 0): 0/0, as in the AFE; and of a frame whose lag 0 \
-             underflows to 0 in the AFE's arithmetic (a filter's decay, or a large ac_K)"
-        }
-        "precedence_ild" => "in a window whose input is all zero in both ears: 0/0, as in the AFE",
-        "gabor" => {
-            "(or ±Inf) in a chunk whose features do not vary (silence, or a chunk of one frame): \
-             the per-chunk normalisation divides by a variance of 0, as in the AFE; and with \
-             ihc_method 'none' and rm_scaling 'magnitude' (the log of a signed ratemap)"
-        }
-        "spectralFeatures" => {
-            "with ihc_method 'none' and rm_scaling 'magnitude' only: the ratemap is then signed \
-             and the logarithms of its negative values are NaN"
-        }
-        _ => return None,
-    })
 }

@@ -233,7 +233,12 @@ impl Autocorrelation {
         let info = input
             .correlation(1.0 / params.h_size_sec, lags_s)
             .with_unit(Self::OUTPUT_UNIT)
-            .with_window_s(params.w_size_sec);
+            .with_window_s(params.w_size_sec)
+            .nan_where(
+                "at every lag of a frame whose input is all zero (digital silence, or a channel \
+                 the hair cell rectified to 0): 0/0, as in the AFE; and of a frame whose lag 0 \
+                 underflows to 0 in the AFE's arithmetic (a filter's decay, or a large ac_K)",
+            );
         Ok((ac, info))
     }
 

@@ -281,6 +281,9 @@ impl Duet {
             audio_fs_hz: input.audio_fs_hz,
             unit: Self::OUTPUT_UNIT,
             window_s: Some(p.w_duet_sec),
+            nan_where: Some(
+                "in a block of silence: the histogram is divided by its largest bin, 0 there",
+            ),
             ..SignalInfo::default()
         };
         Ok((duet, info))

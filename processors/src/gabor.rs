@@ -236,7 +236,13 @@ impl Gabor {
             window_s: input.window_s,
             ..SignalInfo::feature(input.fs_hz, input.audio_fs_hz, names)
         }
-        .with_unit(Self::OUTPUT_UNIT);
+        .with_unit(Self::OUTPUT_UNIT)
+        .nan_where(
+            "(or ±Inf) in a chunk whose features do not vary (silence, or a chunk of one \
+             frame): the per-chunk normalisation divides by a variance of 0, as in the AFE; \
+             and with ihc_method 'none' and rm_scaling 'magnitude' (the log of a signed \
+             ratemap)",
+        );
         Ok((gabor, info))
     }
 

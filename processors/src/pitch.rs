@@ -190,7 +190,11 @@ impl Pitch {
             ..SignalInfo::feature(input.fs_hz, input.audio_fs_hz, features)
         }
         .with_unit(Self::OUTPUT_UNIT)
-        .drawn_as(DrawAs::Trajectory);
+        .drawn_as(DrawAs::Trajectory)
+        .nan_where(
+            "in the first column where a frame is unvoiced (the raw pitch and the confidence \
+             stay numbers)",
+        );
         Ok((pitch, info))
     }
 }

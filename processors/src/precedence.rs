@@ -538,7 +538,8 @@ impl Precedence {
                 .clone()
                 .named("precedence_ild")
                 .with_unit("dB")
-                .drawn_as(DrawAs::Signed),
+                .drawn_as(DrawAs::Signed)
+                .nan_where("in a window whose input is all zero in both ears: 0/0, as in the AFE"),
             framed
                 .correlation(rate, lags_s)
                 .named("precedence_cc")

@@ -225,7 +225,11 @@ impl SpectralFeatures {
             window_s: input.window_s,
             ..SignalInfo::feature(input.fs_hz, input.audio_fs_hz, names)
         }
-        .with_unit(Self::OUTPUT_UNIT);
+        .with_unit(Self::OUTPUT_UNIT)
+        .nan_where(
+            "with ihc_method 'none' and rm_scaling 'magnitude' only: the ratemap is then signed \
+             and the logarithms of its negative values are NaN",
+        );
         Ok((sf, info))
     }
 
