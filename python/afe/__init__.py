@@ -62,6 +62,7 @@ __all__ = [
     "save",
     "stream",
     "summary",
+    "transfer",
     "__version__",
 ]
 
@@ -575,6 +576,18 @@ def render(x: Any, fs: float, azimuth_deg: float, head: str = "sphere") -> np.nd
     if mono.ndim != 1:
         raise ValueError(f"x of shape {mono.shape}: render takes a mono signal [samples]")
     return _afe.render(mono, float(fs), str(head), float(azimuth_deg))
+
+
+def transfer(freqs_hz: Any, azimuth_deg: float, head: str = "sphere") -> np.ndarray:
+    """The transfer functions of ``head`` to the left and the right ear from
+    ``azimuth_deg`` (0 = front, 90 = left) at each of ``freqs_hz``, relative to the free
+    field at the head's centre, in the DFT's sign convention (a delay is
+    ``exp(-2j*pi*f*tau)``): complex ``[freqs, 2]``. A measured head gives its nearest
+    direction, from 0 Hz to its Nyquist frequency; the sphere its Duda-Martens series."""
+    freqs = np.ascontiguousarray(np.asarray(freqs_hz, dtype=np.float64))
+    if freqs.ndim != 1:
+        raise ValueError(f"freqs_hz of shape {freqs.shape}: a vector of frequencies, Hz")
+    return _afe.transfer(freqs, str(head), float(azimuth_deg))
 
 
 def heads() -> List[Tuple[str, str]]:

@@ -639,6 +639,7 @@ fn _afe(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(raa::raa, m)?)?;
     m.add_function(wrap_pyfunction!(spatial::locate, m)?)?;
     m.add_function(wrap_pyfunction!(spatial::render, m)?)?;
+    m.add_function(wrap_pyfunction!(spatial::transfer, m)?)?;
     m.add_function(wrap_pyfunction!(spatial::heads, m)?)?;
     m.add_function(wrap_pyfunction!(batch::batch_run, m)?)?;
     m.add_function(wrap_pyfunction!(batch::batch_plan, m)?)?;

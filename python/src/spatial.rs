@@ -2,7 +2,9 @@
 //! (`afe-spatial`) on numpy arrays.
 
 use afe_spatial::{Head, HeadYaw, LocaliserParams, SpatialError};
-use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{
+    Complex64, PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods,
+};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
@@ -107,6 +109,44 @@ pub fn render<'py>(
     let data: Vec<f64> = l.iter().zip(&r).flat_map(|(a, b)| [*a, *b]).collect();
     Ok(PyArray1::from_vec(py, data)
         .reshape(vec![l.len(), 2])?
+        .into_any())
+}
+
+/// The transfer functions of `head` to the left and the right ear from `azimuth_deg`
+/// at each of `freqs_hz`, relative to the free field at the head's centre, in the DFT's
+/// sign convention (a delay τ is `e^{−iωτ}`): complex `[freqs, 2]`.
+#[pyfunction]
+pub fn transfer<'py>(
+    py: Python<'py>,
+    freqs_hz: PyReadonlyArray1<'py, f64>,
+    head: &str,
+    azimuth_deg: f64,
+) -> PyResult<Bound<'py, PyAny>> {
+    let head = Head::parse(head).map_err(value_error)?;
+    let freqs = freqs_hz.as_slice()?.to_vec();
+    let top = head.max_frequency_hz();
+    if let Some(f) = freqs
+        .iter()
+        .find(|f| !(f.is_finite() && **f >= 0.0 && **f <= top))
+    {
+        return Err(PyValueError::new_err(format!(
+            "frequency {f} Hz: the head {} has transfer functions from 0 to {top} Hz",
+            head.name()
+        )));
+    }
+    if !azimuth_deg.is_finite() {
+        return Err(PyValueError::new_err(format!(
+            "azimuth {azimuth_deg} deg is not finite"
+        )));
+    }
+    let h = py.allow_threads(|| head.transfer(azimuth_deg, &freqs));
+    let data: Vec<Complex64> = h
+        .iter()
+        .flatten()
+        .map(|c| Complex64::new(c.re, c.im))
+        .collect();
+    Ok(PyArray1::from_vec(py, data)
+        .reshape(vec![freqs.len(), 2])?
         .into_any())
 }
 

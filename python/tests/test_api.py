@@ -50,7 +50,7 @@ def test_dir_shows_the_public_api_only():
     assert dir(afe) == sorted(
         ["Audio", "AudioBlock", "Frames", "Manager", "Remote", "RemoteError", "Signal", "Store", "Subscription", "batch", "connect",
          "heads", "host", "load", "locate", "open_store", "parameters", "plot", "process", "raa", "read_wav", "render", "requests",
-         "save", "stream", "summary", "__version__"]
+         "save", "stream", "summary", "transfer", "__version__"]
     )
 
 
