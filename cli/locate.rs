@@ -9,6 +9,10 @@ use crate::error::CliError;
 use crate::files::read_input;
 use crate::outln;
 
+/// Largest yaw track read, bytes: hours of a 100-Hz track, and a bound on what a wrong
+/// path (`/dev/zero`, a WAV file) can make the command read.
+const YAW_FILE_MAX_BYTES: u64 = 64 << 20;
+
 /// `afe locate IN.wav [--head kemar|sphere:radius=M[,ears=DEG]|FILE.sofa] [--sources N]
 /// [--head-yaw FILE.csv] [--json]`.
 #[derive(clap::Args)]
@@ -44,7 +48,7 @@ impl LocateArgs {
         let head = Head::parse(&self.head)?;
         let yaw = match &self.head_yaw {
             Some(path) => {
-                let text = std::fs::read_to_string(path).map_err(|e| {
+                let text = afe::bounded_read::read_text(path, YAW_FILE_MAX_BYTES).map_err(|e| {
                     CliError::Message(format!("cannot read {}: {e}", path.display()))
                 })?;
                 let track = HeadYaw::parse_csv(&text)

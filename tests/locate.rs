@@ -233,4 +233,9 @@ fn locate_refuses_what_it_cannot_use_in_one_line() {
         "head yaw: point 3 at t_s = 0.5 does not follow t_s = 1: times must increase",
         &none,
     );
+    assert_clear_error(
+        &afe(&["locate", s, "--head", "sphere", "--head-yaw", "/dev/zero"]),
+        "cannot read /dev/zero: larger than 65536 KiB",
+        &none,
+    );
 }

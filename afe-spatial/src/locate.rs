@@ -324,7 +324,7 @@ fn refine(azimuths: &[f64], scores: &[f64], k: usize) -> f64 {
     } else {
         (k + n - 1) % n
     };
-    let step = (azimuths[next] - azimuths[k] + 540.0).rem_euclid(360.0) - 180.0;
+    let step = crate::turn_deg(azimuths[k], azimuths[next]);
     (azimuths[k] + shift.abs() * step).rem_euclid(360.0)
 }
 

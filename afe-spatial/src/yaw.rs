@@ -73,8 +73,7 @@ impl HeadYaw {
         } else {
             let (t0, t1) = (self.t_s[next - 1], self.t_s[next]);
             let (a, b) = (self.yaw_deg[next - 1], self.yaw_deg[next]);
-            let turn = (b - a + 540.0).rem_euclid(360.0) - 180.0;
-            a + turn * (t_s - t0) / (t1 - t0)
+            a + crate::turn_deg(a, b) * (t_s - t0) / (t1 - t0)
         };
         yaw.rem_euclid(360.0)
     }
