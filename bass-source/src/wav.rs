@@ -179,15 +179,16 @@ mod tests {
         w.finalize().expect("finalize");
     }
 
-    fn temp(name: &str) -> std::path::PathBuf {
-        let dir = std::env::temp_dir().join(format!("afe-bass-wav-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).expect("dir");
-        dir.join(name)
+    /// A path `name` in a folder of its own, removed with the returned guard.
+    fn temp(name: &str) -> (tempfile::TempDir, std::path::PathBuf) {
+        let dir = tempfile::tempdir().expect("temporary folder");
+        let path = dir.path().join(name);
+        (dir, path)
     }
 
     #[test]
     fn integer_files_keep_full_scale_and_float_files_their_values() {
-        let p = temp("i16.wav");
+        let (_dir, p) = temp("i16.wav");
         let spec = hound::WavSpec {
             channels: 2,
             sample_rate: 16000,
@@ -206,7 +207,7 @@ mod tests {
         assert_eq!(left, [-1.0, 1.0 / 32768.0, 7.0 / 32768.0]);
         assert_eq!(right, [0.5, -1.0 / 32768.0, 8.0 / 32768.0]);
 
-        let p = temp("f32.wav");
+        let (_dir, p) = temp("f32.wav");
         let spec = hound::WavSpec {
             channels: 1,
             sample_rate: 8000,
@@ -228,7 +229,7 @@ mod tests {
     /// sample, each pass ending with the file.
     #[test]
     fn a_looping_file_is_read_again_pass_after_pass() {
-        let p = temp("loop.wav");
+        let (_dir, p) = temp("loop.wav");
         let spec = hound::WavSpec {
             channels: 2,
             sample_rate: 8000,
@@ -258,11 +259,11 @@ mod tests {
         assert!(missing
             .to_string()
             .starts_with("cannot open '/nonexistent/x.wav'"));
-        let p = temp("text.wav");
+        let (_dir, p) = temp("text.wav");
         std::fs::write(&p, "not audio").expect("write");
         let err = open_wav(&p, false).expect_err("not wav");
         assert!(err.to_string().contains("not a WAV file"), "{err}");
-        let p = temp("empty.wav");
+        let (_dir, p) = temp("empty.wav");
         let spec = hound::WavSpec {
             channels: 2,
             sample_rate: 8000,

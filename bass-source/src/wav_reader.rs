@@ -314,10 +314,11 @@ fn parse_fmt(b: &[u8]) -> Result<WavFormat, Header> {
 mod tests {
     use super::*;
 
-    fn temp(name: &str) -> std::path::PathBuf {
-        let dir = std::env::temp_dir().join(format!("afe-wav-reader-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).expect("dir");
-        dir.join(name)
+    /// A path `name` in a folder of its own, removed with the returned guard.
+    fn temp(name: &str) -> (tempfile::TempDir, std::path::PathBuf) {
+        let dir = tempfile::tempdir().expect("temporary folder");
+        let path = dir.path().join(name);
+        (dir, path)
     }
 
     /// A 16-bit stereo file at 8 kHz with `extra` chunks (id, payload) before `data`,
@@ -349,7 +350,7 @@ mod tests {
     }
 
     fn read(bytes: &[u8], name: &str) -> Result<(WavFormat, Vec<i32>), WavReadError> {
-        let p = temp(name);
+        let (_dir, p) = temp(name);
         std::fs::write(&p, bytes).expect("write");
         let mut r = WavReader::open(&p)?;
         let mut s = WavSamples::Float(Vec::new());

@@ -4,7 +4,7 @@
 //! `afe44k` puts a `rate` plugin (4000..=768000 Hz) in front of it.
 #![cfg(feature = "alsa")]
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use afe_bass_source::{
@@ -23,7 +23,7 @@ fn frame(t: usize) -> [i32; 2] {
 fn setup() {
     static DONE: OnceLock<PathBuf> = OnceLock::new();
     DONE.get_or_init(|| {
-        let dir = std::env::temp_dir().join(format!("afe-alsa-{}", std::process::id()));
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("afe-alsa-{}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("temp dir");
         let raw = dir.join("in.raw");
         let bytes: Vec<u8> = (0..FRAMES)

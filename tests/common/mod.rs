@@ -24,11 +24,39 @@ pub fn afe_env(args: &[&str], env: &[(&str, &Path)]) -> Output {
     cmd.output().expect("run afe")
 }
 
-/// A path in this test process's own temporary folder.
+/// A path in this test process's own temporary folder, under Cargo's `target/tmp`. The
+/// folders of test processes that have ended go as the next process makes its own, so
+/// that runs do not pile up their inputs (a run writes hundreds of megabytes).
 pub fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("afe-tests-{}", std::process::id()));
+    static OWN: std::sync::Once = std::sync::Once::new();
+    let root = Path::new(env!("CARGO_TARGET_TMPDIR"));
+    OWN.call_once(|| remove_ended(root, "afe-tests-"));
+    let dir = root.join(format!("afe-tests-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
     dir.join(name)
+}
+
+/// Removes the folders `<prefix><pid>` in `root` of processes that no longer run (where
+/// `/proc` tells).
+pub fn remove_ended(root: &Path, prefix: &str) {
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
+    let Ok(entries) = std::fs::read_dir(root) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let pid = name
+            .to_str()
+            .and_then(|n| n.strip_prefix(prefix)?.parse::<u32>().ok());
+        if let Some(pid) = pid {
+            if pid != std::process::id() && !Path::new(&format!("/proc/{pid}")).exists() {
+                // another process may be removing it too
+                let _ = std::fs::remove_dir_all(entry.path());
+            }
+        }
+    }
 }
 
 /// Writes a 32-bit float WAV whose interleaved sample `i` is `value(i)`.
