@@ -115,6 +115,7 @@ fn batch(
         on_error: args.on_error.parse()?,
         progress: args.progress.parse()?,
         overwrite: args.overwrite,
+        ..BatchOptions::default()
     };
     let summary = run(inputs, store, &spec, &options)?;
     if options.progress == afe_batch::ProgressMode::None {

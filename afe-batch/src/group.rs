@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
+use afe_core::CancelToken;
 use serde_json::{json, Value};
 use zarrs::array::codec::CodecOptions;
 use zarrs::array::{Array, ArrayBuilder, ArrayMetadata, DataType, FillValue};
@@ -247,11 +248,16 @@ fn write_into(root: &Path, arrays: &[SavedArray]) -> Result<(), BatchError> {
 /// every chunk the shape implies must be on disk (version 1 groups: those found), a regular
 /// file of an uncompressed chunk's size ([`BatchError::Damaged`] naming the array and
 /// chunk otherwise), and all the values must fit the memory available
-/// ([`BatchError::TooLarge`]). An interrupt ([`afe::interrupt`]) stops the read between
-/// chunks.
+/// ([`BatchError::TooLarge`]). A signal to the process ([`afe::interrupt`]) stops the
+/// read between chunks.
 pub fn read_group(root: &Path) -> Result<Vec<StoredArray>, BatchError> {
+    read_group_until(root, &CancelToken::new())
+}
+
+/// As [`read_group`], stopped between chunks also by `cancel`.
+pub fn read_group_until(root: &Path, cancel: &CancelToken) -> Result<Vec<StoredArray>, BatchError> {
     let arrays = check_group(root)?;
-    read_planned(root, &arrays)
+    read_planned(root, &arrays, cancel)
 }
 
 /// Checks the group `root` written by [`write_group`] as [`read_group`] does, without
@@ -338,6 +344,7 @@ fn plan_arrays(
 pub(crate) fn read_planned(
     root: &Path,
     arrays: &[ArrayOnDisk],
+    cancel: &CancelToken,
 ) -> Result<Vec<StoredArray>, BatchError> {
     // the values widened to f64, and the copy a caller (numpy) makes of them
     let needed: f64 = arrays.iter().map(|a| a.layout.values as f64 * 16.0).sum();
@@ -351,13 +358,17 @@ pub(crate) fn read_planned(
         }
     }
     let store = Arc::new(FilesystemStore::new(root).map_err(|e| BatchError::store(root, &e))?);
-    arrays.iter().map(|a| read_array(&store, root, a)).collect()
+    arrays
+        .iter()
+        .map(|a| read_array(&store, root, a, cancel))
+        .collect()
 }
 
 fn read_array(
     store: &Arc<FilesystemStore>,
     root: &Path,
     a: &ArrayOnDisk,
+    cancel: &CancelToken,
 ) -> Result<StoredArray, BatchError> {
     let damaged = |why: &dyn std::fmt::Display| BatchError::Damaged {
         path: root.join(a.node.trim_start_matches('/')),
@@ -383,7 +394,7 @@ fn read_array(
         layout.element
     };
     for k in 0..layout.chunks {
-        if afe::interrupt::requested() {
+        if cancel.is_cancelled() {
             return Err(BatchError::Afe(afe_core::Error::Interrupted));
         }
         let bytes = array
@@ -432,6 +443,7 @@ fn read_array(
 pub(crate) fn read_file_group(
     root: &Path,
     id: &str,
+    cancel: &CancelToken,
 ) -> Result<Option<Vec<StoredArray>>, BatchError> {
     let dir = root.join(id);
     let Ok(meta) = read_json(&dir.join("zarr.json")) else {
@@ -452,7 +464,7 @@ pub(crate) fn read_file_group(
     };
     keys.sort();
     let arrays = plan_arrays(root, id, &keys, every_chunk)?;
-    read_planned(root, &arrays).map(Some)
+    read_planned(root, &arrays, cancel).map(Some)
 }
 
 /// The names of the folders of `dir` holding an array's metadata.

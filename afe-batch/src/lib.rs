@@ -29,6 +29,7 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::Instant;
 
+use afe_core::CancelToken;
 use afe_graph::Manager;
 use serde_json::{json, Value};
 
@@ -36,7 +37,8 @@ use afe::extract::{run_into, Job};
 use afe::wav::open_input;
 
 pub use group::{
-    check_group, is_saved_group, read_group, write_group, ArrayOnDisk, ElementType, SavedArray,
+    check_group, is_saved_group, read_group, read_group_until, write_group, ArrayOnDisk,
+    ElementType, SavedArray,
 };
 pub use inputs::{discover, shard, InputFile};
 pub use ledger::{Ledger, LedgerView, Record, Status};
@@ -252,6 +254,8 @@ pub struct BatchOptions {
     pub progress: ProgressMode,
     /// Replace a store made with other requests or parameters.
     pub overwrite: bool,
+    /// Stops the run as a signal to the process does (Python's Ctrl-C of this call).
+    pub cancel: CancelToken,
 }
 
 impl Default for BatchOptions {
@@ -262,6 +266,7 @@ impl Default for BatchOptions {
             on_error: OnError::Skip,
             progress: ProgressMode::None,
             overwrite: false,
+            cancel: CancelToken::new(),
         }
     }
 }
@@ -513,7 +518,10 @@ pub fn run(
         ..Summary::default()
     });
     let next = AtomicUsize::new(0);
-    let stop = AtomicBool::new(false);
+    let stop = Stop {
+        failed: AtomicBool::new(false),
+        cancel: &options.cancel,
+    };
     let deferred: Mutex<Vec<&InputFile>> = Mutex::new(Vec::new());
     let store_error = Mutex::new(None);
     // a shared queue in longest-first order: each worker takes the next file when free;
@@ -522,7 +530,7 @@ pub fn run(
         for _ in 0..workers {
             scope.spawn(|| {
                 let mut waiting = false;
-                while !stop.load(Ordering::Relaxed) && !afe::interrupt::requested() {
+                while !stop.now() {
                     let file = if waiting {
                         lock(&deferred).pop()
                     } else {
@@ -549,7 +557,7 @@ pub fn run(
                         }
                         Ok(Outcome::Stopped) => break,
                         Err(e) => {
-                            stop.store(true, Ordering::Relaxed);
+                            stop.failed.store(true, Ordering::Relaxed);
                             lock(&store_error).get_or_insert(e);
                             break;
                         }
@@ -563,7 +571,7 @@ pub fn run(
                         Some(e) => {
                             s.failed.push((record.id.clone(), e.clone()));
                             if options.on_error == OnError::Stop {
-                                stop.store(true, Ordering::Relaxed);
+                                stop.failed.store(true, Ordering::Relaxed);
                             }
                         }
                     }
@@ -593,7 +601,7 @@ pub fn run(
             done: summary.done,
         });
     }
-    if afe::interrupt::requested() {
+    if options.cancel.is_cancelled() {
         return Err(BatchError::Interrupted { done: summary.done });
     }
     if options.on_error == OnError::Stop {
@@ -611,6 +619,19 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     m.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
+/// Why a run's workers stop taking files: a store that cannot be written or a failed
+/// file (`--on-error stop`), or the caller's stop request.
+struct Stop<'a> {
+    failed: AtomicBool,
+    cancel: &'a CancelToken,
+}
+
+impl Stop<'_> {
+    fn now(&self) -> bool {
+        self.failed.load(Ordering::Relaxed) || self.cancel.is_cancelled()
+    }
+}
+
 /// Claims `file` (`wait`: until the run holding it lets go, else [`Outcome::Busy`]), and
 /// unless another run has done it meanwhile, computes it and appends its record while the
 /// claim is held. An error is the store's (it cannot be written): the run stops.
@@ -621,16 +642,14 @@ fn process(
     file: &InputFile,
     threads: usize,
     wait: bool,
-    stop: &AtomicBool,
+    stop: &Stop<'_>,
 ) -> Result<Outcome, BatchError> {
     let root = store.root();
     let _claim = loop {
         match locks::try_claim(root, &file.id).map_err(|e| BatchError::store(root, &e))? {
             Some(claim) => break claim,
             None if !wait => return Ok(Outcome::Busy),
-            None if stop.load(Ordering::Relaxed) || afe::interrupt::requested() => {
-                return Ok(Outcome::Stopped)
-            }
+            None if stop.now() => return Ok(Outcome::Stopped),
             None => std::thread::sleep(CLAIM_POLL),
         }
     };
@@ -644,7 +663,7 @@ fn process(
             return Ok(Outcome::Elsewhere(r.clone()));
         }
     }
-    let Some(record) = compute(store, file, threads)? else {
+    let Some(record) = compute(store, file, threads, stop.cancel)? else {
         return Ok(Outcome::Stopped);
     };
     ledger
@@ -670,7 +689,10 @@ pub fn compute_one(root: &Path, file: &InputFile) -> Result<(Record, bool), Batc
         file,
         0,
         true,
-        &AtomicBool::new(false),
+        &Stop {
+            failed: AtomicBool::new(false),
+            cancel: &CancelToken::new(),
+        },
     )? {
         Outcome::Recorded(r) => Ok((r, false)),
         Outcome::Elsewhere(r) => Ok((r, true)),
@@ -684,9 +706,14 @@ pub fn compute_one(root: &Path, file: &InputFile) -> Result<(Record, bool), Batc
 /// `Err`: the store cannot be written (a full disk...): nothing is recorded, the file is
 /// left to the next run. `threads`: of the concurrent scheduler, the caller among them
 /// (0: the sequential executor).
-fn compute(store: &Store, file: &InputFile, threads: usize) -> Result<Option<Record>, BatchError> {
+fn compute(
+    store: &Store,
+    file: &InputFile,
+    threads: usize,
+    cancel: &CancelToken,
+) -> Result<Option<Record>, BatchError> {
     let start = Instant::now();
-    let result = compute_file(store, file, threads);
+    let result = compute_file(store, file, threads, cancel);
     if result.is_err() {
         // a failed file leaves nothing half-written behind
         let _ = store.clear(&file.id);
@@ -704,7 +731,12 @@ fn compute(store: &Store, file: &InputFile, threads: usize) -> Result<Option<Rec
     }
 }
 
-fn compute_file(store: &Store, file: &InputFile, threads: usize) -> Result<(), BatchError> {
+fn compute_file(
+    store: &Store,
+    file: &InputFile,
+    threads: usize,
+    cancel: &CancelToken,
+) -> Result<(), BatchError> {
     store.clear(&file.id)?;
     let mut wav = open_input(&file.path)?;
     let spec = store.spec();
@@ -714,6 +746,7 @@ fn compute_file(store: &Store, file: &InputFile, threads: usize) -> Result<(), B
         ..Job::default()
     };
     let mut mgr = Manager::with_threads(wav.fs(), wav.channels(), threads)?;
+    mgr.set_cancel_token(cancel.clone());
     let mut writer = store.writer(file, wav.fs(), wav.channels())?;
     writer.expect_input(wav.frames());
     let ears = wav.channels();

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Duration;
 
-use afe_core::ParamMap;
+use afe_core::{CancelToken, ParamMap};
 use afe_graph::{Manager, OutputRef, Signal};
 use serde_json::{json, Value};
 use zarrs::array::codec::CodecOptions;
@@ -793,8 +793,17 @@ pub struct StoredArray {
 
 impl Store {
     /// The arrays of file `id`, read back (zarr stores only; an npz store's files are
-    /// read with numpy or [`afe::npy`]).
+    /// read with numpy or [`afe::npy`]); a signal to the process stops the read.
     pub fn read(&self, id: &str) -> Result<Vec<StoredArray>, BatchError> {
+        self.read_until(id, &CancelToken::new())
+    }
+
+    /// As [`Store::read`], stopped between chunks also by `cancel`.
+    pub fn read_until(
+        &self,
+        id: &str,
+        cancel: &CancelToken,
+    ) -> Result<Vec<StoredArray>, BatchError> {
         if self.zarr.is_none() {
             return Err(BatchError::Usage(format!(
                 "'{}' is an npz store: read {} with numpy",
@@ -804,6 +813,7 @@ impl Store {
         }
         // an id that is no store path ('../x') names no file of it
         check_id(id).map_err(|_| BatchError::NoSuchFile(id.to_string()))?;
-        read_file_group(&self.root, id)?.ok_or_else(|| BatchError::NoSuchFile(id.to_string()))
+        read_file_group(&self.root, id, cancel)?
+            .ok_or_else(|| BatchError::NoSuchFile(id.to_string()))
     }
 }

@@ -32,5 +32,6 @@ pub mod window;
 pub use block::{Block, DrawAs, SignalInfo, SignalKind};
 pub use descriptor::{request_def, Built, Configured, Descriptor, Ears, RequestDef};
 pub use error::{Error, Result};
+pub use interrupt::CancelToken;
 pub use params::{NoParams, ParamKind, ParamMap, ParamSpec, Params};
 pub use processor::{Part, Processor};

@@ -261,7 +261,7 @@ pub fn run_into<S: Sink>(
                 if known.is_none() {
                     mgr.check_whole_signal(buf[0].len())?;
                 }
-                if crate::interrupt::requested() {
+                if mgr.cancel_token().is_cancelled() {
                     return Err(Error::Interrupted.into());
                 }
             }
@@ -283,8 +283,9 @@ pub fn run_into<S: Sink>(
                 // vector per ear of the manager's)
                 mgr.check_channels(ears)?;
                 let samples = usize::try_from(samples).unwrap_or(0);
+                let cancel = mgr.cancel_token().clone();
                 mgr.process_source(samples, &mut |n, out| {
-                    if crate::interrupt::requested() {
+                    if cancel.is_cancelled() {
                         return Err(Error::Interrupted);
                     }
                     next(n, out)
@@ -297,7 +298,7 @@ pub fn run_into<S: Sink>(
     };
     let mut total = 0;
     loop {
-        if crate::interrupt::requested() {
+        if mgr.cancel_token().is_cancelled() {
             return Err(Error::Interrupted.into());
         }
         let got = next(std::mem::replace(&mut first, block), &mut buf)?;

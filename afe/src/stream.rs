@@ -534,7 +534,7 @@ pub fn run<Src: Source>(
     };
     match job.pacing {
         Pacing::Fast => loop {
-            if crate::interrupt::requested() {
+            if consumer.mgr.cancel_token().is_cancelled() {
                 break;
             }
             if consumer.poll()? == 0 {
@@ -566,7 +566,7 @@ pub fn run<Src: Source>(
     consumer.flush()?;
     let mut report = consumer.timing.report();
     report.device_overruns = feeder.source().overruns();
-    report.interrupted = crate::interrupt::requested();
+    report.interrupted = consumer.mgr.cancel_token().is_cancelled();
     report.realtime = realtime;
     Ok(Streamed {
         report,
@@ -617,7 +617,7 @@ impl<S: Sample, F: Observer> Consumer<S, F> {
     /// it has nothing new.
     fn drain_paced(&mut self) -> Result<(), StreamError> {
         loop {
-            if crate::interrupt::requested() {
+            if self.mgr.cancel_token().is_cancelled() {
                 return Ok(());
             }
             if self.poll()? == 0 {

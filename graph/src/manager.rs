@@ -2,7 +2,7 @@
 //! requests (resolved by [`crate::resolve`]) between chunks, and runs the graph chunk by
 //! chunk on the sequential or the concurrent executor (spec 00-overview §3–§6).
 
-use afe_core::{Block, Error, ParamMap, Result, SignalInfo};
+use afe_core::{Block, CancelToken, Error, ParamMap, Result, SignalInfo};
 use afe_processors::requests;
 use serde_json::Value;
 
@@ -115,6 +115,8 @@ pub struct Manager {
     stream_pos: u64,
     /// Where each node's outputs stand in the stream, per node and output.
     clocks: Vec<Vec<FrameClock>>,
+    /// The stop request its whole-signal calls watch.
+    cancel: CancelToken,
 }
 
 /// Where a streamed whole-signal call hands each block of an output
@@ -236,6 +238,7 @@ impl Manager {
             keep_all: false,
             stream_pos: 0,
             clocks: Vec::new(),
+            cancel: CancelToken::new(),
         })
     }
 
@@ -244,6 +247,20 @@ impl Manager {
     /// sequential executor. Outputs are the same, bit for bit, whatever the choice.
     pub fn with_threads(fs: f64, ears: usize, threads: usize) -> Result<Self> {
         Self::with_engine(fs, ears, threads, 0)
+    }
+
+    /// This manager's stop request: cancelling it (from any thread, through a clone)
+    /// stops its whole-signal calls at their next block or node with
+    /// [`Error::Interrupted`] until it is cleared. Other managers run on; a signal to the
+    /// process ([`afe_core::interrupt::request`]) stops them all.
+    pub fn cancel_token(&self) -> &CancelToken {
+        &self.cancel
+    }
+
+    /// Watches `token` instead of its own stop request (one token for the managers of a
+    /// batch).
+    pub fn set_cancel_token(&mut self, token: CancelToken) {
+        self.cancel = token;
     }
 
     /// As [`Manager::with_threads`], recording up to `trace_capacity` scheduler events per

@@ -9,11 +9,12 @@ use std::panic::{catch_unwind, resume_unwind, AssertUnwindSafe};
 use std::sync::{Condvar, Mutex, RwLock};
 
 use afe_core::denormals::FlushDenormals;
-use afe_core::{interrupt, Block, Error, Processor, Result};
+use afe_core::{Block, CancelToken, Error, Processor, Result};
 
 use crate::engine::Engine;
 use crate::graph::{Graph, OutputRef};
 use crate::work;
+use crate::WHOLE_SIGNAL_BLOCK;
 
 /// Which nodes of a whole-signal run take it how, and which outputs go on block by block.
 struct Plan<'a> {
@@ -24,6 +25,8 @@ struct Plan<'a> {
     absorbing: Vec<bool>,
     /// Per node and output: handed to the caller block by block rather than joined.
     streamed: &'a [Vec<bool>],
+    /// The run's stop request, checked before each block and node.
+    cancel: &'a CancelToken,
 }
 
 impl Graph {
@@ -31,27 +34,28 @@ impl Graph {
     /// node's output into `whole` (per node and output; empty blocks, those of invariant
     /// nodes sized for the signal) where it has a block, which it must for every input
     /// of a node that is neither chunk-invariant nor absorbing: the invariant nodes run in
-    /// blocks of `block` samples (bit-identical to one call, with the intermediate
-    /// signals in cache), then every other node runs once on its parents' joined
-    /// outputs. Each block of the invariant outputs marked in `streamed` goes to
+    /// blocks of [`WHOLE_SIGNAL_BLOCK`] samples (bit-identical to one call, with the
+    /// intermediate signals in cache), then every other node runs once on its parents'
+    /// joined outputs. Each block of the invariant outputs marked in `streamed` goes to
     /// `each_block`. With an `engine`, both parts use its threads; without, this one.
-    /// An interrupt (see [`interrupt`]) stops it at the next block or node with
-    /// [`Error::Interrupted`].
+    /// `cancel` stops it at the next block or node with [`Error::Interrupted`].
     pub fn run_whole(
         &mut self,
         signal: &[&[f64]],
-        block: usize,
         whole: &mut [Vec<Option<Block>>],
         streamed: &[Vec<bool>],
         each_block: &mut dyn FnMut(OutputRef, &Block),
         engine: Option<&mut Engine>,
+        cancel: &CancelToken,
     ) -> Result<()> {
+        let block = WHOLE_SIGNAL_BLOCK;
         let invariant = self.invariant_nodes();
         let absorbing = self.absorbing_nodes(&invariant);
         let plan = Plan {
             invariant,
             absorbing,
             streamed,
+            cancel,
         };
         let threads = engine.as_ref().map_or(1, |e| e.threads());
         let len = signal.first().map_or(0, |c| c.len());
@@ -78,7 +82,7 @@ impl Graph {
     ) -> Result<()> {
         let lent = self.lend_buffers(whole, &plan.invariant);
         for part in blocks {
-            if interrupt::requested() {
+            if plan.cancel.is_cancelled() {
                 self.return_buffers(whole, &lent);
                 return Err(Error::Interrupted);
             }
@@ -155,7 +159,7 @@ impl Graph {
                     }
                 }
                 fed = fed
-                    .and_then(|()| match interrupt::requested() {
+                    .and_then(|()| match plan.cancel.is_cancelled() {
                         true => Err(Error::Interrupted),
                         false => engine.submit(&part),
                     })
@@ -185,8 +189,8 @@ impl Graph {
     /// Runs every node that is not invariant once, on its parents' joined outputs in
     /// `whole` (an absorbing one finishes), and moves its outputs into their buffers in
     /// `whole`: in order on this thread, or on `threads` threads, each node as soon as
-    /// its parents are done. A processor's panic is raised again on this thread; an
-    /// interrupt stops it before the next node.
+    /// its parents are done. A processor's panic is raised again on this thread; the
+    /// plan's stop request stops it before the next node.
     fn run_per_chunk_nodes(
         &mut self,
         whole: &mut [Vec<Option<Block>>],
@@ -232,7 +236,7 @@ impl Graph {
             whole.iter_mut().map(RwLock::new).collect();
         if threads <= 1 || order.len() <= 1 {
             for &i in &order {
-                if interrupt::requested() {
+                if plan.cancel.is_cancelled() {
                     return Err(Error::Interrupted);
                 }
                 if let Some(job) = jobs[i].as_mut() {
@@ -251,6 +255,7 @@ impl Graph {
                 failed: None,
             }),
             changed: Condvar::new(),
+            cancel: plan.cancel,
         };
         let jobs = &jobs;
         let (joined, children) = (&joined, &children);
@@ -357,12 +362,13 @@ struct Progress {
     failed: Option<Error>,
 }
 
-struct Board {
+struct Board<'a> {
     state: Mutex<Progress>,
     changed: Condvar,
+    cancel: &'a CancelToken,
 }
 
-impl Board {
+impl Board<'_> {
     /// Takes ready nodes and runs them until every node is done (or one panicked).
     fn work(
         &self,
@@ -375,7 +381,7 @@ impl Board {
                 let mut s = self.state.lock().unwrap_or_else(|e| e.into_inner());
                 loop {
                     let stopped = s.panic.is_some() || s.failed.is_some();
-                    if s.left == 0 || stopped || interrupt::requested() {
+                    if s.left == 0 || stopped || self.cancel.is_cancelled() {
                         return;
                     }
                     if let Some(i) = s.ready.pop() {

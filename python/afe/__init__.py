@@ -340,8 +340,15 @@ class Manager:
 
     def process_signal(self, x: Audio) -> Dict[str, Signal]:
         """Processes a whole signal from a fresh state (as the AFE's ``processSignal``)
-        and returns the output of every request."""
+        and returns the output of every request. Ctrl-C, or :meth:`cancel` from another
+        thread, stops it within a block (KeyboardInterrupt)."""
         return self._with_descriptions(self._m.process_signal(_as_channels(x, self.channels)))
+
+    def cancel(self) -> None:
+        """Stops this manager's ``process_signal`` that runs now (in another thread): it
+        raises KeyboardInterrupt. Other managers run on; without such a call, nothing
+        happens."""
+        self._m.cancel()
 
     def prepare(self, max_chunk: int) -> None:
         """Sizes every buffer for chunks of up to ``max_chunk`` samples before the first

@@ -4,6 +4,7 @@
 
 use std::path::PathBuf;
 
+use afe::interrupt::CancelToken;
 use afe_batch::{
     BatchError, BatchOptions, ElementType, InputFile, SavedArray, Store, StoreSpec, StoredArray,
 };
@@ -81,6 +82,7 @@ fn options(json: &str) -> PyResult<BatchOptions> {
             .parse()
             .map_err(to_py_batch)?,
         overwrite: v["overwrite"].as_bool().unwrap_or(false),
+        cancel: CancelToken::new(),
     })
 }
 
@@ -95,9 +97,11 @@ pub fn batch_run(
 ) -> PyResult<String> {
     let spec = spec(spec_json)?;
     let options = options(options_json)?;
-    let summary =
-        crate::interrupt::interruptible(py, || afe_batch::run(&inputs, &store, &spec, &options))?
-            .map_err(to_py_batch)?;
+    let cancel = options.cancel.clone();
+    let summary = crate::interrupt::interruptible(py, &cancel, || {
+        afe_batch::run(&inputs, &store, &spec, &options)
+    })?
+    .map_err(to_py_batch)?;
     Ok(summary.to_json().to_string())
 }
 
@@ -179,8 +183,11 @@ pub fn store_read<'py>(
     store: PathBuf,
     id: String,
 ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
-    let arrays = crate::interrupt::interruptible(py, || Store::open(&store)?.read(&id))?
-        .map_err(to_py_batch)?;
+    let cancel = CancelToken::new();
+    let arrays = crate::interrupt::interruptible(py, &cancel, || {
+        Store::open(&store)?.read_until(&id, &cancel)
+    })?
+    .map_err(to_py_batch)?;
     numpy_dicts(py, arrays)
 }
 
@@ -246,8 +253,11 @@ pub fn load_zarr<'py>(
     py: Python<'py>,
     path: PathBuf,
 ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
-    let arrays = crate::interrupt::interruptible(py, || afe_batch::read_group(&path))?
-        .map_err(to_py_batch)?;
+    let cancel = CancelToken::new();
+    let arrays = crate::interrupt::interruptible(py, &cancel, || {
+        afe_batch::read_group_until(&path, &cancel)
+    })?
+    .map_err(to_py_batch)?;
     numpy_dicts(py, arrays)
 }
 

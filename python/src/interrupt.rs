@@ -2,19 +2,25 @@
 //! bytecodes, so a call that releases the GIL for minutes would take its
 //! KeyboardInterrupt only at the end. Here the work runs on a helper thread while the
 //! calling thread waits with the GIL released and checks for signals every 50 ms; on one,
-//! the work is asked to stop (`afe::interrupt`) and the exception is raised once it has.
+//! the work's own stop request is cancelled (never the process's: other threads' work
+//! runs on) and the exception is raised once it has stopped.
 
 use std::sync::{mpsc, Mutex};
 use std::time::Duration;
 
+use afe::interrupt::CancelToken;
 use pyo3::prelude::*;
 
 /// How often the waiting thread checks for signals.
 const CHECK: Duration = Duration::from_millis(50);
 
-/// Runs `work` interruptibly (see the module): its result, or the signal's exception
-/// (KeyboardInterrupt) if one came while it ran.
-pub fn interruptible<R: Send>(py: Python<'_>, work: impl FnOnce() -> R + Send) -> PyResult<R> {
+/// Runs `work`, which watches `cancel`, interruptibly (see the module): its result, or the
+/// signal's exception (KeyboardInterrupt) if one came while it ran, `cancel` then cleared.
+pub fn interruptible<R: Send>(
+    py: Python<'_>,
+    cancel: &CancelToken,
+    work: impl FnOnce() -> R + Send,
+) -> PyResult<R> {
     let (result, signal) = std::thread::scope(|s| {
         let (tx, rx) = mpsc::channel();
         // a receiver is not Sync: the lock lets the GIL-free closure borrow it
@@ -34,7 +40,7 @@ pub fn interruptible<R: Send>(py: Python<'_>, work: impl FnOnce() -> R + Send) -
                 Err(mpsc::RecvTimeoutError::Timeout) => {
                     if signal.is_none() {
                         if let Err(e) = py.check_signals() {
-                            afe::interrupt::request();
+                            cancel.cancel();
                             signal = Some(e);
                         }
                     }
@@ -45,7 +51,7 @@ pub fn interruptible<R: Send>(py: Python<'_>, work: impl FnOnce() -> R + Send) -
         }
     });
     if let Some(e) = signal {
-        afe::interrupt::clear();
+        cancel.clear();
         return Err(e);
     }
     result.ok_or_else(|| pyo3::exceptions::PyRuntimeError::new_err("the computation failed"))

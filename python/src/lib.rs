@@ -214,10 +214,12 @@ impl State {
 
 /// Streaming front-end: requests placed by name, chunks in, numpy arrays out. The state
 /// sits behind a mutex (Python objects may be shared between threads); it is locked
-/// only while a call runs, with the GIL released.
+/// only while a call runs, with the GIL released. Its stop request sits outside, so that
+/// another thread can cancel the call that holds the lock.
 #[pyclass(name = "Manager", module = "afe._afe")]
 struct PyManager {
     state: Mutex<State>,
+    cancel: afe::interrupt::CancelToken,
 }
 
 impl PyManager {
@@ -227,12 +229,15 @@ impl PyManager {
         py: Python<'_>,
         f: impl FnOnce(&mut State) -> afe::Result<R> + Send,
     ) -> PyResult<R> {
-        py.allow_threads(|| {
-            let mut st = self.state.lock().map_err(|_| {
-                PyValueError::new_err("this Manager was left broken by an earlier error")
-            })?;
-            f(&mut st).map_err(to_py)
-        })
+        py.allow_threads(|| self.locked(f))
+    }
+
+    /// Runs `f` on the state (the GIL is not needed).
+    fn locked<R>(&self, f: impl FnOnce(&mut State) -> afe::Result<R>) -> PyResult<R> {
+        let mut st = self.state.lock().map_err(|_| {
+            PyValueError::new_err("this Manager was left broken by an earlier error")
+        })?;
+        f(&mut st).map_err(to_py)
     }
 
     /// Processes `x` as the next chunk, or (`whole`) as a whole signal from a fresh
@@ -244,7 +249,7 @@ impl PyManager {
         whole: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
         let ears = columns(&x);
-        let out = self.with(py, |st| {
+        let run = |st: &mut State| {
             let refs: Vec<&[f64]> = ears.iter().map(Vec::as_slice).collect();
             if whole {
                 st.manager.process_signal(&refs)?;
@@ -256,7 +261,16 @@ impl PyManager {
                 st.history.record(&st.manager);
             }
             Ok(st.new_output())
-        })?;
+        };
+        let out = if whole {
+            // a request to stop made before this call is not this call's
+            self.cancel.clear();
+            let out = interrupt::interruptible(py, &self.cancel, || self.locked(run))?;
+            self.cancel.clear();
+            out?
+        } else {
+            self.with(py, run)?
+        };
         signals_dict(py, out.iter())
     }
 }
@@ -274,14 +288,22 @@ impl PyManager {
     ) -> PyResult<Self> {
         let mut history = Recorder::new(false);
         history.keep_last(history_seconds);
+        let manager = Manager::with_threads(fs, channels, threads).map_err(to_py)?;
         Ok(PyManager {
+            cancel: manager.cancel_token().clone(),
             state: Mutex::new(State {
-                manager: Manager::with_threads(fs, channels, threads).map_err(to_py)?,
+                manager,
                 history,
                 keep_history,
                 history_seconds,
             }),
         })
+    }
+
+    /// Stops this manager's whole-signal call that runs now, from any thread: it raises
+    /// KeyboardInterrupt; other managers run on. Without such a call, nothing happens.
+    fn cancel(&self) {
+        self.cancel.cancel();
     }
 
     #[getter]
@@ -539,7 +561,8 @@ fn process<'py>(
     place(&mut mgr, &requests, &job.params)?;
     check_memory(py, &mut mgr, x.shape()[0] as u64, all, dtype)?;
     let ears = columns(&x);
-    let rec = interrupt::interruptible(py, || {
+    let cancel = mgr.cancel_token().clone();
+    let rec = interrupt::interruptible(py, &cancel, || {
         let refs: Vec<&[f64]> = ears.iter().map(Vec::as_slice).collect();
         afe::extract::run_with(&mut mgr, &job, &refs)
     })?
@@ -578,8 +601,11 @@ fn process_file<'py>(
     let mut mgr = Manager::with_threads(wav.fs(), wav.channels(), threads).map_err(to_py)?;
     place(&mut mgr, &requests, &job.params)?;
     check_memory(py, &mut mgr, wav.frames(), all, dtype)?;
-    let rec = interrupt::interruptible(py, || afe::extract::run_wav(&mut mgr, &job, &mut wav))?
-        .map_err(to_py)?;
+    let cancel = mgr.cancel_token().clone();
+    let rec = interrupt::interruptible(py, &cancel, || {
+        afe::extract::run_wav(&mut mgr, &job, &mut wav)
+    })?
+    .map_err(to_py)?;
     recorded(py, rec, dtype)
 }
 

@@ -39,7 +39,8 @@ pub fn raa<'py>(
         return Err(raa_error(RaaError::NotBinaural(x.shape()[1])));
     }
     let ears = columns(&x);
-    let out = interrupt::interruptible(py, || {
+    // the analysis watches no stop request: a signal is raised once it ends
+    let out = interrupt::interruptible(py, &afe::interrupt::CancelToken::new(), || {
         let refs: Vec<&[f64]> = ears.iter().map(Vec::as_slice).collect();
         afe::raa::raa(&refs, fs, &constants)
     })?

@@ -579,6 +579,49 @@ def test_ctrl_c_interrupts_a_long_process_call_at_once(requests):
     assert lines[1] == "again (9, 31)", (out, err)
 
 
+def test_cancelling_one_manager_leaves_another_in_another_thread_running():
+    """Two managers, each computing a whole signal in a thread of its own: cancelling the
+    first stops it within a fraction of a second, while the second, still running then,
+    finishes with the output of an undisturbed run; the first then runs again (issue 58)."""
+    rng = np.random.default_rng(5)
+    slow = 0.1 * rng.standard_normal((44100 * 120, 2))
+    other = 0.1 * rng.standard_normal((44100 * 60, 2))
+    first, second = afe.Manager(44100, keep_history=False), afe.Manager(44100, keep_history=False)
+    first.add_request("pitch")
+    second.add_request("ild")
+    got: dict = {}
+
+    def run(name, mgr, x):
+        t = time.monotonic()
+        try:
+            got[name] = mgr.process_signal(x)
+        except KeyboardInterrupt:
+            got[name] = "interrupted"
+        got[name + "_end"] = time.monotonic() - t
+
+    threads = [threading.Thread(target=run, args=a) for a in (("first", first, slow), ("second", second, other))]
+    start = time.monotonic()
+    for t in threads:
+        t.start()
+    time.sleep(0.5)
+    first.cancel()
+    cancelled = time.monotonic() - start
+    threads[0].join(timeout=60)
+    threads[1].join(timeout=120)
+    assert got["first"] == "interrupted", got
+    assert got["first_end"] < cancelled + 2.5, (got["first_end"], cancelled)
+    # the second was still computing when the first was cancelled, and was not stopped
+    assert got["second_end"] > cancelled, (got["second_end"], cancelled)
+    alone = afe.Manager(44100, keep_history=False)
+    alone.add_request("ild")
+    want = alone.process_signal(other)
+    assert set(got["second"]) == set(want)
+    for k in want:
+        assert np.array_equal(got["second"][k], want[k]), k
+    # a cancel withdrawn: the next call of the cancelled manager runs to its end
+    assert first.process_signal(slow[:4410])["pitch_left"].shape[0] > 0
+
+
 def test_keep_all_returns_the_intermediate_signals_as_extract_all(example_wav, cli, tmp_path):
     out = afe.process(example_wav, None, ["ild"], keep="all")
     for name in ("time_left", "time_right", "filterbank_left", "innerhaircell_right", "ild_mono"):

@@ -219,11 +219,11 @@ impl Manager {
                 };
                 let ran = m.graph.run_whole(
                     signal,
-                    WHOLE_SIGNAL_BLOCK,
                     &mut whole,
                     &streamed,
                     &mut each,
                     m.engine.as_mut(),
+                    &m.cancel,
                 );
                 m.whole = whole;
                 ran
@@ -362,7 +362,7 @@ impl Manager {
     ) -> Result<()> {
         let mut fed = 0;
         loop {
-            if afe_core::interrupt::requested() {
+            if self.cancel.is_cancelled() {
                 return Err(Error::Interrupted);
             }
             let part = input.next(WHOLE_SIGNAL_BLOCK.max(prefix.saturating_sub(fed)))?;
@@ -552,6 +552,37 @@ mod tests {
     /// The values' bit patterns, to compare blocks bit for bit.
     fn bits(b: &Block) -> Vec<u64> {
         b.as_slice().iter().map(|v| v.to_bits()).collect()
+    }
+
+    /// A cancelled manager's whole-signal calls stop with `Interrupted` (in blocks, in
+    /// one call, on either executor) until its token is cleared; a manager that shares
+    /// the token stops too, one with its own runs on.
+    #[test]
+    fn a_cancelled_token_stops_its_managers_and_no_other() {
+        let fs = 16000.0;
+        let x = swelling_tone(3 * WHOLE_SIGNAL_BLOCK + 77, 0.03, 500);
+        for requests in [&["ratemap", "ild"][..], &["pitch"][..]] {
+            for threads in [0, 2] {
+                let mut stopped = binaural(fs, threads, requests);
+                let mut sharing = binaural(fs, threads, requests);
+                sharing.set_cancel_token(stopped.cancel_token().clone());
+                let mut other = binaural(fs, threads, requests);
+                stopped.cancel_token().cancel();
+                let case = format!("{requests:?} on {threads} threads");
+                for m in [&mut stopped, &mut sharing] {
+                    let e = m.process_signal(&[&x, &x]).expect_err(&case);
+                    assert!(matches!(e, Error::Interrupted), "{case}: {e}");
+                }
+                other.process_signal(&[&x, &x]).expect(&case);
+                stopped.cancel_token().clear();
+                stopped.process_signal(&[&x, &x]).expect(&case);
+                let (a, b) = (stopped.signals(false), other.signals(false));
+                assert_eq!(a.len(), b.len());
+                for (a, b) in a.iter().zip(&b) {
+                    assert_eq!(bits(a.new), bits(b.new), "{case}: {}", a.key());
+                }
+            }
+        }
     }
 
     /// The sequential executor writes a whole signal's joined outputs in place, block
