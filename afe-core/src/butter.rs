@@ -2,7 +2,7 @@
 
 use std::f64::consts::PI;
 
-use rustfft::num_complex::Complex64;
+use num_complex::Complex64;
 
 /// The response type of a Butterworth design.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -4,7 +4,7 @@
 //! `y = z0 + b0·x`, `z[i] = (z[i+1] − a[i+1]·y) + b[i+1]·x`, `z[m−1] = b[m]·x − a[m]·y`.
 //! The order matters bit for bit on pole-clustered designs, so keep it.
 
-use rustfft::num_complex::Complex64;
+use num_complex::Complex64;
 
 /// Whether the denominator `1 + a[0]·z⁻¹ + … + a[n−1]·z⁻ⁿ` has all its roots inside
 /// radius `rho`: the Schur–Cohn (step-down) test on the coefficients of the polynomial

@@ -2,8 +2,7 @@
 
 use std::f64::consts::PI;
 
-use rustfft::num_complex::Complex64;
-use rustfft::FftPlanner;
+use num_complex::Complex64;
 
 /// Coefficients (`n + 1` taps) of MATLAB's `fir2(n, f, m)` with its default grid
 /// and a symmetric Hamming window.
@@ -24,7 +23,7 @@ pub fn fir2(n: usize, f: &[f64], m: &[f64]) -> Vec<f64> {
     for j in 1..npt {
         full[2 * npt - j] = full[j].conj();
     }
-    let ifft = FftPlanner::new().plan_fft_inverse(2 * npt);
+    let ifft = afe_fft::inverse(2 * npt);
     ifft.process(&mut full);
     let scale = 1.0 / (2 * npt) as f64;
     let win = crate::window::window("hamming", nn, "fir2").unwrap_or_default();

@@ -1,11 +1,14 @@
 //! Analytic signal by FFT over the whole input, as MATLAB's `hilbert` (spec 01-P5).
 
-use rustfft::num_complex::Complex64;
-use rustfft::FftPlanner;
+use std::sync::Arc;
+
+use afe_fft::Fft;
+use num_complex::Complex64;
 
 /// Computes analytic signals of arbitrary lengths, reusing plans and buffers.
 pub struct Hilbert {
-    planner: FftPlanner<f64>,
+    /// The forward and inverse plans of the last length.
+    plans: Option<(usize, Arc<dyn Fft<f64>>, Arc<dyn Fft<f64>>)>,
     buf: Vec<Complex64>,
     scratch: Vec<Complex64>,
 }
@@ -23,10 +26,10 @@ impl Default for Hilbert {
 }
 
 impl Hilbert {
-    /// A transformer with empty plan cache.
+    /// A transformer with no plan yet.
     pub fn new() -> Self {
         Hilbert {
-            planner: FftPlanner::new(),
+            plans: None,
             buf: Vec::new(),
             scratch: Vec::new(),
         }
@@ -41,8 +44,10 @@ impl Hilbert {
         if n == 0 {
             return &self.buf;
         }
-        let fwd = self.planner.plan_fft_forward(n);
-        let inv = self.planner.plan_fft_inverse(n);
+        let (_, fwd, inv) = match self.plans.take() {
+            Some(plans) if plans.0 == n => plans,
+            _ => (n, afe_fft::forward(n), afe_fft::inverse(n)),
+        };
         let need = fwd
             .get_inplace_scratch_len()
             .max(inv.get_inplace_scratch_len());
@@ -58,6 +63,7 @@ impl Hilbert {
             *v = Complex64::new(0.0, 0.0);
         }
         inv.process_with_scratch(&mut self.buf, &mut self.scratch);
+        self.plans = Some((n, fwd, inv));
         let scale = 1.0 / n as f64;
         for v in &mut self.buf {
             *v *= scale;

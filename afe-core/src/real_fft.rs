@@ -18,8 +18,8 @@
 use std::f64::consts::PI;
 use std::sync::Arc;
 
+use afe_fft::Fft;
 use num_complex::Complex64;
-use rustfft::{Fft, FftPlanner};
 
 /// At most the `f64` values a planned transform of `n` points here holds ([`RealFft`],
 /// [`RealIfft`], and the processors' even inverse built on them): its buffers, scratch and the FFT
@@ -51,10 +51,9 @@ fn half_length_plan(n: usize, inverse: bool) -> (Arc<dyn Fft<f64>>, Vec<f64>, Ve
         n >= 2 && n.is_multiple_of(2),
         "an even length of at least 2, not {n}"
     );
-    let mut planner = FftPlanner::new();
     let fft = match inverse {
-        true => planner.plan_fft_inverse(n / 2),
-        false => planner.plan_fft_forward(n / 2),
+        true => afe_fft::inverse(n / 2),
+        false => afe_fft::forward(n / 2),
     };
     let step = -2.0 * PI / n as f64;
     let (cos, sin) = (1..n.div_ceil(4))
@@ -296,7 +295,6 @@ pub fn split_pair<const INVERSE: bool>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use realfft::RealFftPlanner;
 
     /// `len` values of a chirp whose start phase is `seed`: every bin non-zero.
     fn chirp(len: usize, seed: u64) -> Vec<f64> {
@@ -339,7 +337,7 @@ mod tests {
     fn gives_realffts_spectrum_bit_for_bit() {
         for n in [2, 4, 6, 8, 10, 12, 64, 882, 1024, 2048] {
             let mut ours = RealFft::new(n);
-            let theirs = RealFftPlanner::<f64>::new().plan_fft_forward(n);
+            let theirs = afe_fft::real_forward(n);
             for seed in [n as u64, 1] {
                 let x = chirp(n, seed);
                 let got = spectrum(&mut ours, &x);
@@ -379,7 +377,7 @@ mod tests {
     fn inverts_as_realffts_inverse_bit_for_bit() {
         for n in [2, 4, 6, 8, 10, 12, 64, 882, 1792, 2048] {
             let mut ours = RealIfft::new(n);
-            let theirs = RealFftPlanner::<f64>::new().plan_fft_inverse(n);
+            let theirs = afe_fft::real_inverse(n);
             for seed in [n as u64, 1] {
                 let x = chirp(n + 2, seed);
                 let spectrum: Vec<Complex64> = x

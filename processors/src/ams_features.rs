@@ -12,8 +12,8 @@ use afe_core::window::{window, WINDOW_NAMES};
 use afe_core::{
     Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
 };
-use realfft::num_complex::Complex64;
-use realfft::{RealFftPlanner, RealToComplex};
+use afe_fft::RealToComplex;
+use num_complex::Complex64;
 use serde::{Deserialize, Serialize};
 
 use crate::framed::{check_frame_values, MAX_WINDOW};
@@ -298,7 +298,7 @@ impl AmsFeatures {
                 let nfft = (2 * w).next_power_of_two();
                 let (centres, weights) =
                     lin_weights(p.n_filters, p.low_freq_hz, p.high_freq_hz, fs_ds, nfft);
-                let fft = RealFftPlanner::<f64>::new().plan_fft_forward(nfft);
+                let fft = afe_fft::real_forward(nfft);
                 let kind = Bands::Lin {
                     weights,
                     time: fft.make_input_vec(),

@@ -25,8 +25,8 @@ use afe_core::window::hamming_periodic;
 use afe_core::{
     Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
 };
-use realfft::num_complex::Complex64;
-use realfft::{RealFftPlanner, RealToComplex};
+use afe_fft::RealToComplex;
+use num_complex::Complex64;
 use serde::{Deserialize, Serialize};
 
 use crate::framed::{EarFrames, MAX_WINDOW};
@@ -245,7 +245,7 @@ impl Duet {
         }
         let nfft = (2 * ws - 1).next_power_of_two();
         let half = nfft / 2;
-        let fft = RealFftPlanner::<f64>::new().plan_fft_forward(nfft);
+        let fft = afe_fft::real_forward(nfft);
         let (wd, hd) = (wd as usize, hd as usize);
         let duet = Duet {
             win: hamming_periodic(ws),

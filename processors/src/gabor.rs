@@ -9,7 +9,7 @@ use std::f64::consts::PI;
 
 use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
-use rustfft::num_complex::Complex64;
+use num_complex::Complex64;
 use serde::{Deserialize, Serialize};
 
 /// Parameters of the Gabor features, under their AFE names.

@@ -13,7 +13,7 @@ use afe_core::cpu::has_avx512;
 use afe_core::filter::roots_within;
 use afe_core::lanes::vector_start;
 use afe_core::{Block, Error, ParamMap, Processor, Result, SignalInfo};
-use realfft::num_complex::Complex64;
+use num_complex::Complex64;
 use serde_json::json;
 
 use crate::filterbank_params::{CfGrid, FilterbankParams};

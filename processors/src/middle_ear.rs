@@ -5,8 +5,7 @@ use std::f64::consts::PI;
 
 use afe_core::fir2::fir2;
 use afe_core::hilbert::Hilbert;
-use rustfft::num_complex::Complex64;
-use rustfft::FftPlanner;
+use num_complex::Complex64;
 
 /// FIR order of both designs.
 const ORDER: usize = 512;
@@ -95,7 +94,7 @@ pub fn unity_comp_db(model: &str) -> f64 {
 /// Magnitude spectrum of `b` by an FFT of its own length (no padding).
 fn spectrum(b: &[f64]) -> Vec<Complex64> {
     let mut x: Vec<Complex64> = b.iter().map(|v| Complex64::new(*v, 0.0)).collect();
-    FftPlanner::new().plan_fft_forward(x.len()).process(&mut x);
+    afe_fft::forward(x.len()).process(&mut x);
     x
 }
 
@@ -162,9 +161,7 @@ pub fn lopezpoveda(fs: f64) -> Vec<f64> {
         .zip(&phase)
         .map(|(v, ph)| Complex64::from_polar(v.norm(), -ph))
         .collect();
-    FftPlanner::new()
-        .plan_fft_inverse(xmin.len())
-        .process(&mut xmin);
+    afe_fft::inverse(xmin.len()).process(&mut xmin);
     let n = xmin.len() as f64;
     xmin.iter().map(|v| v.re / n).collect()
 }

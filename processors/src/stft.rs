@@ -9,8 +9,8 @@ use afe_core::framing::{window_samples, FrameBuffer};
 use afe_core::{
     Block, DrawAs, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
 };
-use realfft::num_complex::Complex64;
-use realfft::{RealFftPlanner, RealToComplex};
+use afe_fft::RealToComplex;
+use num_complex::Complex64;
 use serde::{Deserialize, Serialize};
 
 /// Parameters of the STFT, under their AFE names.
@@ -102,7 +102,7 @@ impl Stft {
             .collect();
         let nfft = (2 * w - 1).next_power_of_two();
         let bins = if params.is_pruned { nfft / 2 } else { nfft };
-        let fft = RealFftPlanner::<f64>::new().plan_fft_forward(nfft);
+        let fft = afe_fft::real_forward(nfft);
         let stft = Stft {
             win,
             bins,

@@ -2,7 +2,7 @@
 //! chunks as a stream would, deterministic noise, and a plain DFT to check FFTs against.
 
 use afe_core::{Block, Processor};
-use realfft::num_complex::Complex64;
+use num_complex::Complex64;
 use std::f64::consts::PI;
 
 /// Runs `p` over `x` (rows of `width` values) cut into chunks of the row counts that

@@ -5,8 +5,8 @@
 use std::sync::Arc;
 
 use afe_core::framing::Frame;
-use realfft::num_complex::Complex64;
-use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
+use afe_fft::{ComplexToReal, RealToComplex};
+use num_complex::Complex64;
 
 use super::in_subnormal_band;
 
@@ -30,9 +30,8 @@ impl FftEngine {
         // W − 1) are kept, and a circular correlation of N ≥ W + L points has no wrap-around
         // there, so the smaller transform gives the same values (to rounding) at half the cost.
         let nfft = (w + max_lag.min(w - 1)).next_power_of_two();
-        let mut planner = RealFftPlanner::<f64>::new();
-        let fft = planner.plan_fft_forward(nfft);
-        let ifft = planner.plan_fft_inverse(nfft);
+        let fft = afe_fft::real_forward(nfft);
+        let ifft = afe_fft::real_inverse(nfft);
         let scratch_len = fft.get_scratch_len().max(ifft.get_scratch_len());
         FftEngine {
             win,

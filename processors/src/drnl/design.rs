@@ -117,7 +117,7 @@ pub(super) fn map_channel(f: f64, fs: f64) -> ChannelDesign {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use realfft::num_complex::Complex64;
+    use num_complex::Complex64;
 
     /// `|H(e^{iω})|` of a section at `f` Hz.
     fn gain_at(s: &Biquad, f: f64, fs: f64) -> f64 {
