@@ -5,10 +5,17 @@ use std::sync::Arc;
 use afe_fft::Fft;
 use num_complex::Complex64;
 
+/// The forward and inverse transforms of one length.
+struct Plans {
+    n: usize,
+    forward: Arc<dyn Fft<f64>>,
+    inverse: Arc<dyn Fft<f64>>,
+}
+
 /// Computes analytic signals of arbitrary lengths, reusing plans and buffers.
 pub struct Hilbert {
-    /// The forward and inverse plans of the last length.
-    plans: Option<(usize, Arc<dyn Fft<f64>>, Arc<dyn Fft<f64>>)>,
+    /// The plans of the last length.
+    plans: Option<Plans>,
     buf: Vec<Complex64>,
     scratch: Vec<Complex64>,
 }
@@ -44,10 +51,15 @@ impl Hilbert {
         if n == 0 {
             return &self.buf;
         }
-        let (_, fwd, inv) = match self.plans.take() {
-            Some(plans) if plans.0 == n => plans,
-            _ => (n, afe_fft::forward(n), afe_fft::inverse(n)),
+        let plans = match self.plans.take() {
+            Some(plans) if plans.n == n => plans,
+            _ => Plans {
+                n,
+                forward: afe_fft::forward(n),
+                inverse: afe_fft::inverse(n),
+            },
         };
+        let (fwd, inv) = (&plans.forward, &plans.inverse);
         let need = fwd
             .get_inplace_scratch_len()
             .max(inv.get_inplace_scratch_len());
@@ -63,7 +75,7 @@ impl Hilbert {
             *v = Complex64::new(0.0, 0.0);
         }
         inv.process_with_scratch(&mut self.buf, &mut self.scratch);
-        self.plans = Some((n, fwd, inv));
+        self.plans = Some(plans);
         let scale = 1.0 / n as f64;
         for v in &mut self.buf {
             *v *= scale;
