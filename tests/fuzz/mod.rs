@@ -136,7 +136,7 @@ fn env_number<T: std::str::FromStr>(name: &str) -> Option<T> {
 /// A scratch folder of this process for `target` (inputs written there stay after a
 /// failure, for reproduction).
 fn scratch(target: &str, seed: u64) -> PathBuf {
-    let dir = std::env::temp_dir()
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
         .join(format!("afe-fuzz-{}", std::process::id()))
         .join(format!("{target}-{seed}"));
     std::fs::create_dir_all(&dir).expect("scratch dir");
@@ -281,6 +281,10 @@ fn fuzz(target: &str, mut case: impl FnMut(&mut Rng, &Path) -> Result<(), String
             tally.join(", ")
         ));
         let _ = std::fs::remove_dir_all(&dir);
+        // the process's folder too, once no failed case's files are in it
+        if let Some(parent) = dir.parent() {
+            let _ = std::fs::remove_dir(parent);
+        }
     }
 }
 
