@@ -25,6 +25,7 @@ use std::time::{Duration, Instant};
 use afe_core::denormals::FlushDenormals;
 use afe_core::{Block, Error, Part, Processor, Result};
 
+use crate::compile::{compile, Compiled, NodeShape};
 use crate::graph::{Graph, OutputRef, MAX_INPUTS};
 use crate::placement;
 use crate::protocol::{consumed, is_ready, next_chunk, release, Links, NodeSync};
@@ -96,6 +97,34 @@ struct NodeRt {
     /// Whether a child that reads its outputs has its home on another thread: the node
     /// then claims its output's cache lines before writing them (see [`claim_lines`]).
     claims: bool,
+}
+
+impl NodeRt {
+    /// An entry running `processor` on `inputs`, its two slots given (see `slots`): not
+    /// split, no feedback, nothing kept, read by no one until the table says so.
+    fn new(
+        label: String,
+        processor: Option<Box<dyn Processor>>,
+        slots: [Vec<Block>; 2],
+        inputs: &[OutputRef],
+    ) -> NodeRt {
+        let [now, last] = slots;
+        NodeRt {
+            label,
+            processor: UnsafeCell::new(processor),
+            slots: [UnsafeCell::new(now), UnsafeCell::new(last)],
+            inputs: inputs.into(),
+            feedback: None,
+            parts: Box::new([]),
+            absorbs: false,
+            kept: UnsafeCell::new(Vec::new()),
+            kept_in_place: false,
+            read: false,
+            kept_frames: Default::default(),
+            claimed_at_ns: AtomicU64::new(0),
+            claims: false,
+        }
+    }
 }
 
 /// Most parts a heavy node is split into (its join reads them beside its inputs).
@@ -753,7 +782,6 @@ impl Engine {
     /// As [`Engine::install`], the nodes marked in `absorbs` taking each chunk with
     /// [`Processor::absorb`] (a whole signal run in blocks; see [`Graph::run_whole`]).
     pub(crate) fn install_absorbing(&mut self, graph: &mut Graph, absorbs: &[bool]) {
-        let n = graph.nodes.len();
         // a heavy node whose processor splits runs as parts, one per worker, appended
         // after the graph's nodes; the node joins them
         let parts_per_node = self.threads().min(MAX_PARTS);
@@ -769,100 +797,57 @@ impl Engine {
                 }
             }
         }
-        let total = n + split.iter().map(|(_, p)| p.len()).sum::<usize>();
-        let mut inputs: Vec<Vec<OutputRef>> =
-            graph.nodes.iter().map(|n| n.parents.clone()).collect();
-        let mut part_entries: Vec<Vec<usize>> = vec![Vec::new(); n];
-        for (i, parts) in &split {
-            for _ in parts {
-                part_entries[*i].push(inputs.len());
-                inputs.push(graph.nodes[*i].parents.clone());
-            }
-        }
-        // each entry's distinct parent entries: its inputs' nodes and, for a split node,
-        // its parts
-        let parents: Vec<Vec<usize>> = inputs
+        let shapes: Vec<NodeShape> = graph
+            .nodes
             .iter()
             .enumerate()
-            .map(|(i, own)| {
-                let own_parts = part_entries.get(i).into_iter().flatten().copied();
-                let mut p: Vec<usize> = own.iter().map(|r| r.node).chain(own_parts).collect();
-                p.sort_unstable();
-                p.dedup();
-                p
+            .map(|(i, node)| NodeShape {
+                label: format!("{}#{}", node.name, node.instance),
+                parents: node.parents.clone(),
+                feedback_from: node.feedback_from,
+                parts: split
+                    .iter()
+                    .find(|(s, _)| *s == i)
+                    .map_or(0, |(_, p)| p.len()),
             })
             .collect();
-        let split_parts: Vec<&[usize]> = part_entries
-            .iter()
-            .filter(|p| !p.is_empty())
-            .map(Vec::as_slice)
-            .collect();
-        let home = placement::homes(&parents, &split_parts, self.threads());
-        let mut children: Vec<Vec<usize>> = vec![Vec::new(); total];
-        for (i, ps) in parents.iter().enumerate() {
-            for &p in ps {
-                children[p].push(i);
-            }
-        }
-        let mut feedback_to: Vec<Vec<usize>> = vec![Vec::new(); total];
-        for (i, node) in graph.nodes.iter().enumerate() {
-            if let Some(f) = node.feedback_from {
-                feedback_to[f.node].push(i);
-            }
-        }
-        let links: Vec<Links> = parents
-            .into_iter()
-            .enumerate()
-            .map(|(i, parents)| {
-                // the caller collects the graph's nodes, not the input or the parts
-                let sink = u32::from(i != 0 && i < n);
-                let feedback_from = graph.nodes.get(i).and_then(|n| n.feedback_from);
-                Links {
-                    parents: parents.into(),
-                    children: children[i].clone().into(),
-                    readers: (children[i].len() + feedback_to[i].len()) as u32 + sink,
-                    feedback_from: feedback_from.map(|f| f.node).into_iter().collect(),
-                    feedback_to: feedback_to[i].clone().into(),
-                }
-            })
-            .collect();
+        let Compiled {
+            part_entries,
+            links,
+            home,
+            labels,
+        } = compile(&shapes, self.threads());
+        let total = links.len();
         let mut rt: Vec<NodeRt> = graph
             .nodes
             .iter_mut()
             .zip(&part_entries)
             .enumerate()
-            .map(|(i, (node, parts))| NodeRt {
-                label: format!("{}#{}", node.name, node.instance),
-                processor: UnsafeCell::new(node.processor.take()),
-                // slot 1 stands for chunk −1: a feedback source's last output before
-                // the table was built, which its targets take with their chunk 0
-                slots: [
-                    UnsafeCell::new(node.outputs.iter().map(Block::empty_like).collect()),
-                    UnsafeCell::new(
-                        node.outputs
-                            .iter()
-                            .map(|b| {
-                                let mut slot = b.empty_like();
-                                slot.extend_from(b);
-                                slot
-                            })
-                            .collect(),
-                    ),
-                ],
-                inputs: node.parents.clone().into(),
-                feedback: node.feedback_from,
-                parts: parts.clone().into(),
-                absorbs: absorbs.get(i).copied().unwrap_or(false),
-                kept: UnsafeCell::new(Vec::new()),
-                kept_in_place: false,
-                read: false,
-                kept_frames: Default::default(),
-                claimed_at_ns: AtomicU64::new(0),
-                claims: false,
+            .map(|(i, (node, parts))| {
+                // slot 1 stands for chunk −1: a feedback source's last output before the
+                // table was built, which its targets take with their chunk 0
+                let last = node
+                    .outputs
+                    .iter()
+                    .map(|b| {
+                        let mut slot = b.empty_like();
+                        slot.extend_from(b);
+                        slot
+                    })
+                    .collect();
+                let mut r = NodeRt::new(
+                    labels[i].clone(),
+                    node.processor.take(),
+                    [node.outputs.iter().map(Block::empty_like).collect(), last],
+                    &node.parents,
+                );
+                r.feedback = node.feedback_from;
+                r.parts = parts.clone().into();
+                r.absorbs = absorbs.get(i).copied().unwrap_or(false);
+                r
             })
             .collect();
         for (i, parts) in split {
-            let label = rt[i].label.clone();
             // room for as many rows as the node's own blocks (see `Manager::prepare`)
             let rows = graph.nodes[i]
                 .outputs
@@ -870,28 +855,19 @@ impl Engine {
                 .map(Block::room)
                 .max()
                 .unwrap_or(0);
-            for (j, part) in parts.into_iter().enumerate() {
+            for (part, &entry) in parts.into_iter().zip(&part_entries[i]) {
                 let blocks = || {
                     part.widths
                         .iter()
                         .map(|&w| Block::with_room(w, rows))
                         .collect()
                 };
-                rt.push(NodeRt {
-                    label: format!("{label}/part{j}"),
-                    processor: UnsafeCell::new(Some(part.processor)),
-                    slots: [UnsafeCell::new(blocks()), UnsafeCell::new(blocks())],
-                    inputs: graph.nodes[i].parents.clone().into(),
-                    feedback: None,
-                    parts: Box::new([]),
-                    absorbs: false,
-                    kept: UnsafeCell::new(Vec::new()),
-                    kept_in_place: false,
-                    read: false,
-                    kept_frames: Default::default(),
-                    claimed_at_ns: AtomicU64::new(0),
-                    claims: false,
-                });
+                rt.push(NodeRt::new(
+                    labels[entry].clone(),
+                    Some(part.processor),
+                    [blocks(), blocks()],
+                    &graph.nodes[i].parents,
+                ));
             }
         }
         // (a child without a processor, one that waits aside, reads nothing)
@@ -905,8 +881,8 @@ impl Engine {
             r.claims = readers().any(|&c| home[c] != home[e]);
         }
         let sync: Vec<NodeSync> = (0..total).map(|_| NodeSync::new()).collect();
-        for (s, targets) in sync.iter().zip(&feedback_to) {
-            s.readers_left[1].store(targets.len() as u32, Ordering::Relaxed);
+        for (s, l) in sync.iter().zip(&links) {
+            s.readers_left[1].store(l.feedback_to.len() as u32, Ordering::Relaxed);
         }
         let table = Table {
             sync,

@@ -3,6 +3,7 @@
 //! sequential executor here is the reference for every scheduler.
 
 mod block_input;
+mod compile;
 mod engine;
 mod graph;
 mod manager;
