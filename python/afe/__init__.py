@@ -600,7 +600,7 @@ def transfer(freqs_hz: Any, azimuth_deg: float, head: str = "sphere") -> np.ndar
 def heads() -> List[Tuple[str, str]]:
     """The heads :func:`locate` and :func:`render` name without a file: ``(name,
     description)`` pairs."""
-    return [tuple(h) for h in _afe.heads()]
+    return [(name, description) for name, description in _afe.heads()]
 
 
 from .corpus import Store, batch, open_store  # noqa: E402  (uses _params_json above)

@@ -29,6 +29,7 @@ from typing import (
     Tuple,
     Union,
     ValuesView,
+    cast,
 )
 
 import numpy as np
@@ -44,14 +45,19 @@ def request_items(requests: Requests) -> List[Tuple[str, Optional[Dict[str, Any]
     """``[(name, own params or None)]`` from request names (a list, or one comma-separated
     string) or ``(name, params)`` pairs. Raises ``ValueError`` naming the item that is
     wrong (``requests[1]: ...``), or when no request is given."""
+    items: Sequence[Union[str, Tuple[str, Optional[Mapping[str, Any]]]]]
     if isinstance(requests, str):
-        requests = requests.split(",")
+        items = requests.split(",")
     elif isinstance(requests, tuple) and len(requests) == 2 and isinstance(requests[0], str) and (
         requests[1] is None or isinstance(requests[1], Mapping)
     ):
-        requests = [requests]  # one (name, params) pair on its own
+        # one (name, params) pair on its own: the checks above are what the cast says
+        items = [cast(Tuple[str, Optional[Mapping[str, Any]]], requests)]
+    else:
+        items = requests
     out: List[Tuple[str, Optional[Dict[str, Any]]]] = []
-    for i, r in enumerate(requests):
+    own: Optional[Mapping[str, Any]]
+    for i, r in enumerate(items):
         if isinstance(r, str):
             name, own = r, None
         elif isinstance(r, (tuple, list)) and len(r) == 2 and isinstance(r[0], str):

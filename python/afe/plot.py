@@ -107,7 +107,9 @@ def _waveforms(fig: Any, ax: Any, s: Signal, values: np.ndarray, t: np.ndarray, 
 
         channels = np.arange(values.shape[1])
         segments = np.stack([np.broadcast_to(x[:, None], y.shape), channels + scale * y], axis=-1)
-        ax.add_collection(LineCollection(segments.transpose(1, 0, 2), colors="k", linewidths=0.5))
+        # one [time, 2] line per channel, as the list LineCollection is typed to take
+        lines = list(segments.transpose(1, 0, 2))
+        ax.add_collection(LineCollection(lines, colors="k", linewidths=0.5))
         ax.set_ylim(-0.5 - 0.5 * zoom, values.shape[1] - 0.5 + 0.5 * zoom)
     else:
         largest = np.fmax(np.abs(lo), np.abs(hi))

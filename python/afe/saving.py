@@ -83,7 +83,11 @@ def save(path: PathLike, signals: Union[Signal, Mapping[str, Signal]]) -> None:
     arrays[METADATA_ENTRY] = np.array(json.dumps(meta))
     # through a file object: np.savez would append ".npz" to a path without it
     with open(os.fspath(path), "wb") as f:
-        np.savez(f, **arrays)
+        # numpy's stub has savez(file, *args: ArrayLike, allow_pickle: bool, **kwds: ArrayLike):
+        # mypy matches a **dict's values to the keyword-only allow_pickle too (passing the
+        # flag here instead would save an array "allow_pickle" with the older numpy whose
+        # savez has no such flag, which pyproject.toml's numpy>=1.21 admits)
+        np.savez(f, **arrays)  # type: ignore[arg-type]
 
 
 def _npz_meta(z: Any, path: str) -> Dict[str, Dict[str, Any]]:

@@ -54,6 +54,27 @@ def test_dir_shows_the_public_api_only():
     )
 
 
+def test_the_package_type_checks_and_the_extension_matches_its_stub(tmp_path):
+    # the package's annotations (py.typed) and afe/_afe.pyi, which types the extension:
+    # mypy reads both, stubtest holds the stub to the compiled module's own signatures.
+    # The optional dependencies whose types the package uses must be there to be read.
+    pytest.importorskip("mypy")
+    pytest.importorskip("matplotlib")
+    pytest.importorskip("zenoh")
+    # from a folder of their own, so that the installed package is the one checked, and
+    # with a fresh cache (a cache from before a new module of the package can hide it)
+    commands = [
+        [sys.executable, "-m", "mypy", "--cache-dir", str(tmp_path / "cache"), "-p", "afe"],
+        [sys.executable, "-m", "mypy.stubtest", "afe._afe"],
+    ]
+    failed = []
+    for command in commands:
+        run = subprocess.run(command, cwd=tmp_path, capture_output=True, text=True, timeout=600)
+        if run.returncode != 0:
+            failed.append(f"python {' '.join(command[1:])}:\n{run.stdout}{run.stderr}")
+    assert not failed, "\n".join(failed)
+
+
 def test_host_names_the_machine_a_timing_comes_from():
     h = afe.host()
     assert set(h) == {"cpu", "cores", "simd", "avx512_available", "version", "core_to_core_ns"}
