@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use afe_spatial::{locate, Head, HeadYaw, LocaliserParams, Located};
+use afe_spatial::{locate, Head, HeadYaw, LocaliserParams, Located, Platform};
 use serde_json::json;
 
 use crate::error::CliError;
@@ -13,17 +13,25 @@ use crate::outln;
 /// path (`/dev/zero`, a WAV file) can make the command read.
 const YAW_FILE_MAX_BYTES: u64 = 64 << 20;
 
-/// `afe locate IN.wav [--head kemar|sphere:radius=M[,ears=DEG]|FILE.sofa] [--sources N]
-/// [--head-yaw FILE.csv] [--json]`.
+/// Largest platform descriptor read, bytes.
+pub(crate) const PLATFORM_FILE_MAX_BYTES: u64 = 1 << 20;
+
+/// `afe locate IN.wav [--head kemar|sphere:radius=M[,ears=DEG]|FILE.sofa | --platform
+/// FILE.json] [--sources N] [--head-yaw FILE.csv] [--json]`.
 #[derive(clap::Args)]
 pub(crate) struct LocateArgs {
     /// Input WAV file, two channels (left ear, right ear).
     input: PathBuf,
-    /// The head that heard it: `kemar` (the MIT KEMAR set, from Debian's libmysofa1),
-    /// `sphere:radius=M[,ears=DEG]` (a rigid sphere; `sphere` alone: the 15-cm ball with
-    /// ears at +-90 deg) or a SimpleFreeFieldHRIR .sofa file.
-    #[arg(long, default_value = "kemar")]
-    head: String,
+    /// The head that heard it: `kemar` (the MIT KEMAR set, from Debian's libmysofa1; the
+    /// default), `sphere:radius=M[,ears=DEG]` (a rigid sphere; `sphere` alone: the 15-cm
+    /// ball with ears at +-90 deg) or a SimpleFreeFieldHRIR .sofa file.
+    #[arg(long, conflicts_with = "platform")]
+    head: Option<String>,
+    /// The robot that recorded it (a platform descriptor, docs/platform.md): its head,
+    /// which channels are its ears, its rate and channel count (checked against the
+    /// file) and its neck's limits (checked against --head-yaw).
+    #[arg(long, value_name = "FILE.json")]
+    platform: Option<PathBuf>,
     /// How many sources to report (default: every one at least 0.9 as salient as the
     /// first).
     #[arg(long, value_name = "N")]
@@ -45,7 +53,12 @@ impl LocateArgs {
         if self.sources == Some(0) {
             return Err("--sources must be at least 1".into());
         }
-        let head = Head::parse(&self.head)?;
+        let platform = self.platform.as_deref().map(read_platform).transpose()?;
+        let head = match (&platform, &self.head) {
+            (Some(p), _) => p.head()?,
+            (None, Some(spec)) => Head::parse(spec)?,
+            (None, None) => Head::parse("kemar")?,
+        };
         let yaw = match &self.head_yaw {
             Some(path) => {
                 let text = afe::bounded_read::read_text(path, YAW_FILE_MAX_BYTES).map_err(|e| {
@@ -58,12 +71,25 @@ impl LocateArgs {
             None => None,
         };
         let audio = read_input(&self.input)?;
-        let [left, right] = audio.channels.as_slice() else {
-            return Err(CliError::Message(format!(
-                "{} has {} channel(s): locating needs two (left ear, right ear)",
-                self.input.display(),
-                audio.channels.len()
-            )));
+        if let Some(p) = &platform {
+            p.check_source(audio.channels.len(), audio.fs)?;
+            if let Some(track) = &yaw {
+                p.check_yaw(track)?;
+            }
+        }
+        let [left, right] = match &platform {
+            // its channel count checked above: each ear is a channel of the file
+            Some(p) => p.ears().map(|c| &audio.channels[c]),
+            None => match audio.channels.as_slice() {
+                [left, right] => [left, right],
+                _ => {
+                    return Err(CliError::Message(format!(
+                        "{} has {} channel(s): locating needs two (left ear, right ear)",
+                        self.input.display(),
+                        audio.channels.len()
+                    )))
+                }
+            },
         };
         let found = locate(
             &head,
@@ -80,6 +106,15 @@ impl LocateArgs {
         }
         Ok(())
     }
+}
+
+/// The platform descriptor at `path`, read within [`PLATFORM_FILE_MAX_BYTES`] and checked.
+pub(crate) fn read_platform(path: &std::path::Path) -> Result<Platform, CliError> {
+    let text = afe::bounded_read::read_text(path, PLATFORM_FILE_MAX_BYTES)
+        .map_err(|e| CliError::Message(format!("cannot read {}: {e}", path.display())))?;
+    let folder = path.parent().unwrap_or(std::path::Path::new("."));
+    Platform::parse(&text, folder)
+        .map_err(|e| CliError::Message(format!("{}: {e}", path.display())))
 }
 
 fn to_json(head: &Head, fs_hz: f64, found: &Located) -> serde_json::Value {

@@ -1,6 +1,5 @@
 //! `afe serve`: a live source served at real time to the web view and to Zenoh clients.
 
-#[cfg(feature = "remote")]
 use std::path::PathBuf;
 
 use afe::bass_source::Pacing;
@@ -66,11 +65,21 @@ pub(crate) struct ServeArgs {
     /// Print the final report as one JSON object (and no status line).
     #[arg(long)]
     json: bool,
+    /// The robot's platform descriptor (docs/platform.md): checked against the source
+    /// (its channels and rate) before the stream starts, and published in the catalogue
+    /// (`afe.connect(...).platform`).
+    #[arg(long, value_name = "FILE.json")]
+    platform: Option<PathBuf>,
 }
 
 impl ServeArgs {
     pub(crate) fn run(self) -> Result<(), CliError> {
         let (requests, params) = self.requests.load()?;
+        let platform = self
+            .platform
+            .as_deref()
+            .map(crate::locate::read_platform)
+            .transpose()?;
         let job = StreamJob {
             requests,
             params,
@@ -82,6 +91,9 @@ impl ServeArgs {
             threads: self.threads.threads.unwrap_or(0),
             looping: self.source.starts_with("wav:"),
             alsa_rate: self.rate.unwrap_or(44_100),
+            expect: platform
+                .as_ref()
+                .map(afe_spatial::Platform::expected_source),
             ..StreamJob::default()
         };
         let run = StreamRun {
@@ -100,6 +112,11 @@ impl ServeArgs {
                 max_clients: self.max_clients as usize,
                 max_subscriptions: self.max_subscriptions as usize,
                 max_load: afe_net::MAX_LOAD,
+                platform: platform
+                    .as_ref()
+                    .map(serde_json::to_value)
+                    .transpose()
+                    .map_err(|e| e.to_string())?,
             }),
             endless: true,
         };

@@ -57,6 +57,10 @@ pub(crate) struct StreamArgs {
     /// With -o: also save every intermediate signal.
     #[arg(long)]
     all: bool,
+    /// The robot's platform descriptor (docs/platform.md): the source must have its
+    /// channels and rate.
+    #[arg(long, value_name = "FILE.json")]
+    platform: Option<PathBuf>,
     /// Print the final report as one JSON object (and no status line).
     #[arg(long)]
     json: bool,
@@ -96,6 +100,10 @@ impl StreamArgs {
             looping: self.looping,
             alsa_rate: self.rate.unwrap_or(44_100),
             rt: self.rt,
+            expect: match &self.platform {
+                Some(path) => Some(crate::locate::read_platform(path)?.expected_source()),
+                None => None,
+            },
         };
         let pacing = match (self.realtime, self.fast) {
             (true, _) => Some(Pacing::Realtime),

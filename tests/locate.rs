@@ -239,3 +239,94 @@ fn locate_refuses_what_it_cannot_use_in_one_line() {
         &none,
     );
 }
+
+/// A robot's platform descriptor gives `afe locate` its head and its ears: the seed
+/// robots' ball (data/platforms/ball-15cm.json: 24414 Hz, a 7.5-cm sphere) finds a talker
+/// rendered through that sphere at its rate; a file at another rate or channel count, a
+/// yaw track beyond the neck's limits, or `--head` beside `--platform` are refused, one
+/// line each.
+#[test]
+fn a_platform_descriptor_gives_the_head_and_is_checked_against_the_file() {
+    let ball = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/platforms/ball-15cm.json");
+    let ball = ball.to_str().expect("path");
+    let (x, fs) = talker();
+    // the talker resampled to the ball's rate by holding samples (it stays a talker)
+    let fs_ball = 24414u32;
+    let held: Vec<f64> = (0..x.len() * fs_ball as usize / fs as usize)
+        .map(|i| x[i * fs as usize / fs_ball as usize])
+        .collect();
+    let head = Head::parse("sphere:radius=0.075,ears=90").expect("sphere");
+    let ears = head
+        .render(40.0, &held, f64::from(fs_ball))
+        .expect("render");
+    let found = located_with("platform-ball", &ears, fs_ball, &["--platform", ball]);
+    assert!(
+        (lateral_deg(found) - lateral_deg(40.0)).abs() <= 5.0,
+        "found {found}"
+    );
+    let none = tmp("locate-platform-nothing.npz");
+    let at_44k = tmp("locate-platform-44k.wav");
+    crate::common::write_wav(&at_44k, 2, 44100, 4410, crate::common::tone);
+    let w = at_44k.to_str().expect("path");
+    assert_clear_error(
+        &afe(&["locate", w, "--platform", ball]),
+        "captures at 24414 Hz; the source is at 44100 Hz",
+        &none,
+    );
+    // the ball with a third microphone on its top, and a two-channel file
+    let text = std::fs::read_to_string(ball).expect("descriptor");
+    let mut three: Value = serde_json::from_str(&text).expect("json");
+    let extra = serde_json::json!({"channel": 2, "role": "extra", "part": "head",
+        "position_m": [0.0, 0.0, 0.075]});
+    three["audio"]["channels"]
+        .as_array_mut()
+        .expect("channels")
+        .push(extra);
+    let three_path = tmp("locate-platform-3ch.json");
+    std::fs::write(&three_path, three.to_string()).expect("write");
+    let two = tmp("locate-platform-2ch.wav");
+    crate::common::write_wav(&two, 2, 24414, 2441, crate::common::tone);
+    let two = two.to_str().expect("path");
+    assert_clear_error(
+        &afe(&[
+            "locate",
+            two,
+            "--platform",
+            three_path.to_str().expect("path"),
+        ]),
+        "declares 3 capture channel(s); the source gives 2",
+        &none,
+    );
+    let far = tmp("locate-platform-far.csv");
+    std::fs::write(&far, "t_s,yaw_deg\n0,0\n0.5,150\n").expect("write");
+    assert_clear_error(
+        &afe(&[
+            "locate",
+            two,
+            "--platform",
+            ball,
+            "--head-yaw",
+            far.to_str().expect("path"),
+        ]),
+        "the head yaw 150 deg at t_s = 0.5 is beyond",
+        &none,
+    );
+    let out = afe(&["locate", w, "--platform", ball, "--head", "sphere"]);
+    assert!(!out.status.success());
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("cannot be used with"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let missing = tmp("locate-platform-missing.json");
+    std::fs::write(
+        &missing,
+        text.replace("sphere:radius=0.075,ears=90", "gone.sofa"),
+    )
+    .expect("write");
+    assert_clear_error(
+        &afe(&["locate", w, "--platform", missing.to_str().expect("path")]),
+        "gone.sofa does not exist",
+        &none,
+    );
+}

@@ -56,6 +56,9 @@ pub struct ServeOptions {
     /// The share of a block's budget requests may take (0 to 1): a subscription whose
     /// measured cost would take the stream beyond it is refused before it runs.
     pub max_load: f64,
+    /// The robot's platform descriptor (its JSON form), published in the catalogue so
+    /// that a client asks the robot what it is.
+    pub platform: Option<Value>,
 }
 
 impl Default for ServeOptions {
@@ -67,6 +70,7 @@ impl Default for ServeOptions {
             max_clients: MAX_CLIENTS,
             max_subscriptions: MAX_SUBSCRIPTIONS,
             max_load: MAX_LOAD,
+            platform: None,
         }
     }
 }
@@ -228,6 +232,7 @@ impl Server {
         let tap = ServeTap {
             session: session.clone(),
             name: name.clone(),
+            platform: options.platform.clone(),
             shared,
             edits: edits_rx,
             events,
@@ -353,6 +358,8 @@ struct Sub {
 pub struct ServeTap {
     session: Session,
     name: String,
+    /// The platform descriptor the catalogue carries.
+    platform: Option<Value>,
     shared: Arc<Shared>,
     edits: Receiver<Edit>,
     /// Outcomes and the stream's start, to the query loop.
@@ -389,6 +396,7 @@ impl ServeTap {
             "ears": mgr.ears(),
             "block_frames": timing.block_frames(),
             "requests": afe::catalog::listing(),
+            "platform": self.platform,
         });
         *lock(&self.shared.catalogue) = Some(c.to_string());
         let _ = self.events.send(Event::Started);

@@ -4,12 +4,14 @@
 
 pub mod head;
 pub mod locate;
+pub mod platform;
 pub mod sofa;
 pub mod sphere;
 pub mod yaw;
 
 pub use head::Head;
 pub use locate::{locate, LocaliserParams, Located, Source};
+pub use platform::Platform;
 pub use yaw::HeadYaw;
 
 use thiserror::Error;
@@ -64,4 +66,7 @@ pub enum SpatialError {
     /// Bad localiser input or parameters.
     #[error("{0}")]
     Invalid(String),
+    /// A platform descriptor that is not valid, or does not match the source.
+    #[error("platform: {0}")]
+    Platform(String),
 }

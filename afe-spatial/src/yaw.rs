@@ -62,6 +62,11 @@ impl HeadYaw {
         HeadYaw::new(&points)
     }
 
+    /// The track's points, `(t_s, yaw_deg)`, as given.
+    pub fn points(&self) -> impl Iterator<Item = (f64, f64)> + '_ {
+        self.t_s.iter().copied().zip(self.yaw_deg.iter().copied())
+    }
+
     /// The yaw at `t_s`, deg in [0, 360): held before the first point and after the last,
     /// and between two points along the shorter way from one to the other.
     pub fn at(&self, t_s: f64) -> f64 {

@@ -7,6 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant, SystemTime};
 
 use afe_bass_source::{Feeder, Pacing, Reader, Sample, Source, SynthSpec, WavSource};
+pub use afe_core::ExpectedSource;
 use afe_core::ParamMap;
 use afe_graph::Manager;
 use thiserror::Error;
@@ -125,6 +126,9 @@ pub struct StreamJob {
     /// Ask for real-time scheduling and locked memory ([`crate::realtime`]); this changes
     /// the calling thread's scheduling for good. Real-time pacing only.
     pub rt: bool,
+    /// The channels and rate the source must have (a robot's platform descriptor's):
+    /// another source is refused before the stream starts.
+    pub expect: Option<ExpectedSource>,
 }
 
 impl Default for StreamJob {
@@ -141,6 +145,7 @@ impl Default for StreamJob {
             looping: false,
             alsa_rate: 44_100,
             rt: false,
+            expect: None,
         }
     }
 }
@@ -506,6 +511,11 @@ pub fn run<Src: Source>(
         }
         None => None,
     };
+    if let Some(expect) = &job.expect {
+        expect
+            .check(format.channels, fs)
+            .map_err(StreamError::Spec)?;
+    }
     if job.rt && job.pacing != Pacing::Realtime {
         return Err(StreamError::Spec(
             "real-time scheduling (--rt) is for streams paced at real time: a fast stream would hold the cores".into(),

@@ -230,6 +230,14 @@ class Remote:
         """Audio frames per block of the server's stream."""
         return int(self.catalogue["block_frames"])
 
+    @property
+    def platform(self) -> Optional[Dict[str, Any]]:
+        """The robot's platform descriptor, as ``afe serve --platform`` published it
+        (docs/platform.md: its parts, joints, microphones and head model); ``None`` where
+        the server was given none."""
+        p = self.catalogue.get("platform")
+        return dict(p) if isinstance(p, dict) else None
+
     def _server_gone(self) -> bool:
         """Whether the server's liveliness token was withdrawn (reads the watch)."""
         if not self._gone and not self._closed:

@@ -3,6 +3,7 @@
 subscriptions released when their client closes or is killed."""
 import contextlib
 import itertools
+import os
 import json
 import signal
 import socket
@@ -50,15 +51,16 @@ def serve(cli):
     Every server started is killed at the end of the test."""
     started = []
 
-    def start(wav, requests=None, seconds=20, stdout=subprocess.DEVNULL):
+    def start(wav, requests=None, seconds=20, stdout=subprocess.DEVNULL, extra=()):
         """``wav``: a file's path, or a ``synth:`` source; ``stdout``: where the server's
-        final report (JSON) goes."""
+        final report (JSON) goes; ``extra``: more options."""
         endpoint = f"tcp/127.0.0.1:{free_port()}"
         source = wav if wav.startswith("synth:") else f"wav:{wav}"
         cmd = [cli, "serve", "--source", source, "--listen", endpoint,
                "--block-ms", "10", "--for", str(seconds), "--json"]
         if requests:
             cmd += ["-r", ",".join(requests)]
+        cmd += list(extra)
         started.append(subprocess.Popen(cmd, stdout=stdout, stderr=subprocess.PIPE))
         return endpoint
 
@@ -555,3 +557,24 @@ def test_requests_are_names_or_pairs():
         request_list(" , ")
     with pytest.raises(ValueError, match="name or a"):
         request_list([3])
+
+
+def test_a_client_reads_the_robots_platform_and_a_mismatched_one_is_refused(serve, cli):
+    """`afe serve --platform` publishes the robot's descriptor in its catalogue, and
+    refuses a source that is not the robot's (issue 60)."""
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    ball = os.path.join(root, "data", "platforms", "ball-15cm.json")
+    endpoint = serve("synth:fs=24414,tone=500,noise=0.1,seed=1", extra=["--platform", ball])
+    with connect(endpoint) as remote:
+        p = remote.platform
+        assert p is not None and p["robot"] == "seed robot: a 15-cm ball on a pan unit", p
+        assert p["audio"]["sample_rate_hz"] == remote.fs_hz == 24414
+        assert [c["role"] for c in p["audio"]["channels"]] == ["left-ear", "right-ear"]
+        assert p["joints"][0]["kind"] == "yaw"
+    wrong = subprocess.run(
+        [cli, "serve", "--source", "synth:fs=44100,tone=500", "--listen", f"tcp/127.0.0.1:{free_port()}",
+         "--for", "1", "--platform", ball],
+        capture_output=True, text=True, timeout=60,
+    )
+    assert wrong.returncode != 0
+    assert "captures at 24414 Hz; the source is at 44100 Hz" in wrong.stderr, wrong.stderr
