@@ -70,7 +70,11 @@ impl LocateArgs {
             }
             None => None,
         };
-        let audio = read_input(&self.input)?;
+        let audio = match &platform {
+            // a robot's capture may hold more than its ears: its descriptor says which
+            Some(_) => read_capture(&self.input)?,
+            None => read_input(&self.input)?,
+        };
         if let Some(p) = &platform {
             p.check_source(audio.channels.len(), audio.fs)?;
             if let Some(track) = &yaw {
@@ -106,6 +110,18 @@ impl LocateArgs {
         }
         Ok(())
     }
+}
+
+/// Every channel of the WAV file at `path` (not empty), however many it has.
+fn read_capture(path: &std::path::Path) -> Result<afe::wav::Audio, CliError> {
+    let wav = afe::wav::WavBlocks::open(path)?;
+    if wav.frames() == 0 {
+        return Err(CliError::Message(format!(
+            "'{}' holds no samples",
+            path.display()
+        )));
+    }
+    Ok(wav.read_all()?)
 }
 
 /// The platform descriptor at `path`, read within [`PLATFORM_FILE_MAX_BYTES`] and checked.

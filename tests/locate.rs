@@ -284,6 +284,39 @@ fn a_platform_descriptor_gives_the_head_and_is_checked_against_the_file() {
         .push(extra);
     let three_path = tmp("locate-platform-3ch.json");
     std::fs::write(&three_path, three.to_string()).expect("write");
+    // its ears are found among the three channels of its capture
+    let with_top = tmp("locate-platform-3ch.wav");
+    {
+        let spec = hound::WavSpec {
+            channels: 3,
+            sample_rate: fs_ball,
+            bits_per_sample: 32,
+            sample_format: hound::SampleFormat::Float,
+        };
+        let mut w = hound::WavWriter::create(&with_top, spec).expect("wav");
+        for (i, (l, r)) in ears[0].iter().zip(&ears[1]).enumerate() {
+            for v in [*l, *r, 0.01 * (i as f64 * 0.37).sin()] {
+                w.write_sample(v as f32).expect("sample");
+            }
+        }
+        w.finalize().expect("finalize");
+    }
+    let three_str = three_path.to_str().expect("path");
+    let out = afe(&[
+        "locate",
+        with_top.to_str().expect("path"),
+        "--json",
+        "--platform",
+        three_str,
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Value = serde_json::from_slice(&out.stdout).expect("json");
+    let az = v["sources"][0]["azimuth_deg"].as_f64().expect("azimuth");
+    assert!((lateral_deg(az) - lateral_deg(40.0)).abs() <= 5.0, "{v}");
     let two = tmp("locate-platform-2ch.wav");
     crate::common::write_wav(&two, 2, 24414, 2441, crate::common::tone);
     let two = two.to_str().expect("path");
