@@ -609,7 +609,9 @@ def test_cancelling_one_manager_leaves_another_in_another_thread_running():
     other = 0.1 * rng.standard_normal((44100 * 60, 2))
     first, second = afe.Manager(44100, keep_history=False), afe.Manager(44100, keep_history=False)
     first.add_request("pitch")
-    second.add_request("ild")
+    # the whole cue chain, so that it is still computing when the first is cancelled
+    for r in ("ratemap", "ild", "itd", "ic"):
+        second.add_request(r)
     got: dict = {}
 
     def run(name, mgr, x):
@@ -624,7 +626,7 @@ def test_cancelling_one_manager_leaves_another_in_another_thread_running():
     start = time.monotonic()
     for t in threads:
         t.start()
-    time.sleep(0.5)
+    time.sleep(0.3)
     first.cancel()
     cancelled = time.monotonic() - start
     threads[0].join(timeout=60)
@@ -634,7 +636,8 @@ def test_cancelling_one_manager_leaves_another_in_another_thread_running():
     # the second was still computing when the first was cancelled, and was not stopped
     assert got["second_end"] > cancelled, (got["second_end"], cancelled)
     alone = afe.Manager(44100, keep_history=False)
-    alone.add_request("ild")
+    for r in ("ratemap", "ild", "itd", "ic"):
+        alone.add_request(r)
     want = alone.process_signal(other)
     assert set(got["second"]) == set(want)
     for k in want:
