@@ -5,6 +5,7 @@ use std::path::Path;
 
 use afe::output::OutputFile;
 use afe::wav::{Audio, WavBlocks};
+use afe_spatial::Platform;
 
 use crate::error::CliError;
 
@@ -16,6 +17,23 @@ pub(crate) fn open_input(input: &Path) -> Result<WavBlocks, CliError> {
 /// Reads a whole WAV file that afe can process.
 pub(crate) fn read_input(input: &Path) -> Result<Audio, CliError> {
     Ok(open_input(input)?.read_all()?)
+}
+
+/// Reads every channel of a whole WAV file, however many it has (a robot's capture).
+pub(crate) fn read_capture(input: &Path) -> Result<Audio, CliError> {
+    Ok(afe::wav::open_capture(input)?.read_all()?)
+}
+
+/// Largest platform descriptor read, bytes.
+const PLATFORM_FILE_MAX_BYTES: u64 = 1 << 20;
+
+/// The platform descriptor at `path`, read within [`PLATFORM_FILE_MAX_BYTES`] and checked.
+pub(crate) fn read_platform(path: &Path) -> Result<Platform, CliError> {
+    let text = afe::bounded_read::read_text(path, PLATFORM_FILE_MAX_BYTES)
+        .map_err(|e| CliError::Message(format!("cannot read {}: {e}", path.display())))?;
+    let folder = path.parent().unwrap_or(Path::new("."));
+    Platform::parse(&text, folder)
+        .map_err(|e| CliError::Message(format!("{}: {e}", path.display())))
 }
 
 /// Checks `path` as an output of a run reading `input` (see [`OutputFile::check`]).

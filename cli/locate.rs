@@ -2,19 +2,16 @@
 
 use std::path::PathBuf;
 
-use afe_spatial::{locate, Head, HeadYaw, LocaliserParams, Located, Platform};
+use afe_spatial::{locate, Head, HeadYaw, LocaliserParams, Located};
 use serde_json::json;
 
 use crate::error::CliError;
-use crate::files::read_input;
+use crate::files::{read_capture, read_input, read_platform};
 use crate::outln;
 
 /// Largest yaw track read, bytes: hours of a 100-Hz track, and a bound on what a wrong
 /// path (`/dev/zero`, a WAV file) can make the command read.
 const YAW_FILE_MAX_BYTES: u64 = 64 << 20;
-
-/// Largest platform descriptor read, bytes.
-pub(crate) const PLATFORM_FILE_MAX_BYTES: u64 = 1 << 20;
 
 /// `afe locate IN.wav [--head kemar|sphere:radius=M[,ears=DEG]|FILE.sofa | --platform
 /// FILE.json] [--sources N] [--head-yaw FILE.csv] [--json]`.
@@ -75,15 +72,15 @@ impl LocateArgs {
             Some(_) => read_capture(&self.input)?,
             None => read_input(&self.input)?,
         };
-        if let Some(p) = &platform {
-            p.check_source(audio.channels.len(), audio.fs)?;
-            if let Some(track) = &yaw {
-                p.check_yaw(track)?;
-            }
-        }
         let [left, right] = match &platform {
-            // its channel count checked above: each ear is a channel of the file
-            Some(p) => p.ears().map(|c| &audio.channels[c]),
+            Some(p) => {
+                p.check_source(audio.channels.len(), audio.fs)?;
+                if let Some(track) = &yaw {
+                    p.check_yaw(track)?;
+                }
+                // the channel count checked: each ear is a channel of the file
+                p.ears().map(|c| &audio.channels[c])
+            }
             None => match audio.channels.as_slice() {
                 [left, right] => [left, right],
                 _ => {
@@ -110,27 +107,6 @@ impl LocateArgs {
         }
         Ok(())
     }
-}
-
-/// Every channel of the WAV file at `path` (not empty), however many it has.
-fn read_capture(path: &std::path::Path) -> Result<afe::wav::Audio, CliError> {
-    let wav = afe::wav::WavBlocks::open(path)?;
-    if wav.frames() == 0 {
-        return Err(CliError::Message(format!(
-            "'{}' holds no samples",
-            path.display()
-        )));
-    }
-    Ok(wav.read_all()?)
-}
-
-/// The platform descriptor at `path`, read within [`PLATFORM_FILE_MAX_BYTES`] and checked.
-pub(crate) fn read_platform(path: &std::path::Path) -> Result<Platform, CliError> {
-    let text = afe::bounded_read::read_text(path, PLATFORM_FILE_MAX_BYTES)
-        .map_err(|e| CliError::Message(format!("cannot read {}: {e}", path.display())))?;
-    let folder = path.parent().unwrap_or(std::path::Path::new("."));
-    Platform::parse(&text, folder)
-        .map_err(|e| CliError::Message(format!("{}: {e}", path.display())))
 }
 
 fn to_json(head: &Head, fs_hz: f64, found: &Located) -> serde_json::Value {

@@ -78,7 +78,7 @@ impl ServeArgs {
         let platform = self
             .platform
             .as_deref()
-            .map(crate::locate::read_platform)
+            .map(crate::files::read_platform)
             .transpose()?;
         let job = StreamJob {
             requests,

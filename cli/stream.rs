@@ -101,7 +101,7 @@ impl StreamArgs {
             alsa_rate: self.rate.unwrap_or(44_100),
             rt: self.rt,
             expect: match &self.platform {
-                Some(path) => Some(crate::locate::read_platform(path)?.expected_source()),
+                Some(path) => Some(crate::files::read_platform(path)?.expected_source()),
                 None => None,
             },
         };

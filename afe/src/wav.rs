@@ -106,19 +106,33 @@ pub fn open_input(path: &Path) -> Result<WavBlocks, afe_core::Error> {
     Ok(wav)
 }
 
+/// Opens a WAV file of any number of channels (a robot's capture, its ears among them),
+/// not empty.
+pub fn open_capture(path: &Path) -> Result<WavBlocks, afe_core::Error> {
+    let wav = WavBlocks::open(path).map_err(|e| afe_core::Error::InvalidInput(e.to_string()))?;
+    check_not_empty(path, &wav)?;
+    Ok(wav)
+}
+
 /// Checks that the open WAV file `wav` (from `path`) is one afe can process: mono or two
 /// channels (left, right), not empty.
 pub fn check_input(path: &Path, wav: &WavBlocks) -> Result<(), afe_core::Error> {
-    let bad = |why: String| Err(afe_core::Error::InvalidInput(why));
     if wav.channels() > 2 {
-        return bad(format!(
+        return Err(afe_core::Error::InvalidInput(format!(
             "'{}' has {} channels: afe takes mono or two-channel (left, right) input",
             path.display(),
             wav.channels()
-        ));
+        )));
     }
+    check_not_empty(path, wav)
+}
+
+fn check_not_empty(path: &Path, wav: &WavBlocks) -> Result<(), afe_core::Error> {
     if wav.frames() == 0 {
-        return bad(format!("'{}' holds no samples", path.display()));
+        return Err(afe_core::Error::InvalidInput(format!(
+            "'{}' holds no samples",
+            path.display()
+        )));
     }
     Ok(())
 }

@@ -9,7 +9,6 @@
 use std::sync::Arc;
 
 pub use realfft::{ComplexToReal, RealToComplex};
-pub use rustfft::num_complex;
 pub use rustfft::Fft;
 
 /// The complex forward transform of `n` points (unnormalised).

@@ -15,7 +15,8 @@ use pyo3::prelude::*;
 const CHECK: Duration = Duration::from_millis(50);
 
 /// Runs `work`, which watches `cancel`, interruptibly (see the module): its result, or the
-/// signal's exception (KeyboardInterrupt) if one came while it ran, `cancel` then cleared.
+/// signal's exception (KeyboardInterrupt) if one came while it ran (`cancel` is then
+/// left cancelled: a token that outlives the call is its owner's to clear).
 pub fn interruptible<R: Send>(
     py: Python<'_>,
     cancel: &CancelToken,
@@ -51,7 +52,6 @@ pub fn interruptible<R: Send>(
         }
     });
     if let Some(e) = signal {
-        cancel.clear();
         return Err(e);
     }
     result.ok_or_else(|| pyo3::exceptions::PyRuntimeError::new_err("the computation failed"))

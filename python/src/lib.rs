@@ -263,11 +263,12 @@ impl PyManager {
             Ok(st.new_output())
         };
         let out = if whole {
-            // a request to stop made before this call is not this call's
+            // a request to stop made before this call is not this call's, nor one made by
+            // this call's Ctrl-C or cancel() the next call's
             self.cancel.clear();
-            let out = interrupt::interruptible(py, &self.cancel, || self.locked(run))?;
+            let out = interrupt::interruptible(py, &self.cancel, || self.locked(run));
             self.cancel.clear();
-            out?
+            out??
         } else {
             self.with(py, run)?
         };
