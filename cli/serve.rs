@@ -35,6 +35,28 @@ pub(crate) struct ServeArgs {
     #[cfg(feature = "remote")]
     #[arg(long, value_name = "NAME", default_value = afe_net::DEFAULT_NAME)]
     name: String,
+    /// Zenoh endpoint to connect to as well (repeatable), e.g. a ROS 2 robot's router,
+    /// rmw_zenohd's tcp/localhost:7447.
+    #[cfg(feature = "remote")]
+    #[arg(long, value_name = "ENDPOINT")]
+    connect: Vec<String>,
+    /// Be a ROS 2 node too, over rmw_zenoh's protocol (docs/ros2.md): the audio, the
+    /// platform and the outputs of the requests its services place, on topics.
+    #[cfg(feature = "ros2")]
+    #[arg(long)]
+    ros2: bool,
+    /// The ROS 2 node's name.
+    #[cfg(feature = "ros2")]
+    #[arg(long, value_name = "NAME", default_value = "afe", requires = "ros2")]
+    ros2_node: String,
+    /// The ROS 2 node's namespace, e.g. /robot.
+    #[cfg(feature = "ros2")]
+    #[arg(long, value_name = "NS", default_value = "/", requires = "ros2")]
+    ros2_namespace: String,
+    /// The ROS 2 domain (0 to 232): ROS_DOMAIN_ID's unless given.
+    #[cfg(feature = "ros2")]
+    #[arg(long, value_name = "ID", env = "ROS_DOMAIN_ID", default_value_t = 0)]
+    ros2_domain: u32,
     /// A Zenoh configuration file (JSON5) to start from, e.g. with user-password
     /// authentication (transport/auth/usrpwd); --listen overrides its endpoints.
     #[cfg(feature = "remote")]
@@ -117,6 +139,13 @@ impl ServeArgs {
                     .map(serde_json::to_value)
                     .transpose()
                     .map_err(|e| e.to_string())?,
+                connect: self.connect,
+                #[cfg(feature = "ros2")]
+                ros2: self.ros2.then(|| afe_net::ros2::Ros2Options {
+                    domain: self.ros2_domain,
+                    namespace: self.ros2_namespace,
+                    node: self.ros2_node,
+                }),
             }),
             endless: true,
         };

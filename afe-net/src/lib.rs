@@ -31,6 +31,8 @@ mod server;
 mod source;
 #[cfg(feature = "zenoh")]
 mod tally;
+#[cfg(feature = "ros2")]
+pub mod ros2;
 pub mod wire;
 
 use thiserror::Error;

@@ -21,6 +21,8 @@ use zenoh::{Session, Wait};
 
 mod publish;
 mod queries;
+#[cfg(feature = "ros2")]
+mod ros;
 
 use super::wire::{self, Header, Kind};
 use super::{
@@ -59,6 +61,12 @@ pub struct ServeOptions {
     /// The robot's platform descriptor (its JSON form), published in the catalogue so
     /// that a client asks the robot what it is.
     pub platform: Option<Value>,
+    /// Zenoh endpoints to connect to as well, e.g. a ROS 2 robot's router
+    /// (`tcp/localhost:7447`, rmw_zenohd's).
+    pub connect: Vec<String>,
+    /// Be a ROS 2 node too (`docs/ros2.md`).
+    #[cfg(feature = "ros2")]
+    pub ros2: Option<crate::ros2::Ros2Options>,
 }
 
 impl Default for ServeOptions {
@@ -71,6 +79,9 @@ impl Default for ServeOptions {
             max_subscriptions: MAX_SUBSCRIPTIONS,
             max_load: MAX_LOAD,
             platform: None,
+            connect: Vec::new(),
+            #[cfg(feature = "ros2")]
+            ros2: None,
         }
     }
 }
@@ -140,7 +151,7 @@ impl Server {
             })?),
             None => None,
         };
-        let mut config = config(base, "peer", &options.listen, &[])?;
+        let mut config = config(base, "peer", &options.listen, &options.connect)?;
         // room for bursts on every link (16 batches, not 2), and a wait for a busy link
         // long enough that a client which keeps up never loses a message to a scheduling
         // hiccup; a put that waits this long marks its client's link congested
@@ -227,6 +238,16 @@ impl Server {
             limits.max_clients,
             limits.max_subscriptions,
         )?;
+        #[cfg(feature = "ros2")]
+        let ros = match &options.ros2 {
+            Some(o) => Some(ros::RosNode::start(
+                &session,
+                o,
+                &pool,
+                options.platform.as_ref().map(Value::to_string),
+            )?),
+            None => None,
+        };
         let trials = Trials::start(TRIAL_SLOTS)
             .map_err(|e| RemoteError::Zenoh(format!("cannot start the trial thread: {e}")))?;
         let tap = ServeTap {
@@ -250,6 +271,8 @@ impl Server {
             cap: LoadCap::new(options.max_load),
             measured: HashMap::new(),
             next_trial: 0,
+            #[cfg(feature = "ros2")]
+            ros,
         };
         Ok((
             Server {
@@ -380,10 +403,22 @@ pub struct ServeTap {
     trials: Trials,
     /// The stream's load and the share requests may take.
     cap: LoadCap,
-    /// Subscriptions being measured, by trial: the query's ticket, the client and its
+    /// Subscriptions (and ROS 2 requests) being measured, by trial: who asked, and the
     /// requests.
-    measured: HashMap<u64, (u64, String, Vec<RequestSpec>)>,
+    measured: HashMap<u64, (Asker, Vec<RequestSpec>)>,
     next_trial: u64,
+    /// The ROS 2 node, with `--ros2`.
+    #[cfg(feature = "ros2")]
+    ros: Option<ros::RosNode>,
+}
+
+/// Who asked for requests being measured.
+enum Asker {
+    /// A Zenoh client's subscription: the query's ticket and the client.
+    Zenoh(u64, String),
+    /// A ROS 2 `add_request` call.
+    #[cfg(feature = "ros2")]
+    Ros(ros::Incoming),
 }
 
 impl ServeTap {
@@ -475,7 +510,7 @@ impl ServeTap {
     /// Places the subscriptions whose trial says they fit, and refuses the others.
     fn apply_measured(&mut self, timing: &Timing, mgr: &mut Manager) {
         for (trial, cost) in self.trials.finished() {
-            let Some((ticket, client, requests)) = self.measured.remove(&trial) else {
+            let Some((asker, requests)) = self.measured.remove(&trial) else {
                 continue;
             };
             let what = describe_specs(&requests);
@@ -485,11 +520,35 @@ impl ServeTap {
             } else {
                 cost
             };
-            let outcome = match cost.and_then(|c| self.cap.admit(&what, c)) {
-                Ok(()) => self.subscribe(timing, mgr, client, requests),
-                Err(e) => Err(e.to_string()),
-            };
-            let _ = self.events.send(Event::Outcome(ticket, outcome));
+            let admitted = cost.and_then(|c| self.cap.admit(&what, c));
+            self.settle(timing, mgr, asker, requests, admitted.map_err(|e| e.to_string()));
+        }
+    }
+
+    /// Places admitted requests for whoever asked, or tells it why not.
+    fn settle(
+        &mut self,
+        timing: &Timing,
+        mgr: &mut Manager,
+        asker: Asker,
+        requests: Vec<RequestSpec>,
+        admitted: Result<(), String>,
+    ) {
+        match asker {
+            Asker::Zenoh(ticket, client) => {
+                let outcome = admitted.and_then(|()| self.subscribe(timing, mgr, client, requests));
+                let _ = self.events.send(Event::Outcome(ticket, outcome));
+            }
+            #[cfg(feature = "ros2")]
+            Asker::Ros(incoming) => {
+                if let Some(ros) = &mut self.ros {
+                    let response = match admitted {
+                        Ok(()) => ros.place(mgr, &self.pool, &requests[0]),
+                        Err(e) => crate::ros2::messages::Response::Refused(e),
+                    };
+                    ros.answer(incoming, &response);
+                }
+            }
         }
     }
 
@@ -499,15 +558,13 @@ impl ServeTap {
         &mut self,
         timing: &Timing,
         mgr: &mut Manager,
-        ticket: u64,
-        client: String,
+        asker: Asker,
         requests: Vec<RequestSpec>,
     ) {
         let tried = specs(&requests);
         if !self.cap.has_deadline() || afe::trial::shared_entirely(&*mgr, &tried) {
             // no deadline, or nothing new to compute: placed at once
-            let outcome = self.subscribe(timing, mgr, client, requests);
-            let _ = self.events.send(Event::Outcome(ticket, outcome));
+            self.settle(timing, mgr, asker, requests, Ok(()));
             return;
         }
         let shape = Shape {
@@ -522,12 +579,9 @@ impl ServeTap {
         });
         match asked {
             Ok(()) => {
-                self.measured
-                    .insert(self.next_trial, (ticket, client, requests));
+                self.measured.insert(self.next_trial, (asker, requests));
             }
-            Err(e) => {
-                let _ = self.events.send(Event::Outcome(ticket, Err(e.to_string())));
-            }
+            Err(e) => self.settle(timing, mgr, asker, requests, Err(e.to_string())),
         }
     }
 
@@ -539,7 +593,7 @@ impl ServeTap {
                     ticket,
                     client,
                     requests,
-                } => self.measure(timing, mgr, ticket, client, requests),
+                } => self.measure(timing, mgr, Asker::Zenoh(ticket, client), requests),
                 Edit::Unsubscribe {
                     ticket,
                     client,
@@ -566,11 +620,11 @@ impl ServeTap {
                     let left: Vec<u64> = self
                         .measured
                         .iter()
-                        .filter(|(_, (_, c, _))| *c == client)
+                        .filter(|(_, (a, _))| matches!(a, Asker::Zenoh(_, c) if *c == client))
                         .map(|(&trial, _)| trial)
                         .collect();
                     for trial in left {
-                        if let Some((ticket, _, _)) = self.measured.remove(&trial) {
+                        if let Some((Asker::Zenoh(ticket, _), _)) = self.measured.remove(&trial) {
                             let why = format!("client '{client}' left while subscribing");
                             let _ = self.events.send(Event::Outcome(ticket, Err(why)));
                         }
@@ -625,7 +679,13 @@ impl ServeTap {
         };
         let end = match self
             .pool
-            .subscription(&self.session, frames_key.clone(), &queue)
+            .subscription(
+                &self.session,
+                frames_key.clone(),
+                &queue,
+                #[cfg(feature = "ros2")]
+                None,
+            )
         {
             Ok(end) => end,
             Err(e) => {
@@ -705,14 +765,53 @@ fn header(kind: Kind, seq: u64, timing: &Timing, count: usize) -> Header {
     }
 }
 
+#[cfg(feature = "ros2")]
+impl ServeTap {
+    /// The ROS 2 node's part of a block: its topics, then its service calls.
+    fn ros_block(&mut self, timing: &Timing, mgr: &mut Manager, input: &[Vec<f64>]) {
+        let calls = match &mut self.ros {
+            Some(ros) => {
+                ros.publish(timing, mgr, &self.pool, input);
+                ros.take_calls()
+            }
+            None => return,
+        };
+        for incoming in calls {
+            match ros::spec_of(incoming.call()) {
+                Ok(Some(spec)) => self.measure(timing, mgr, Asker::Ros(incoming), vec![spec]),
+                Ok(None) => {
+                    if let Some(ros) = &mut self.ros {
+                        let response = ros.act(mgr, incoming.call());
+                        ros.answer(incoming, &response);
+                    }
+                }
+                Err(why) => {
+                    if let Some(ros) = &self.ros {
+                        ros.answer(incoming, &crate::ros2::messages::Response::Refused(why));
+                    }
+                }
+            }
+        }
+    }
+}
+
 impl Observer for ServeTap {
     fn block(&mut self, timing: &Timing, mgr: &mut Manager, input: &[Vec<f64>]) {
         if !self.started {
             self.start(timing, mgr);
+            #[cfg(feature = "ros2")]
+            if let Some(ros) = &mut self.ros {
+                if let Err(e) = ros.start_stream(timing, mgr, &self.pool) {
+                    eprintln!("afe serve: the ROS 2 node cannot publish: {e}");
+                    self.ros = None;
+                }
+            }
         }
         self.cap.observe(timing);
         self.publish_audio(timing, input);
         self.publish_frames(timing, mgr);
+        #[cfg(feature = "ros2")]
+        self.ros_block(timing, mgr, input);
         self.publish_report(timing, mgr);
         self.apply_edits(timing, mgr);
     }

@@ -16,6 +16,8 @@ use zenoh::qos::{CongestionControl, Priority};
 use zenoh::{Session, Wait};
 
 use super::lock;
+#[cfg(feature = "ros2")]
+use crate::ros2::names;
 use crate::RemoteError;
 
 /// Messages a subscription may have on their way to its client before the next are
@@ -50,6 +52,9 @@ pub(super) struct SubOutlet {
     since: Instant,
     /// Messages dropped by the pool for a congested link.
     dropped: AtomicU64,
+    /// A ROS 2 topic's GID and next sequence number, for each sample's attachment.
+    #[cfg(feature = "ros2")]
+    ros: Option<([u8; 16], AtomicU64)>,
 }
 
 impl SubOutlet {
@@ -162,7 +167,17 @@ impl Pool {
 
     /// A new client's queue.
     pub(super) fn client(&self) -> Arc<ClientOut> {
-        let (queue, inbox) = mpsc::sync_channel(self.client_queue);
+        self.client_with(self.client_queue)
+    }
+
+    /// A new client's queue for up to `subscriptions` subscriptions.
+    #[cfg(feature = "ros2")]
+    pub(super) fn client_for(&self, subscriptions: usize) -> Arc<ClientOut> {
+        self.client_with(subscriptions * (SUB_QUEUE + 1))
+    }
+
+    fn client_with(&self, capacity: usize) -> Arc<ClientOut> {
+        let (queue, inbox) = mpsc::sync_channel(capacity);
         Arc::new(ClientOut {
             queue,
             inbox: Mutex::new(inbox),
@@ -172,12 +187,14 @@ impl Pool {
     }
 
     /// A new subscription of `client` publishing on `key` (dropping messages for a
-    /// congested link, never blocking), with its [`SUB_QUEUE`] buffers.
+    /// congested link, never blocking), with its [`SUB_QUEUE`] buffers; with a ROS 2
+    /// topic's GID, each sample carries rmw_zenoh's attachment.
     pub(super) fn subscription(
         &self,
         session: &Session,
         key: String,
         client: &Arc<ClientOut>,
+        #[cfg(feature = "ros2")] ros_gid: Option<[u8; 16]>,
     ) -> Result<SubEnd, RemoteError> {
         let publisher = session
             .declare_publisher(key)
@@ -197,6 +214,8 @@ impl Pool {
                 matched: AtomicBool::new(false),
                 since: Instant::now(),
                 dropped: AtomicU64::new(0),
+                #[cfg(feature = "ros2")]
+                ros: ros_gid.map(|g| (g, AtomicU64::new(0))),
             }),
             client: client.clone(),
         })
@@ -291,7 +310,16 @@ fn deliver(client: &ClientOut, sub: &SubOutlet, message: Vec<u8>) {
             sub.dropped.fetch_add(1, Ordering::Relaxed);
         } else {
             let start = Instant::now();
-            let _ = sub.publisher.put(m.as_slice()).wait();
+            let put = sub.publisher.put(m.as_slice());
+            #[cfg(feature = "ros2")]
+            let put = match &sub.ros {
+                Some((gid, seq)) => {
+                    let n = seq.fetch_add(1, Ordering::Relaxed) as i64;
+                    put.attachment(names::attachment(n, names::now_ns(), gid).to_vec())
+                }
+                None => put,
+            };
+            let _ = put.wait();
             link.put_took(start.elapsed());
         }
         let _ = sub.back.try_send(m);

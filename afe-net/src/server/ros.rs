@@ -1,0 +1,531 @@
+//! The server as a ROS 2 node (`afe serve --ros2`), over rmw_zenoh's protocol on the
+//! server's own Zenoh session: the node's and its entities' liveliness tokens, a topic
+//! per output of each request placed through its services, the input on `~/audio`, the
+//! platform latched on `~/platform`, and the services themselves as queryables.
+//!
+//! Service calls are read (and malformed ones refused) in Zenoh's callbacks, queued for
+//! the audio thread, which acts on them between blocks as on the Zenoh clients'
+//! subscriptions, and answered from a thread of their own. Topics are published through
+//! the server's publishing pool, as one client of it.
+
+use std::collections::BTreeMap;
+use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+
+use afe_core::ParamMap;
+use afe_graph::{Manager, RequestHandle, Signal};
+use zenoh::bytes::ZBytes;
+use zenoh::liveliness::LivelinessToken;
+use zenoh::query::{Query, Queryable};
+use zenoh::{Session, Wait};
+use zenoh_ext::{AdvancedPublisher, AdvancedPublisherBuilderExt, CacheConfig};
+
+use super::publish::{ClientOut, Pool, SubEnd};
+use super::queries::RequestSpec;
+use crate::ros2::idl::{self, dds_name, Field};
+use crate::ros2::messages::{self, Call, Described, Listed, Placed, Response};
+use crate::ros2::names::{self, attachment, read_attachment, Kind, NodeName, Qos};
+use crate::ros2::{hash, Ros2Options};
+use crate::RemoteError;
+use afe::stream::Timing;
+
+/// Service calls waiting for the audio thread before the next are refused as busy.
+const CALL_BACKLOG: usize = 64;
+/// Service calls the audio thread acts on per block, at most.
+const CALLS_PER_BLOCK: usize = 8;
+/// Requests the node holds at once.
+pub(super) const MAX_ROS_REQUESTS: usize = 32;
+/// Topics the node publishes at most (its pool queue is sized for them).
+const MAX_TOPICS: usize = 128;
+
+/// A service call on its way to the audio thread.
+pub(super) struct Incoming {
+    service: &'static str,
+    call: Call,
+    query: Query,
+    sequence: i64,
+    gid: [u8; 16],
+}
+
+impl Incoming {
+    /// What was asked.
+    pub(super) fn call(&self) -> &Call {
+        &self.call
+    }
+}
+
+/// A reply on its way to the network.
+struct Reply {
+    query: Query,
+    key: String,
+    payload: Vec<u8>,
+    attachment: [u8; names::ATTACHMENT_BYTES],
+}
+
+/// One published output.
+struct Topic {
+    full_name: String,
+    end: SubEnd,
+    described: Described,
+    _token: LivelinessToken,
+}
+
+/// A request placed through `add_request`.
+struct RosRequest {
+    id: u64,
+    name: String,
+    params: ParamMap,
+    /// Its number among the node's requests of the same name (1, 2, ...): its topics'.
+    ordinal: usize,
+    handle: RequestHandle,
+    topics: Vec<Topic>,
+}
+
+/// The node's state, held by the server's stream observer.
+pub(super) struct RosNode {
+    session: Session,
+    name: NodeName,
+    zid: String,
+    types: BTreeMap<String, Vec<Field>>,
+    next_entity: u64,
+    _node_token: LivelinessToken,
+    _services: Vec<(Queryable<()>, LivelinessToken)>,
+    calls: Receiver<Incoming>,
+    replies: Option<SyncSender<Reply>>,
+    reply_thread: Option<JoinHandle<()>>,
+    client: Arc<ClientOut>,
+    audio: Option<Topic>,
+    platform: Option<String>,
+    latched: Option<(AdvancedPublisher<'static>, LivelinessToken)>,
+    requests: Vec<RosRequest>,
+    next_request: u64,
+    /// Unix time of the stream's first frame, ns.
+    start_ns: i64,
+}
+
+/// The node's id among its entities (rmw_zenoh numbers them from 0 per session).
+const NODE_ID: u64 = 0;
+
+impl RosNode {
+    /// Declares the node and its services on `session`.
+    pub(super) fn start(
+        session: &Session,
+        options: &Ros2Options,
+        pool: &Pool,
+        platform: Option<String>,
+    ) -> Result<RosNode, RemoteError> {
+        options.check()?;
+        let name = NodeName {
+            domain: options.domain,
+            namespace: options.namespace.clone(),
+            name: options.node.clone(),
+        };
+        let zid = session.zid().to_string();
+        let types = idl::types();
+        let node_token = session
+            .liveliness()
+            .declare_token(name.token(&zid, NODE_ID, NODE_ID, Kind::Node, None))
+            .wait()?;
+        let (to_audio, calls) = mpsc::sync_channel(CALL_BACKLOG);
+        let (replies, outgoing) = mpsc::sync_channel::<Reply>(CALL_BACKLOG);
+        let reply_thread = std::thread::Builder::new()
+            .name("afe-ros2-replies".into())
+            .spawn(move || {
+                for r in outgoing {
+                    let _ = r
+                        .query
+                        .reply(r.key, r.payload)
+                        .attachment(r.attachment.to_vec())
+                        .wait();
+                }
+            })
+            .map_err(|e| RemoteError::Zenoh(format!("cannot start the ROS 2 reply thread: {e}")))?;
+        let mut node = RosNode {
+            session: session.clone(),
+            name,
+            zid,
+            types,
+            next_entity: NODE_ID + 1,
+            _node_token: node_token,
+            _services: Vec::new(),
+            calls,
+            replies: Some(replies),
+            reply_thread: Some(reply_thread),
+            client: pool.client_for(MAX_TOPICS),
+            audio: None,
+            platform,
+            latched: None,
+            requests: Vec::new(),
+            next_request: 1,
+            start_ns: 0,
+        };
+        for (service, ty) in messages::SERVICES {
+            let s = node.service(service, ty, to_audio.clone())?;
+            node._services.push(s);
+        }
+        Ok(node)
+    }
+
+    /// The data key of `full_name` of type `ty` and its token's topic part.
+    fn entity(&mut self, full_name: &str, ty: &str) -> (String, String, String, u64) {
+        let dds = dds_name(ty);
+        let hash = hash::rihs01(ty, &self.types);
+        let key = self.name.data_key(full_name, &dds, &hash);
+        let id = self.next_entity;
+        self.next_entity += 1;
+        (key, dds, hash, id)
+    }
+
+    /// Declares service `service` of type `afe_msgs/srv/<ty>`.
+    fn service(
+        &mut self,
+        service: &str,
+        ty: &'static str,
+        to_audio: SyncSender<Incoming>,
+    ) -> Result<(Queryable<()>, LivelinessToken), RemoteError> {
+        let full = self.name.resolve(&format!("~/{service}"));
+        let (key, dds, hash, id) = self.entity(&full, &format!("{}/srv/{ty}", idl::PACKAGE));
+        let service: &'static str = ty;
+        let queryable = self
+            .session
+            .declare_queryable(key)
+            .complete(true)
+            .callback(move |query| {
+                let payload = query.payload().map(ZBytes::to_bytes).unwrap_or_default();
+                let stamp = query
+                    .attachment()
+                    .and_then(|a| read_attachment(&a.to_bytes()));
+                let refused = match (messages::read_call(service, &payload), stamp) {
+                    (Ok(call), Some((sequence, gid))) => {
+                        let incoming = Incoming {
+                            service,
+                            call,
+                            query,
+                            sequence,
+                            gid,
+                        };
+                        match to_audio.try_send(incoming) {
+                            Ok(()) => return,
+                            Err(TrySendError::Full(i) | TrySendError::Disconnected(i)) => {
+                                (i.query, format!("the node has {CALL_BACKLOG} calls waiting: try again"))
+                            }
+                        }
+                    }
+                    (Err(e), _) => (query, format!("malformed {service} request: {}", e.0)),
+                    (Ok(_), None) => (
+                        query,
+                        "the call has no rmw_zenoh attachment (sequence number, time, GID)".into(),
+                    ),
+                };
+                let (query, why) = refused;
+                let _ = query.reply_err(why).wait();
+            })
+            .wait()?;
+        let token = self
+            .session
+            .liveliness()
+            .declare_token(self.name.token(
+                &self.zid,
+                NODE_ID,
+                id,
+                Kind::Service,
+                Some((&full, &dds, &hash, Qos::DEFAULT)),
+            ))
+            .wait()?;
+        Ok((queryable, token))
+    }
+
+    /// Declares a topic publishing through the pool, with its token.
+    fn topic(&mut self, pool: &Pool, short: &str, ty: &str, described: Described) -> Result<Topic, RemoteError> {
+        let full_name = self.name.resolve(&format!("~/{short}"));
+        let (key, dds, hash, id) = self.entity(&full_name, ty);
+        let token_key = self.name.token(
+            &self.zid,
+            NODE_ID,
+            id,
+            Kind::Publisher,
+            Some((&full_name, &dds, &hash, Qos::DEFAULT)),
+        );
+        let end = pool.subscription(&self.session, key, &self.client, Some(names::gid(&token_key)))?;
+        let token = self.session.liveliness().declare_token(token_key).wait()?;
+        Ok(Topic {
+            full_name,
+            end,
+            described,
+            _token: token,
+        })
+    }
+
+    /// At the stream's start: the audio topic and the latched platform.
+    pub(super) fn start_stream(&mut self, timing: &Timing, mgr: &Manager, pool: &Pool) -> Result<(), RemoteError> {
+        let frames_ns = (timing.input_end() as f64 * 1e9 / timing.fs()) as i64;
+        self.start_ns = timing.block_end_unix_ns() as i64 - frames_ns;
+        let described = Described {
+            request: String::new(),
+            output: "audio".into(),
+            kind: "time-domain",
+            unit: "",
+            axes: &[],
+            sample_rate: timing.fs(),
+            centre_frequencies: Vec::new(),
+            lags: Vec::new(),
+            features: Vec::new(),
+            frame_shape: vec![mgr.ears() as u32],
+            complex: false,
+        };
+        let audio = self.topic(pool, "audio", &format!("{}/msg/Audio", idl::PACKAGE), described)?;
+        self.audio = Some(audio);
+        if let Some(text) = self.platform.clone() {
+            let full = self.name.resolve("~/platform");
+            let (key, dds, hash, id) = self.entity(&full, "std_msgs/msg/String");
+            let token_key = self.name.token(&self.zid, NODE_ID, id, Kind::Publisher, Some((&full, &dds, &hash, Qos::LATCHED)));
+            let gid = names::gid(&token_key);
+            let publisher = self
+                .session
+                .declare_publisher(key)
+                .cache(CacheConfig::default().max_samples(1))
+                .publisher_detection()
+                .wait()?;
+            let mut buf = Vec::new();
+            messages::string(&mut buf, &text);
+            publisher
+                .put(buf)
+                .attachment(attachment(0, names::now_ns(), &gid).to_vec())
+                .wait()?;
+            let token = self.session.liveliness().declare_token(token_key).wait()?;
+            self.latched = Some((publisher, token));
+        }
+        Ok(())
+    }
+
+    /// Where a block's new frames of `s` sit.
+    fn placed(&self, timing: &Timing, first_frame: u64, first_time_s: f64) -> Placed {
+        Placed {
+            stamp_ns: self.start_ns + (first_time_s * 1e9) as i64,
+            first_frame,
+            frames_lost: timing.lost_frames(),
+            first_time_s,
+        }
+    }
+
+    /// Publishes the block's input and every request's new frames.
+    pub(super) fn publish(&mut self, timing: &Timing, mgr: &Manager, pool: &Pool, input: &[Vec<f64>]) {
+        let frames = timing.last_block_frames();
+        let first = timing.input_end() - frames as u64;
+        let at = self.placed(timing, first, first as f64 / timing.fs());
+        if let Some(audio) = &self.audio {
+            if let Some(mut buf) = audio.end.buffer() {
+                messages::audio(&mut buf, at, timing.fs(), input, frames);
+                pool.send(&audio.end, buf);
+            }
+        }
+        for r in &self.requests {
+            for (k, topic) in r.topics.iter().enumerate() {
+                let Some(s) = mgr.request_signal(r.handle, k) else {
+                    continue;
+                };
+                let Some(mut buf) = topic.end.buffer() else {
+                    pool.nudge(&topic.end);
+                    continue;
+                };
+                let at = self.placed(timing, s.first_frame, s.first_time_s);
+                messages::signal(&mut buf, &topic.described, at, s.new.frames(), s.new.as_slice());
+                pool.send(&topic.end, buf);
+            }
+        }
+    }
+
+    /// The calls waiting, at most [`CALLS_PER_BLOCK`].
+    pub(super) fn take_calls(&mut self) -> Vec<Incoming> {
+        self.calls.try_iter().take(CALLS_PER_BLOCK).collect()
+    }
+
+    /// Answers a call.
+    pub(super) fn answer(&self, incoming: Incoming, response: &Response) {
+        let reply = Reply {
+            key: incoming.query.key_expr().as_str().to_string(),
+            query: incoming.query,
+            payload: messages::response(incoming.service, response),
+            attachment: attachment(incoming.sequence, names::now_ns(), &incoming.gid),
+        };
+        if let Some(replies) = &self.replies {
+            let _ = replies.try_send(reply);
+        }
+    }
+
+    /// Acts on a call other than an add (which the server measures first): what to answer.
+    pub(super) fn act(&mut self, mgr: &mut Manager, call: &Call) -> Response {
+        match call {
+            Call::Add(..) => Response::Refused("an add is placed by the server".into()),
+            Call::Remove(id) => match self.requests.iter().position(|r| r.id == *id) {
+                Some(i) => {
+                    let r = self.requests.remove(i);
+                    let _ = mgr.remove_request(r.handle);
+                    Response::Done
+                }
+                None => unknown(*id),
+            },
+            Call::Modify(id, parameter, value) => self.modify(mgr, *id, parameter, value),
+            Call::Signals => Response::Signals(
+                self.requests
+                    .iter()
+                    .flat_map(|r| {
+                        r.topics.iter().map(|t| Listed {
+                            request_id: r.id,
+                            topic: t.full_name.clone(),
+                            described: t.described.clone(),
+                        })
+                    })
+                    .collect(),
+            ),
+            Call::Parameters(id) => match self.requests.iter().find(|r| r.id == *id) {
+                Some(r) => match mgr.request_parameters(r.handle) {
+                    Ok(p) => Response::Parameters(p.into_iter().map(|(k, v)| (k, v.to_string())).collect()),
+                    Err(e) => Response::Refused(e.to_string()),
+                },
+                None => unknown(*id),
+            },
+        }
+    }
+
+    /// A request's parameters changed: it is placed anew with them (other clients'
+    /// requests that shared its processors keep theirs), on the same topics.
+    fn modify(&mut self, mgr: &mut Manager, id: u64, parameter: &str, value: &str) -> Response {
+        let Some(r) = self.requests.iter_mut().find(|r| r.id == id) else {
+            return unknown(id);
+        };
+        let value = match serde_json::from_str(value) {
+            Ok(v) => v,
+            Err(e) => return Response::Refused(not_json(parameter, &e)),
+        };
+        let mut params = r.params.clone();
+        params.insert(parameter.to_string(), value);
+        let handle = match mgr.add_request(&r.name, &params) {
+            Ok(h) => h,
+            Err(e) => return Response::Refused(format!("request {id} ({}): {e}", r.name)),
+        };
+        let described: Vec<Described> = mgr
+            .request_signals(handle)
+            .unwrap_or_default()
+            .iter()
+            .zip(&r.topics)
+            .map(|(s, t)| describe(&r.name, &t.described.output, s))
+            .collect();
+        if described.len() != r.topics.len() {
+            let _ = mgr.remove_request(handle);
+            return Response::Refused(format!("{parameter} would change request {id}'s outputs: remove it and add it anew"));
+        }
+        let _ = mgr.remove_request(std::mem::replace(&mut r.handle, handle));
+        r.params = params;
+        for (t, d) in r.topics.iter_mut().zip(described) {
+            t.described = d;
+        }
+        Response::Done
+    }
+
+    /// Places an add (measured and admitted by the server): its topics are declared.
+    pub(super) fn place(&mut self, mgr: &mut Manager, pool: &Pool, spec: &RequestSpec) -> Response {
+        if self.requests.len() >= MAX_ROS_REQUESTS {
+            return Response::Refused(format!("the node holds {MAX_ROS_REQUESTS} requests: remove one first"));
+        }
+        let handle = match mgr.add_request(&spec.name, &spec.params) {
+            Ok(h) => h,
+            Err(e) => return Response::Refused(format!("request '{}': {e}", spec.name)),
+        };
+        let ordinal = (1..)
+            .find(|n| !self.requests.iter().any(|r| r.name == spec.name && r.ordinal == *n))
+            .unwrap_or(1);
+        let signals: Vec<(String, Described)> = mgr
+            .request_signals(handle)
+            .unwrap_or_default()
+            .iter()
+            .map(|s| {
+                let output = if ordinal > 1 {
+                    format!("{}_{ordinal}_{}", s.name, s.channel.as_str())
+                } else {
+                    format!("{}_{}", s.name, s.channel.as_str())
+                };
+                (output.clone(), describe(&spec.name, &output, s))
+            })
+            .collect();
+        let in_use: usize = self.requests.iter().map(|r| r.topics.len()).sum();
+        if in_use + signals.len() + 1 > MAX_TOPICS {
+            let _ = mgr.remove_request(handle);
+            return Response::Refused(format!("the node publishes {MAX_TOPICS} topics at most"));
+        }
+        let mut topics = Vec::new();
+        for (output, described) in signals {
+            match self.topic(pool, &output, &format!("{}/msg/Signal", idl::PACKAGE), described) {
+                Ok(t) => topics.push(t),
+                Err(e) => {
+                    let _ = mgr.remove_request(handle);
+                    return Response::Refused(e.to_string());
+                }
+            }
+        }
+        let id = self.next_request;
+        self.next_request += 1;
+        let names = topics.iter().map(|t| t.full_name.clone()).collect();
+        self.requests.push(RosRequest {
+            id,
+            name: spec.name.clone(),
+            params: spec.params.clone(),
+            ordinal,
+            handle,
+            topics,
+        });
+        Response::Added(id, names)
+    }
+}
+
+impl Drop for RosNode {
+    fn drop(&mut self) {
+        self.replies = None;
+        if let Some(t) = self.reply_thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+fn not_json(parameter: &str, e: &serde_json::Error) -> String {
+    format!("the value of {parameter} is not JSON ({e}): give e.g. 0.04, 32 or \"dau\"")
+}
+
+fn unknown(id: u64) -> Response {
+    Response::Refused(format!("the node holds no request {id} (get_signals lists them)"))
+}
+
+/// What output `s` of request `request` says of itself.
+fn describe(request: &str, output: &str, s: &Signal<'_>) -> Described {
+    let info = s.info;
+    Described {
+        request: request.to_string(),
+        output: output.to_string(),
+        kind: afe::metadata::kind_name(info.kind),
+        unit: info.unit,
+        axes: info.kind.axes(),
+        sample_rate: info.fs_hz,
+        centre_frequencies: info.cf_hz.clone(),
+        lags: info.lags_s.clone(),
+        features: info.features.clone(),
+        frame_shape: info.frame_shape().into_iter().map(|n| n as u32).collect(),
+        complex: info.is_complex(),
+    }
+}
+
+/// An add's request as the server measures it (`None` for other calls).
+pub(super) fn spec_of(call: &Call) -> Result<Option<RequestSpec>, String> {
+    let Call::Add(name, params) = call else {
+        return Ok(None);
+    };
+    let mut map = ParamMap::new();
+    for (k, v) in params {
+        let value = serde_json::from_str(v).map_err(|e| not_json(k, &e))?;
+        map.insert(k.clone(), value);
+    }
+    Ok(Some(RequestSpec {
+        name: name.clone(),
+        params: map,
+    }))
+}
