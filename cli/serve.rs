@@ -141,7 +141,7 @@ impl ServeArgs {
                     .map_err(|e| e.to_string())?,
                 connect: self.connect,
                 #[cfg(feature = "ros2")]
-                ros2: self.ros2.then(|| afe_net::ros2::Ros2Options {
+                ros2: self.ros2.then_some(afe_net::ros2::Ros2Options {
                     domain: self.ros2_domain,
                     namespace: self.ros2_namespace,
                     node: self.ros2_node,

@@ -25,14 +25,14 @@
 
 #[cfg(feature = "zenoh")]
 mod client;
+#[cfg(feature = "ros2")]
+pub mod ros2;
 #[cfg(feature = "zenoh")]
 mod server;
 #[cfg(feature = "zenoh")]
 mod source;
 #[cfg(feature = "zenoh")]
 mod tally;
-#[cfg(feature = "ros2")]
-pub mod ros2;
 pub mod wire;
 
 use thiserror::Error;

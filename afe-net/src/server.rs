@@ -161,6 +161,12 @@ impl Server {
             "transport/link/tx/queue/congestion_control/drop/wait_before_drop",
             "20000",
         )?;
+        // as rmw_zenoh's sessions: samples carry their time, which an advanced
+        // publisher's cache (a latched topic's) orders by
+        #[cfg(feature = "ros2")]
+        if options.ros2.is_some() {
+            config.insert_json5("timestamping/enabled", "true")?;
+        }
         let authenticated = config
             .get_json("transport/auth/usrpwd/user")
             .is_ok_and(|u| u != "null");
@@ -521,7 +527,13 @@ impl ServeTap {
                 cost
             };
             let admitted = cost.and_then(|c| self.cap.admit(&what, c));
-            self.settle(timing, mgr, asker, requests, admitted.map_err(|e| e.to_string()));
+            self.settle(
+                timing,
+                mgr,
+                asker,
+                requests,
+                admitted.map_err(|e| e.to_string()),
+            );
         }
     }
 
@@ -677,16 +689,13 @@ impl ServeTap {
                 q
             }
         };
-        let end = match self
-            .pool
-            .subscription(
-                &self.session,
-                frames_key.clone(),
-                &queue,
-                #[cfg(feature = "ros2")]
-                None,
-            )
-        {
+        let end = match self.pool.subscription(
+            &self.session,
+            frames_key.clone(),
+            &queue,
+            #[cfg(feature = "ros2")]
+            None,
+        ) {
             Ok(end) => end,
             Err(e) => {
                 release(mgr, &handles);

@@ -72,9 +72,13 @@ impl<'a> Writer<'a> {
         self.f64_elements(values);
     }
 
-    /// The elements of a `float64[]` whose count is written already.
+    /// The elements of a `float64[]` whose count is written already (aligned only if
+    /// there is one: an empty sequence ends at its count).
     pub fn f64_elements(&mut self, values: impl Iterator<Item = f64>) {
-        self.align(8);
+        let mut values = values.peekable();
+        if values.peek().is_some() {
+            self.align(8);
+        }
         for v in values {
             self.buf.extend_from_slice(&v.to_le_bytes());
         }
@@ -206,6 +210,15 @@ mod tests {
     }
 
     #[test]
+    fn an_empty_float_sequence_is_its_count_alone() {
+        let mut buf = Vec::new();
+        let mut w = Writer::new(&mut buf);
+        w.f64s(std::iter::empty());
+        w.u32(9);
+        assert_eq!(&buf[4..], &[0, 0, 0, 0, 9, 0, 0, 0]);
+    }
+
+    #[test]
     fn a_reader_reads_what_a_writer_wrote_and_refuses_what_is_cut_short() {
         let mut buf = Vec::new();
         let mut w = Writer::new(&mut buf);
@@ -218,8 +231,8 @@ mod tests {
         assert_eq!(r.u32().unwrap(), 3);
         assert!(r.u32().is_err());
         for cut in 0..buf.len() - 1 {
-            let read = Reader::new(&buf[..cut])
-                .and_then(|mut r| Ok((r.u64()?, r.string()?, r.u32()?)));
+            let read =
+                Reader::new(&buf[..cut]).and_then(|mut r| Ok((r.u64()?, r.string()?, r.u32()?)));
             assert!(read.is_err(), "cut at {cut}");
         }
     }

@@ -123,6 +123,16 @@ mod tests {
         );
     }
 
+    /// ServiceEventInfo (a `char[16]` among its fields), which every service's event
+    /// type holds: ROS 2's hash (the TYPE_VERSION_HASH of service_msgs' generated code).
+    #[test]
+    fn service_event_info_hashes_as_ros_2_does() {
+        assert_eq!(
+            rihs01("service_msgs/msg/ServiceEventInfo", &types()),
+            "RIHS01_41bcbbe07a75c9b52bc96bfd5c24d7f0fc0a08c0cb7921b3373c5732345a6f45"
+        );
+    }
+
     #[test]
     fn a_changed_field_changes_the_hash() {
         let mut all = types();
@@ -131,7 +141,11 @@ mod tests {
         if let Some(time) = all.get_mut("builtin_interfaces/msg/Time") {
             time[1].base = Base::Primitive("int32");
         }
-        assert_ne!(rihs01("afe_msgs/msg/Signal", &all), before, "a referenced type");
+        assert_ne!(
+            rihs01("afe_msgs/msg/Signal", &all),
+            before,
+            "a referenced type"
+        );
         assert_ne!(rihs01("std_msgs/msg/Header", &all), header);
     }
 }

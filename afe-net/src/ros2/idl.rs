@@ -15,7 +15,10 @@ const MESSAGES: [(&str, &str); 4] = [
         "Parameter",
         include_str!("../../../ros/afe_msgs/msg/Parameter.msg"),
     ),
-    ("Signal", include_str!("../../../ros/afe_msgs/msg/Signal.msg")),
+    (
+        "Signal",
+        include_str!("../../../ros/afe_msgs/msg/Signal.msg"),
+    ),
     (
         "SignalInfo",
         include_str!("../../../ros/afe_msgs/msg/SignalInfo.msg"),
@@ -174,7 +177,11 @@ fn parse_fields(text: &str, package: &str) -> Vec<Field> {
         })
         .collect();
     if fields.is_empty() {
-        fields.push(field("uint8", "structure_needs_at_least_one_member", package));
+        fields.push(field(
+            "uint8",
+            "structure_needs_at_least_one_member",
+            package,
+        ));
     }
     fields
 }
@@ -242,7 +249,10 @@ mod tests {
         assert_eq!(empty[0].name, "structure_needs_at_least_one_member");
         let service = &all["afe_msgs/srv/AddRequest"];
         let names: Vec<&str> = service.iter().map(|f| f.name.as_str()).collect();
-        assert_eq!(names, ["request_message", "response_message", "event_message"]);
+        assert_eq!(
+            names,
+            ["request_message", "response_message", "event_message"]
+        );
         let event = &all["afe_msgs/srv/AddRequest_Event"];
         assert_eq!(event[1].count, Count::Bounded(1));
         for fields in all.values() {
@@ -256,7 +266,10 @@ mod tests {
 
     #[test]
     fn dds_names_are_rmw_zenohs() {
-        assert_eq!(dds_name("std_msgs/msg/String"), "std_msgs::msg::dds_::String_");
+        assert_eq!(
+            dds_name("std_msgs/msg/String"),
+            "std_msgs::msg::dds_::String_"
+        );
         assert_eq!(
             dds_name("afe_msgs/srv/AddRequest"),
             "afe_msgs::srv::dds_::AddRequest_"

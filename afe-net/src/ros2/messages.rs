@@ -251,7 +251,10 @@ mod tests {
     fn a_truncated_or_lying_request_is_malformed() {
         let whole = add("ratemap", &[("fb_nChannels", "16")]);
         for cut in 0..whole.len() {
-            assert!(read_call("AddRequest", &whole[..cut]).is_err(), "cut at {cut}");
+            assert!(
+                read_call("AddRequest", &whole[..cut]).is_err(),
+                "cut at {cut}"
+            );
         }
         let mut lying = add("ild", &[]);
         let n = lying.len();

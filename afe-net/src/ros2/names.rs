@@ -216,7 +216,10 @@ mod tests {
             n.token("1f0e", 0, 10, Kind::Publisher, Some(("/chatter", "std_msgs::msg::dds_::String_", hash, qos))),
             format!("@ros2_lv/0/1f0e/0/10/MP/%/%/talker/%chatter/std_msgs::msg::dds_::String_/{hash}/::,7:,:,:,,")
         );
-        assert_eq!(n.token("1f0e", 0, 0, Kind::Node, None), "@ros2_lv/0/1f0e/0/0/NN/%/%/talker");
+        assert_eq!(
+            n.token("1f0e", 0, 0, Kind::Node, None),
+            "@ros2_lv/0/1f0e/0/0/NN/%/%/talker"
+        );
     }
 
     #[test]
@@ -232,7 +235,12 @@ mod tests {
         assert_eq!(n.data_key("/robot/afe/x", "T", "H"), "3/robot/afe/x/T/H");
         assert_eq!(Qos::LATCHED.token(), ":1:,1:,:,:,,");
         assert_eq!(
-            Qos { reliable: false, transient_local: false, depth: 42 }.token(),
+            Qos {
+                reliable: false,
+                transient_local: false,
+                depth: 42
+            }
+            .token(),
             "2::,:,:,:,,"
         );
     }

@@ -19,7 +19,7 @@ use zenoh::bytes::ZBytes;
 use zenoh::liveliness::LivelinessToken;
 use zenoh::query::{Query, Queryable};
 use zenoh::{Session, Wait};
-use zenoh_ext::{AdvancedPublisher, AdvancedPublisherBuilderExt, CacheConfig};
+use zenoh_ext::{AdvancedPublisher, AdvancedPublisherBuilderExt, CacheConfig, MissDetectionConfig};
 
 use super::publish::{ClientOut, Pool, SubEnd};
 use super::queries::RequestSpec;
@@ -103,6 +103,10 @@ pub(super) struct RosNode {
     /// Unix time of the stream's first frame, ns.
     start_ns: i64,
 }
+
+/// How often a latched topic tells its subscribers its last sequence number, so that
+/// they fetch what they missed (rmw_zenoh's period for reliable transient-local topics).
+const LATCHED_HEARTBEAT: std::time::Duration = std::time::Duration::from_millis(500);
 
 /// The node's id among its entities (rmw_zenoh numbers them from 0 per session).
 const NODE_ID: u64 = 0;
@@ -207,9 +211,10 @@ impl RosNode {
                         };
                         match to_audio.try_send(incoming) {
                             Ok(()) => return,
-                            Err(TrySendError::Full(i) | TrySendError::Disconnected(i)) => {
-                                (i.query, format!("the node has {CALL_BACKLOG} calls waiting: try again"))
-                            }
+                            Err(TrySendError::Full(i) | TrySendError::Disconnected(i)) => (
+                                i.query,
+                                format!("the node has {CALL_BACKLOG} calls waiting: try again"),
+                            ),
                         }
                     }
                     (Err(e), _) => (query, format!("malformed {service} request: {}", e.0)),
@@ -237,7 +242,13 @@ impl RosNode {
     }
 
     /// Declares a topic publishing through the pool, with its token.
-    fn topic(&mut self, pool: &Pool, short: &str, ty: &str, described: Described) -> Result<Topic, RemoteError> {
+    fn topic(
+        &mut self,
+        pool: &Pool,
+        short: &str,
+        ty: &str,
+        described: Described,
+    ) -> Result<Topic, RemoteError> {
         let full_name = self.name.resolve(&format!("~/{short}"));
         let (key, dds, hash, id) = self.entity(&full_name, ty);
         let token_key = self.name.token(
@@ -247,7 +258,12 @@ impl RosNode {
             Kind::Publisher,
             Some((&full_name, &dds, &hash, Qos::DEFAULT)),
         );
-        let end = pool.subscription(&self.session, key, &self.client, Some(names::gid(&token_key)))?;
+        let end = pool.subscription(
+            &self.session,
+            key,
+            &self.client,
+            Some(names::gid(&token_key)),
+        )?;
         let token = self.session.liveliness().declare_token(token_key).wait()?;
         Ok(Topic {
             full_name,
@@ -258,7 +274,12 @@ impl RosNode {
     }
 
     /// At the stream's start: the audio topic and the latched platform.
-    pub(super) fn start_stream(&mut self, timing: &Timing, mgr: &Manager, pool: &Pool) -> Result<(), RemoteError> {
+    pub(super) fn start_stream(
+        &mut self,
+        timing: &Timing,
+        mgr: &Manager,
+        pool: &Pool,
+    ) -> Result<(), RemoteError> {
         let frames_ns = (timing.input_end() as f64 * 1e9 / timing.fs()) as i64;
         self.start_ns = timing.block_end_unix_ns() as i64 - frames_ns;
         let described = Described {
@@ -274,17 +295,31 @@ impl RosNode {
             frame_shape: vec![mgr.ears() as u32],
             complex: false,
         };
-        let audio = self.topic(pool, "audio", &format!("{}/msg/Audio", idl::PACKAGE), described)?;
+        let audio = self.topic(
+            pool,
+            "audio",
+            &format!("{}/msg/Audio", idl::PACKAGE),
+            described,
+        )?;
         self.audio = Some(audio);
         if let Some(text) = self.platform.clone() {
             let full = self.name.resolve("~/platform");
             let (key, dds, hash, id) = self.entity(&full, "std_msgs/msg/String");
-            let token_key = self.name.token(&self.zid, NODE_ID, id, Kind::Publisher, Some((&full, &dds, &hash, Qos::LATCHED)));
+            let token_key = self.name.token(
+                &self.zid,
+                NODE_ID,
+                id,
+                Kind::Publisher,
+                Some((&full, &dds, &hash, Qos::LATCHED)),
+            );
             let gid = names::gid(&token_key);
             let publisher = self
                 .session
                 .declare_publisher(key)
                 .cache(CacheConfig::default().max_samples(1))
+                .sample_miss_detection(
+                    MissDetectionConfig::default().sporadic_heartbeat(LATCHED_HEARTBEAT),
+                )
                 .publisher_detection()
                 .wait()?;
             let mut buf = Vec::new();
@@ -310,19 +345,32 @@ impl RosNode {
     }
 
     /// Publishes the block's input and every request's new frames.
-    pub(super) fn publish(&mut self, timing: &Timing, mgr: &Manager, pool: &Pool, input: &[Vec<f64>]) {
+    pub(super) fn publish(
+        &mut self,
+        timing: &Timing,
+        mgr: &Manager,
+        pool: &Pool,
+        input: &[Vec<f64>],
+    ) {
         let frames = timing.last_block_frames();
         let first = timing.input_end() - frames as u64;
         let at = self.placed(timing, first, first as f64 / timing.fs());
         if let Some(audio) = &self.audio {
-            if let Some(mut buf) = audio.end.buffer() {
-                messages::audio(&mut buf, at, timing.fs(), input, frames);
-                pool.send(&audio.end, buf);
+            match audio.end.buffer() {
+                Some(mut buf) => {
+                    messages::audio(&mut buf, at, timing.fs(), input, frames);
+                    pool.send(&audio.end, buf);
+                }
+                None => pool.nudge(&audio.end),
             }
         }
         for r in &self.requests {
             for (k, topic) in r.topics.iter().enumerate() {
-                let Some(s) = mgr.request_signal(r.handle, k) else {
+                // a block that completed no frame of this output publishes nothing
+                let Some(s) = mgr
+                    .request_signal(r.handle, k)
+                    .filter(|s| s.new.frames() > 0)
+                else {
                     continue;
                 };
                 let Some(mut buf) = topic.end.buffer() else {
@@ -330,7 +378,13 @@ impl RosNode {
                     continue;
                 };
                 let at = self.placed(timing, s.first_frame, s.first_time_s);
-                messages::signal(&mut buf, &topic.described, at, s.new.frames(), s.new.as_slice());
+                messages::signal(
+                    &mut buf,
+                    &topic.described,
+                    at,
+                    s.new.frames(),
+                    s.new.as_slice(),
+                );
                 pool.send(&topic.end, buf);
             }
         }
@@ -381,7 +435,9 @@ impl RosNode {
             ),
             Call::Parameters(id) => match self.requests.iter().find(|r| r.id == *id) {
                 Some(r) => match mgr.request_parameters(r.handle) {
-                    Ok(p) => Response::Parameters(p.into_iter().map(|(k, v)| (k, v.to_string())).collect()),
+                    Ok(p) => Response::Parameters(
+                        p.into_iter().map(|(k, v)| (k, v.to_string())).collect(),
+                    ),
                     Err(e) => Response::Refused(e.to_string()),
                 },
                 None => unknown(*id),
@@ -414,7 +470,9 @@ impl RosNode {
             .collect();
         if described.len() != r.topics.len() {
             let _ = mgr.remove_request(handle);
-            return Response::Refused(format!("{parameter} would change request {id}'s outputs: remove it and add it anew"));
+            return Response::Refused(format!(
+                "{parameter} would change request {id}'s outputs: remove it and add it anew"
+            ));
         }
         let _ = mgr.remove_request(std::mem::replace(&mut r.handle, handle));
         r.params = params;
@@ -427,14 +485,21 @@ impl RosNode {
     /// Places an add (measured and admitted by the server): its topics are declared.
     pub(super) fn place(&mut self, mgr: &mut Manager, pool: &Pool, spec: &RequestSpec) -> Response {
         if self.requests.len() >= MAX_ROS_REQUESTS {
-            return Response::Refused(format!("the node holds {MAX_ROS_REQUESTS} requests: remove one first"));
+            return Response::Refused(format!(
+                "the node holds {MAX_ROS_REQUESTS} requests: remove one first"
+            ));
         }
         let handle = match mgr.add_request(&spec.name, &spec.params) {
             Ok(h) => h,
             Err(e) => return Response::Refused(format!("request '{}': {e}", spec.name)),
         };
         let ordinal = (1..)
-            .find(|n| !self.requests.iter().any(|r| r.name == spec.name && r.ordinal == *n))
+            .find(|n| {
+                !self
+                    .requests
+                    .iter()
+                    .any(|r| r.name == spec.name && r.ordinal == *n)
+            })
             .unwrap_or(1);
         let signals: Vec<(String, Described)> = mgr
             .request_signals(handle)
@@ -456,7 +521,12 @@ impl RosNode {
         }
         let mut topics = Vec::new();
         for (output, described) in signals {
-            match self.topic(pool, &output, &format!("{}/msg/Signal", idl::PACKAGE), described) {
+            match self.topic(
+                pool,
+                &output,
+                &format!("{}/msg/Signal", idl::PACKAGE),
+                described,
+            ) {
                 Ok(t) => topics.push(t),
                 Err(e) => {
                     let _ = mgr.remove_request(handle);
@@ -493,7 +563,9 @@ fn not_json(parameter: &str, e: &serde_json::Error) -> String {
 }
 
 fn unknown(id: u64) -> Response {
-    Response::Refused(format!("the node holds no request {id} (get_signals lists them)"))
+    Response::Refused(format!(
+        "the node holds no request {id} (get_signals lists them)"
+    ))
 }
 
 /// What output `s` of request `request` says of itself.
