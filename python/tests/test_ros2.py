@@ -267,6 +267,10 @@ def test_services_place_requests_whose_topics_equal_afe_extract(node, store, cli
     assert list(added.topics) == [f"/{NODE}/ratemap_left", f"/{NODE}/ratemap_right"]
     assert list(ild.topics) == [f"/{NODE}/ild_mono"]
     ty = "afe_msgs/msg/Signal"
+    published = {p[9]: p for p in entities(session, "MP", want=5)}
+    for topic in [*added.topics, *ild.topics]:
+        p = published[topic.replace("/", "%")]
+        assert p[10:13] == [dds(ty), store.hash_rihs01(ty), "::,10:,:,:,,"], "the topic appears"
     key = lambda topic: f"{DOMAIN}/{topic.strip('/')}/{dds(ty)}/{store.hash_rihs01(ty)}"
     got = {t: [] for t in [*added.topics, *ild.topics]}
     subs = [session.declare_subscriber(key(t), lambda s, t=t: got[t].append(s)) for t in got]

@@ -196,29 +196,43 @@ mod tests {
         }
     }
 
-    /// The data key and tokens of a talker's `/chatter` publisher (a String topic, keep
-    /// last 7), written down from the form rmw_zenoh's `liveliness::Entity` builds
-    /// (`src/detail/liveliness_utils.cpp`, the same in 0.2.10 for Jazzy and 0.10.5 for
-    /// Lyrical).
+    /// The tokens of demo_nodes' listener node and talker's `/chatter` publisher (keep
+    /// last 7) as rmw_zenoh's design document (docs/design.md, Jazzy branch) shows them,
+    /// and the data key of that topic.
     #[test]
-    fn the_talkers_keys_and_tokens_are_rmw_zenohs() {
+    fn the_design_documents_tokens_and_key_are_built_again() {
         let hash = "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18";
-        let n = node();
+        let string = "std_msgs::msg::dds_::String_";
+        let named = |name: &str| NodeName {
+            domain: 0,
+            namespace: "/".into(),
+            name: name.into(),
+        };
         assert_eq!(
-            n.data_key(&n.resolve("chatter"), "std_msgs::msg::dds_::String_", hash),
-            format!("0/chatter/std_msgs::msg::dds_::String_/{hash}")
+            named("listener").token("aac3178e146ba6f1fc6e6a4085e77f21", 0, 0, Kind::Node, None),
+            "@ros2_lv/0/aac3178e146ba6f1fc6e6a4085e77f21/0/0/NN/%/%/listener"
         );
+        let talker = named("talker");
         let qos = Qos {
             depth: 7,
             ..Qos::DEFAULT
         };
+        let chatter = talker.resolve("chatter");
         assert_eq!(
-            n.token("1f0e", 0, 10, Kind::Publisher, Some(("/chatter", "std_msgs::msg::dds_::String_", hash, qos))),
-            format!("@ros2_lv/0/1f0e/0/10/MP/%/%/talker/%chatter/std_msgs::msg::dds_::String_/{hash}/::,7:,:,:,,")
+            talker.token(
+                "8b20917502ee955ac4476e0266340d5c",
+                0,
+                10,
+                Kind::Publisher,
+                Some((&chatter, string, hash, qos))
+            ),
+            format!(
+                "@ros2_lv/0/8b20917502ee955ac4476e0266340d5c/0/10/MP/%/%/talker/%chatter/{string}/{hash}/::,7:,:,:,,"
+            )
         );
         assert_eq!(
-            n.token("1f0e", 0, 0, Kind::Node, None),
-            "@ros2_lv/0/1f0e/0/0/NN/%/%/talker"
+            talker.data_key(&chatter, string, hash),
+            format!("0/chatter/{string}/{hash}")
         );
     }
 
