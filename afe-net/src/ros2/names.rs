@@ -188,14 +188,6 @@ pub fn now_ns() -> i64 {
 mod tests {
     use super::*;
 
-    fn node() -> NodeName {
-        NodeName {
-            domain: 0,
-            namespace: "/".into(),
-            name: "talker".into(),
-        }
-    }
-
     /// The tokens of demo_nodes' listener node and talker's `/chatter` publisher (keep
     /// last 7) as rmw_zenoh's design document (docs/design.md, Jazzy branch) shows them,
     /// and the data key of that topic.
