@@ -1,10 +1,12 @@
 """Shared fixtures: paths of the repository's data and of the `afe` CLI binary."""
 import os
 import shutil
+import socket
 import subprocess
 import sys
 
 import pytest
+import wave
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 
@@ -53,3 +55,23 @@ def under_address_limit(setup, call, headroom_bytes, timeout):
     env = {k: v for k, v in os.environ.items() if k != "AFE_MEMORY_AVAILABLE_GB"}
     return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           env=env, timeout=timeout)
+
+
+def free_port():
+    """A TCP port free on loopback now."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="session")
+def tiled_wav(tmp_path_factory, example_wav):
+    """The example (1 s) tiled 10 times: a first pass long enough for a server's clients
+    to subscribe in and compare their frames with the file's."""
+    path = str(tmp_path_factory.mktemp("tiled") / "tiled10.wav")
+    with wave.open(example_wav) as w:
+        params, pcm = w.getparams(), w.readframes(w.getnframes())
+    with wave.open(path, "wb") as w:
+        w.setparams(params)
+        w.writeframes(pcm * 10)
+    return path

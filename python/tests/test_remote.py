@@ -6,13 +6,11 @@ import itertools
 import os
 import json
 import signal
-import socket
 import struct
 import subprocess
 import sys
 import threading
 import time
-import wave
 
 import numpy as np
 import pytest
@@ -20,29 +18,12 @@ import pytest
 import afe
 from afe.frames import request_list
 from afe.remote import RemoteError, _Meta, _read_audio, _read_frames
+from conftest import free_port
 
 zenoh = pytest.importorskip("zenoh")
 
 REQUESTS = ["ratemap", "ild", "itd", "ic"]
 BLOCK = 441  # 10 ms at 44.1 kHz, the server's block
-
-
-def free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-@pytest.fixture(scope="module")
-def tiled_wav(tmp_path_factory, example_wav):
-    """The example (1 s) tiled 10 times: a first pass long enough to subscribe in."""
-    path = str(tmp_path_factory.mktemp("remote") / "tiled10.wav")
-    with wave.open(example_wav) as w:
-        params, pcm = w.getparams(), w.readframes(w.getnframes())
-    with wave.open(path, "wb") as w:
-        w.setparams(params)
-        w.writeframes(pcm * 10)
-    return path
 
 
 @pytest.fixture

@@ -5,7 +5,6 @@ frames come from `afe extract`)."""
 import glob
 import json
 import os
-import socket
 import struct
 import subprocess
 import threading
@@ -14,6 +13,8 @@ import wave
 
 import numpy as np
 import pytest
+
+from conftest import free_port
 
 zenoh = pytest.importorskip("zenoh")
 typesys = pytest.importorskip("rosbags.typesys")
@@ -80,27 +81,9 @@ def dds(full):
     return "::".join(parts) + f"::dds_::{last}_"
 
 
-def free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 @pytest.fixture(scope="module")
 def store():
     return typestore()
-
-
-@pytest.fixture(scope="module")
-def tiled_wav(tmp_path_factory, example_wav):
-    """The example (1 s) tiled 20 times: one pass long enough for the whole test."""
-    path = str(tmp_path_factory.mktemp("ros2") / "tiled20.wav")
-    with wave.open(example_wav) as w:
-        params, pcm = w.getparams(), w.readframes(w.getnframes())
-    with wave.open(path, "wb") as w:
-        w.setparams(params)
-        w.writeframes(pcm * 20)
-    return path
 
 
 @pytest.fixture(scope="module")

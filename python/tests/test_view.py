@@ -13,6 +13,8 @@ import time
 
 import pytest
 
+from conftest import free_port
+
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 SOURCE = "synth:fs=16000,tone=440,noise=0.1,itd_ms=0.3,ild_db=-6,seed=1"
 
@@ -27,12 +29,6 @@ def _browser():
     if not chromium or not driver:
         pytest.skip("no Chromium/chromedriver here (Debian: apt-get install chromium chromium-driver)")
     return chromium, driver
-
-
-def _free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _wait_for_port(port, proc, timeout=10.0):
@@ -55,7 +51,7 @@ def test_the_live_page_shows_the_stream_and_edits_the_graph(cli):
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support.ui import Select, WebDriverWait
 
-    port = _free_port()
+    port = free_port()
     server = subprocess.Popen(
         [cli, "serve", "--source", SOURCE, "-r", "ratemap,ild", "-p", "fb_nChannels=16",
          "--http", f"127.0.0.1:{port}", "--listen", "tcp/127.0.0.1:0", "--for", "30", "--json"],
@@ -133,7 +129,7 @@ def test_a_page_started_without_requests_says_so_and_draws_what_is_added(cli):
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support.ui import Select, WebDriverWait
 
-    port = _free_port()
+    port = free_port()
     server = subprocess.Popen(
         [cli, "serve", "--source", SOURCE, "-p", "fb_nChannels=16",
          "--http", f"127.0.0.1:{port}", "--listen", "tcp/127.0.0.1:0", "--for", "30", "--json"],
@@ -178,7 +174,7 @@ def test_a_page_of_another_origin_in_the_same_browser_is_refused(cli):
     chromium, driver_path = _browser()
     from selenium.webdriver.support.ui import WebDriverWait
 
-    port, other = _free_port(), _free_port()
+    port, other = free_port(), free_port()
     server = subprocess.Popen(
         [cli, "serve", "--source", SOURCE, "-r", "ratemap", "--http", f"127.0.0.1:{port}",
          "--listen", "tcp/127.0.0.1:0", "--for", "20"],
