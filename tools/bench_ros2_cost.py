@@ -9,36 +9,20 @@ counting what each lost by its samples' sequence numbers.
 import argparse
 import json
 import os
-import socket
 import struct
 import subprocess
 import sys
 import threading
 import time
 
-import zenoh
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "python", "tests"))
+from conftest import free_port, zenoh_peer as session  # noqa: E402
 from test_ros2 import dds, typestore  # noqa: E402  (the message definitions, via rosbags)
 
 REQUESTS = ["ratemap", "ild", "itd", "ic"]
 SOURCE = "synth:fs=44100,tone=500,noise=0.1,itd_ms=0.3,seed=5"
-
-
-def free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def session(endpoint):
-    c = zenoh.Config()
-    c.insert_json5("mode", '"peer"')
-    c.insert_json5("listen/endpoints", "[]")
-    c.insert_json5("connect/endpoints", json.dumps([endpoint]))
-    c.insert_json5("scouting/multicast/enabled", "false")
-    return zenoh.open(c)
 
 
 def key(store, topic, ty):

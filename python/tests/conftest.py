@@ -64,6 +64,21 @@ def free_port():
         return s.getsockname()[1]
 
 
+def zenoh_peer(endpoint):
+    """A Zenoh peer session connected to ``endpoint`` alone (no scouting), as a client of
+    `afe serve` opens it."""
+    import json
+
+    import zenoh
+
+    config = zenoh.Config()
+    config.insert_json5("mode", '"peer"')
+    config.insert_json5("listen/endpoints", "[]")
+    config.insert_json5("connect/endpoints", json.dumps([endpoint]))
+    config.insert_json5("scouting/multicast/enabled", "false")
+    return zenoh.open(config)
+
+
 @pytest.fixture(scope="session")
 def tiled_wav(tmp_path_factory, example_wav):
     """The example (1 s) tiled 10 times: a first pass long enough for a server's clients

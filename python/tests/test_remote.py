@@ -18,7 +18,7 @@ import pytest
 import afe
 from afe.frames import request_list
 from afe.remote import RemoteError, _Meta, _read_audio, _read_frames
-from conftest import free_port
+from conftest import free_port, zenoh_peer
 
 zenoh = pytest.importorskip("zenoh")
 
@@ -68,12 +68,7 @@ def connect(endpoint, deadline_s=15.0):
 def reports(endpoint, name="robot"):
     """A plain Zenoh subscriber to the server's report; yields a function that returns
     the next report (JSON) within a timeout."""
-    config = zenoh.Config()
-    config.insert_json5("mode", '"peer"')
-    config.insert_json5("listen/endpoints", "[]")
-    config.insert_json5("connect/endpoints", json.dumps([endpoint]))
-    config.insert_json5("scouting/multicast/enabled", "false")
-    session = zenoh.open(config)
+    session = zenoh_peer(endpoint)
     sub = session.declare_subscriber(f"afe/{name}/report", zenoh.handlers.RingChannel(16))
 
     def next_report(timeout=5.0):

@@ -14,7 +14,7 @@ import wave
 import numpy as np
 import pytest
 
-from conftest import free_port
+from conftest import free_port, zenoh_peer
 
 zenoh = pytest.importorskip("zenoh")
 typesys = pytest.importorskip("rosbags.typesys")
@@ -97,12 +97,7 @@ def node(cli, tiled_wav):
         [cli, "serve", "--source", f"wav:{tiled_wav}", "--listen", endpoint, "--block-ms", "10",
          "--for", "40", "--ros2", "--platform", PLATFORM, "-r", "ratemap,ild"],
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    config = zenoh.Config()
-    config.insert_json5("mode", '"peer"')
-    config.insert_json5("listen/endpoints", "[]")
-    config.insert_json5("connect/endpoints", json.dumps([endpoint]))
-    config.insert_json5("scouting/multicast/enabled", "false")
-    session = zenoh.open(config)
+    session = zenoh_peer(endpoint)
     try:
         yield session, server
     finally:
