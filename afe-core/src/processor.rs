@@ -65,10 +65,10 @@ pub trait Processor: Send {
         None
     }
 
-    /// What a part holds of its processor's state, for [`Processor::rejoin`] (`None`:
-    /// nothing).
-    fn part_state(&self) -> Option<&dyn std::any::Any> {
-        None
+    /// The frame buffers a part holds of its processor's state (a windowed processor's
+    /// history of its channels), for [`Processor::rejoin`]; none by default.
+    fn part_frames(&self) -> &[crate::framing::FrameBuffer] {
+        &[]
     }
 
     /// Takes back the state its parts (in order) held while they ran, before they are
@@ -100,6 +100,6 @@ mod tests {
         let p = Plain;
         assert!(!p.absorbs_whole_signal());
         assert!(p.split(2).is_none());
-        assert!(p.part_state().is_none());
+        assert!(p.part_frames().is_empty());
     }
 }

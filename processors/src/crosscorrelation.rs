@@ -5,6 +5,7 @@
 use std::ops::Range;
 
 use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
+use afe_core::framing::FrameBuffer;
 use afe_core::window::{window, WINDOW_NAMES};
 use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Part, Processor, Result, SignalInfo};
 use serde::{Deserialize, Serialize};
@@ -305,17 +306,14 @@ impl Processor for Crosscorrelation {
         self.frames.advance(ears.0, ears.1, n);
     }
 
-    fn part_state(&self) -> Option<&dyn std::any::Any> {
-        Some(&self.frames)
+    fn part_frames(&self) -> &[FrameBuffer] {
+        self.frames.buffers()
     }
 
     fn rejoin(&mut self, parts: &[&dyn Processor]) {
-        let frames: Vec<&EarFrames> = parts
-            .iter()
-            .filter_map(|p| p.part_state()?.downcast_ref::<EarFrames>())
-            .collect();
-        if !frames.is_empty() && frames.len() == parts.len() {
-            self.frames = EarFrames::joined(&frames);
+        let held: Vec<&[FrameBuffer]> = parts.iter().map(|p| p.part_frames()).collect();
+        if let Some(frames) = EarFrames::joined(&held) {
+            self.frames = frames;
         }
     }
 }

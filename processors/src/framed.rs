@@ -87,22 +87,24 @@ pub fn check_framing(
 /// inputs always have the same length, so they always hold the same number of frames).
 #[derive(Debug, Clone)]
 pub struct EarFrames {
-    left: FrameBuffer,
-    right: FrameBuffer,
+    /// The left ear's buffer, then the right's.
+    ears: [FrameBuffer; 2],
 }
 
 impl EarFrames {
     /// Buffers for `width`-value rows, frames of `window` rows every `hop` rows.
     pub fn new(width: usize, window: usize, hop: usize) -> Self {
+        let ear = || FrameBuffer::new(width, window, hop);
         EarFrames {
-            left: FrameBuffer::new(width, window, hop),
-            right: FrameBuffer::new(width, window, hop),
+            ears: [ear(), ear()],
         }
     }
 
     /// Number of complete frame pairs over the kept rows and the new chunks.
     pub fn available(&self, left: &[f64], right: &[f64]) -> usize {
-        self.left.available(left).min(self.right.available(right))
+        self.ears[0]
+            .available(left)
+            .min(self.ears[1].available(right))
     }
 
     /// Frame pair `k` over the kept rows and the new chunks.
@@ -111,50 +113,61 @@ impl EarFrames {
         (left, right): (&'a [f64], &'a [f64]),
         k: usize,
     ) -> (Frame<'a>, Frame<'a>) {
-        (self.left.frame(left, k), self.right.frame(right, k))
+        (self.ears[0].frame(left, k), self.ears[1].frame(right, k))
     }
 
     /// Drops `frames` frame pairs and keeps what later frames need of the new chunks.
     pub fn advance(&mut self, left: &[f64], right: &[f64], frames: usize) {
-        self.left.advance(left, frames);
-        self.right.advance(right, frames);
+        self.ears[0].advance(left, frames);
+        self.ears[1].advance(right, frames);
     }
 
     /// Values per row.
     pub fn width(&self) -> usize {
-        self.left.width()
+        self.ears[0].width()
     }
 
     /// Counts rows only, for both ears (see [`FrameBuffer::count_only`]).
     pub fn count_only(&mut self) {
-        self.left.count_only();
-        self.right.count_only();
+        self.ears.iter_mut().for_each(FrameBuffer::count_only);
     }
 
-    /// Both ears' buffers over the columns that `parts` make together (see
-    /// [`FrameBuffer::joined`]).
-    pub fn joined(parts: &[&EarFrames]) -> Self {
-        let left: Vec<&FrameBuffer> = parts.iter().map(|p| &p.left).collect();
-        let right: Vec<&FrameBuffer> = parts.iter().map(|p| &p.right).collect();
-        EarFrames {
-            left: FrameBuffer::joined(&left),
-            right: FrameBuffer::joined(&right),
+    /// The left ear's buffer, then the right's (what a part of a split processor holds
+    /// of its state, [`afe_core::Processor::part_frames`]).
+    pub fn buffers(&self) -> &[FrameBuffer] {
+        &self.ears
+    }
+
+    /// Both ears' buffers over the columns that the parts' buffers (each
+    /// [`EarFrames::buffers`]) make together (see [`FrameBuffer::joined`]); `None` unless
+    /// every part holds two.
+    pub fn joined(parts: &[&[FrameBuffer]]) -> Option<Self> {
+        if parts.is_empty() || parts.iter().any(|p| p.len() != 2) {
+            return None;
         }
+        let ear = |e: usize| {
+            let of_ear: Vec<&FrameBuffer> = parts.iter().map(|p| &p[e]).collect();
+            FrameBuffer::joined(&of_ear)
+        };
+        Some(EarFrames {
+            ears: [ear(0), ear(1)],
+        })
     }
 
     /// A copy that frames and keeps only `columns` of both ears (see
     /// [`FrameBuffer::columns`]).
     pub fn columns(&self, columns: std::ops::Range<usize>) -> Self {
         EarFrames {
-            left: self.left.columns(columns.clone()),
-            right: self.right.columns(columns),
+            ears: [
+                self.ears[0].columns(columns.clone()),
+                self.ears[1].columns(columns),
+            ],
         }
     }
 
     /// Forgets the kept rows of both ears.
     pub fn reset(&mut self) {
-        self.left.reset();
-        self.right.reset();
+        self.ears.iter_mut().for_each(FrameBuffer::reset);
     }
 }
 
