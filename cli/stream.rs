@@ -104,6 +104,7 @@ impl StreamArgs {
                 Some(path) => Some(crate::files::read_platform(path)?.expected_source()),
                 None => None,
             },
+            ..StreamJob::default()
         };
         let pacing = match (self.realtime, self.fast) {
             (true, _) => Some(Pacing::Realtime),

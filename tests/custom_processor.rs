@@ -77,7 +77,8 @@ fn tone(fs: f64, seconds: f64) -> Vec<Vec<f64>> {
 
 #[test]
 fn a_processor_defined_here_gets_metadata_a_figure_and_a_panel() {
-    afe_processors::register(&centred::REQUEST).expect("a new request");
+    let mut registry = afe::Registry::default();
+    registry.register(&centred::REQUEST).expect("a new request");
     let params: ParamMap = [("fb_nChannels".to_string(), json!(8))]
         .into_iter()
         .collect();
@@ -87,6 +88,7 @@ fn a_processor_defined_here_gets_metadata_a_figure_and_a_panel() {
     let audio = tone(fs, 0.5);
     let refs: Vec<&[f64]> = audio.iter().map(Vec::as_slice).collect();
     let mut mgr = Manager::new(fs, 2).expect("manager");
+    mgr.set_registry(registry.clone()).expect("no request yet");
     let job = Job {
         requests: vec!["testCentred".into()],
         params: params.clone(),
@@ -132,6 +134,7 @@ fn a_processor_defined_here_gets_metadata_a_figure_and_a_panel() {
         params,
         duration_s: Some(0.5),
         pacing: Pacing::Realtime,
+        registry,
         ..StreamJob::default()
     };
     let synth = Synth::parse("fs=16000,tone=500,seed=1").expect("synth");

@@ -446,10 +446,11 @@ fn check_spec(spec: &StoreSpec) -> Result<(), BatchError> {
     if spec.requests.is_empty() {
         return Err(BatchError::Usage("no request given".into()));
     }
+    let registry = afe::Registry::default();
     for r in &spec.requests {
-        afe::find_request(r)?;
+        registry.find(r)?;
     }
-    afe_graph::check_parameter_names(&spec.params)?;
+    registry.check_parameter_names(spec.params.keys())?;
     Ok(())
 }
 

@@ -239,9 +239,10 @@ impl Server {
             .wait()?;
         let audio = Outlet::spawn(&session, key(&name, "audio"), AUDIO_QUEUE)?;
         let report = Outlet::spawn(&session, key(&name, "report"), 2)?;
+        // room in the ready queue for one client more: the ROS 2 node's
         let pool = Pool::start(
             PUBLISH_THREADS,
-            limits.max_clients,
+            limits.max_clients + 1,
             limits.max_subscriptions,
         )?;
         #[cfg(feature = "ros2")]
@@ -555,7 +556,7 @@ impl ServeTap {
             Asker::Ros(incoming) => {
                 if let Some(ros) = &mut self.ros {
                     let response = match admitted {
-                        Ok(()) => ros.place(mgr, &self.pool, &requests[0]),
+                        Ok(()) => ros.settle(mgr, &self.pool, incoming.call(), &requests[0]),
                         Err(e) => crate::ros2::messages::Response::Refused(e),
                     };
                     ros.answer(incoming, &response);
@@ -586,8 +587,13 @@ impl ServeTap {
         };
         self.next_trial += 1;
         let asked = self.cap.check_load().and_then(|()| {
-            self.trials
-                .submit(self.next_trial, shape, tried, self.cap.headroom_ms())
+            self.trials.submit(
+                self.next_trial,
+                shape,
+                mgr.registry(),
+                tried,
+                self.cap.headroom_ms(),
+            )
         });
         match asked {
             Ok(()) => {
@@ -786,19 +792,14 @@ impl ServeTap {
             None => return,
         };
         for incoming in calls {
-            match ros::spec_of(incoming.call()) {
+            let Some(ros) = &mut self.ros else { return };
+            match ros.request_of(incoming.call()) {
                 Ok(Some(spec)) => self.measure(timing, mgr, Asker::Ros(incoming), vec![spec]),
                 Ok(None) => {
-                    if let Some(ros) = &mut self.ros {
-                        let response = ros.act(mgr, incoming.call());
-                        ros.answer(incoming, &response);
-                    }
+                    let response = ros.act(mgr, incoming.call());
+                    ros.answer(incoming, &response);
                 }
-                Err(why) => {
-                    if let Some(ros) = &self.ros {
-                        ros.answer(incoming, &crate::ros2::messages::Response::Refused(why));
-                    }
-                }
+                Err(refused) => ros.answer(incoming, &refused),
             }
         }
     }

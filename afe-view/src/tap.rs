@@ -350,7 +350,7 @@ impl Tap {
             Some(shape) if !afe::trial::shared_entirely(&*mgr, &tried) => {
                 let ticket = self.ticket();
                 self.trials
-                    .submit(ticket, shape, tried, self.cap.headroom_ms())
+                    .submit(ticket, shape, mgr.registry(), tried, self.cap.headroom_ms())
                     .map_err(|e| e.to_string())?;
                 self.measured
                     .insert(ticket, Measured::Add { page, name, params });
@@ -423,7 +423,9 @@ impl Tap {
         value: Value,
     ) -> Result<(), String> {
         let single: afe_core::ParamMap = [(name.clone(), value.clone())].into_iter().collect();
-        afe_graph::check_parameter_names(&single).map_err(|e| e.to_string())?;
+        mgr.registry()
+            .check_parameter_names(single.keys())
+            .map_err(|e| e.to_string())?;
         let mut old = Vec::new();
         let mut new = Vec::new();
         for p in self.placed.iter().filter(|p| p.page == page) {
@@ -453,7 +455,13 @@ impl Tap {
                 let ticket = self.ticket();
                 let freed: f64 = self.cost_of(&old);
                 self.trials
-                    .submit(ticket, shape, new.clone(), self.cap.headroom_ms() + freed)
+                    .submit(
+                        ticket,
+                        shape,
+                        mgr.registry(),
+                        new.clone(),
+                        self.cap.headroom_ms() + freed,
+                    )
                     .map_err(|e| e.to_string())?;
                 self.measured.insert(
                     ticket,
@@ -573,7 +581,7 @@ impl Tap {
             })
             .collect();
         let order: Vec<String> = signals.iter().map(afe_graph::Signal::key).collect();
-        let catalogue: Vec<&str> = afe::requests().iter().map(|r| r.name).collect();
+        let catalogue: Vec<&str> = mgr.registry().requests().iter().map(|r| r.name).collect();
         let layout = json!({
             "type": "layout",
             "version": self.version,

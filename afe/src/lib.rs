@@ -44,5 +44,5 @@ pub use afe_bass_source as bass_source;
 pub use afe_core::interrupt;
 pub use afe_core::{Block, Error, ParamMap, Result, SignalInfo, SignalKind};
 pub use afe_graph::{Channel, Manager, RequestHandle, Signal};
-pub use afe_processors::{find_request, requests, RequestDef};
+pub use afe_processors::{find_request, requests, Registry, RequestDef};
 pub use recorder::{Recorded, Recorder};

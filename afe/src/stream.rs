@@ -129,6 +129,9 @@ pub struct StreamJob {
     /// The channels and rate the source must have (a robot's platform descriptor's):
     /// another source is refused before the stream starts.
     pub expect: Option<ExpectedSource>,
+    /// The requests the stream's manager can place (the built-in ones by default; a
+    /// program adds its own processors to it).
+    pub registry: crate::Registry,
 }
 
 impl Default for StreamJob {
@@ -146,6 +149,7 @@ impl Default for StreamJob {
             alsa_rate: 44_100,
             rt: false,
             expect: None,
+            registry: crate::Registry::default(),
         }
     }
 }
@@ -524,6 +528,7 @@ pub fn run<Src: Source>(
     // before the workers and the feeder start, so that they inherit the policy
     let realtime = job.rt.then(crate::realtime::enable);
     let mut mgr = Manager::with_threads(fs, format.channels, job.threads)?;
+    mgr.set_registry(job.registry.clone())?;
     mgr.set_keep_all(job.all);
     for r in &job.requests {
         mgr.add_request(r, &job.params)?;

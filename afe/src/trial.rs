@@ -19,6 +19,7 @@ use std::time::{Duration, Instant};
 
 use afe_core::ParamMap;
 use afe_graph::Manager;
+use afe_processors::Registry;
 use thiserror::Error;
 
 use crate::stream::Timing;
@@ -153,13 +154,16 @@ pub fn describe(requests: &[(String, ParamMap)]) -> String {
 /// known), after 1.5 s of computing or after 10 s in all.
 pub fn measure(
     shape: Shape,
+    registry: &Registry,
     requests: &[(String, ParamMap)],
     enough_ms: f64,
 ) -> Result<Cost, TrialError> {
-    let mut mgr = Manager::new(shape.fs, shape.ears).map_err(|source| TrialError::Run {
+    let run_error = |source| TrialError::Run {
         what: describe(requests),
         source,
-    })?;
+    };
+    let mut mgr = Manager::new(shape.fs, shape.ears).map_err(run_error)?;
+    mgr.set_registry(registry.clone()).map_err(run_error)?;
     for (name, params) in requests {
         mgr.add_request(name, params)
             .map_err(|source| TrialError::Request {
@@ -231,6 +235,9 @@ pub fn shared_entirely(mgr: &Manager, requests: &[(String, ParamMap)]) -> bool {
     let Ok(mut alone) = Manager::new(mgr.fs(), mgr.ears()) else {
         return false;
     };
+    if alone.set_registry(mgr.registry().clone()).is_err() {
+        return false;
+    }
     let mut outputs = Vec::new();
     for (name, params) in requests {
         match alone
@@ -268,9 +275,9 @@ impl Noise {
     }
 }
 
-/// A trial asked of [`Trials`]: its ticket, the stream's shape, the requests and the
-/// time above which the answer is known.
-type Job = (u64, Shape, Vec<(String, ParamMap)>, f64);
+/// A trial asked of [`Trials`]: its ticket, the stream's shape, the requests (from its
+/// manager's registry) and the time above which the answer is known.
+type Job = (u64, Shape, Registry, Vec<(String, ParamMap)>, f64);
 
 /// A thread that runs trials one after another, off the audio path: the stream's
 /// thread submits them and collects their outcomes between blocks, never waiting.
@@ -308,9 +315,9 @@ impl Trials {
             .name("afe-trials".into())
             .spawn(move || {
                 below_the_stream();
-                for (ticket, shape, requests, enough_ms) in from {
+                for (ticket, shape, registry, requests, enough_ms) in from {
                     if back
-                        .send((ticket, measure(shape, &requests, enough_ms)))
+                        .send((ticket, measure(shape, &registry, &requests, enough_ms)))
                         .is_err()
                     {
                         break;
@@ -325,16 +332,18 @@ impl Trials {
         })
     }
 
-    /// Asks for a trial; refused when every slot is taken.
+    /// Asks for a trial of `requests` (of `registry`, the stream's manager's); refused
+    /// when every slot is taken.
     pub fn submit(
         &mut self,
         ticket: u64,
         shape: Shape,
+        registry: &Registry,
         requests: Vec<(String, ParamMap)>,
         enough_ms: f64,
     ) -> Result<(), TrialError> {
         let jobs = self.jobs.as_ref().ok_or(TrialError::Stopped)?;
-        match jobs.try_send((ticket, shape, requests, enough_ms)) {
+        match jobs.try_send((ticket, shape, registry.clone(), requests, enough_ms)) {
             Ok(()) => {
                 self.waiting += 1;
                 Ok(())
@@ -452,8 +461,13 @@ mod tests {
 
     #[test]
     fn a_trial_costs_a_heavy_request_more_than_a_light_one() {
-        let light =
-            measure(shape(), &[("ild".into(), ParamMap::new())], f64::INFINITY).expect("ild");
+        let light = measure(
+            shape(),
+            &Registry::default(),
+            &[("ild".into(), ParamMap::new())],
+            f64::INFINITY,
+        )
+        .expect("ild");
         let heavy_params: ParamMap = [
             ("fb_nChannels".to_string(), serde_json::json!(64)),
             ("ac_wSizeSec".to_string(), serde_json::json!(0.05)),
@@ -463,6 +477,7 @@ mod tests {
         .collect();
         let heavy = measure(
             shape(),
+            &Registry::default(),
             &[("autocorrelation".into(), heavy_params)],
             f64::INFINITY,
         )
@@ -476,7 +491,13 @@ mod tests {
         let bad: ParamMap = [("fb_nChannels".to_string(), serde_json::json!(-3))]
             .into_iter()
             .collect();
-        let e = measure(shape(), &[("ratemap".into(), bad)], 1.0).expect_err("refused");
+        let e = measure(
+            shape(),
+            &Registry::default(),
+            &[("ratemap".into(), bad)],
+            1.0,
+        )
+        .expect_err("refused");
         assert!(e.to_string().starts_with("request 'ratemap':"), "{e}");
     }
 

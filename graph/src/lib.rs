@@ -22,7 +22,7 @@ pub use block_input::BlockSource;
 pub use engine::{is_worker_thread, MAX_THREADS};
 pub use graph::{Channel, OutputRef};
 pub use manager::{
-    check_parameter_names, BlockSink, Manager, RequestHandle, Signal, MAX_PREPARED_CHUNK,
-    PREPARE_SECONDS_MAX, WHOLE_SIGNAL_BLOCK, WHOLE_SIGNAL_LIMIT_MB,
+    BlockSink, Manager, RequestHandle, Signal, MAX_PREPARED_CHUNK, PREPARE_SECONDS_MAX,
+    WHOLE_SIGNAL_BLOCK, WHOLE_SIGNAL_LIMIT_MB,
 };
 pub use trace::{chrome_trace, TraceEvent};

@@ -3,7 +3,7 @@
 //! chunk on the sequential or the concurrent executor (spec 00-overview §3–§6).
 
 use afe_core::{Block, CancelToken, Error, ParamMap, Result, SignalInfo};
-use afe_processors::requests;
+use afe_processors::Registry;
 use serde_json::Value;
 
 use crate::block_input::BlockInput;
@@ -18,7 +18,6 @@ mod signals;
 mod whole_signal;
 
 use clocks::FrameClock;
-pub use editing::check_parameter_names;
 pub use signals::Signal;
 
 /// Highest input sampling rate accepted, in Hz.
@@ -85,6 +84,8 @@ pub struct Manager {
     clocks: Vec<Vec<FrameClock>>,
     /// The stop request its whole-signal calls watch.
     cancel: CancelToken,
+    /// The requests it can place.
+    registry: Registry,
 }
 
 /// Where a streamed whole-signal call hands each block of an output
@@ -157,7 +158,26 @@ impl Manager {
             stream_pos: 0,
             clocks: Vec::new(),
             cancel: CancelToken::new(),
+            registry: Registry::default(),
         })
+    }
+
+    /// The requests this manager can place: the built-in ones unless
+    /// [`Manager::set_registry`] gave others.
+    pub fn registry(&self) -> &Registry {
+        &self.registry
+    }
+
+    /// Places requests from `registry` from now on (e.g. the built-in ones and a
+    /// processor of the program's own); refused once a request is placed.
+    pub fn set_registry(&mut self, registry: Registry) -> Result<()> {
+        if self.requests.iter().any(Option::is_some) {
+            return Err(Error::InvalidInput(
+                "the registry is set before the first request is placed".into(),
+            ));
+        }
+        self.registry = registry;
+        Ok(())
     }
 
     /// A manager that runs its graph on `threads` threads, the calling one and a pool of

@@ -7,15 +7,15 @@
 use std::sync::Arc;
 
 use afe_core::{Block, Configured, Error, ParamMap, Result, SignalInfo};
-use afe_processors::{find_request, Ears, RequestDef};
+use afe_processors::{Ears, Registry, RequestDef};
 
 use crate::graph::{Channel, Graph, Node, OutputRef, MAX_INPUTS};
 
 /// The request definitions from `name` down to the input, `name` first.
-pub(crate) fn chain_of(name: &str) -> Result<Vec<&'static RequestDef>> {
-    let mut chain: Vec<&'static RequestDef> = vec![find_request(name)?];
+pub(crate) fn chain_of(registry: &Registry, name: &str) -> Result<Vec<&'static RequestDef>> {
+    let mut chain: Vec<&'static RequestDef> = vec![registry.find(name)?];
     while chain[chain.len() - 1].dependency != "input" {
-        chain.push(find_request(chain[chain.len() - 1].dependency)?);
+        chain.push(registry.find(chain[chain.len() - 1].dependency)?);
     }
     Ok(chain)
 }
@@ -23,10 +23,11 @@ pub(crate) fn chain_of(name: &str) -> Result<Vec<&'static RequestDef>> {
 impl Graph {
     /// Places the processors of request `request` (its chain, `request` first) with the
     /// request parameters `params`, sharing every node whose own parameters and parents
-    /// are equal; returns the request's outputs. On error, nodes added so far stay: the
-    /// caller truncates to the length it had.
+    /// are equal (extra inputs found in `registry`); returns the request's outputs. On
+    /// error, nodes added so far stay: the caller truncates to the length it had.
     pub(crate) fn resolve(
         &mut self,
+        registry: &Registry,
         ears: usize,
         chain: &[&'static RequestDef],
         params: &ParamMap,
@@ -40,7 +41,13 @@ impl Graph {
             let own = config.canonical();
             let mut extras: Vec<Vec<OutputRef>> = Vec::new();
             for extra in config.extra_inputs() {
-                extras.push(self.resolve(ears, &chain_of(extra)?, params, request)?);
+                extras.push(self.resolve(
+                    registry,
+                    ears,
+                    &chain_of(registry, extra)?,
+                    params,
+                    request,
+                )?);
             }
             let groups: Vec<Vec<OutputRef>> = match def.ears {
                 Ears::All => vec![level.clone()],

@@ -3,7 +3,7 @@
 
 use afe_core::{Error, ParamMap};
 use afe_graph::Manager;
-use afe_processors::{find_request, register, requests};
+use afe_processors::Registry;
 
 /// A processor of its own: the pre-processed ear signal, doubled.
 mod doubled {
@@ -56,18 +56,25 @@ mod doubled {
 
 #[test]
 fn a_registered_processor_is_listed_found_and_computed() {
-    let before = requests().len();
-    register(&doubled::REQUEST).expect("a new name");
-    assert_eq!(requests().len(), before + 1);
-    assert_eq!(requests()[before].name, "testDoubled");
-    let def = find_request("testDoubled").expect("registered");
+    let mut registry = Registry::default();
+    let before = registry.requests().len();
+    registry.register(&doubled::REQUEST).expect("a new name");
+    assert_eq!(registry.requests().len(), before + 1);
+    assert_eq!(registry.requests()[before].name, "testDoubled");
+    let def = registry.find("testDoubled").expect("registered");
     assert_eq!((def.dependency, def.output_unit), ("time", "Pa"));
 
     let mut m = Manager::new(16000.0, 2).expect("manager");
+    m.set_registry(registry.clone())
+        .expect("before any request");
     let doubled = m
         .add_request("testDoubled", &ParamMap::new())
         .expect("placed");
     let time = m.add_request("time", &ParamMap::new()).expect("placed");
+    assert!(
+        m.set_registry(Registry::default()).is_err(),
+        "a registry is set before the first request"
+    );
     let left: Vec<f64> = (0..1600).map(|n| (n as f64 * 0.01).sin()).collect();
     let right: Vec<f64> = left.iter().map(|v| -0.5 * v).collect();
     m.process_chunk(&[&left, &right]).expect("processed");
@@ -82,19 +89,30 @@ fn a_registered_processor_is_listed_found_and_computed() {
         assert_eq!(o.new.as_slice(), twice.as_slice());
     }
 
-    let again = register(&doubled::REQUEST).expect_err("the name is taken");
+    // another manager, with the built-in registry, does not know it
+    let e = Manager::new(16000.0, 2)
+        .expect("manager")
+        .add_request("testDoubled", &ParamMap::new())
+        .expect_err("not in its registry");
+    assert!(e.to_string().contains("'testDoubled'"), "{e}");
+
+    let again = registry
+        .register(&doubled::REQUEST)
+        .expect_err("the name is taken");
     assert!(
         matches!(&again, Error::RegistrationRefused { name, .. } if name == "testDoubled"),
         "{again}"
     );
     assert!(again.to_string().contains("already registered"), "{again}");
-    let orphan = register(&doubled::ORPHAN).expect_err("an unknown dependency");
+    let orphan = registry
+        .register(&doubled::ORPHAN)
+        .expect_err("an unknown dependency");
     assert!(
         orphan
             .to_string()
             .contains("'testNowhere' is not registered"),
         "{orphan}"
     );
-    assert!(find_request("testOrphan").is_err());
-    assert_eq!(requests().len(), before + 1);
+    assert!(registry.find("testOrphan").is_err());
+    assert_eq!(registry.requests().len(), before + 1);
 }

@@ -1,6 +1,6 @@
 //! The Two!Ears AFE processors, one module each, and the registry that maps a request
-//! name to its processor, dependency, parameters and constructor (to which code outside
-//! this crate can add its own processors with [`register`]).
+//! name to its processor, dependency, parameters and constructor ([`Registry`]: each
+//! manager holds one, to which code outside this crate can add its own processors).
 //!
 //! Each module holds the processor's parameter struct (AFE names, AFE defaults), its
 //! design code and its tests; nothing here knows about graphs or threads.
@@ -39,4 +39,4 @@ pub mod transient;
 pub mod transient_map;
 
 pub use afe_core::descriptor::{Built, Ears, RequestDef};
-pub use registry::{find_request, register, requests};
+pub use registry::{find_request, requests, Registry};

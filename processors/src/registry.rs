@@ -2,10 +2,8 @@
 //! the processor modules declare (each module implements [`afe_core::Descriptor`] for
 //! its processor and exports the type-erased [`RequestDef`] the graph works with as
 //! `REQUEST`, or one per request where a module serves two, e.g. `ONSET_REQUEST` and
-//! `OFFSET_REQUEST`), and the requests that code outside this crate adds at run time
-//! with [`register`].
-
-use std::sync::{PoisonError, RwLock};
+//! `OFFSET_REQUEST`), and [`Registry`]: the requests one manager computes, the built-in
+//! ones and those a program adds to it (no list the whole process shares).
 
 use afe_core::{Error, RequestDef, Result};
 
@@ -42,21 +40,17 @@ static BUILT_IN: &[&RequestDef] = &[
     &duet::REQUEST,
 ];
 
-/// Every known request: the built-in ones, then those registered at run time in the
-/// order they were. A registration replaces the list rather than changing it, so that a
-/// reader iterates a consistent `'static` list without holding the lock; each replaced
-/// list stays allocated (one pointer per request, a handful of registrations a process).
-static KNOWN: RwLock<&'static [&'static RequestDef]> = RwLock::new(BUILT_IN);
-
-/// Every request this build knows, in dependency order: the built-in ones, then those
-/// registered with [`register`].
+/// Every request this build computes, in dependency order.
 pub fn requests() -> &'static [&'static RequestDef] {
-    *KNOWN.read().unwrap_or_else(PoisonError::into_inner)
+    BUILT_IN
 }
 
-/// The definition of request `name`, or an error listing the known names.
+/// The definition of built-in request `name`, or an error listing the known names.
 pub fn find_request(name: &str) -> Result<&'static RequestDef> {
-    let known = requests();
+    find_in(BUILT_IN, name)
+}
+
+fn find_in(known: &[&'static RequestDef], name: &str) -> Result<&'static RequestDef> {
     known
         .iter()
         .find(|r| r.name == name)
@@ -68,22 +62,68 @@ pub fn find_request(name: &str) -> Result<&'static RequestDef> {
         })
 }
 
-/// Adds `def` to the known requests, after those known so far: from then on
-/// [`find_request`], [`requests`] and so every graph see it. A processor module outside
-/// this crate implements [`afe_core::Descriptor`] and registers
-/// `afe_core::request_def::<Its>()` kept in a `static`.
-///
-/// Refused, with the reason, when the name is taken (or is `input`), when its dependency
-/// or an extra input it reads at its defaults is not known yet (register those first),
-/// when its defaults do not configure, or when a parameter name it declares is declared
-/// by another request with another kind, unit or meaning.
-pub fn register(def: &'static RequestDef) -> Result<()> {
-    let mut known = KNOWN.write().unwrap_or_else(PoisonError::into_inner);
-    check_registration(def, &known)?;
-    let mut list = known.to_vec();
-    list.push(def);
-    *known = Vec::leak(list);
-    Ok(())
+/// The requests a manager computes: the built-in ones, then those added with
+/// [`Registry::register`], in dependency order. Each manager holds its own (a
+/// registration reaches the managers given that registry, and no other).
+#[derive(Debug, Clone)]
+pub struct Registry {
+    defs: Vec<&'static RequestDef>,
+}
+
+impl Default for Registry {
+    /// The built-in requests.
+    fn default() -> Self {
+        Registry {
+            defs: BUILT_IN.to_vec(),
+        }
+    }
+}
+
+impl Registry {
+    /// Every request, in dependency order.
+    pub fn requests(&self) -> &[&'static RequestDef] {
+        &self.defs
+    }
+
+    /// The definition of request `name`, or an error listing the known names.
+    pub fn find(&self, name: &str) -> Result<&'static RequestDef> {
+        find_in(&self.defs, name)
+    }
+
+    /// Adds `def` after the requests known so far. A processor module outside this crate
+    /// implements [`afe_core::Descriptor`] and registers `afe_core::request_def::<Its>()`
+    /// kept in a `static`.
+    ///
+    /// Refused, with the reason, when the name is taken (or is `input`), when its
+    /// dependency or an extra input it reads at its defaults is not known yet (register
+    /// those first), when its defaults do not configure, or when a parameter name it
+    /// declares is declared by another request with another kind, unit or meaning.
+    pub fn register(&mut self, def: &'static RequestDef) -> Result<()> {
+        check_registration(def, &self.defs)?;
+        self.defs.push(def);
+        Ok(())
+    }
+
+    /// Checks that every parameter name is declared by some request.
+    pub fn check_parameter_names<'a>(
+        &self,
+        names: impl IntoIterator<Item = &'a String>,
+    ) -> Result<()> {
+        let known = || {
+            self.defs
+                .iter()
+                .flat_map(|r| r.params.iter().map(|p| p.name))
+        };
+        for name in names {
+            if !known().any(|k| k == name) {
+                return Err(Error::UnknownParameter {
+                    name: name.clone(),
+                    hint: afe_core::params::did_you_mean(name, known()),
+                });
+            }
+        }
+        Ok(())
+    }
 }
 
 /// Why `def` cannot follow the requests `known`, if it cannot.

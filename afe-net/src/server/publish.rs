@@ -62,6 +62,15 @@ impl SubOutlet {
     pub(super) fn dropped(&self) -> u64 {
         self.dropped.load(Ordering::Relaxed)
     }
+
+    /// Counts a ROS 2 topic's message dropped before it reached the pool: its sequence
+    /// number is spent, so that subscribers see the gap.
+    #[cfg(feature = "ros2")]
+    pub(super) fn skip(&self) {
+        if let Some((_, seq)) = &self.ros {
+            seq.fetch_add(1, Ordering::Relaxed);
+        }
+    }
 }
 
 /// One client's queue to the pool.
@@ -215,7 +224,8 @@ impl Pool {
                 since: Instant::now(),
                 dropped: AtomicU64::new(0),
                 #[cfg(feature = "ros2")]
-                ros: ros_gid.map(|g| (g, AtomicU64::new(0))),
+                // rmw_zenoh numbers a publisher's samples from 1
+                ros: ros_gid.map(|g| (g, AtomicU64::new(1))),
             }),
             client: client.clone(),
         })
@@ -308,6 +318,8 @@ fn deliver(client: &ClientOut, sub: &SubOutlet, message: Vec<u8>) {
             .is_some_and(|until| Instant::now() < until)
         {
             sub.dropped.fetch_add(1, Ordering::Relaxed);
+            #[cfg(feature = "ros2")]
+            sub.skip();
         } else {
             let start = Instant::now();
             let put = sub.publisher.put(m.as_slice());

@@ -9,6 +9,7 @@
 //! the server's publishing pool, as one client of it.
 
 use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
 use std::sync::Arc;
 use std::thread::JoinHandle;
@@ -58,9 +59,36 @@ impl Incoming {
 /// A reply on its way to the network.
 struct Reply {
     query: Query,
-    key: String,
     payload: Vec<u8>,
     attachment: [u8; names::ATTACHMENT_BYTES],
+}
+
+impl Reply {
+    /// The response `response` to a call of `service` with `sequence` from `gid`.
+    fn to(
+        query: Query,
+        service: &str,
+        response: &Response,
+        sequence: i64,
+        gid: &[u8; 16],
+    ) -> Reply {
+        Reply {
+            query,
+            payload: messages::response(service, response),
+            attachment: attachment(sequence, names::now_ns(), gid),
+        }
+    }
+
+    /// Sends it on the service's key (with the congestion control the caller's query
+    /// asked for).
+    fn send(self) {
+        let key = self.query.key_expr().clone();
+        let _ = self
+            .query
+            .reply(key, self.payload)
+            .attachment(self.attachment.to_vec())
+            .wait();
+    }
 }
 
 /// One published output.
@@ -92,11 +120,13 @@ pub(super) struct RosNode {
     _node_token: LivelinessToken,
     _services: Vec<(Queryable<()>, LivelinessToken)>,
     calls: Receiver<Incoming>,
+    /// Calls taken from `calls` and not yet answered on the network: at most
+    /// [`CALL_BACKLOG`], so that a reply always has room on its way.
+    unanswered: Arc<AtomicUsize>,
     replies: Option<SyncSender<Reply>>,
     reply_thread: Option<JoinHandle<()>>,
     client: Arc<ClientOut>,
     audio: Option<Topic>,
-    platform: Option<String>,
     latched: Option<(AdvancedPublisher<'static>, LivelinessToken)>,
     requests: Vec<RosRequest>,
     next_request: u64,
@@ -133,15 +163,14 @@ impl RosNode {
             .wait()?;
         let (to_audio, calls) = mpsc::sync_channel(CALL_BACKLOG);
         let (replies, outgoing) = mpsc::sync_channel::<Reply>(CALL_BACKLOG);
+        let unanswered = Arc::new(AtomicUsize::new(0));
+        let sent = unanswered.clone();
         let reply_thread = std::thread::Builder::new()
             .name("afe-ros2-replies".into())
             .spawn(move || {
                 for r in outgoing {
-                    let _ = r
-                        .query
-                        .reply(r.key, r.payload)
-                        .attachment(r.attachment.to_vec())
-                        .wait();
+                    r.send();
+                    sent.fetch_sub(1, Ordering::AcqRel);
                 }
             })
             .map_err(|e| RemoteError::Zenoh(format!("cannot start the ROS 2 reply thread: {e}")))?;
@@ -154,11 +183,11 @@ impl RosNode {
             _node_token: node_token,
             _services: Vec::new(),
             calls,
+            unanswered,
             replies: Some(replies),
             reply_thread: Some(reply_thread),
             client: pool.client_for(MAX_TOPICS),
             audio: None,
-            platform,
             latched: None,
             requests: Vec::new(),
             next_request: 1,
@@ -167,6 +196,9 @@ impl RosNode {
         for (service, ty) in messages::SERVICES {
             let s = node.service(service, ty, to_audio.clone())?;
             node._services.push(s);
+        }
+        if let Some(text) = &platform {
+            node.latch(text)?;
         }
         Ok(node)
     }
@@ -209,13 +241,23 @@ impl RosNode {
                             sequence,
                             gid,
                         };
-                        match to_audio.try_send(incoming) {
-                            Ok(()) => return,
-                            Err(TrySendError::Full(i) | TrySendError::Disconnected(i)) => (
+                        // a call that was read is refused as the service answers (a ROS
+                        // client takes no error reply for an answer)
+                        if let Err(TrySendError::Full(i) | TrySendError::Disconnected(i)) =
+                            to_audio.try_send(incoming)
+                        {
+                            let why =
+                                format!("the node has {CALL_BACKLOG} calls waiting: try again");
+                            Reply::to(
                                 i.query,
-                                format!("the node has {CALL_BACKLOG} calls waiting: try again"),
-                            ),
+                                service,
+                                &Response::Refused(why),
+                                i.sequence,
+                                &i.gid,
+                            )
+                            .send();
                         }
+                        return;
                     }
                     (Err(e), _) => (query, format!("malformed {service} request: {}", e.0)),
                     (Ok(_), None) => (
@@ -239,6 +281,39 @@ impl RosNode {
             ))
             .wait()?;
         Ok((queryable, token))
+    }
+
+    /// Publishes the platform descriptor latched on `~/platform`, as rmw_zenoh declares
+    /// a reliable transient-local publisher.
+    fn latch(&mut self, text: &str) -> Result<(), RemoteError> {
+        let full = self.name.resolve("~/platform");
+        let (key, dds, hash, id) = self.entity(&full, "std_msgs/msg/String");
+        let token_key = self.name.token(
+            &self.zid,
+            NODE_ID,
+            id,
+            Kind::Publisher,
+            Some((&full, &dds, &hash, Qos::LATCHED)),
+        );
+        let gid = names::gid(&token_key);
+        let publisher = self
+            .session
+            .declare_publisher(key)
+            .cache(CacheConfig::default().max_samples(1))
+            .sample_miss_detection(
+                MissDetectionConfig::default().sporadic_heartbeat(LATCHED_HEARTBEAT),
+            )
+            .publisher_detection()
+            .wait()?;
+        let mut buf = Vec::new();
+        messages::string(&mut buf, text);
+        publisher
+            .put(buf)
+            .attachment(attachment(1, names::now_ns(), &gid).to_vec())
+            .wait()?;
+        let token = self.session.liveliness().declare_token(token_key).wait()?;
+        self.latched = Some((publisher, token));
+        Ok(())
     }
 
     /// Declares a topic publishing through the pool, with its token.
@@ -273,7 +348,7 @@ impl RosNode {
         })
     }
 
-    /// At the stream's start: the audio topic and the latched platform.
+    /// At the stream's start: the audio topic.
     pub(super) fn start_stream(
         &mut self,
         timing: &Timing,
@@ -302,35 +377,6 @@ impl RosNode {
             described,
         )?;
         self.audio = Some(audio);
-        if let Some(text) = self.platform.clone() {
-            let full = self.name.resolve("~/platform");
-            let (key, dds, hash, id) = self.entity(&full, "std_msgs/msg/String");
-            let token_key = self.name.token(
-                &self.zid,
-                NODE_ID,
-                id,
-                Kind::Publisher,
-                Some((&full, &dds, &hash, Qos::LATCHED)),
-            );
-            let gid = names::gid(&token_key);
-            let publisher = self
-                .session
-                .declare_publisher(key)
-                .cache(CacheConfig::default().max_samples(1))
-                .sample_miss_detection(
-                    MissDetectionConfig::default().sporadic_heartbeat(LATCHED_HEARTBEAT),
-                )
-                .publisher_detection()
-                .wait()?;
-            let mut buf = Vec::new();
-            messages::string(&mut buf, &text);
-            publisher
-                .put(buf)
-                .attachment(attachment(0, names::now_ns(), &gid).to_vec())
-                .wait()?;
-            let token = self.session.liveliness().declare_token(token_key).wait()?;
-            self.latched = Some((publisher, token));
-        }
         Ok(())
     }
 
@@ -361,7 +407,10 @@ impl RosNode {
                     messages::audio(&mut buf, at, timing.fs(), input, frames);
                     pool.send(&audio.end, buf);
                 }
-                None => pool.nudge(&audio.end),
+                None => {
+                    audio.end.outlet().skip();
+                    pool.nudge(&audio.end);
+                }
             }
         }
         for r in &self.requests {
@@ -374,6 +423,7 @@ impl RosNode {
                     continue;
                 };
                 let Some(mut buf) = topic.end.buffer() else {
+                    topic.end.outlet().skip();
                     pool.nudge(&topic.end);
                     continue;
                 };
@@ -390,19 +440,28 @@ impl RosNode {
         }
     }
 
-    /// The calls waiting, at most [`CALLS_PER_BLOCK`].
+    /// The calls waiting, at most [`CALLS_PER_BLOCK`], and no more than the replies'
+    /// way has room for (the others wait, or are refused as busy on arrival).
     pub(super) fn take_calls(&mut self) -> Vec<Incoming> {
-        self.calls.try_iter().take(CALLS_PER_BLOCK).collect()
+        let room = CALL_BACKLOG.saturating_sub(self.unanswered.load(Ordering::Acquire));
+        let taken: Vec<Incoming> = self
+            .calls
+            .try_iter()
+            .take(CALLS_PER_BLOCK.min(room))
+            .collect();
+        self.unanswered.fetch_add(taken.len(), Ordering::AcqRel);
+        taken
     }
 
-    /// Answers a call.
+    /// Answers a call taken by [`RosNode::take_calls`] (its reply always has room).
     pub(super) fn answer(&self, incoming: Incoming, response: &Response) {
-        let reply = Reply {
-            key: incoming.query.key_expr().as_str().to_string(),
-            query: incoming.query,
-            payload: messages::response(incoming.service, response),
-            attachment: attachment(incoming.sequence, names::now_ns(), &incoming.gid),
-        };
+        let reply = Reply::to(
+            incoming.query,
+            incoming.service,
+            response,
+            incoming.sequence,
+            &incoming.gid,
+        );
         if let Some(replies) = &self.replies {
             let _ = replies.try_send(reply);
         }
@@ -411,7 +470,9 @@ impl RosNode {
     /// Acts on a call other than an add (which the server measures first): what to answer.
     pub(super) fn act(&mut self, mgr: &mut Manager, call: &Call) -> Response {
         match call {
-            Call::Add(..) => Response::Refused("an add is placed by the server".into()),
+            Call::Add(..) | Call::Modify(..) => {
+                Response::Refused("an add or a modify is measured first".into())
+            }
             Call::Remove(id) => match self.requests.iter().position(|r| r.id == *id) {
                 Some(i) => {
                     let r = self.requests.remove(i);
@@ -420,7 +481,6 @@ impl RosNode {
                 }
                 None => unknown(*id),
             },
-            Call::Modify(id, parameter, value) => self.modify(mgr, *id, parameter, value),
             Call::Signals => Response::Signals(
                 self.requests
                     .iter()
@@ -445,41 +505,79 @@ impl RosNode {
         }
     }
 
-    /// A request's parameters changed: it is placed anew with them (other clients'
-    /// requests that shared its processors keep theirs), on the same topics.
-    fn modify(&mut self, mgr: &mut Manager, id: u64, parameter: &str, value: &str) -> Response {
+    /// A request placed anew with changed parameters (measured and admitted by the
+    /// server), on the same topics; other clients' requests that shared its processors
+    /// keep theirs. The outputs must stay the same ones.
+    fn replace(&mut self, mgr: &mut Manager, id: u64, spec: &RequestSpec) -> Response {
         let Some(r) = self.requests.iter_mut().find(|r| r.id == id) else {
             return unknown(id);
         };
-        let value = match serde_json::from_str(value) {
-            Ok(v) => v,
-            Err(e) => return Response::Refused(not_json(parameter, &e)),
-        };
-        let mut params = r.params.clone();
-        params.insert(parameter.to_string(), value);
-        let handle = match mgr.add_request(&r.name, &params) {
+        let handle = match mgr.add_request(&spec.name, &spec.params) {
             Ok(h) => h,
             Err(e) => return Response::Refused(format!("request {id} ({}): {e}", r.name)),
         };
-        let described: Vec<Described> = mgr
-            .request_signals(handle)
-            .unwrap_or_default()
+        let signals = mgr.request_signals(handle).unwrap_or_default();
+        let same = signals.len() == r.topics.len()
+            && signals
+                .iter()
+                .zip(&r.topics)
+                .all(|(s, t)| output_name(s, r.ordinal) == t.described.output);
+        if !same {
+            drop(signals);
+            let _ = mgr.remove_request(handle);
+            return Response::Refused(format!(
+                "the change would change request {id}'s outputs: remove it and add it anew"
+            ));
+        }
+        let described: Vec<Described> = signals
             .iter()
             .zip(&r.topics)
             .map(|(s, t)| describe(&r.name, &t.described.output, s))
             .collect();
-        if described.len() != r.topics.len() {
-            let _ = mgr.remove_request(handle);
-            return Response::Refused(format!(
-                "{parameter} would change request {id}'s outputs: remove it and add it anew"
-            ));
-        }
+        drop(signals);
         let _ = mgr.remove_request(std::mem::replace(&mut r.handle, handle));
-        r.params = params;
+        r.params = spec.params.clone();
         for (t, d) in r.topics.iter_mut().zip(described) {
             t.described = d;
         }
         Response::Done
+    }
+
+    /// The request an add or a modify asks for, to be measured before it is placed
+    /// (`None` for other calls), or why it cannot be.
+    pub(super) fn request_of(&self, call: &Call) -> Result<Option<RequestSpec>, Response> {
+        let (name, mut map) = match call {
+            Call::Add(name, _) => (name.clone(), ParamMap::new()),
+            Call::Modify(id, _, _) => match self.requests.iter().find(|r| r.id == *id) {
+                Some(r) => (r.name.clone(), r.params.clone()),
+                None => return Err(unknown(*id)),
+            },
+            _ => return Ok(None),
+        };
+        let given: Vec<(&String, &String)> = match call {
+            Call::Add(_, params) => params.iter().map(|(k, v)| (k, v)).collect(),
+            Call::Modify(_, k, v) => vec![(k, v)],
+            _ => Vec::new(),
+        };
+        for (k, v) in given {
+            let value = serde_json::from_str(v).map_err(|e| Response::Refused(not_json(k, &e)))?;
+            map.insert(k.clone(), value);
+        }
+        Ok(Some(RequestSpec { name, params: map }))
+    }
+
+    /// Places what an admitted add or modify asked for.
+    pub(super) fn settle(
+        &mut self,
+        mgr: &mut Manager,
+        pool: &Pool,
+        call: &Call,
+        spec: &RequestSpec,
+    ) -> Response {
+        match call {
+            Call::Modify(id, _, _) => self.replace(mgr, *id, spec),
+            _ => self.place(mgr, pool, spec),
+        }
     }
 
     /// Places an add (measured and admitted by the server): its topics are declared.
@@ -506,11 +604,7 @@ impl RosNode {
             .unwrap_or_default()
             .iter()
             .map(|s| {
-                let output = if ordinal > 1 {
-                    format!("{}_{ordinal}_{}", s.name, s.channel.as_str())
-                } else {
-                    format!("{}_{}", s.name, s.channel.as_str())
-                };
+                let output = output_name(s, ordinal);
                 (output.clone(), describe(&spec.name, &output, s))
             })
             .collect();
@@ -558,6 +652,16 @@ impl Drop for RosNode {
     }
 }
 
+/// The name of output `s` of the `ordinal`-th request of its name: `ratemap_left`, then
+/// `ratemap_2_left`, ...
+fn output_name(s: &Signal<'_>, ordinal: usize) -> String {
+    if ordinal > 1 {
+        format!("{}_{ordinal}_{}", s.name, s.channel.as_str())
+    } else {
+        format!("{}_{}", s.name, s.channel.as_str())
+    }
+}
+
 fn not_json(parameter: &str, e: &serde_json::Error) -> String {
     format!("the value of {parameter} is not JSON ({e}): give e.g. 0.04, 32 or \"dau\"")
 }
@@ -584,20 +688,4 @@ fn describe(request: &str, output: &str, s: &Signal<'_>) -> Described {
         frame_shape: info.frame_shape().into_iter().map(|n| n as u32).collect(),
         complex: info.is_complex(),
     }
-}
-
-/// An add's request as the server measures it (`None` for other calls).
-pub(super) fn spec_of(call: &Call) -> Result<Option<RequestSpec>, String> {
-    let Call::Add(name, params) = call else {
-        return Ok(None);
-    };
-    let mut map = ParamMap::new();
-    for (k, v) in params {
-        let value = serde_json::from_str(v).map_err(|e| not_json(k, &e))?;
-        map.insert(k.clone(), value);
-    }
-    Ok(Some(RequestSpec {
-        name: name.clone(),
-        params: map,
-    }))
 }

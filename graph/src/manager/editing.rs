@@ -3,23 +3,6 @@
 
 use super::*;
 
-/// Checks that every parameter name is declared by some processor.
-pub fn check_parameter_names(params: &ParamMap) -> Result<()> {
-    let known: Vec<&str> = requests()
-        .iter()
-        .flat_map(|r| r.params.iter().map(|p| p.name))
-        .collect();
-    for name in params.keys() {
-        if !known.contains(&name.as_str()) {
-            return Err(Error::UnknownParameter {
-                name: name.clone(),
-                hint: afe_core::params::did_you_mean(name, known.iter().copied()),
-            });
-        }
-    }
-    Ok(())
-}
-
 impl Manager {
     /// Applies a change to the graph between chunks: the pool finishes what is in flight,
     /// hands the processors back, and gets the edited graph (unchanged nodes keep their
@@ -56,17 +39,17 @@ impl Manager {
     /// # Ok::<(), afe_core::Error>(())
     /// ```
     pub fn add_request(&mut self, name: &str, params: &ParamMap) -> Result<RequestHandle> {
-        check_parameter_names(params)?;
+        self.registry.check_parameter_names(params.keys())?;
         self.edit(|m| m.add_request_now(name, params))
             .map_err(|e| afe_core::params::unless_set(e, params))
     }
 
     fn add_request_now(&mut self, name: &str, params: &ParamMap) -> Result<RequestHandle> {
-        let chain = chain_of(name)?;
+        let chain = chain_of(&self.registry, name)?;
         let rollback = self.graph.nodes.len();
         let placed = self
             .graph
-            .resolve(self.ears, &chain, params, name)
+            .resolve(&self.registry, self.ears, &chain, params, name)
             .and_then(|outputs| self.graph.check_work(name, params).map(|()| outputs));
         match placed {
             Ok(outputs) => {
@@ -134,8 +117,13 @@ impl Manager {
         value: Value,
     ) -> Result<()> {
         let single: ParamMap = [(name.to_string(), value)].into_iter().collect();
-        check_parameter_names(&single)?;
-        if requests().iter().any(|r| r.fixed.contains(&name)) {
+        self.registry.check_parameter_names(single.keys())?;
+        if self
+            .registry
+            .requests()
+            .iter()
+            .any(|r| r.fixed.contains(&name))
+        {
             return Err(Error::InvalidParameter {
                 name: name.into(),
                 value: single[name].to_string(),
@@ -347,7 +335,7 @@ mod tests {
     #[test]
     fn every_parameter_rejects_an_ill_typed_value_by_name() {
         use afe_core::ParamKind;
-        for r in requests() {
+        for r in afe_processors::requests() {
             for spec in r.params {
                 let bad = match spec.kind {
                     ParamKind::Choice(_) | ParamKind::Choices(_) => json!("no-such-choice"),
