@@ -36,6 +36,13 @@ pub(crate) fn read_platform(path: &Path) -> Result<Platform, CliError> {
         .map_err(|e| CliError::Message(format!("{}: {e}", path.display())))
 }
 
+/// A platform descriptor as the JSON that `afe serve` publishes and the page shows.
+#[cfg(feature = "view")]
+pub(crate) fn platform_json(platform: &Platform) -> Result<serde_json::Value, CliError> {
+    serde_json::to_value(platform)
+        .map_err(|e| CliError::Message(format!("the platform descriptor: {e}")))
+}
+
 /// Checks `path` as an output of a run reading `input` (see [`OutputFile::check`]).
 pub(crate) fn checked_output(path: &Path, input: &Path) -> Result<OutputFile, CliError> {
     let out = OutputFile::check(path)?;

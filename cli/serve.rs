@@ -102,6 +102,10 @@ impl ServeArgs {
             .as_deref()
             .map(crate::files::read_platform)
             .transpose()?;
+        let described = platform
+            .as_ref()
+            .map(crate::files::platform_json)
+            .transpose()?;
         let job = StreamJob {
             requests,
             params,
@@ -126,6 +130,7 @@ impl ServeArgs {
             output: None,
             view: self.http,
             view_origins: self.http_allow_origin,
+            platform: described.clone(),
             #[cfg(feature = "remote")]
             serve: Some(afe_net::ServeOptions {
                 listen: self.listen,
@@ -134,11 +139,7 @@ impl ServeArgs {
                 max_clients: self.max_clients as usize,
                 max_subscriptions: self.max_subscriptions as usize,
                 max_load: afe_net::MAX_LOAD,
-                platform: platform
-                    .as_ref()
-                    .map(serde_json::to_value)
-                    .transpose()
-                    .map_err(|e| e.to_string())?,
+                platform: described,
                 connect: self.connect,
                 #[cfg(feature = "ros2")]
                 ros2: self.ros2.then_some(afe_net::ros2::Ros2Options {

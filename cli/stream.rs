@@ -82,6 +82,11 @@ pub(crate) struct StreamArgs {
 impl StreamArgs {
     pub(crate) fn run(self) -> Result<(), CliError> {
         let (requests, params) = self.requests.load()?;
+        let platform = self
+            .platform
+            .as_deref()
+            .map(crate::files::read_platform)
+            .transpose()?;
         let job = StreamJob {
             requests,
             params,
@@ -100,10 +105,9 @@ impl StreamArgs {
             looping: self.looping,
             alsa_rate: self.rate.unwrap_or(44_100),
             rt: self.rt,
-            expect: match &self.platform {
-                Some(path) => Some(crate::files::read_platform(path)?.expected_source()),
-                None => None,
-            },
+            expect: platform
+                .as_ref()
+                .map(afe_spatial::Platform::expected_source),
             ..StreamJob::default()
         };
         let pacing = match (self.realtime, self.fast) {
@@ -121,6 +125,11 @@ impl StreamArgs {
             view: self.view,
             #[cfg(feature = "view")]
             view_origins: self.view_allow_origin,
+            #[cfg(feature = "view")]
+            platform: platform
+                .as_ref()
+                .map(crate::files::platform_json)
+                .transpose()?,
             #[cfg(feature = "remote")]
             serve: None,
             endless: false,
@@ -143,6 +152,9 @@ pub(crate) struct StreamRun<'a> {
     /// Origins allowed to open the live view's WebSocket besides the page's own.
     #[cfg(feature = "view")]
     pub(crate) view_origins: Vec<String>,
+    /// The robot's platform descriptor, shown on the live view's page.
+    #[cfg(feature = "view")]
+    pub(crate) platform: Option<serde_json::Value>,
     /// Serve the stream to remote clients over Zenoh.
     #[cfg(feature = "remote")]
     pub(crate) serve: Option<afe_net::ServeOptions>,
@@ -211,6 +223,7 @@ pub(crate) fn stream(mut job: StreamJob, run: &StreamRun<'_>) -> Result<(), CliE
                 origins: afe_view::AllowedOrigins::parse(&run.view_origins)
                     .map_err(afe_view::ViewError::from)?,
                 limits: afe_view::Limits::default(),
+                platform: run.platform.clone(),
             };
             let (view, tap) = afe_view::View::start(addr, job.block_ms, &options)?;
             if !addr.ip().is_loopback() {

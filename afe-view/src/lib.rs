@@ -50,6 +50,9 @@ pub struct ViewOptions {
     pub origins: AllowedOrigins,
     /// Bounds on connections, pages, requests, messages and edits.
     pub limits: Limits,
+    /// The robot's platform descriptor (its JSON form, docs/platform.md), shown on the
+    /// page: what the robot is, its microphones and its head.
+    pub platform: Option<serde_json::Value>,
 }
 
 /// Batches in flight between the audio path and the pages.
@@ -137,6 +140,7 @@ impl View {
             batch_blocks,
             options.limits.clone(),
             trials,
+            options.platform.clone(),
         );
         Ok((
             View {

@@ -227,9 +227,21 @@ class Panel {
   }
 }
 
+// The robot the stream comes from, from its platform descriptor: its name, its
+// microphones by role and its head model (the whole descriptor as the tooltip).
+function showRobot(p) {
+  const el = $("robot");
+  el.hidden = !p;
+  if (!p) return;
+  const roles = p.audio.channels.map((c) => c.role).join(", ");
+  el.textContent = `${p.robot} · ${p.audio.channels.length} microphones (${roles}) · head ${p.audio.head}`;
+  el.title = JSON.stringify(p, null, 1);
+}
+
 function onLayout(layout) {
   if (!state.hello) {
     $("request").innerHTML = layout.catalogue.map((r) => `<option>${r}</option>`).join("");
+    showRobot(layout.platform);
   }
   state.hello = layout;
   state.layout = layout;

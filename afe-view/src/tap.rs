@@ -186,6 +186,8 @@ pub struct Tap {
     cap: LoadCap,
     /// The stream's shape, for the trials.
     shape: Option<Shape>,
+    /// The robot's platform descriptor, sent with each layout.
+    platform: Option<Value>,
 }
 
 impl Tap {
@@ -199,6 +201,7 @@ impl Tap {
         batch_blocks: u32,
         limits: Limits,
         trials: Trials,
+        platform: Option<Value>,
     ) -> Self {
         Tap {
             to_server,
@@ -218,6 +221,7 @@ impl Tap {
             next_ticket: 0,
             trials,
             shape: None,
+            platform,
         }
     }
 
@@ -592,6 +596,7 @@ impl Tap {
             "order": order,
             "signals": described,
             "requests": requests,
+            "platform": self.platform,
         });
         let _ = self.to_server.send(ToServer::Text(layout.to_string()));
     }

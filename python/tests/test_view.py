@@ -124,14 +124,20 @@ def _chrome(chromium, driver_path):
     return webdriver.Chrome(service=Service(driver_path), options=opts)
 
 
-def test_a_page_started_without_requests_says_so_and_draws_what_is_added(cli):
+def test_a_page_started_without_requests_says_so_and_draws_what_is_added(cli, root, tmp_path):
     chromium, driver_path = _browser()
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support.ui import Select, WebDriverWait
 
+    # the seed robot's descriptor, at the synthetic source's rate
+    with open(os.path.join(root, "data", "platforms", "ball-15cm.json")) as f:
+        platform = json.load(f)
+    platform["audio"]["sample_rate_hz"] = 16000.0
+    platform_file = tmp_path / "ball-16k.json"
+    platform_file.write_text(json.dumps(platform))
     port = free_port()
     server = subprocess.Popen(
-        [cli, "serve", "--source", SOURCE, "-p", "fb_nChannels=16",
+        [cli, "serve", "--source", SOURCE, "-p", "fb_nChannels=16", "--platform", str(platform_file),
          "--http", f"127.0.0.1:{port}", "--listen", "tcp/127.0.0.1:0", "--for", "30", "--json"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )
@@ -142,6 +148,12 @@ def test_a_page_started_without_requests_says_so_and_draws_what_is_added(cli):
         browser.get(f"http://127.0.0.1:{port}/")
         wait = WebDriverWait(browser, 10)
         wait.until(lambda b: b.find_element(By.ID, "conn").text == "live")
+        # the robot, from its platform descriptor
+        robot = browser.find_element(By.ID, "robot")
+        wait.until(lambda b: robot.is_displayed())
+        assert robot.text == ("seed robot: a 15-cm ball on a pan unit · 2 microphones "
+                              "(left-ear, right-ear) · head sphere:radius=0.075,ears=90"), robot.text
+        assert json.loads(robot.get_attribute("title"))["joints"][0]["name"] == "neck_yaw"
         empty = browser.find_element(By.ID, "empty")
         wait.until(lambda b: empty.is_displayed())
         assert "no request yet" in empty.text
