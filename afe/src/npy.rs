@@ -115,6 +115,26 @@ pub fn encode(shape: &[usize], data: &[f64]) -> Vec<u8> {
 /// # Panics
 /// As [`encode`].
 pub fn encode_as(shape: &[usize], data: &[f64], dtype: Dtype) -> Vec<u8> {
+    let mut out = Vec::with_capacity(128 + dtype.size() * data.len());
+    // writing to a Vec cannot fail
+    let _ = write_npy(&mut out, shape, data, dtype);
+    out
+}
+
+/// Values converted per write of [`write_npy`]: 64 KiB of float64.
+const WRITE_VALUES: usize = 8192;
+
+/// Writes what [`encode_as`] returns to `out`, converting the values a slice at a time
+/// (no copy of the whole array: a whole signal's outputs are written as they are).
+///
+/// # Panics
+/// As [`encode`].
+pub fn write_npy<W: Write>(
+    out: &mut W,
+    shape: &[usize],
+    data: &[f64],
+    dtype: Dtype,
+) -> std::io::Result<()> {
     let complex = is_complex(shape, data);
     assert!(
         complex || data.len() == shape.iter().product::<usize>(),
@@ -127,19 +147,23 @@ pub fn encode_as(shape: &[usize], data: &[f64], dtype: Dtype) -> Vec<u8> {
     let unpadded = 10 + header.len() + 1;
     header.push_str(&" ".repeat((64 - unpadded % 64) % 64));
     header.push('\n');
-    let mut out = Vec::with_capacity(10 + header.len() + dtype.size() * data.len());
-    out.extend_from_slice(b"\x93NUMPY\x01\x00");
-    out.extend_from_slice(&(header.len() as u16).to_le_bytes());
-    out.extend_from_slice(header.as_bytes());
-    match dtype {
-        Dtype::Float64 => data
-            .iter()
-            .for_each(|v| out.extend_from_slice(&v.to_le_bytes())),
-        Dtype::Float32 => data
-            .iter()
-            .for_each(|v| out.extend_from_slice(&(*v as f32).to_le_bytes())),
+    out.write_all(b"\x93NUMPY\x01\x00")?;
+    out.write_all(&(header.len() as u16).to_le_bytes())?;
+    out.write_all(header.as_bytes())?;
+    let mut bytes = Vec::with_capacity(WRITE_VALUES * dtype.size());
+    for slice in data.chunks(WRITE_VALUES) {
+        bytes.clear();
+        match dtype {
+            Dtype::Float64 => slice
+                .iter()
+                .for_each(|v| bytes.extend_from_slice(&v.to_le_bytes())),
+            Dtype::Float32 => slice
+                .iter()
+                .for_each(|v| bytes.extend_from_slice(&(*v as f32).to_le_bytes())),
+        }
+        out.write_all(&bytes)?;
     }
-    out
+    Ok(())
 }
 
 /// Decodes an `.npy` file of little-endian float64 or float32 in C order.
@@ -280,7 +304,7 @@ pub fn write_npz_as<W: Write + Seek>(
                 .compression_method(zip::CompressionMethod::Stored)
                 .large_file(data.len() * dtype.size() > u32::MAX as usize / 2);
             zip.start_file(format!("{name}.npy"), options)?;
-            zip.write_all(&encode_as(shape, data, dtype))?;
+            write_npy(&mut zip, shape, data, dtype)?;
         }
         if let Some(text) = metadata {
             let options = zip::write::SimpleFileOptions::default()
