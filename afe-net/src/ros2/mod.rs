@@ -1,7 +1,7 @@
 //! ROS 2 over rmw_zenoh's protocol, without a ROS installation: the node's interfaces
 //! (`ros/afe_msgs/`), their RIHS01 type hashes, CDR, and rmw_zenoh's key expressions,
-//! liveliness tokens and attachments (`docs/ros2.md`). The server's node itself is
-//! `afe serve --ros2`.
+//! liveliness tokens and attachments as its releases 0.2.10 (Jazzy) and 0.10.5 (Lyrical)
+//! write them (`docs/ros2.md`). The server's node itself is `afe serve --ros2`.
 
 pub mod cdr;
 pub mod hash;
@@ -10,10 +10,6 @@ pub mod messages;
 pub mod names;
 
 use crate::RemoteError;
-
-/// The rmw_zenoh releases whose protocol this node speaks (their attachments, tokens
-/// and keys are the same): Jazzy's and Lyrical's.
-pub const RMW_ZENOH_RELEASES: [&str; 2] = ["0.2.10 (Jazzy)", "0.10.5 (Lyrical)"];
 
 /// Who the node is on the ROS graph.
 #[derive(Debug, Clone)]
