@@ -423,7 +423,7 @@ pub struct ServeTap {
 enum Asker {
     /// A Zenoh client's subscription: the query's ticket and the client.
     Zenoh(u64, String),
-    /// A ROS 2 `add_request` call.
+    /// A ROS 2 `add_request` or `modify_parameter` call.
     #[cfg(feature = "ros2")]
     Ros(ros::Incoming),
 }
@@ -793,13 +793,11 @@ impl ServeTap {
         };
         for incoming in calls {
             let Some(ros) = &mut self.ros else { return };
-            match ros.request_of(incoming.call()) {
-                Ok(Some(spec)) => self.measure(timing, mgr, Asker::Ros(incoming), vec![spec]),
-                Ok(None) => {
-                    let response = ros.act(mgr, incoming.call());
-                    ros.answer(incoming, &response);
+            match ros.step(mgr, incoming.call()) {
+                ros::Step::Measure(spec) => {
+                    self.measure(timing, mgr, Asker::Ros(incoming), vec![spec]);
                 }
-                Err(refused) => ros.answer(incoming, &refused),
+                ros::Step::Answer(response) => ros.answer(incoming, &response),
             }
         }
     }
@@ -811,7 +809,7 @@ impl Observer for ServeTap {
             self.start(timing, mgr);
             #[cfg(feature = "ros2")]
             if let Some(ros) = &mut self.ros {
-                if let Err(e) = ros.start_stream(timing, mgr, &self.pool) {
+                if let Err(e) = ros.start_stream(timing, &self.pool) {
                     eprintln!("afe serve: the ROS 2 node cannot publish: {e}");
                     self.ros = None;
                 }

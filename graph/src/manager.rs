@@ -358,3 +358,10 @@ fn params(pairs: &[(&str, serde_json::Value)]) -> ParamMap {
         .map(|(k, v)| (k.to_string(), v.clone()))
         .collect()
 }
+
+/// The output keys of request `h` of `m`.
+#[cfg(test)]
+fn output_keys(m: &Manager, h: RequestHandle) -> Vec<String> {
+    let signals = m.request_signals(h).expect("a placed request");
+    signals.iter().map(Signal::key).collect()
+}

@@ -8,7 +8,7 @@
 //! subscriptions, and answered from a thread of their own. Topics are published through
 //! the server's publishing pool, as one client of it.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
 use std::sync::Arc;
@@ -91,12 +91,38 @@ impl Reply {
     }
 }
 
-/// One published output.
-struct Topic {
+/// A topic the node publishes through the pool, with its liveliness token.
+struct Published {
     full_name: String,
     end: SubEnd,
-    described: Described,
     _token: LivelinessToken,
+}
+
+impl Published {
+    /// A buffer for its next message, or none: the message is dropped (its sequence
+    /// number spent, so that subscribers see the gap) and the pool asked to look again.
+    fn buffer(&self, pool: &Pool) -> Option<Vec<u8>> {
+        let buf = self.end.buffer();
+        if buf.is_none() {
+            self.end.outlet().skip();
+            pool.nudge(&self.end);
+        }
+        buf
+    }
+}
+
+/// One output of a request, published.
+struct Topic {
+    published: Published,
+    described: Described,
+}
+
+/// What the audio thread does with a call.
+pub(super) enum Step {
+    /// Answers it at once.
+    Answer(Response),
+    /// Measures the request an add or a modify asks for, then settles it.
+    Measure(RequestSpec),
 }
 
 /// A request placed through `add_request`.
@@ -116,6 +142,8 @@ pub(super) struct RosNode {
     name: NodeName,
     zid: String,
     types: BTreeMap<String, Vec<Field>>,
+    /// Type hashes computed so far, by type.
+    hashes: HashMap<String, String>,
     next_entity: u64,
     _node_token: LivelinessToken,
     _services: Vec<(Queryable<()>, LivelinessToken)>,
@@ -126,7 +154,7 @@ pub(super) struct RosNode {
     replies: Option<SyncSender<Reply>>,
     reply_thread: Option<JoinHandle<()>>,
     client: Arc<ClientOut>,
-    audio: Option<Topic>,
+    audio: Option<Published>,
     latched: Option<(AdvancedPublisher<'static>, LivelinessToken)>,
     requests: Vec<RosRequest>,
     next_request: u64,
@@ -179,6 +207,7 @@ impl RosNode {
             name,
             zid,
             types,
+            hashes: HashMap::new(),
             next_entity: NODE_ID + 1,
             _node_token: node_token,
             _services: Vec::new(),
@@ -203,14 +232,26 @@ impl RosNode {
         Ok(node)
     }
 
-    /// The data key of `full_name` of type `ty` and its token's topic part.
-    fn entity(&mut self, full_name: &str, ty: &str) -> (String, String, String, u64) {
+    /// A new entity of `kind` named `full_name` of type `ty`: its data key and its
+    /// liveliness token.
+    fn entity(&mut self, kind: Kind, full_name: &str, ty: &str, qos: Qos) -> (String, String) {
         let dds = dds_name(ty);
-        let hash = hash::rihs01(ty, &self.types);
-        let key = self.name.data_key(full_name, &dds, &hash);
+        let types = &self.types;
+        let hash = self
+            .hashes
+            .entry(ty.to_string())
+            .or_insert_with(|| hash::rihs01(ty, types));
+        let key = self.name.data_key(full_name, &dds, hash);
         let id = self.next_entity;
         self.next_entity += 1;
-        (key, dds, hash, id)
+        let token = self.name.token(
+            &self.zid,
+            NODE_ID,
+            id,
+            kind,
+            Some((full_name, &dds, hash, qos)),
+        );
+        (key, token)
     }
 
     /// Declares service `service` of type `afe_msgs/srv/<ty>`.
@@ -221,7 +262,12 @@ impl RosNode {
         to_audio: SyncSender<Incoming>,
     ) -> Result<(Queryable<()>, LivelinessToken), RemoteError> {
         let full = self.name.resolve(&format!("~/{service}"));
-        let (key, dds, hash, id) = self.entity(&full, &format!("{}/srv/{ty}", idl::PACKAGE));
+        let (key, token_key) = self.entity(
+            Kind::Service,
+            &full,
+            &format!("{}/srv/{ty}", idl::PACKAGE),
+            Qos::DEFAULT,
+        );
         let service: &'static str = ty;
         let queryable = self
             .session
@@ -269,17 +315,7 @@ impl RosNode {
                 let _ = query.reply_err(why).wait();
             })
             .wait()?;
-        let token = self
-            .session
-            .liveliness()
-            .declare_token(self.name.token(
-                &self.zid,
-                NODE_ID,
-                id,
-                Kind::Service,
-                Some((&full, &dds, &hash, Qos::DEFAULT)),
-            ))
-            .wait()?;
+        let token = self.session.liveliness().declare_token(token_key).wait()?;
         Ok((queryable, token))
     }
 
@@ -287,14 +323,8 @@ impl RosNode {
     /// a reliable transient-local publisher.
     fn latch(&mut self, text: &str) -> Result<(), RemoteError> {
         let full = self.name.resolve("~/platform");
-        let (key, dds, hash, id) = self.entity(&full, "std_msgs/msg/String");
-        let token_key = self.name.token(
-            &self.zid,
-            NODE_ID,
-            id,
-            Kind::Publisher,
-            Some((&full, &dds, &hash, Qos::LATCHED)),
-        );
+        let (key, token_key) =
+            self.entity(Kind::Publisher, &full, "std_msgs/msg/String", Qos::LATCHED);
         let gid = names::gid(&token_key);
         let publisher = self
             .session
@@ -316,23 +346,11 @@ impl RosNode {
         Ok(())
     }
 
-    /// Declares a topic publishing through the pool, with its token.
-    fn topic(
-        &mut self,
-        pool: &Pool,
-        short: &str,
-        ty: &str,
-        described: Described,
-    ) -> Result<Topic, RemoteError> {
+    /// Declares topic `~/<short>` of type `ty`, published through the pool, with its
+    /// token.
+    fn publisher(&mut self, pool: &Pool, short: &str, ty: &str) -> Result<Published, RemoteError> {
         let full_name = self.name.resolve(&format!("~/{short}"));
-        let (key, dds, hash, id) = self.entity(&full_name, ty);
-        let token_key = self.name.token(
-            &self.zid,
-            NODE_ID,
-            id,
-            Kind::Publisher,
-            Some((&full_name, &dds, &hash, Qos::DEFAULT)),
-        );
+        let (key, token_key) = self.entity(Kind::Publisher, &full_name, ty, Qos::DEFAULT);
         let end = pool.subscription(
             &self.session,
             key,
@@ -340,42 +358,18 @@ impl RosNode {
             Some(names::gid(&token_key)),
         )?;
         let token = self.session.liveliness().declare_token(token_key).wait()?;
-        Ok(Topic {
+        Ok(Published {
             full_name,
             end,
-            described,
             _token: token,
         })
     }
 
     /// At the stream's start: the audio topic.
-    pub(super) fn start_stream(
-        &mut self,
-        timing: &Timing,
-        mgr: &Manager,
-        pool: &Pool,
-    ) -> Result<(), RemoteError> {
+    pub(super) fn start_stream(&mut self, timing: &Timing, pool: &Pool) -> Result<(), RemoteError> {
         let frames_ns = (timing.input_end() as f64 * 1e9 / timing.fs()) as i64;
         self.start_ns = timing.block_end_unix_ns() as i64 - frames_ns;
-        let described = Described {
-            request: String::new(),
-            output: "audio".into(),
-            kind: "time-domain",
-            unit: "",
-            axes: &[],
-            sample_rate: timing.fs(),
-            centre_frequencies: Vec::new(),
-            lags: Vec::new(),
-            features: Vec::new(),
-            frame_shape: vec![mgr.ears() as u32],
-            complex: false,
-        };
-        let audio = self.topic(
-            pool,
-            "audio",
-            &format!("{}/msg/Audio", idl::PACKAGE),
-            described,
-        )?;
+        let audio = self.publisher(pool, "audio", &format!("{}/msg/Audio", idl::PACKAGE))?;
         self.audio = Some(audio);
         Ok(())
     }
@@ -402,15 +396,9 @@ impl RosNode {
         let first = timing.input_end() - frames as u64;
         let at = self.placed(timing, first, first as f64 / timing.fs());
         if let Some(audio) = &self.audio {
-            match audio.end.buffer() {
-                Some(mut buf) => {
-                    messages::audio(&mut buf, at, timing.fs(), input, frames);
-                    pool.send(&audio.end, buf);
-                }
-                None => {
-                    audio.end.outlet().skip();
-                    pool.nudge(&audio.end);
-                }
+            if let Some(mut buf) = audio.buffer(pool) {
+                messages::audio(&mut buf, at, timing.fs(), input, frames);
+                pool.send(&audio.end, buf);
             }
         }
         for r in &self.requests {
@@ -422,9 +410,7 @@ impl RosNode {
                 else {
                     continue;
                 };
-                let Some(mut buf) = topic.end.buffer() else {
-                    topic.end.outlet().skip();
-                    pool.nudge(&topic.end);
+                let Some(mut buf) = topic.published.buffer(pool) else {
                     continue;
                 };
                 let at = self.placed(timing, s.first_frame, s.first_time_s);
@@ -435,7 +421,7 @@ impl RosNode {
                     s.new.frames(),
                     s.new.as_slice(),
                 );
-                pool.send(&topic.end, buf);
+                pool.send(&topic.published.end, buf);
             }
         }
     }
@@ -467,11 +453,22 @@ impl RosNode {
         }
     }
 
-    /// Acts on a call other than an add (which the server measures first): what to answer.
-    pub(super) fn act(&mut self, mgr: &mut Manager, call: &Call) -> Response {
-        match call {
-            Call::Add(..) | Call::Modify(..) => {
-                Response::Refused("an add or a modify is measured first".into())
+    /// What to do with a call: answered at once, or (an add or a modify) the request to
+    /// measure before it is placed.
+    pub(super) fn step(&mut self, mgr: &mut Manager, call: &Call) -> Step {
+        let answer = match call {
+            Call::Add(name, params) => {
+                let given = params.iter().map(|(k, v)| (k.as_str(), v.as_str()));
+                return measured(name, ParamMap::new(), given);
+            }
+            Call::Modify(id, parameter, value) => {
+                match self.requests.iter().find(|r| r.id == *id) {
+                    Some(r) => {
+                        let given = [(parameter.as_str(), value.as_str())];
+                        return measured(&r.name, r.params.clone(), given.into_iter());
+                    }
+                    None => unknown(*id),
+                }
             }
             Call::Remove(id) => match self.requests.iter().position(|r| r.id == *id) {
                 Some(i) => {
@@ -487,7 +484,7 @@ impl RosNode {
                     .flat_map(|r| {
                         r.topics.iter().map(|t| Listed {
                             request_id: r.id,
-                            topic: t.full_name.clone(),
+                            topic: t.published.full_name.clone(),
                             described: t.described.clone(),
                         })
                     })
@@ -502,7 +499,8 @@ impl RosNode {
                 },
                 None => unknown(*id),
             },
-        }
+        };
+        Step::Answer(answer)
     }
 
     /// A request placed anew with changed parameters (measured and admitted by the
@@ -541,29 +539,6 @@ impl RosNode {
             t.described = d;
         }
         Response::Done
-    }
-
-    /// The request an add or a modify asks for, to be measured before it is placed
-    /// (`None` for other calls), or why it cannot be.
-    pub(super) fn request_of(&self, call: &Call) -> Result<Option<RequestSpec>, Response> {
-        let (name, mut map) = match call {
-            Call::Add(name, _) => (name.clone(), ParamMap::new()),
-            Call::Modify(id, _, _) => match self.requests.iter().find(|r| r.id == *id) {
-                Some(r) => (r.name.clone(), r.params.clone()),
-                None => return Err(unknown(*id)),
-            },
-            _ => return Ok(None),
-        };
-        let given: Vec<(&String, &String)> = match call {
-            Call::Add(_, params) => params.iter().map(|(k, v)| (k, v)).collect(),
-            Call::Modify(_, k, v) => vec![(k, v)],
-            _ => Vec::new(),
-        };
-        for (k, v) in given {
-            let value = serde_json::from_str(v).map_err(|e| Response::Refused(not_json(k, &e)))?;
-            map.insert(k.clone(), value);
-        }
-        Ok(Some(RequestSpec { name, params: map }))
     }
 
     /// Places what an admitted add or modify asked for.
@@ -615,13 +590,11 @@ impl RosNode {
         }
         let mut topics = Vec::new();
         for (output, described) in signals {
-            match self.topic(
-                pool,
-                &output,
-                &format!("{}/msg/Signal", idl::PACKAGE),
-                described,
-            ) {
-                Ok(t) => topics.push(t),
+            match self.publisher(pool, &output, &format!("{}/msg/Signal", idl::PACKAGE)) {
+                Ok(published) => topics.push(Topic {
+                    published,
+                    described,
+                }),
                 Err(e) => {
                     let _ = mgr.remove_request(handle);
                     return Response::Refused(e.to_string());
@@ -630,7 +603,10 @@ impl RosNode {
         }
         let id = self.next_request;
         self.next_request += 1;
-        let names = topics.iter().map(|t| t.full_name.clone()).collect();
+        let names = topics
+            .iter()
+            .map(|t| t.published.full_name.clone())
+            .collect();
         self.requests.push(RosRequest {
             id,
             name: spec.name.clone(),
@@ -660,6 +636,27 @@ fn output_name(s: &Signal<'_>, ordinal: usize) -> String {
     } else {
         format!("{}_{}", s.name, s.channel.as_str())
     }
+}
+
+/// Request `name` with `params` and the `given` values (JSON text) over them, to measure;
+/// refused if a value is not JSON.
+fn measured<'a>(
+    name: &str,
+    mut params: ParamMap,
+    given: impl Iterator<Item = (&'a str, &'a str)>,
+) -> Step {
+    for (k, v) in given {
+        match serde_json::from_str(v) {
+            Ok(value) => {
+                params.insert(k.to_string(), value);
+            }
+            Err(e) => return Step::Answer(Response::Refused(not_json(k, &e))),
+        }
+    }
+    Step::Measure(RequestSpec {
+        name: name.to_string(),
+        params,
+    })
 }
 
 fn not_json(parameter: &str, e: &serde_json::Error) -> String {

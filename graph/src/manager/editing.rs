@@ -189,12 +189,7 @@ mod tests {
             .add_request("ratemap", &params(&[("fb_nChannels", json!(16))]))
             .expect("ok");
         assert_eq!(m.processor_count(), 12 + 6);
-        let keys: Vec<String> = m
-            .request_signals(h)
-            .expect("ok")
-            .iter()
-            .map(Signal::key)
-            .collect();
+        let keys = output_keys(&m, h);
         assert_eq!(keys, vec!["ratemap_2_left", "ratemap_2_right"]);
     }
 

@@ -197,12 +197,7 @@ mod tests {
         let h = m.add_request("precedence", &ParamMap::new()).expect("ok");
         let left = vec![0.1; 1600];
         m.process_signal(&[&left, &left]).expect("ok");
-        let keys: Vec<String> = m
-            .request_signals(h)
-            .expect("ok")
-            .iter()
-            .map(Signal::key)
-            .collect();
+        let keys = output_keys(&m, h);
         assert_eq!(
             keys,
             [
