@@ -68,10 +68,10 @@ fn run() -> Result<(), Box<dyn Error>> {
     let (cf_hz, shown) = {
         let signals = mgr.request_signals(ild)?;
         let info = signals.first().ok_or("the ild request has no output")?.info;
-        let mut order: Vec<usize> = (0..info.cf_hz.len()).collect();
-        order.sort_by(|&a, &b| info.cf_hz[a].total_cmp(&info.cf_hz[b]));
+        let mut order: Vec<usize> = (0..info.cf_hz().len()).collect();
+        order.sort_by(|&a, &b| info.cf_hz()[a].total_cmp(&info.cf_hz()[b]));
         order.truncate(SHOWN);
-        (info.cf_hz.clone(), order)
+        (info.cf_hz().to_vec(), order)
     };
 
     println!(

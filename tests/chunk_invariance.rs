@@ -369,7 +369,7 @@ fn hilbert_methods_depend_on_the_chunking_as_in_the_afe() {
     let fb = chunked.get("filterbank_left").expect("recorded");
     let ihc = chunked.get("innerhaircell_left").expect("recorded");
     assert_eq!(fb.shape(), ihc.shape());
-    let nc = fb.info.cf_hz.len();
+    let nc = fb.info.cf_hz().len();
     let (fb, ihc) = (fb.data.as_slice(), ihc.data.as_slice());
     for (start, end) in [(0, 1000), (1000, 2000), (2000, 2600)] {
         for c in 0..nc {

@@ -270,7 +270,7 @@ fn adding_and_removing_requests_mid_stream() {
         let ihc_r = rec_c.get("innerhaircell_right").expect("ihc").data.clone();
         let cf = rec_c.get("innerhaircell_left").expect("ihc").info.clone();
         let (mut fresh, _) = afe_processors::ild::Ild::new(&Default::default(), &cf).expect("ild");
-        let nc = cf.cf_hz.len();
+        let nc = cf.cf_hz().len();
         let tail_l = afe::Block::from_vec(ihc_l.as_slice()[head * nc..].to_vec(), nc);
         let tail_r = afe::Block::from_vec(ihc_r.as_slice()[head * nc..].to_vec(), nc);
         let mut out = vec![afe::Block::new(nc)];
@@ -347,7 +347,7 @@ fn modify_parameter_resets_the_processor_and_its_dependants() {
         let mut ihc = Recorder::new(true);
         feed(&mut b, &mut ihc, &left, &right, &[320]);
         let info = ihc.get("innerhaircell_left").expect("ihc").info.clone();
-        let nc = info.cf_hz.len();
+        let nc = info.cf_hz().len();
         let p = afe_processors::ratemap::RatemapParams {
             decay_sec: 0.02,
             ..Default::default()

@@ -508,7 +508,7 @@ fn check(cases: &[Case]) {
                     .get(&key.replacen("itd", "crosscorrelation", 1))
                     .map(|c| Ccf {
                         data: c.data.as_slice(),
-                        lags: c.info.lags_s.len(),
+                        lags: c.info.lags_s().len(),
                     });
                 let fs = out.info.audio_fs_hz;
                 let data = out.data.as_slice();

@@ -681,7 +681,7 @@ impl ZarrFile<'_> {
         let mut attrs = serde_json::Map::new();
         attrs.insert("afe".into(), described);
         let array = ArrayBuilder::new(shape, chunk_shape, dtype, FillValue::new(vec![0; size]))
-            .dimension_names(Some(s.info.kind.axes().to_vec()))
+            .dimension_names(Some(s.info.axis_names()))
             .attributes(attrs)
             .build(self.store.clone(), &format!("{}/{}", self.group, s.key()))
             .map_err(|e| BatchError::store(self.root, &e))?;

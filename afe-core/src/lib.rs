@@ -7,6 +7,7 @@
 // the kernels' clones name `::afe_core::cpu`, here as in the crates that call them
 extern crate self as afe_core;
 
+pub mod axis;
 pub mod block;
 pub mod butter;
 pub mod cpu;
@@ -23,17 +24,22 @@ mod huge_pages;
 pub mod interrupt;
 pub mod lanes;
 pub mod params;
+pub mod plan;
 pub mod power;
 pub mod processor;
 pub mod real_fft;
 pub mod sgolay;
+pub mod signal_info;
 pub mod simd;
 pub mod window;
 
-pub use block::{Block, DrawAs, SignalInfo, SignalKind};
+pub use axis::{Axis, OtherAxis};
+pub use block::Block;
 pub use descriptor::{request_def, Built, Configured, Descriptor, Ears, RequestDef};
 pub use error::{Error, Result};
 pub use expected_source::ExpectedSource;
 pub use interrupt::CancelToken;
 pub use params::{NoParams, ParamKind, ParamMap, ParamSpec, Params};
+pub use plan::{Panel, Plan, PlanAxis, Scale};
 pub use processor::{Part, Processor};
+pub use signal_info::{DrawAs, SignalInfo, SignalKind};

@@ -1,9 +1,9 @@
-//! The panel model: what each signal's panel shows, computed from the signal's own
-//! description (its kind, display, rates and axes) — lines, stacked waveforms or images,
-//! with their axes, labels and colour scales — and nothing of how it is drawn.
+//! The panel model: what each signal's panel shows, following the drawing plan its own
+//! description gives ([`afe_core::Plan`]) — lines, stacked waveforms or images, with
+//! their axes, labels and colour scales — and nothing of how it is drawn.
 
 use afe::Recorded;
-use afe_core::{DrawAs, SignalKind};
+use afe_core::{Panel as Shows, Plan, PlanAxis, Scale};
 
 use crate::{Layout, PlotError};
 
@@ -13,8 +13,6 @@ const WAV_PLOT_ZOOM: f64 = 5.0;
 
 /// Longest image axis drawn, in cells: longer signals are reduced by block maxima.
 const MAX_COLUMNS: usize = 1000;
-/// Dynamic range (dB below the peak) of spectra that do not give their own.
-const SPECTRUM_RANGE_DB: f64 = 80.0;
 
 /// A colour scale (its colours are the drawing's: `draw`).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -89,17 +87,6 @@ fn span(s: &Recorded) -> (f64, f64) {
     (first, end)
 }
 
-fn unit_of(s: &Recorded) -> String {
-    s.description["unit"]
-        .as_str()
-        .unwrap_or_default()
-        .to_string()
-}
-
-fn cf_labels(cf: &[f64]) -> Vec<String> {
-    cf.iter().map(|f| format!("{f:.0}")).collect()
-}
-
 /// Reduces `rows × cols` values (row-major, one row per frame) to at most
 /// [`MAX_COLUMNS`] frames by the largest |value| of each block, transposed so that each
 /// image row is a channel.
@@ -155,24 +142,11 @@ pub fn envelope(
     (starts, lo, hi)
 }
 
-/// Whether `s` is a waveform: values at the input's sampling rate, drawn on a linear or
-/// an amplitude-in-dB scale, of the time-domain or time-frequency kind.
-fn is_waveform(s: &Recorded) -> bool {
-    matches!(
-        s.info.kind,
-        SignalKind::TimeDomain | SignalKind::TimeFrequency
-    ) && s.info.fs_hz == s.info.audio_fs_hz
-        && matches!(
-            s.info.display,
-            DrawAs::Linear | DrawAs::AmplitudeDecibels { .. }
-        )
-}
-
 /// The channels of an audio-rate signal as the AFE's `waveplot` stacks them: each
 /// channel brought to zero mean and unit variance, all on one scale on which the largest
 /// magnitude lies `WAV_PLOT_ZOOM / 2` channel spacings from its channel's line; each trace
 /// runs down and up every pixel column, from its smallest value to its largest.
-fn stacked(s: &Recorded, columns: usize) -> Content {
+fn stacked(s: &Recorded, rows: &PlanAxis, columns: usize) -> Content {
     let (frames, width) = (s.data.frames(), s.data.width());
     let values = s.data.as_slice();
     let (starts, lo, hi) = envelope(values, frames, width, columns);
@@ -211,15 +185,16 @@ fn stacked(s: &Recorded, columns: usize) -> Content {
     Content::Waves {
         x,
         traces,
-        row_labels: channel_labels(s, width),
+        row_labels: row_labels(rows, width),
         reach: 0.5 * WAV_PLOT_ZOOM,
     }
 }
 
-/// Labels of a signal's channels: centre frequencies, or channel numbers.
-fn channel_labels(s: &Recorded, width: usize) -> Vec<String> {
-    if s.info.cf_hz.len() == width {
-        cf_labels(&s.info.cf_hz)
+/// The tick label of each of `width` rows: the axis's, or row numbers where it has
+/// another length.
+fn row_labels(rows: &PlanAxis, width: usize) -> Vec<String> {
+    if rows.ticks.len() == width {
+        rows.ticks.clone()
     } else {
         (0..width).map(|c| c.to_string()).collect()
     }
@@ -273,23 +248,22 @@ fn frame_at(s: &Recorded, at: Option<f64>) -> Result<(usize, f64), PlotError> {
     Ok((k, start + k as f64 / s.info.fs_hz))
 }
 
-/// What to draw for signal `s`.
+/// What to draw for signal `s`: its plan ([`afe_core::Plan`]), followed.
 pub(crate) fn panel(s: &Recorded, layout: &Layout) -> Result<Panel, PlotError> {
+    let plan = s.info.plan();
     let columns = layout.width as usize;
-    let content = match s.info.kind {
-        SignalKind::TimeDomain if s.data.width() == 1 => waveform_line(s, columns),
-        _ if is_waveform(s) && layout.waveforms && s.data.frames() > 0 => stacked(s, columns),
-        SignalKind::TimeDomain | SignalKind::TimeFrequency | SignalKind::BinaryMask => {
-            image_over_time(s)
+    let content = match (plan.panel, &plan.rows) {
+        (Shows::Waveforms, None) => waveform_line(s, columns),
+        (Shows::Waveforms, Some(rows)) if layout.waveforms && s.data.frames() > 0 => {
+            stacked(s, rows, columns)
         }
-        SignalKind::Spectrum => spectrum_image(s),
-        SignalKind::Feature if s.info.display == DrawAs::Trajectory => trajectory(s),
-        SignalKind::Feature => z_score_image(s),
-        SignalKind::Correlation | SignalKind::Modulation | SignalKind::DuetHistogram => {
+        (Shows::Waveforms | Shows::OverTime, _) => image_over_time(s, &plan),
+        (Shows::Line, _) => trajectory(s, &plan),
+        (Shows::Frame, _) => {
             let (k, when) = frame_at(s, layout.at_s)?;
             return Ok(Panel {
                 title: format!("{} at {when:.3} s", s.key),
-                content: frame_image(s, k),
+                content: frame_image(s, &plan, k),
             });
         }
     };
@@ -315,21 +289,43 @@ fn waveform_line(s: &Recorded, columns: usize) -> Content {
     }
 }
 
-/// A signal over time and channels (or a mask) as an image, reduced to at most
-/// [`MAX_COLUMNS`] columns: audio-rate signals by their largest magnitudes.
-fn image_over_time(s: &Recorded) -> Content {
-    let (frames, width) = (s.data.frames(), s.data.width());
-    let full_rate = frames > MAX_COLUMNS && s.info.fs_hz == s.info.audio_fs_hz;
-    let (mut cells, cols) = over_time(s.data.as_slice(), frames, width, full_rate);
-    let (lo, hi, map, unit) = over_time_scale(s, &mut cells, full_rate);
+/// The values' label of `plan`, `value` where it has none.
+fn values_label(plan: &Plan) -> String {
+    if plan.values.is_empty() {
+        "value".to_string()
+    } else {
+        plan.values.clone()
+    }
+}
+
+/// A signal over time and its rows as an image on its plan's scale, reduced to at most
+/// [`MAX_COLUMNS`] columns (audio-rate signals by their largest magnitudes); complex
+/// values by their magnitudes.
+fn image_over_time(s: &Recorded, plan: &Plan) -> Content {
+    let frames = s.data.frames();
+    let mut values = if plan.complex {
+        (s.data.as_slice().chunks_exact(2))
+            .map(|z| z[0].hypot(z[1]))
+            .collect()
+    } else {
+        s.data.as_slice().to_vec()
+    };
+    let width = values.len().checked_div(frames).unwrap_or(s.info.width());
+    if plan.scale == Scale::ZScores {
+        z_scores(&mut values, frames, width);
+    }
+    let peaks = plan.peaks && frames > MAX_COLUMNS;
+    let (mut cells, cols) = over_time(&values, frames, width, peaks);
+    let (lo, hi, map, unit) = over_time_scale(plan, &mut cells, peaks);
+    let rows = plan.rows.as_ref();
     Content::Image(Image {
         values: cells,
         rows: width,
         cols,
         x: span(s),
         x_label: "time (s)".to_string(),
-        row_labels: channel_labels(s, width),
-        y_label: "centre frequency (Hz)".into(),
+        row_labels: rows.map_or_else(Vec::new, |r| row_labels(r, width)),
+        y_label: rows.map_or_else(String::new, |r| r.label.clone()),
         lo,
         hi,
         map,
@@ -338,90 +334,50 @@ fn image_over_time(s: &Recorded) -> Content {
 }
 
 /// The colour scale of [`image_over_time`]'s `cells` as `(lo, hi, map, unit)`, the cells
-/// brought to dB where the signal's display asks for it.
-fn over_time_scale(s: &Recorded, cells: &mut [f64], full_rate: bool) -> (f64, f64, Map, String) {
-    let unit = unit_of(s);
-    if let (true, Some(range_db)) = (full_rate, s.info.display.range_db()) {
-        // largest magnitudes of a wide dynamic range, in dB
-        cells
-            .iter_mut()
-            .for_each(|v| *v = 20.0 * v.max(1e-300).log10());
-        let peak = finite_range(cells).1;
-        let unit = "dB (largest |value|)".to_string();
-        (peak - range_db, peak, Map::Sequential, unit)
-    } else if let DrawAs::PowerDecibels { range_db } = s.info.display {
-        cells
-            .iter_mut()
-            .for_each(|v| *v = 10.0 * v.max(1e-30).log10());
-        let peak = finite_range(cells).1;
-        (peak - range_db, peak, Map::Sequential, "dB".to_string())
-    } else if s.info.kind == SignalKind::BinaryMask {
-        (0.0, 1.0, Map::Grey, "mask".to_string())
-    } else if s.info.display == DrawAs::Signed {
-        let (lo, hi) = symmetric(cells);
-        (lo, hi, Map::Diverging, unit)
-    } else {
-        let (lo, hi) = finite_range(cells);
-        let unit = if full_rate {
-            format!("largest |value| {unit}")
-        } else {
-            unit
-        };
-        (lo, hi, Map::Sequential, unit)
+/// brought to dB where the plan's scale is in dB; `peaks` says the cells are largest
+/// magnitudes.
+fn over_time_scale(plan: &Plan, cells: &mut [f64], peaks: bool) -> (f64, f64, Map, String) {
+    let unit = values_label(plan);
+    match plan.scale {
+        Scale::AmplitudeDecibels { range_db } => {
+            cells
+                .iter_mut()
+                .for_each(|v| *v = 20.0 * v.abs().max(1e-300).log10());
+            let peak = finite_range(cells).1;
+            let unit = if peaks {
+                "dB (largest |value|)".to_string()
+            } else {
+                "dB".to_string()
+            };
+            (peak - range_db, peak, Map::Sequential, unit)
+        }
+        Scale::PowerDecibels { range_db } => {
+            cells
+                .iter_mut()
+                .for_each(|v| *v = 10.0 * v.max(1e-30).log10());
+            let peak = finite_range(cells).1;
+            (peak - range_db, peak, Map::Sequential, "dB".to_string())
+        }
+        Scale::Mask => (0.0, 1.0, Map::Grey, unit),
+        Scale::Signed | Scale::ZScores => {
+            let (lo, hi) = symmetric(cells);
+            (lo, hi, Map::Diverging, unit)
+        }
+        Scale::Linear | Scale::Auto => {
+            let (lo, hi) = finite_range(cells);
+            let unit = if peaks {
+                format!("largest |value| {unit}")
+            } else {
+                unit
+            };
+            (lo, hi, Map::Sequential, unit)
+        }
     }
 }
 
-/// A spectrum's magnitudes in dB over time and frequency.
-fn spectrum_image(s: &Recorded) -> Content {
-    // (re, im) pairs per bin: magnitudes in dB
-    let bins = s.info.cf_hz.len();
-    let mags: Vec<f64> = s
-        .data
-        .as_slice()
-        .chunks_exact(2)
-        .map(|z| 20.0 * z[0].hypot(z[1]).max(1e-12).log10())
-        .collect();
-    let (cells, cols) = over_time(&mags, s.data.frames(), bins, false);
-    let peak = finite_range(&cells).1;
-    Content::Image(Image {
-        values: cells,
-        rows: bins,
-        cols,
-        x: span(s),
-        x_label: "time (s)".to_string(),
-        row_labels: cf_labels(&s.info.cf_hz),
-        y_label: "frequency (Hz)".into(),
-        lo: peak - s.info.display.range_db().unwrap_or(SPECTRUM_RANGE_DB),
-        hi: peak,
-        map: Map::Sequential,
-        unit: "dB".into(),
-    })
-}
-
-/// A feature drawn as a trajectory: its first value over time, as a line.
-fn trajectory(s: &Recorded) -> Content {
-    let name = s.description["name"].as_str().unwrap_or(&s.key);
-    Content::Line {
-        x: times(s).collect(),
-        y: s.data
-            .as_slice()
-            .chunks_exact(s.data.width())
-            .map(|row| row[0])
-            .collect(),
-        stroke: 2,
-        y_label: format!(
-            "{} ({})",
-            s.info.features.first().map_or(name, String::as_str),
-            unit_of(s)
-        ),
-    }
-}
-
-/// Feature vectors as an image of z-scores over time: each feature on its own scale.
-fn z_score_image(s: &Recorded) -> Content {
-    let (frames, width) = (s.data.frames(), s.data.width());
-    let values = s.data.as_slice();
-    let mut z = values.to_vec();
+/// Each of the `width` columns of `frames` rows (row-major) brought to z-scores over
+/// time, on its own scale: rows of different quantities (features) side by side.
+fn z_scores(values: &mut [f64], frames: usize, width: usize) {
     for f in 0..width {
         let col: Vec<f64> = (0..frames)
             .map(|k| values[k * width + f])
@@ -431,35 +387,41 @@ fn z_score_image(s: &Recorded) -> Content {
         let mean = col.iter().sum::<f64>() / n;
         let sd = (col.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();
         for k in 0..frames {
-            let v = &mut z[k * width + f];
+            let v = &mut values[k * width + f];
             *v = (*v - mean) / if sd > 0.0 { sd } else { 1.0 };
         }
     }
-    let (cells, cols) = over_time(&z, frames, width, false);
-    let (lo, hi) = symmetric(&cells);
-    Content::Image(Image {
-        values: cells,
-        rows: width,
-        cols,
-        x: span(s),
-        x_label: "time (s)".to_string(),
-        row_labels: s.info.features.clone(),
-        y_label: "feature".into(),
-        lo,
-        hi,
-        map: Map::Diverging,
-        unit: "z-score".into(),
-    })
 }
 
-/// Frame `k` of a correlation, a modulation spectrum or a DUET histogram as an image,
-/// on a diverging scale where it holds negative values.
-fn frame_image(s: &Recorded, k: usize) -> Content {
+/// The first value of each frame over time, as a line.
+fn trajectory(s: &Recorded, plan: &Plan) -> Content {
+    Content::Line {
+        x: times(s).collect(),
+        y: s.data
+            .as_slice()
+            .chunks_exact(s.data.width().max(1))
+            .map(|row| row[0])
+            .collect(),
+        stroke: 2,
+        y_label: if plan.values.is_empty() {
+            s.key.clone()
+        } else {
+            plan.values.clone()
+        },
+    }
+}
+
+/// Frame `k` as an image, its plan's first axis up and second across, on a diverging
+/// scale where it holds negative values.
+fn frame_image(s: &Recorded, plan: &Plan, k: usize) -> Content {
     let width = s.data.width();
     let frame = &s.data.as_slice()[k * width..(k + 1) * width];
-    let shape = s.info.frame_shape();
-    let (rows, cols) = (shape[0], shape[1]);
-    let (x, x_label, row_labels, y_label) = frame_axes(s);
+    let (up, across) = (plan.rows.as_ref(), plan.across.as_ref());
+    let rows = up.map_or(1, |a| a.values.len()).max(1);
+    let extent = |a: &PlanAxis| match (a.values.first(), a.values.last()) {
+        (Some(&first), Some(&last)) => (first, last),
+        _ => (0.0, 1.0),
+    };
     let (lo, hi, map) = match finite_range(frame) {
         (lo, _) if lo < 0.0 => {
             let (lo, hi) = symmetric(frame);
@@ -467,58 +429,19 @@ fn frame_image(s: &Recorded, k: usize) -> Content {
         }
         (lo, hi) => (lo, hi, Map::Sequential),
     };
-    let unit = unit_of(s);
     Content::Image(Image {
         values: frame.to_vec(),
         rows,
-        cols,
-        x,
-        x_label,
-        row_labels,
-        y_label,
+        cols: width / rows,
+        x: across.map_or((0.0, 1.0), extent),
+        x_label: across.map_or_else(String::new, |a| a.label.clone()),
+        row_labels: up.map_or_else(Vec::new, |a| row_labels(a, rows)),
+        y_label: up.map_or_else(String::new, |a| a.label.clone()),
         lo,
         hi,
         map,
-        unit: if unit.is_empty() {
-            "value".into()
-        } else {
-            unit
-        },
+        unit: values_label(plan),
     })
-}
-
-/// The axes of [`frame_image`] as `(x extent, x label, row labels, y label)`: lags,
-/// modulation frequencies or delays across, centre frequencies or attenuations up.
-fn frame_axes(s: &Recorded) -> ((f64, f64), String, Vec<String>, String) {
-    match s.info.kind {
-        SignalKind::Correlation => {
-            let lags = &s.info.lags_s;
-            (
-                (1e3 * lags[0], 1e3 * lags[lags.len() - 1]),
-                "lag (ms)".to_string(),
-                cf_labels(&s.info.cf_hz),
-                "centre frequency (Hz)".to_string(),
-            )
-        }
-        SignalKind::Modulation => {
-            let m = &s.info.mod_cf_hz;
-            (
-                (m[0], m[m.len() - 1]),
-                "modulation frequency (Hz), channel by channel".to_string(),
-                cf_labels(&s.info.cf_hz),
-                "centre frequency (Hz)".to_string(),
-            )
-        }
-        _ => {
-            let d = &s.info.delta_samples;
-            (
-                (d[0], d[d.len() - 1]),
-                "delay (samples)".to_string(),
-                s.info.alpha.iter().map(|a| format!("{a:.2}")).collect(),
-                "attenuation α".to_string(),
-            )
-        }
-    }
 }
 
 #[cfg(test)]
@@ -598,7 +521,7 @@ mod tests {
             } => {
                 // 3200 samples to 1000 columns, down and up each: 2000 points a trace
                 assert_eq!((x.len(), traces.len(), reach), (2000, 16, 2.5));
-                assert_eq!(row_labels[0], format!("{:.0}", ihc.info.cf_hz[0]));
+                assert_eq!(row_labels[0], format!("{:.0}", ihc.info.cf_hz()[0]));
                 // channel k runs around height k, its largest value at most 2.5 away
                 for (k, trace) in traces.iter().enumerate() {
                     assert!(trace.iter().all(|y| (y - k as f64).abs() <= 2.5 + 1e-9));

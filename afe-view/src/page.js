@@ -38,20 +38,22 @@ function log(text, bad) {
   el.className = bad ? "bad" : "";
 }
 
-// A panel per signal: how its frames are drawn depends on its kind and frame shape.
+// A panel per signal, drawn as its description's plan says (never by its name): one
+// frame as an image, a line, an envelope of a waveform, or columns scrolling over time.
 class Panel {
   constructor(key, d) {
     this.key = key;
     this.d = d;
     const shape = d.frame_shape;
-    // how to draw it is the signal's own description (`display`), never its name:
-    // signed values on a diverging map, decibel drawings (20·log10 of the magnitude)
-    // over their range below the running peak, trajectories as lines
-    const display = d.display || { draw: "linear" };
-    this.mode = shape.length >= 2 ? "frame" : display.draw === "trajectory" ? "line"
-      : d.kind === "time-domain" ? "envelope" : "scroll";
-    this.diverging = display.draw === "signed";
-    this.range = display.range_db || 0;
+    const plan = d.plan;
+    this.plan = plan;
+    this.mode = plan.panel === "frame" ? "frame" : plan.panel === "line" ? "line"
+      : plan.panel === "waveforms" && !plan.rows ? "envelope" : "scroll";
+    // signed values on a diverging map; decibel scales (10·log10 of a power, 20·log10
+    // of a magnitude) over their range below the running peak
+    this.diverging = plan.scale.scale === "signed";
+    this.range = plan.scale.range_db || 0;
+    this.decibels = plan.scale.scale === "power-decibels" ? 10 : 20;
     this.rows = shape.length === 0 ? 1 : shape[0];
     this.cols = shape.length >= 2 ? shape.slice(1).reduce((a, b) => a * b, 1) : COLUMNS;
     this.max = 1e-12;
@@ -60,7 +62,7 @@ class Panel {
     this.el = document.createElement("div");
     this.el.className = "panel";
     this.el.id = "panel-" + key;
-    const what = [d.kind, d.unit || "", d.hop_s ? `hop ${d.hop_s * 1000} ms` : `${d.fs_hz} Hz`]
+    const what = [d.kind, plan.values || "", d.hop_s ? `hop ${d.hop_s * 1000} ms` : `${d.fs_hz} Hz`]
       .filter(Boolean).join(", ");
     this.el.innerHTML = `<h2>${key} <span class="meta">${what}</span><button>remove</button></h2>
       <div class="plot"><div class="axis"></div><canvas class="data"></canvas>
@@ -81,21 +83,29 @@ class Panel {
     if (req) send({ op: "remove", handle: req.handle });
   }
 
+  // The rows' axis: a few of its ticks with its unit, or its title where it has few.
   drawAxis() {
     const axis = this.el.querySelector(".axis");
-    const cf = this.d.cf_hz || [];
+    const rows = this.plan.rows;
     if (this.mode === "line") {
-      axis.innerHTML = `<span style="top:2%">Hz</span>`;
+      axis.innerHTML = `<span style="top:2%">${this.plan.values}</span>`;
       return;
     }
-    if (cf.length < 2 || this.mode === "frame") {
-      axis.innerHTML = this.mode === "frame" ? `<span style="top:50%">channel</span>` : "";
+    if (!rows) {
+      axis.innerHTML = "";
       return;
     }
-    const picks = [0, Math.floor(cf.length / 3), Math.floor((2 * cf.length) / 3), cf.length - 1];
+    axis.title = rows.label;
+    const ticks = rows.ticks;
+    if (ticks.length < 2 || this.mode === "frame") {
+      axis.innerHTML = `<span style="top:50%">${rows.label}</span>`;
+      return;
+    }
+    const unit = (rows.label.match(/\(([^)]*)\)$/) || ["", ""])[1];
+    const picks = [0, Math.floor(ticks.length / 3), Math.floor((2 * ticks.length) / 3), ticks.length - 1];
     axis.innerHTML = picks.map((c) => {
-      const top = 100 * (1 - (c + 0.5) / cf.length);
-      return `<span style="top:${top}%">${fmt(cf[c])} Hz</span>`;
+      const top = 100 * (1 - (c + 0.5) / ticks.length);
+      return `<span style="top:${top}%">${ticks[c]} ${unit}</span>`;
     }).join("");
   }
 
@@ -109,7 +119,7 @@ class Panel {
       ctx.fillRect(0, y, 1, 1);
     }
     const labels = this.el.querySelectorAll(".bar span");
-    const unit = this.range ? "dB" : this.d.unit || "";
+    const unit = this.range ? "dB" : this.plan.values || "";
     const lo = this.diverging ? -this.max : this.min === Infinity ? 0 : this.min;
     labels[0].textContent = `${fmt(this.max)} ${unit}`;
     labels[1].textContent = `${fmt(lo)} ${unit}`;
@@ -122,7 +132,7 @@ class Panel {
   }
 
   value(v) {
-    return this.range ? 20 * Math.log10(Math.max(Math.abs(v), 1e-10)) : v;
+    return this.range ? this.decibels * Math.log10(Math.max(Math.abs(v), 1e-10)) : v;
   }
 
   // Scales follow the data: they widen and never narrow, so that earlier columns keep
@@ -140,7 +150,7 @@ class Panel {
     if (this.range) {
       this.max = this.max === 1e-12 ? hi : Math.max(hi, this.max);
       this.min = this.max - this.range;
-    } else if (this.d.kind === "binary-mask") {
+    } else if (this.plan.scale.scale === "mask") {
       this.min = 0; this.max = 1;
     } else {
       this.max = Math.max(hi, this.max);

@@ -15,7 +15,7 @@
 //! mgr.process_signal(&[&left, &right])?;
 //! let out = &mgr.request_signals(ild)?[0];
 //! // right is 6 dB softer than left in every frame of a steady tone's main channel
-//! let channel = out.info.cf_hz.iter().position(|f| *f > 700.0).unwrap_or(0);
+//! let channel = out.info.cf_hz().iter().position(|f| *f > 700.0).unwrap_or(0);
 //! let last = out.new.row(out.new.frames() - 1);
 //! assert!((last[channel] + 6.02).abs() < 0.1);
 //! # Ok::<(), afe::Error>(())

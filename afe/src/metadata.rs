@@ -3,7 +3,7 @@
 //! computed with. Python's signal objects, the `.npz` metadata entry and the corpus
 //! store's array attributes use it.
 
-use afe_core::{SignalInfo, SignalKind};
+use afe_core::{Axis, SignalInfo, SignalKind};
 use afe_graph::{Manager, Signal};
 use serde_json::{json, Map, Value};
 
@@ -35,24 +35,27 @@ pub fn kind_name(kind: SignalKind) -> &'static str {
 /// assert_eq!(v["frame_shape"], serde_json::json!([2]));
 /// ```
 pub fn info_json(info: &SignalInfo) -> Value {
+    let values = |name: &str| info.axis(name).and_then(Axis::values).unwrap_or_default();
     json!({
         "kind": kind_name(info.kind),
         "afe_class": info.kind.afe_class(),
-        "axes": info.kind.axes(),
+        "axes": info.axis_names(),
         "dtype": if info.is_complex() { "complex128" } else { "float64" },
         "fs_hz": info.fs_hz,
         "audio_fs_hz": info.audio_fs_hz,
-        "cf_hz": info.cf_hz,
-        "lags_s": info.lags_s,
-        "mod_cf_hz": info.mod_cf_hz,
-        "features": info.features,
-        "alpha": info.alpha,
-        "delta_samples": info.delta_samples,
+        "cf_hz": info.cf_hz(),
+        "lags_s": info.lags_s(),
+        "mod_cf_hz": info.mod_cf_hz(),
+        "features": info.features(),
+        "alpha": values("alpha"),
+        "delta_samples": values("delta"),
+        "frame_axes": info.axes,
         "frame_shape": info.frame_shape(),
         "unit": info.unit,
         "window_s": info.window_s,
         "hop_s": info.hop_s(),
         "display": info.display,
+        "plan": info.plan(),
     })
 }
 
@@ -97,7 +100,7 @@ pub fn describe(manager: &Manager, s: &Signal<'_>) -> Value {
             ("instance".to_string(), json!(s.instance)),
             ("first_frame".to_string(), json!(s.first_frame)),
             ("first_time_s".to_string(), json!(s.first_time_s)),
-            ("n_channels".to_string(), json!(s.info.cf_hz.len())),
+            ("n_channels".to_string(), json!(s.info.cf_hz().len())),
             ("processors".to_string(), json!(processors)),
             ("parameters".to_string(), Value::Object(parameters)),
             ("nan_where".to_string(), json!(s.info.nan_where)),

@@ -789,7 +789,7 @@ mod tests {
         let last_frame_mean = |key: &str| {
             let s = out.recorded.get(key).expect("recorded");
             let d = s.data.as_slice();
-            let w = s.info.cf_hz.len();
+            let w = s.info.cf_hz().len();
             d[d.len() - w..].iter().sum::<f64>() / w as f64
         };
         // 0.4 ms at 44.1 kHz is a delay of 18 samples: 0.408 ms

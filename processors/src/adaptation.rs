@@ -202,7 +202,7 @@ impl Adaptation {
         }
         let floor_db: Vec<f64> = match p.model {
             AdaptationModel::VanDorpSchuitman => input
-                .cf_hz
+                .cf_hz()
                 .iter()
                 .map(|&f| threshold_of_hearing_db(f))
                 .collect(),

@@ -10,7 +10,7 @@ use afe_core::filter::Df2t;
 use afe_core::framing::FrameBuffer;
 use afe_core::window::{window, WINDOW_NAMES};
 use afe_core::{
-    Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
+    Axis, Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
 };
 use afe_fft::RealToComplex;
 use num_complex::Complex64;
@@ -332,14 +332,11 @@ impl AmsFeatures {
             hop_sums,
             hidden_work,
         };
-        let info = SignalInfo {
-            kind: SignalKind::Modulation,
-            mod_cf_hz,
-            ..input
-                .framed(fs_ds / h as f64)
-                .with_unit(Self::OUTPUT_UNIT)
-                .with_window_s(p.w_size_sec)
-        };
+        let info = input
+            .framed(fs_ds / h as f64)
+            .with_unit(Self::OUTPUT_UNIT)
+            .with_window_s(p.w_size_sec)
+            .with_axes(SignalKind::Modulation, [Axis::Modulation(mod_cf_hz)]);
         Ok((ams, info))
     }
 }

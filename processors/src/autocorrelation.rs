@@ -525,7 +525,7 @@ mod tests {
         let (mut ac, info) = Autocorrelation::new(p, &ihc(1000.0, nc)).expect("valid");
         let cycled = chunks.iter().copied().cycle();
         let all = crate::testing::feed(&mut ac, x, nc, info.width(), cycled);
-        (info.lags_s.len(), all)
+        (info.lags_s().len(), all)
     }
 
     /// Centre-clips frame `f` into `g` with the frame's thresholds.

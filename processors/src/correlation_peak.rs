@@ -21,7 +21,7 @@ pub(crate) fn parabolic_peak(y: &[f64]) -> (usize, f64, f64) {
 
 /// Checks that a binaural cue is built on a correlation signal.
 pub(crate) fn correlation_input(input: &SignalInfo, what: &str) -> Result<()> {
-    if input.kind != SignalKind::Correlation || input.lags_s.is_empty() {
+    if input.kind != SignalKind::Correlation || input.lags_s().is_empty() {
         return Err(afe_core::Error::InvalidInput(format!(
             "{what} needs a cross-correlation input"
         )));

@@ -465,7 +465,7 @@ mod tests {
             ..Default::default()
         };
         let (mut cc, out_info) = Crosscorrelation::new(&p, &info).expect("valid");
-        assert_eq!(out_info.lags_s.len(), 11);
+        assert_eq!(out_info.lags_s().len(), 11);
         // right = left delayed by 3 samples: peak at lag −3
         let x: Vec<f64> = (0..60).map(|i| ((i * 37) % 11) as f64).collect();
         let l = Block::from_vec(x[3..43].to_vec(), 1);

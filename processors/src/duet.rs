@@ -23,7 +23,7 @@ use afe_core::framing::{window_samples, FrameBuffer};
 use afe_core::sgolay::SavitzkyGolay;
 use afe_core::window::hamming_periodic;
 use afe_core::{
-    Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
+    Axis, Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
 };
 use afe_fft::RealToComplex;
 use num_complex::Complex64;
@@ -276,8 +276,10 @@ impl Duet {
         let info = SignalInfo {
             kind: SignalKind::DuetHistogram,
             fs_hz: fs_stft / hd as f64,
-            alpha: centres(p.bins_alpha, p.max_alpha),
-            delta_samples: centres(p.bins_delta, p.max_delta),
+            axes: vec![
+                Axis::Attenuation(centres(p.bins_alpha, p.max_alpha)),
+                Axis::Delay(centres(p.bins_delta, p.max_delta)),
+            ],
             audio_fs_hz: input.audio_fs_hz,
             unit: Self::OUTPUT_UNIT,
             window_s: Some(p.w_duet_sec),
@@ -442,6 +444,11 @@ mod tests {
     use crate::testing::{noise, plain_dft};
     use proptest::prelude::*;
 
+    /// The bin centres along `axis` (`alpha` or `delta`) of a histogram's description.
+    fn bins<'a>(info: &'a SignalInfo, axis: &str) -> &'a [f64] {
+        info.axis(axis).and_then(Axis::values).expect("a bin axis")
+    }
+
     /// Runs `duet` over the ears in chunks of the given sizes, then the rest; returns
     /// the joined output.
     fn run(duet: &mut Duet, left: &[f64], right: &[f64], chunks: &[usize]) -> Vec<f64> {
@@ -487,11 +494,15 @@ mod tests {
         assert_eq!(out.frame_shape(), vec![35, 51]);
         assert_eq!(out.kind.afe_class(), "DuetHistogramSignal");
         assert_eq!(
-            (out.alpha[0], out.alpha[17], out.alpha[34]),
+            (
+                bins(&out, "alpha")[0],
+                bins(&out, "alpha")[17],
+                bins(&out, "alpha")[34]
+            ),
             (-0.7, 0.0, 0.7)
         );
-        assert_eq!(out.delta_samples[25], 0.0);
-        assert!((out.delta_samples[1] + 3.6 - 7.2 / 50.0).abs() < 1e-15);
+        assert_eq!(bins(&out, "delta")[25], 0.0);
+        assert!((bins(&out, "delta")[1] + 3.6 - 7.2 / 50.0).abs() < 1e-15);
     }
 
     /// The right ear is the left delayed by one sample and scaled by 0.5: every cell has
@@ -517,8 +528,8 @@ mod tests {
                 .unwrap_or(0)
         };
         let want = (
-            nearest(&info.alpha, -1.5),
-            nearest(&info.delta_samples, 1.0),
+            nearest(bins(&info, "alpha"), -1.5),
+            nearest(bins(&info, "delta"), 1.0),
         );
         for block in out.chunks_exact(cells) {
             let peak = (0..cells)

@@ -429,7 +429,7 @@ mod tests {
         for (k, n) in [(23, 311), (16, 221), (31, 455), (32, 464), (64, 923)] {
             let (g, info) = Gabor::new(&GaborParams::default(), &ratemap(k)).expect("valid");
             assert_eq!((g.features, info.width()), (n, n), "K = {k}");
-            assert_eq!(info.features[0], "1");
+            assert_eq!(info.features()[0], "1");
         }
     }
 

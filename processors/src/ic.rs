@@ -17,7 +17,7 @@ impl Ic {
     pub fn new(input: &SignalInfo) -> Result<(Self, SignalInfo)> {
         correlation_input(input, "ic")?;
         let ic = Ic {
-            lags: input.lags_s.len(),
+            lags: input.lags_s().len(),
         };
         Ok((ic, input.framed(input.fs_hz).with_unit(Self::OUTPUT_UNIT)))
     }

@@ -18,7 +18,7 @@ impl Itd {
     pub fn new(input: &SignalInfo) -> Result<(Self, SignalInfo)> {
         correlation_input(input, "itd")?;
         let itd = Itd {
-            lags: input.lags_s.len(),
+            lags: input.lags_s().len(),
             audio_fs_hz: input.audio_fs_hz,
         };
         let info = input

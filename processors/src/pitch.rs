@@ -114,7 +114,7 @@ pub struct Pitch {
 impl Pitch {
     /// Builds the estimator for the autocorrelation signal `input` (its `lags_s`, in s).
     pub fn new(params: &PitchParams, input: &SignalInfo) -> Result<(Self, SignalInfo)> {
-        if input.kind != SignalKind::Correlation || input.lags_s.is_empty() {
+        if input.kind != SignalKind::Correlation || input.lags_s().is_empty() {
             return Err(Error::InvalidInput(
                 "pitch reads an autocorrelation (a correlation signal with lags)".into(),
             ));
@@ -154,10 +154,10 @@ impl Pitch {
             ));
         }
         // The AFE bounds the lags by min(1/fmin, number of lags), seconds against a count.
-        let lags = input.lags_s.len();
+        let lags = input.lags_s().len();
         let upper = (1.0 / fmin).min(lags as f64);
         let valid: Vec<usize> = (0..lags)
-            .filter(|&k| input.lags_s[k] >= 1.0 / fmax && input.lags_s[k] <= upper)
+            .filter(|&k| input.lags_s()[k] >= 1.0 / fmax && input.lags_s()[k] <= upper)
             .collect();
         let (Some(&first), Some(&last)) = (valid.first(), valid.last()) else {
             return Err(bad(
@@ -165,7 +165,7 @@ impl Pitch {
                 format!("{:?}", params.range_hz),
                 &format!(
                     "no autocorrelation lag (up to {} s) lies within the range",
-                    input.lags_s[lags - 1]
+                    input.lags_s()[lags - 1]
                 ),
             ));
         };
@@ -175,7 +175,7 @@ impl Pitch {
             median_order: order as usize,
             lags,
             first_lag: first,
-            lag_sec: input.lags_s[first..=last].to_vec(),
+            lag_sec: input.lags_s()[first..=last].to_vec(),
             history: VecDeque::with_capacity(history_len),
             history_len,
             sacf: vec![0.0; last + 1 - first],
@@ -400,7 +400,7 @@ mod tests {
 
     fn run(p: &PitchParams, chunks: &[Vec<Vec<f64>>], nc: usize, nl: usize) -> Vec<[f64; 3]> {
         let (mut pitch, info) = Pitch::new(p, &acf_info(1000.0, nc, nl)).expect("valid");
-        assert_eq!(info.features, PITCH_FEATURES);
+        assert_eq!(info.features(), PITCH_FEATURES);
         let mut out = vec![Block::new(3)];
         let mut all = Vec::new();
         for chunk in chunks {

@@ -170,7 +170,7 @@ impl Precedence {
         };
         let (b1, b2, b3) = (-0.0938272, 0.000112586, -0.0000000399154);
         let cc_weight = input
-            .cf_hz
+            .cf_hz()
             .iter()
             .map(|&cf| {
                 let f = cf.min(1200.0);
@@ -187,7 +187,7 @@ impl Precedence {
             cc_lag,
             fs,
             decay: decay_table(fr),
-            ac_weight: input.cf_hz.iter().map(|cf| 1.0 / cf.max(100.0)).collect(),
+            ac_weight: input.cf_hz().iter().map(|cf| 1.0 / cf.max(100.0)).collect(),
             cc_weight,
             ears: [ear.clone(), ear],
             first: true,

@@ -208,7 +208,7 @@ impl SpectralFeatures {
                 "spectral features need at least 2 frequency channels, the ratemap has {k}"
             )));
         }
-        let cf = input.cf_hz.clone();
+        let cf = input.cf_hz().to_vec();
         let names = features.iter().map(|f| f.name().to_string()).collect();
         let sf = SpectralFeatures {
             features,
@@ -436,7 +436,7 @@ mod tests {
         let (_, info) = SpectralFeatures::new(&SpectralFeaturesParams::default(), &ratemap_info(4))
             .expect("valid");
         assert_eq!(
-            info.features,
+            info.features(),
             [
                 "centroid",
                 "crest",
@@ -666,7 +666,7 @@ mod tests {
             ..Default::default()
         };
         let (mut sf, info) = SpectralFeatures::new(&p, &ratemap_info(3)).expect("valid");
-        assert_eq!(info.features, ["variation", "flux"]);
+        assert_eq!(info.features(), ["variation", "flux"]);
         run(&mut sf, &[1.0, 5.0, 2.0], 3);
         sf.reset();
         // After a reset the first frame is compared with itself again.

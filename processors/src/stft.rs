@@ -7,7 +7,8 @@ use std::sync::Arc;
 use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::framing::{window_samples, FrameBuffer};
 use afe_core::{
-    Block, DrawAs, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
+    Axis, Block, DrawAs, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo,
+    SignalKind,
 };
 use afe_fft::RealToComplex;
 use num_complex::Complex64;
@@ -115,7 +116,9 @@ impl Stft {
         let info = SignalInfo {
             kind: SignalKind::Spectrum,
             fs_hz: 2.0 / params.w_size_sec,
-            cf_hz: (0..bins).map(|k| k as f64 * fs / nfft as f64).collect(),
+            axes: vec![Axis::Bins(
+                (0..bins).map(|k| k as f64 * fs / nfft as f64).collect(),
+            )],
             audio_fs_hz: input.audio_fs_hz,
             unit: Self::OUTPUT_UNIT,
             window_s: Some(params.w_size_sec),
@@ -218,7 +221,7 @@ mod tests {
         );
         assert_eq!(out.width(), 2048);
         assert_eq!(out.fs_hz, 100.0);
-        assert_eq!(out.cf_hz[1], 44100.0 / 2048.0);
+        assert_eq!(out.cf_hz()[1], 44100.0 / 2048.0);
     }
 
     #[test]
@@ -262,7 +265,7 @@ mod tests {
             ..StftParams::default()
         };
         let (mut stft, info) = Stft::new(&p, &SignalInfo::time_domain(8000.0)).expect("valid");
-        assert_eq!(info.cf_hz.len(), 512);
+        assert_eq!(info.cf_hz().len(), 512);
         let out = run(&mut stft, &signal(400), &[]);
         for b in 1..256 {
             assert_eq!(out[2 * b], out[2 * (512 - b)]);

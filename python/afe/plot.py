@@ -1,10 +1,12 @@
 """Figures of afe's outputs with matplotlib (``pip install afe[plot]``).
 
-One panel per signal, drawn the way its kind needs: time-frequency maps over time and
-centre frequency (signed cues on a diverging map centred on zero), waveforms, the frame
-of a correlation, modulation spectrum or DUET histogram at a chosen time, feature
-trajectories, binary masks and STFT magnitudes in dB. Axes are labelled in seconds and
-Hz, colour bars with the signal's unit.
+One panel per signal, drawn as the plan its description gives (:attr:`afe.Signal.plan`,
+computed in Rust, the same plan the ``afe plot`` command and the live page follow):
+images over time and the rows of a frame (signed cues on a diverging map centred on
+zero, powers and magnitudes in dB, masks in grey, features as z-scores), waveforms, the
+frame of a two-axis signal (correlation, modulation spectrum, DUET histogram) at a
+chosen time, and trajectories as lines. Axes are labelled from the signal's own axes,
+colour bars with its unit.
 
 Signals at the input's sampling rate (the ear signals, filterbank, inner-hair-cell and
 adaptation outputs: whatever ``fs_hz`` equals ``audio_fs_hz`` for) are drawn as the AFE's
@@ -37,14 +39,17 @@ def new_figure(width: float, panels: int) -> Any:
     return Figure(figsize=(width, 2.4 * panels + 0.4), layout="constrained")
 
 
-def _channel_axis(ax: Any, cf_hz: np.ndarray, label: str = "centre frequency (Hz)") -> None:
-    """Channels bottom to top, ticks labelled with their centre frequencies (an ERB axis
-    for a gammatone filterbank)."""
-    n = len(cf_hz)
-    ticks = sorted({0, n // 4, n // 2, (3 * n) // 4, n - 1}) if n else []
+def _row_axis(ax: Any, axis: Optional[Mapping[str, Any]]) -> None:
+    """Rows bottom to top by index, ticks labelled from the plan's axis (every row up to
+    12, five of them beyond), titled with its label."""
+    if not axis:
+        return
+    labels = axis["ticks"]
+    n = len(labels)
+    ticks = list(range(n)) if n <= 12 else sorted({0, n // 4, n // 2, (3 * n) // 4, n - 1})
     ax.set_yticks(ticks)
-    ax.set_yticklabels([f"{cf_hz[k]:.0f}" for k in ticks])
-    ax.set_ylabel(label)
+    ax.set_yticklabels([labels[k] for k in ticks], fontsize=7)
+    ax.set_ylabel(axis["label"])
 
 
 def envelope(values: np.ndarray, columns: int) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -75,20 +80,14 @@ def _zigzag(t: np.ndarray, starts: np.ndarray, lo: np.ndarray, hi: np.ndarray) -
     return x, y
 
 
-def _is_waveform(s: Signal) -> bool:
-    """Whether the signal's description makes it a waveform: values at the input's
-    sampling rate, drawn on a linear or an amplitude-in-dB scale."""
-    return (s.kind in ("time-domain", "time-frequency") and s.fs_hz == s.audio_fs_hz
-            and s.display["draw"] in ("linear", "amplitude-decibels"))
-
-
 def _waveforms(fig: Any, ax: Any, s: Signal, values: np.ndarray, t: np.ndarray, waveforms: bool,
                zoom: float) -> None:
     """An audio-rate signal reduced to the pixel columns: a trace (one per channel,
     stacked) or, without ``waveforms``, an image of the largest magnitude per column."""
+    plan = s.plan
     starts, lo, hi = envelope(values, _pixel_columns(ax))
     if len(values) == 0:
-        _channel_axis(ax, s.cf_hz)
+        _row_axis(ax, plan["rows"])
         return
     if values.ndim == 1:
         ax.plot(*_zigzag(t, starts, lo, hi), lw=0.5, color="k")
@@ -111,17 +110,42 @@ def _waveforms(fig: Any, ax: Any, s: Signal, values: np.ndarray, t: np.ndarray, 
         lines = list(segments.transpose(1, 0, 2))
         ax.add_collection(LineCollection(lines, colors="k", linewidths=0.5))
         ax.set_ylim(-0.5 - 0.5 * zoom, values.shape[1] - 0.5 + 0.5 * zoom)
+        _row_axis(ax, plan["rows"])
     else:
         largest = np.fmax(np.abs(lo), np.abs(hi))
-        extent = [float(t[0]), float(t[-1] + 1.0 / s.fs_hz), -0.5, values.shape[1] - 0.5]
-        range_db = s.display.get("range_db")
-        if range_db is None:
-            _image(fig, ax, largest.T, extent, "largest |value|" + (f" ({s.unit})" if s.unit else ""))
-        else:
-            db = 20 * np.log10(np.maximum(largest, 1e-300))
-            peak = float(np.max(db))
-            _image(fig, ax, db.T, extent, "dB (largest |value|)", vmin=peak - range_db, vmax=peak)
-    _channel_axis(ax, s.cf_hz)
+        _over_time(fig, ax, plan, largest, [float(t[0]), float(t[-1] + 1.0 / s.fs_hz)], peaks=True)
+
+
+def _over_time(fig: Any, ax: Any, plan: Mapping[str, Any], values: np.ndarray, span: Sequence[float],
+               peaks: bool = False) -> None:
+    """``values`` (``[time, row]``) as an image over ``span`` (s) on the plan's scale;
+    ``peaks``: each column holds the largest magnitude of the samples it stands for."""
+    scale = plan["scale"]
+    extent = [span[0], span[1], -0.5, values.shape[1] - 0.5]
+    label = plan["values"] or "value"
+    cmap = "magma" if plan["complex"] else None
+    if plan["complex"]:
+        values = np.abs(values)
+    kind = scale["scale"]
+    if kind in ("power-decibels", "amplitude-decibels"):
+        db = 10 * np.log10(np.maximum(values, 1e-30)) if kind == "power-decibels" \
+            else 20 * np.log10(np.maximum(np.abs(values), 1e-300))
+        peak = float(np.max(db))
+        unit = "dB (largest |value|)" if peaks and kind == "amplitude-decibels" else "dB"
+        _image(fig, ax, db.T, extent, unit, vmin=peak - scale["range_db"], vmax=peak, cmap=cmap)
+    elif kind == "mask":
+        _image(fig, ax, values.T, extent, label, vmin=0, vmax=1, cmap="gray_r")
+    elif kind == "z-scores":
+        # each row on its own scale: z-scores over time
+        mean = np.nanmean(values, axis=0)
+        std = np.nanstd(values, axis=0)
+        z = (values - mean) / np.where(std > 0, std, 1.0)
+        _image(fig, ax, z.T, extent, label, signed=True)
+    else:
+        unit = f"largest |value| ({plan['values']})" if peaks and plan["values"] else \
+            "largest |value|" if peaks else label
+        _image(fig, ax, values.T, extent, unit, signed=kind == "signed")
+    _row_axis(ax, plan["rows"])
 
 
 def _image(fig: Any, ax: Any, data: np.ndarray, extent: Sequence[float], unit: str,
@@ -154,75 +178,33 @@ def _row_at(s: Signal, at: Optional[float]) -> Tuple[int, float]:
 
 def draw(fig: Any, ax: Any, s: Signal, at: Optional[float] = None, waveforms: bool = True,
          wavPlotZoom: float = WAV_PLOT_ZOOM) -> None:
-    """Draws signal ``s`` on the axes ``ax`` of figure ``fig`` (see :func:`plot`)."""
+    """Draws signal ``s`` on the axes ``ax`` of figure ``fig`` as its plan says (see
+    :func:`plot` and :attr:`afe.Signal.plan`)."""
     values = np.asarray(s)
     t = s.t_s
-    unit = s.unit
-    # how to draw it is the signal's own description, never its name
-    draw = s.display["draw"]
+    plan = s.plan
+    panel = plan["panel"]
     span = [float(t[0]) if len(t) else 0.0, float(t[-1] + 1.0 / s.fs_hz) if len(t) else 1.0]
     title = s.key
-    if (_is_waveform(s) and values.ndim == 2) or (s.kind == "time-domain" and values.ndim == 1):
+    if panel == "waveforms":
         _waveforms(fig, ax, s, values, t, waveforms, wavPlotZoom)
-    elif s.kind in ("time-domain", "time-frequency", "binary-mask") and values.ndim == 2:
-        extent = [span[0], span[1], -0.5, values.shape[1] - 0.5]
-        if draw == "power-decibels":
-            db = 10 * np.log10(np.maximum(values, 1e-30))
-            peak = float(np.max(db))
-            _image(fig, ax, db.T, extent, "dB", vmin=peak - s.display["range_db"], vmax=peak)
-        elif s.kind == "binary-mask":
-            _image(fig, ax, values.T, extent, "mask", vmin=0, vmax=1, cmap="gray_r")
-        else:
-            _image(fig, ax, values.T, extent, unit or "value", signed=draw == "signed")
-        _channel_axis(ax, s.cf_hz)
-    elif s.kind == "spectrum":
-        db = 20 * np.log10(np.maximum(np.abs(values), 1e-12))
-        peak = float(np.max(db))
-        _image(fig, ax, db.T, [span[0], span[1], float(s.cf_hz[0]), float(s.cf_hz[-1])],
-               "dB", vmin=peak - s.display.get("range_db", 80.0), vmax=peak, cmap="magma")
-        ax.set_ylabel("frequency (Hz)")
-    elif s.kind == "feature" and draw == "trajectory":
-        ax.plot(t, values[:, 0], ".", ms=2)
-        ax.set_ylabel(f"{s.features[0]} ({unit})" if unit else s.features[0])
-    elif s.kind == "feature":
-        # each feature on its own scale: z-scores over time
-        mean = np.nanmean(values, axis=0)
-        std = np.nanstd(values, axis=0)
-        z = (values - mean) / np.where(std > 0, std, 1.0)
-        _image(fig, ax, z.T, [span[0], span[1], -0.5, values.shape[1] - 0.5], "z-score", signed=True)
-        if values.shape[1] <= 20:
-            ax.set_yticks(range(values.shape[1]))
-            ax.set_yticklabels(s.features, fontsize=7)
-        else:
-            ax.set_ylabel(f"feature (of {values.shape[1]})")
-    elif s.kind in ("correlation", "modulation"):
+    elif panel == "over-time":
+        _over_time(fig, ax, plan, values.reshape(len(values), -1), span)
+    elif panel == "line":
+        ax.plot(t, values.reshape(len(values), -1)[:, 0], ".", ms=2)
+        ax.set_ylabel(plan["values"] or s.key)
+    elif panel == "frame":
         k, when = _row_at(s, at)
-        frame = values[k]
-        if s.kind == "correlation":
-            lags_ms = 1e3 * s.lags_s
-            _image(fig, ax, frame, [lags_ms[0], lags_ms[-1], -0.5, frame.shape[0] - 0.5], unit or "value",
-                   signed=bool(np.min(frame) < 0))
-            ax.set_xlabel("lag (ms)")
-        else:
-            mod = s.mod_cf_hz
-            _image(fig, ax, frame, [-0.5, len(mod) - 0.5, -0.5, frame.shape[0] - 0.5], unit or "value")
-            ticks = sorted({0, len(mod) // 2, len(mod) - 1})
-            ax.set_xticks(ticks)
-            ax.set_xticklabels([f"{mod[j]:.0f}" for j in ticks])
-            ax.set_xlabel("modulation frequency (Hz)")
-        _channel_axis(ax, s.cf_hz)
-        title = f"{s.key} at {when:.3f} s"
-    elif s.kind == "duet-histogram":
-        k, when = _row_at(s, at)
-        alpha = np.asarray(s.meta["alpha"])
-        delta = np.asarray(s.meta["delta_samples"])
-        _image(fig, ax, values[k], [delta[0], delta[-1], alpha[0], alpha[-1]], "weight", cmap="magma")
-        ax.set_xlabel("delay (samples)")
-        ax.set_ylabel("attenuation α")
+        frame = values[k].reshape(len(plan["rows"]["values"]), -1)
+        across = plan["across"]["values"]
+        _image(fig, ax, frame, [across[0], across[-1], -0.5, frame.shape[0] - 0.5], plan["values"] or "value",
+               signed=bool(np.nanmin(frame) < 0))
+        ax.set_xlabel(plan["across"]["label"])
+        _row_axis(ax, plan["rows"])
         title = f"{s.key} at {when:.3f} s"
     else:
-        raise ValueError(f"{s.key}: no drawing for kind {s.kind!r} of shape {values.shape}")
-    if s.kind not in ("correlation", "modulation", "duet-histogram"):
+        raise ValueError(f"{s.key}: no drawing for a {panel!r} panel")
+    if panel != "frame":
         ax.set_xlim(span)
         ax.set_xlabel("time (s)")
     ax.set_title(title, fontsize=10, loc="left")

@@ -132,6 +132,21 @@ class Signal(np.ndarray):
         return self._meta["display"]
 
     @property
+    def frame_axes(self) -> List[Dict[str, Any]]:
+        """The axes of a frame after time, outermost first: each a dict of ``name``,
+        ``quantity``, ``unit`` and ``values`` (or ``labels``, for feature names)."""
+        return list(self._meta["frame_axes"])
+
+    @property
+    def plan(self) -> Dict[str, Any]:
+        """How the signal is drawn, computed in Rust from its description: ``panel``
+        (``waveforms``, ``line``, ``over-time`` or ``frame``), ``scale`` (``{"scale":
+        "power-decibels", "range_db": 60.0}``, ...), ``rows`` and ``across`` (each a
+        ``label``, ``values`` and ``ticks``, or ``None``), the ``values`` label, ``peaks``
+        and ``complex``. :func:`afe.plot.draw` follows it."""
+        return self._meta["plan"]
+
+    @property
     def window_s(self) -> Optional[float]:
         """Frame window length in s as set (``rm_wSizeSec``, ...); ``None`` unless framed."""
         return self._meta["window_s"]

@@ -23,7 +23,7 @@ pub struct Described {
     /// The unit of the values.
     pub unit: &'static str,
     /// The axes of a frame after time.
-    pub axes: &'static [&'static str],
+    pub axes: Vec<&'static str>,
     /// Frames per second, Hz.
     pub sample_rate: f64,
     /// Centre frequencies, Hz.

@@ -440,7 +440,7 @@ fn adaptation(fs: f64, left: &[f64], right: &[f64]) -> Result<(Block, Block, Vec
     let handle = mgr.add_request("adaptation", &adaptation_params())?;
     mgr.process_signal(&[left, right])?;
     let signals: Vec<_> = (mgr.request_signals(handle)?.iter())
-        .map(|s| (s.channel, s.source, s.info.cf_hz.clone()))
+        .map(|s| (s.channel, s.source, s.info.cf_hz().to_vec()))
         .collect();
     // each ear's whole output moves out of the manager rather than being copied
     let mut ear = |channel| {

@@ -54,8 +54,8 @@ impl Manager {
     /// mgr.process_signal(&[&[0.1; 800], &[0.2; 800]])?;
     /// let cc = &mgr.request_signals(h)?[0];
     /// assert_eq!(cc.key(), "crosscorrelation_mono");
-    /// assert_eq!(cc.info.lags_s.len(), 37); // ±ceil(1.1 ms · 16 kHz) lags
-    /// assert_eq!(cc.info.cf_hz.len(), 31);
+    /// assert_eq!(cc.info.lags_s().len(), 37); // ±ceil(1.1 ms · 16 kHz) lags
+    /// assert_eq!(cc.info.cf_hz().len(), 31);
     /// assert_eq!(cc.new.width(), 31 * 37); // [frame][channel][lag]
     /// # Ok::<(), afe_core::Error>(())
     /// ```
