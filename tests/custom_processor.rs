@@ -1,7 +1,8 @@
 //! A representation added from outside the workspace's crates: a processor defined in
-//! this file (its own module) and one registration. Its metadata (its NaN rule among
-//! them), its figure and its live-view panel come from its own description, with nothing
-//! in the facade taught about it.
+//! this file (its own module) and one registration. Its metadata (its NaN rule and its
+//! axis of a kind no crate knows among them), its figure and its live-view panel (drawn
+//! by headless Chromium) come from its own description, with nothing in the facade, the
+//! plots or the page taught about it.
 #![cfg(all(feature = "plot", feature = "view"))]
 
 use std::time::Duration;
@@ -17,9 +18,10 @@ use tungstenite::Message;
 
 /// The ratemap of each frame in dB about the frame's mean over channels: a signed cue.
 mod centred {
+    use afe_core::erb::freq2erb;
     use afe_core::{
-        request_def, Block, Built, Descriptor, DrawAs, Ears, NoParams, Processor, RequestDef,
-        Result, SignalInfo,
+        request_def, Axis, Block, Built, Descriptor, DrawAs, Ears, NoParams, OtherAxis, Processor,
+        RequestDef, Result, SignalInfo,
     };
 
     /// Each frame's channels in dB, minus their mean.
@@ -51,17 +53,30 @@ mod centred {
         const OUTPUT_UNIT: &'static str = "dB";
 
         fn build(_: &NoParams, inputs: &[SignalInfo]) -> Result<Built> {
-            let info = inputs[0]
-                .clone()
-                .with_unit(Self::OUTPUT_UNIT)
-                .drawn_as(DrawAs::Signed)
-                .nan_where(NAN_WHERE);
+            // its channels along an axis of its own: the ERB-number scale
+            let band = Axis::Other(OtherAxis {
+                name: AXIS_NAME,
+                quantity: AXIS_QUANTITY,
+                unit: AXIS_UNIT,
+                values: inputs[0].cf_hz().iter().map(|&f| freq2erb(f)).collect(),
+            });
+            let info = SignalInfo {
+                axes: vec![band],
+                ..inputs[0].clone()
+            }
+            .with_unit(Self::OUTPUT_UNIT)
+            .drawn_as(DrawAs::Signed)
+            .nan_where(NAN_WHERE);
             Ok(Built::new(Centred, vec![info]))
         }
     }
 
     /// Where it is NaN: a rule of its own, which no code outside this module knows.
     pub const NAN_WHERE: &str = "never, unless a test's processor says so";
+    /// Its axis, of a kind no crate has: name, quantity and unit.
+    pub const AXIS_NAME: &str = "erb_number";
+    pub const AXIS_QUANTITY: &str = "ERB-rate";
+    pub const AXIS_UNIT: &str = "Cam";
 
     /// Its registry entry: the one line a new representation adds.
     pub static REQUEST: RequestDef = request_def::<Centred>();
@@ -104,6 +119,25 @@ fn a_processor_defined_here_gets_metadata_a_figure_and_a_panel() {
     assert_eq!(d["nan_where"], centred::NAN_WHERE);
     assert_eq!(d["processors"][0], "testCentred");
     assert_eq!(s.data.width(), 8);
+    // its axis: named, with its values, and the plan that draws it
+    assert_eq!(d["axes"], json!(["time_or_frame", centred::AXIS_NAME]));
+    let axis = &d["frame_axes"][0];
+    assert_eq!(
+        (&axis["name"], &axis["unit"]),
+        (&json!(centred::AXIS_NAME), &json!(centred::AXIS_UNIT))
+    );
+    let erb = axis["values"].as_array().expect("values");
+    assert_eq!(erb.len(), 8);
+    assert!(
+        erb.windows(2).all(|w| w[0].as_f64() < w[1].as_f64()),
+        "{erb:?}"
+    );
+    let plan = &d["plan"];
+    assert_eq!(
+        (&plan["panel"], &plan["scale"]["scale"]),
+        (&json!("over-time"), &json!("signed"))
+    );
+    assert_eq!(plan["rows"]["label"], AXIS_LABEL);
 
     // its figure: a PNG with one panel per ear
     let png = render(&rec, Format::Png, &Layout::default()).expect("drawn");
@@ -115,6 +149,12 @@ fn a_processor_defined_here_gets_metadata_a_figure_and_a_panel() {
         .clone();
     assert_eq!(header.width, Layout::default().width);
     assert!(header.height >= 2 * Layout::default().panel_height);
+    let svg = render(&rec, Format::Svg, &Layout::default()).expect("drawn");
+    let svg = String::from_utf8(svg).expect("SVG text");
+    assert!(
+        svg.contains(AXIS_LABEL),
+        "the figure does not title the axis"
+    );
 
     // its live-view panel: listed in the page's catalogue, described, and streamed
     let (view, tap) = View::start(
@@ -132,13 +172,18 @@ fn a_processor_defined_here_gets_metadata_a_figure_and_a_panel() {
     let stream_job = StreamJob {
         requests: vec!["testCentred".into()],
         params,
-        duration_s: Some(0.5),
+        // long enough for Chromium to start and draw frames as they come
+        duration_s: Some(3.0),
         pacing: Pacing::Realtime,
         registry,
         ..StreamJob::default()
     };
     let synth = Synth::parse("fs=16000,tone=500,seed=1").expect("synth");
     let streamer = std::thread::spawn(move || run(synth, &stream_job, tap).expect("stream"));
+    let page = std::thread::spawn({
+        let url = format!("http://{}/", view.addr());
+        move || chromium_dom(&url)
+    });
     let mut layout: Option<Value> = None;
     let mut batches = 0;
     while let Ok(msg) = ws.read() {
@@ -157,6 +202,7 @@ fn a_processor_defined_here_gets_metadata_a_figure_and_a_panel() {
         }
     }
     streamer.join().expect("stream thread");
+    let dom = page.join().expect("page thread");
     drop(view);
     let layout = layout.expect("a layout");
     let listed = layout["catalogue"].as_array().expect("catalogue");
@@ -164,5 +210,62 @@ fn a_processor_defined_here_gets_metadata_a_figure_and_a_panel() {
     let panel = &layout["signals"]["testCentred_right"];
     assert_eq!(panel["display"], json!({"draw": "signed"}), "{layout}");
     assert_eq!(panel["unit"], "dB");
+    assert_eq!(panel["plan"]["rows"]["label"], AXIS_LABEL);
     assert!(batches > 0, "no frames reached the page");
+
+    // the page as headless Chromium draws it: the panel, its axis and its frames
+    let Some(dom) = dom else { return };
+    let at = dom
+        .find("id=\"panel-testCentred_left\"")
+        .expect("no panel for the test's signal in the page");
+    let panel = &dom[at..dom[at..].find("</canvas>").map_or(dom.len(), |e| at + e)];
+    assert!(
+        panel.contains(AXIS_LABEL),
+        "the panel's axis is not titled: {panel}"
+    );
+    assert!(
+        panel.contains(" Cam</span>"),
+        "no tick of the axis: {panel}"
+    );
+    let drawn = panel
+        .split("data-drawn=\"")
+        .nth(1)
+        .and_then(|r| r.split('"').next())
+        .and_then(|n| n.parse::<usize>().ok());
+    assert!(
+        drawn.is_some_and(|n| n > 0),
+        "the panel drew no frame: {panel}"
+    );
+}
+
+/// The axis title the plan gives the test's axis.
+const AXIS_LABEL: &str = "ERB-rate (Cam)";
+
+/// The DOM of the live page at `url` after headless Chromium ran it for 3 s of its time;
+/// `None` where no Chromium is installed, outside CI (which installs it).
+fn chromium_dom(url: &str) -> Option<String> {
+    let run = |binary: &str| {
+        std::process::Command::new(binary)
+            .args([
+                "--headless",
+                "--no-sandbox",
+                "--disable-gpu",
+                "--virtual-time-budget=3000",
+                "--dump-dom",
+                url,
+            ])
+            .output()
+            .ok()
+    };
+    let Some(out) = run("chromium").or_else(|| run("chromium-browser")) else {
+        assert!(std::env::var_os("CI").is_none(), "CI installs chromium");
+        eprintln!("no chromium: the page is not rendered");
+        return None;
+    };
+    assert!(
+        out.status.success(),
+        "chromium: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    Some(String::from_utf8_lossy(&out.stdout).into_owned())
 }

@@ -178,6 +178,8 @@ class Panel {
 
   draw(values, rows) {
     if (rows === 0) return;
+    // frames drawn so far, on the panel's element (a test reads it from the DOM)
+    this.el.dataset.drawn = (+this.el.dataset.drawn || 0) + rows;
     this.rescale(values);
     const width = values.length / rows;
     if (this.mode === "frame") {
