@@ -33,6 +33,8 @@ pub enum ParamKind {
     Choices(&'static [&'static str]),
     /// A vector of finite numbers (a scalar is taken as a vector of one).
     Numbers,
+    /// A non-empty string that its processor reads (a head's name or file).
+    Text,
 }
 
 impl ParamKind {
@@ -46,6 +48,7 @@ impl ParamKind {
             ParamKind::Choice(c) => format!("one of {}", quoted(c)),
             ParamKind::Choices(c) => format!("one or a list of {}", quoted(c)),
             ParamKind::Numbers => "a number or an array of numbers".into(),
+            ParamKind::Text => "a non-empty string".into(),
         }
     }
 
@@ -55,7 +58,7 @@ impl ParamKind {
             ParamKind::Number => "number",
             ParamKind::Count | ParamKind::CountUpTo(_) => "integer",
             ParamKind::Flag => "flag",
-            ParamKind::Choice(_) => "string",
+            ParamKind::Choice(_) | ParamKind::Text => "string",
             ParamKind::Choices(_) => "strings",
             ParamKind::Numbers => "numbers",
         }
@@ -243,6 +246,10 @@ impl ParamSpec {
                     _ => Value::Array(vec![choice(value)?]),
                 }
             }
+            ParamKind::Text => match value.as_str() {
+                Some(s) if !s.trim().is_empty() => Value::from(s),
+                _ => return Err(bad()),
+            },
             ParamKind::Numbers => match value {
                 Value::Array(items) => Value::Array(
                     items

@@ -10,7 +10,7 @@ pub mod sphere;
 pub mod yaw;
 
 pub use head::Head;
-pub use locate::{locate, LocaliserParams, Located, Source};
+pub use locate::{locate, Localiser, LocaliserParams, Located, Source};
 pub use platform::Platform;
 pub use yaw::HeadYaw;
 

@@ -107,8 +107,8 @@ pub fn locate(
             t % left.len().max(1)
         )));
     }
-    let plan = Plan::new(head, fs_hz, params)?;
-    let (w, hop) = (plan.window.len(), plan.hop);
+    let mut localiser = Localiser::new(head, fs_hz, params)?;
+    let (w, hop) = (localiser.window.len(), localiser.hop);
     if left.len() < w {
         return Err(SpatialError::Invalid(format!(
             "{} samples are shorter than one {w}-sample frame ({} s)",
@@ -117,17 +117,16 @@ pub fn locate(
         )));
     }
     let n_frames = (left.len() - w) / hop + 1;
-    let mut scores = vec![0.0; n_frames * plan.azimuths.len()];
+    let mut scores = vec![0.0; n_frames * localiser.azimuths.len()];
     let mut energy = vec![0.0; n_frames];
-    let mut work = plan.work();
     for t in 0..n_frames {
         let at = t * hop;
-        let row = &mut scores[t * plan.azimuths.len()..(t + 1) * plan.azimuths.len()];
-        energy[t] = plan.frame(&left[at..at + w], &right[at..at + w], &mut work, row);
+        let row = &mut scores[t * localiser.azimuths.len()..(t + 1) * localiser.azimuths.len()];
+        energy[t] = localiser.score(&left[at..at + w], &right[at..at + w], row);
     }
     let loudest = energy.iter().fold(0.0f64, |m, &e| m.max(e));
     let floor = loudest * 10f64.powf(-params.activity_db / 10.0);
-    let na = plan.azimuths.len();
+    let na = localiser.azimuths.len();
     let mut mean_score = vec![0.0; na];
     let mut active_frames = 0usize;
     let mut world = vec![0.0; if yaw.is_some() { na } else { 0 }];
@@ -138,8 +137,8 @@ pub fn locate(
             let relative = &scores[t * na..(t + 1) * na];
             let row = match yaw {
                 Some(_) => {
-                    for (g, &az) in world.iter_mut().zip(&plan.azimuths) {
-                        *g = score_at(&plan.azimuths, relative, az - yaw_deg);
+                    for (g, &az) in world.iter_mut().zip(&localiser.azimuths) {
+                        *g = score_at(&localiser.azimuths, relative, az - yaw_deg);
                     }
                     &world[..]
                 }
@@ -154,7 +153,8 @@ pub fn locate(
             Frame {
                 t_s,
                 active,
-                azimuth_deg: (refine(&plan.azimuths, relative, best) + yaw_deg).rem_euclid(360.0),
+                azimuth_deg: (refine(&localiser.azimuths, relative, best) + yaw_deg)
+                    .rem_euclid(360.0),
                 yaw_deg,
             }
         })
@@ -164,38 +164,36 @@ pub fn locate(
             .iter_mut()
             .for_each(|m| *m /= active_frames as f64);
     }
-    let sources = peaks(&plan.azimuths, &mean_score, max_sources);
+    let sources = peaks(&localiser.azimuths, &mean_score, max_sources);
     Ok(Located {
-        azimuths_deg: plan.azimuths,
+        azimuths_deg: localiser.azimuths,
         sources,
         frames,
         mean_score,
     })
 }
 
-/// The designed localiser: window, transform, band and unit steering vectors.
-struct Plan {
+/// The designed localiser of one head at one rate: window, transform, band and unit
+/// steering vectors, with the scratch of a frame; it scores frame after frame without
+/// allocating ([`Localiser::score`]).
+pub struct Localiser {
     azimuths: Vec<f64>,
     window: Vec<f64>,
     hop: usize,
-    /// Points of the transform (the window zero-padded to a power of two).
-    n: usize,
     /// First bin of the band.
     first_bin: usize,
     /// Per azimuth, per bin of the band: V/|V|.
     steering: Vec<[Complex64; 2]>,
     bins: usize,
-}
-
-/// A frame's scratch: the transform with its input, and the two spectra (real and
-/// imaginary parts).
-struct Work {
     fft: RealFft,
+    /// The two ears' spectra, real and imaginary parts.
     spectra: [(Vec<f64>, Vec<f64>); 2],
 }
 
-impl Plan {
-    fn new(head: &Head, fs_hz: f64, p: &LocaliserParams) -> Result<Plan, SpatialError> {
+impl Localiser {
+    /// The localiser of `head` for ears at `fs_hz` with parameters `p` (each one out of
+    /// its range named).
+    pub fn new(head: &Head, fs_hz: f64, p: &LocaliserParams) -> Result<Localiser, SpatialError> {
         let bad = |what: &str| Err(SpatialError::Invalid(what.to_string()));
         if !(fs_hz.is_finite() && fs_hz >= 8000.0) {
             return bad("the sampling rate must be at least 8000 Hz");
@@ -241,39 +239,49 @@ impl Plan {
         let window = (0..w)
             .map(|k| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * k as f64 / w as f64).cos())
             .collect();
-        Ok(Plan {
+        let half = || (vec![0.0; n / 2 + 1], vec![0.0; n / 2 + 1]);
+        Ok(Localiser {
             azimuths,
             window,
             hop,
-            n,
             first_bin,
             steering,
             bins,
+            fft: RealFft::new(n),
+            spectra: [half(), half()],
         })
     }
 
-    fn work(&self) -> Work {
-        let half = || (vec![0.0; self.n / 2 + 1], vec![0.0; self.n / 2 + 1]);
-        Work {
-            fft: RealFft::new(self.n),
-            spectra: [half(), half()],
-        }
+    /// The azimuths scored, deg (0 = front, 90 = left).
+    pub fn azimuths_deg(&self) -> &[f64] {
+        &self.azimuths
     }
 
-    /// Scores one frame into `row` (per azimuth: the mean over the band's bins of the
-    /// share of the bin's energy along its steering vector); returns the band's energy.
-    fn frame(&self, left: &[f64], right: &[f64], work: &mut Work, row: &mut [f64]) -> f64 {
+    /// Samples in a frame.
+    pub fn frame_len(&self) -> usize {
+        self.window.len()
+    }
+
+    /// Samples between frames.
+    pub fn hop(&self) -> usize {
+        self.hop
+    }
+
+    /// Scores one frame of each ear (`frame_len` samples) into `row` (per azimuth: the
+    /// mean over the band's bins of the share of the bin's energy along its steering
+    /// vector, 0 to 1); returns the band's energy.
+    pub fn score(&mut self, left: &[f64], right: &[f64], row: &mut [f64]) -> f64 {
         let w = self.window.len();
-        for (x, (re, im)) in [left, right].into_iter().zip(&mut work.spectra) {
-            let time = work.fft.input();
+        for (x, (re, im)) in [left, right].into_iter().zip(&mut self.spectra) {
+            let time = self.fft.input();
             time[..w]
                 .iter_mut()
                 .zip(x.iter().zip(&self.window))
                 .for_each(|(t, (v, h))| *t = v * h);
             time[w..].fill(0.0);
-            work.fft.run(re, im);
+            self.fft.run(re, im);
         }
-        let [(lr, li), (rr, ri)] = &work.spectra;
+        let [(lr, li), (rr, ri)] = &self.spectra;
         let mut energy = 0.0;
         let mut used = 0usize;
         row.fill(0.0);

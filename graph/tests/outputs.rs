@@ -18,6 +18,7 @@ const WINDOW_PARAMETERS: &[&str] = &[
     "prec_wSizeSec",
     "stft_wSizeSec",
     "duet_wDUETSec",
+    "loc_wSizeSec",
 ];
 
 /// A graph of every request with its defaults, after one second of a 440 Hz tone on the
@@ -53,7 +54,7 @@ fn every_output_carries_its_requests_unit() {
         let expected = match s.name {
             "precedence_itd" => "s",
             "precedence_ild" => "dB",
-            "precedence_cc" => "",
+            "precedence_cc" | "localisation_activity" => "",
             name => {
                 assert_eq!(name, request);
                 find_request(name).expect("registered").output_unit

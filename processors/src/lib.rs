@@ -24,6 +24,7 @@ pub mod ic;
 pub mod ihc;
 pub mod ild;
 pub mod itd;
+pub mod localisation;
 pub mod middle_ear;
 pub mod moc;
 pub mod pitch;

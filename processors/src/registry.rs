@@ -9,8 +9,8 @@ use afe_core::{Error, RequestDef, Result};
 
 use crate::{
     adaptation, ams_features, autocorrelation, butterworth, crosscorrelation, duet, filterbank,
-    gabor, ic, ihc, ild, itd, moc, pitch, pre_proc, precedence, ratemap, spectral_features, stft,
-    transient, transient_map,
+    gabor, ic, ihc, ild, itd, localisation, moc, pitch, pre_proc, precedence, ratemap,
+    spectral_features, stft, transient, transient_map,
 };
 
 /// The requests this crate computes, in dependency order: one line per processor module.
@@ -38,6 +38,7 @@ static BUILT_IN: &[&RequestDef] = &[
     &gabor::REQUEST,
     &stft::REQUEST,
     &duet::REQUEST,
+    &localisation::REQUEST,
 ];
 
 /// Every request this build computes, in dependency order.
@@ -234,12 +235,13 @@ mod tests {
         }
     }
 
-    /// The AFE's 23 representations, each with its chunking contract (spec 00-overview
-    /// §11; `duet` buffers each ear from its own input, so it is invariant here) and the
-    /// ratemap read beside a map's strength when `trm_minValuedB` is set.
+    /// The AFE's 23 representations and the localisation, each with its chunking
+    /// contract (spec 00-overview §11; `duet` buffers each ear from its own input, so it
+    /// is invariant here) and the ratemap read beside a map's strength when
+    /// `trm_minValuedB` is set.
     #[test]
     fn entries_carry_each_requests_chunking_and_inputs() {
-        assert_eq!(requests().len(), 23);
+        assert_eq!(requests().len(), 24);
         let per_chunk = ["pitch", "onsetMap", "offsetMap", "gabor"];
         for r in requests() {
             let defaults = (r.defaults)();

@@ -82,3 +82,25 @@ def test_bad_input_is_named():
         afe.render(ears, FS, 30.0)
     with pytest.raises(ValueError, match="bad sphere parameter"):
         afe.render(noise(100), FS, 30.0, head="sphere:ears=500")
+
+def test_the_localisation_request_gives_a_posterior_over_azimuth_per_frame():
+    ears = afe.render(noise(int(FS)), FS, 52.5, head="sphere")
+    out = afe.process(ears, FS, "localisation")
+    post, act = out["localisation_mono"], out["localisation_activity_mono"]
+    assert post.axes == ["frame", "azimuth"] and post.hop_s == pytest.approx(0.02, abs=1e-4)
+    azimuths = np.asarray(post.frame_axes[0]["values"])
+    assert post.frame_axes[0]["unit"] == "deg" and azimuths.shape == (post.shape[1],)
+    np.testing.assert_allclose(post.sum(axis=1), 1.0, atol=1e-12)
+    # every frame after the first peaks within 2 degrees of the truth, folded
+    best = azimuths[np.argmax(post[1:], axis=1)]
+    assert max(abs(folded(b) - 52.5) for b in best) <= 2.0
+    assert act.features == ["level_db", "active"] and np.all(act[1:, 1] == 1.0)
+    assert post.plan["panel"] == "over-time" and post.plan["rows"]["label"] == "azimuth (deg)"
+    # the same as afe.locate's frames: one estimator, run in the graph
+    frames = afe.locate(ears, FS, head="sphere", sources=1)["azimuth_deg"]
+    assert len(frames) == len(post)
+
+
+def test_the_localisation_request_names_a_bad_head():
+    with pytest.raises(ValueError, match="loc_head.*unknown head 'dummy'"):
+        afe.process(np.zeros((4000, 2)), FS, "localisation", {"loc_head": "dummy"})

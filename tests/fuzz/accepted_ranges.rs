@@ -64,6 +64,7 @@ fn accepted_draw(rng: &mut Rng, spec: &afe_core::ParamSpec, default: Option<&Val
         ParamKind::Choices(choices) => json!((0..1 + rng.below(choices.len()))
             .map(|_| *rng.pick(choices))
             .collect::<Vec<_>>()),
+        ParamKind::Text => json!(*rng.pick(&["sphere", "sphere:radius=0.0875"])),
         ParamKind::Numbers => {
             let base = default_numbers(default);
             if base.is_empty() || rng.one_in(3) {

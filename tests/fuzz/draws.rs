@@ -130,6 +130,10 @@ fn value_for(rng: &mut Rng, kind: ParamKind, default: Option<&Value>) -> Value {
                 .map(|_| *rng.pick(choices))
                 .collect::<Vec<_>>()),
         },
+        ParamKind::Text => match rng.below(4) {
+            0 => random_json(rng, 0),
+            _ => json!(*rng.pick(&["sphere", "sphere:radius=0.09,ears=100", "", "dummy"])),
+        },
         ParamKind::Numbers => {
             let base = default_numbers(default);
             match rng.below(4) {

@@ -335,6 +335,7 @@ mod tests {
                 let bad = match spec.kind {
                     ParamKind::Choice(_) | ParamKind::Choices(_) => json!("no-such-choice"),
                     ParamKind::Flag => json!("maybe"),
+                    ParamKind::Text => json!(5),
                     _ => json!("many"),
                 };
                 let mut m = Manager::new(16000.0, 2).expect("valid");
