@@ -182,9 +182,12 @@ pub struct Localiser {
     hop: usize,
     /// First bin of the band.
     first_bin: usize,
-    /// Per azimuth, per bin of the band: V/|V|.
-    steering: Vec<[Complex64; 2]>,
+    /// The steering vectors v = V/|V| as four rows per bin of the band, each over the
+    /// azimuths: |v_L|², |v_R|², and the real and imaginary parts of conj(v_L)·v_R.
+    gains: Vec<f64>,
     bins: usize,
+    /// One frame's four values per bin that [`Localiser::gains`] weighs.
+    weights: Vec<f64>,
     fft: RealFft,
     /// The two ears' spectra, real and imaginary parts.
     spectra: [(Vec<f64>, Vec<f64>); 2],
@@ -227,12 +230,17 @@ impl Localiser {
         let bins = last_bin + 1 - first_bin;
         let freqs: Vec<f64> = (first_bin..=last_bin).map(|k| k as f64 * df).collect();
         let azimuths = head.azimuths_deg(p.step_deg);
-        let mut steering = Vec::with_capacity(azimuths.len() * bins);
-        for &az in &azimuths {
-            for [l, r] in head.transfer(az, &freqs) {
-                let norm = (l.norm_sqr() + r.norm_sqr()).sqrt();
-                let unit = if norm > 0.0 { 1.0 / norm } else { 0.0 };
-                steering.push([l * unit, r * unit]);
+        let na = azimuths.len();
+        let mut gains = vec![0.0; 4 * bins * na];
+        for (a, &az) in azimuths.iter().enumerate() {
+            for (b, [l, r]) in head.transfer(az, &freqs).into_iter().enumerate() {
+                let energy = l.norm_sqr() + r.norm_sqr();
+                let unit = if energy > 0.0 { 1.0 / energy } else { 0.0 };
+                let cross = l.conj() * r * unit;
+                let rows = [l.norm_sqr() * unit, r.norm_sqr() * unit, cross.re, cross.im];
+                for (k, g) in rows.into_iter().enumerate() {
+                    gains[(4 * b + k) * na + a] = g;
+                }
             }
         }
         // a periodic Hann window
@@ -245,8 +253,9 @@ impl Localiser {
             window,
             hop,
             first_bin,
-            steering,
+            gains,
             bins,
+            weights: vec![0.0; 4 * bins],
             fft: RealFft::new(n),
             spectra: [half(), half()],
         })
@@ -281,30 +290,54 @@ impl Localiser {
             time[w..].fill(0.0);
             self.fft.run(re, im);
         }
+        // |v^H x|² / |x|² = |v_L|²·|l|² + |v_R|²·|r|² + 2·Re(conj(v_L)·v_R · l·conj(r)),
+        // over |x|² = |l|² + |r|²: four products per bin and azimuth
         let [(lr, li), (rr, ri)] = &self.spectra;
         let mut energy = 0.0;
         let mut used = 0usize;
-        row.fill(0.0);
         for (b, k) in (self.first_bin..self.first_bin + self.bins).enumerate() {
             let (l, r) = (Complex64::new(lr[k], li[k]), Complex64::new(rr[k], ri[k]));
             let e = l.norm_sqr() + r.norm_sqr();
+            let w = &mut self.weights[4 * b..4 * b + 4];
             if e <= 0.0 {
+                w.fill(0.0);
                 continue;
             }
             energy += e;
             used += 1;
             let inv = 1.0 / e;
-            for (a, score) in row.iter_mut().enumerate() {
-                let [vl, vr] = self.steering[a * self.bins + b];
-                *score += (vl.conj() * l + vr.conj() * r).norm_sqr() * inv;
-            }
+            let cross = l * r.conj() * inv;
+            w.copy_from_slice(&[
+                l.norm_sqr() * inv,
+                r.norm_sqr() * inv,
+                2.0 * cross.re,
+                -2.0 * cross.im,
+            ]);
         }
+        project(row, &self.gains, &self.weights);
         if used > 0 {
             row.iter_mut().for_each(|s| *s /= used as f64);
         }
         energy
     }
 }
+
+afe_core::simd_kernel!(
+    fma,
+    /// `row[a] = Σ_k weights[k]·gains[k·A + a]` over the `A = row.len()` azimuths: one
+    /// pass over the gains, each row added across all azimuths (weights of 0 skipped).
+    fn project(row: &mut [f64], gains: &[f64], weights: &[f64]) {
+        row.fill(0.0);
+        for (g, &w) in gains.chunks_exact(row.len()).zip(weights) {
+            if w == 0.0 {
+                continue;
+            }
+            for (s, &v) in row.iter_mut().zip(g) {
+                *s = w.mul_add(v, *s);
+            }
+        }
+    }
+);
 
 fn argmax(v: &[f64]) -> usize {
     (0..v.len())
