@@ -10,11 +10,22 @@ pub mod sphere;
 pub mod yaw;
 
 pub use head::Head;
-pub use locate::{locate, Localiser, LocaliserParams, Located, Source};
+pub use locate::{locate, Localiser, LocaliserParams, Located, Scored, Source};
 pub use platform::Platform;
 pub use yaw::HeadYaw;
 
 use thiserror::Error;
+
+/// `azimuth_deg` brought into [0, 360): `rem_euclid` alone gives 360 for a tiny
+/// negative angle, which rounds up to it.
+pub fn wrap_deg(azimuth_deg: f64) -> f64 {
+    let a = azimuth_deg.rem_euclid(360.0);
+    if a >= 360.0 {
+        0.0
+    } else {
+        a
+    }
+}
 
 /// The shorter turn from `from_deg` to `to_deg`, deg in [−180, 180).
 pub(crate) fn turn_deg(from_deg: f64, to_deg: f64) -> f64 {
@@ -69,4 +80,14 @@ pub enum SpatialError {
     /// A platform descriptor that is not valid, or does not match the source.
     #[error("platform: {0}")]
     Platform(String),
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn azimuths_wrap_into_0_to_360() {
+        assert_eq!(super::wrap_deg(-1e-15), 0.0);
+        assert_eq!(super::wrap_deg(-90.0), 270.0);
+        assert_eq!(super::wrap_deg(720.5), 0.5);
+    }
 }

@@ -2,8 +2,9 @@
 //! frame and frequency bin, how much of the binaural spectrum lies along a direction's
 //! steering vector V = [H_L, H_R] (the energy of the projection V V^H / V^H V over the
 //! bin's energy, 1 for a single source from there in a free field), averaged over the
-//! bins of the band; per frame a normalised score over azimuth, and the sources as the
-//! peaks of its average over the active frames.
+//! bins of the band with each bin's onset weight (its rise in log energy from the previous
+//! frame, squared: where the direct sound leads its reflections); per frame a score over
+//! azimuth, and the sources as the peaks of its weighted average over the active frames.
 
 use afe_core::real_fft::RealFft;
 use num_complex::Complex64;
@@ -49,7 +50,8 @@ pub struct Source {
     /// Azimuth, deg in [0, 360) (0 = front, 90 = left): head-relative, or in the world
     /// when the head's yaw is given.
     pub azimuth_deg: f64,
-    /// Its peak's mean score over the active frames, 0 to 1.
+    /// Its peak's mean score over the active frames (each weighted by its onsets), 0 to
+    /// 1.
     pub salience: f64,
 }
 
@@ -75,8 +77,8 @@ pub struct Located {
     pub sources: Vec<Source>,
     /// Every frame.
     pub frames: Vec<Frame>,
-    /// The mean score over the active frames, per azimuth of the grid (in the world
-    /// when the head's yaw is given).
+    /// The mean score over the active frames (each weighted by its onsets), per azimuth
+    /// of the grid (in the world when the head's yaw is given).
     pub mean_score: Vec<f64>,
 }
 
@@ -118,17 +120,17 @@ pub fn locate(
     }
     let n_frames = (left.len() - w) / hop + 1;
     let mut scores = vec![0.0; n_frames * localiser.azimuths.len()];
-    let mut energy = vec![0.0; n_frames];
+    let mut scored = Vec::with_capacity(n_frames);
     for t in 0..n_frames {
         let at = t * hop;
         let row = &mut scores[t * localiser.azimuths.len()..(t + 1) * localiser.azimuths.len()];
-        energy[t] = localiser.score(&left[at..at + w], &right[at..at + w], row);
+        scored.push(localiser.score(&left[at..at + w], &right[at..at + w], row));
     }
-    let loudest = energy.iter().fold(0.0f64, |m, &e| m.max(e));
+    let loudest = scored.iter().fold(0.0f64, |m, s| m.max(s.energy));
     let floor = loudest * 10f64.powf(-params.activity_db / 10.0);
     let na = localiser.azimuths.len();
     let mut mean_score = vec![0.0; na];
-    let mut active_frames = 0usize;
+    let mut active_weight = 0.0;
     let mut world = vec![0.0; if yaw.is_some() { na } else { 0 }];
     let frames: Vec<Frame> = (0..n_frames)
         .map(|t| {
@@ -144,25 +146,26 @@ pub fn locate(
                 }
                 None => relative,
             };
-            let active = loudest > 0.0 && energy[t] >= floor;
+            let Scored { energy, weight } = scored[t];
+            let active = loudest > 0.0 && energy >= floor;
             if active {
-                active_frames += 1;
-                mean_score.iter_mut().zip(row).for_each(|(m, s)| *m += s);
+                active_weight += weight;
+                mean_score
+                    .iter_mut()
+                    .zip(row)
+                    .for_each(|(m, s)| *m += weight * s);
             }
             let best = argmax(relative);
             Frame {
                 t_s,
                 active,
-                azimuth_deg: (refine(&localiser.azimuths, relative, best) + yaw_deg)
-                    .rem_euclid(360.0),
+                azimuth_deg: crate::wrap_deg(refine(&localiser.azimuths, relative, best) + yaw_deg),
                 yaw_deg,
             }
         })
         .collect();
-    if active_frames > 0 {
-        mean_score
-            .iter_mut()
-            .for_each(|m| *m /= active_frames as f64);
+    if active_weight > 0.0 {
+        mean_score.iter_mut().for_each(|m| *m /= active_weight);
     }
     let sources = peaks(&localiser.azimuths, &mean_score, max_sources);
     Ok(Located {
@@ -188,6 +191,10 @@ pub struct Localiser {
     bins: usize,
     /// One frame's four values per bin that [`Localiser::gains`] weighs.
     weights: Vec<f64>,
+    /// The previous frame's log energy per bin of the band.
+    previous: Vec<f64>,
+    /// Whether a frame was scored since the start or [`Localiser::reset`].
+    primed: bool,
     fft: RealFft,
     /// The two ears' spectra, real and imaginary parts.
     spectra: [(Vec<f64>, Vec<f64>); 2],
@@ -256,6 +263,8 @@ impl Localiser {
             gains,
             bins,
             weights: vec![0.0; 4 * bins],
+            previous: vec![0.0; bins],
+            primed: false,
             fft: RealFft::new(n),
             spectra: [half(), half()],
         })
@@ -276,10 +285,16 @@ impl Localiser {
         self.hop
     }
 
-    /// Scores one frame of each ear (`frame_len` samples) into `row` (per azimuth: the
-    /// mean over the band's bins of the share of the bin's energy along its steering
-    /// vector, 0 to 1); returns the band's energy.
-    pub fn score(&mut self, left: &[f64], right: &[f64], row: &mut [f64]) -> f64 {
+    /// Forgets the previous frame: the next one is scored as the first.
+    pub fn reset(&mut self) {
+        self.primed = false;
+    }
+
+    /// Scores one frame of each ear (`frame_len` samples) into `row`: per azimuth, the
+    /// share of each bin's energy along its steering vector (0 to 1), averaged over the
+    /// band's bins with each bin's onset weight (see [`ONSET_FLOOR`]); returns the band's
+    /// energy and the frame's weight (the sum of its bins').
+    pub fn score(&mut self, left: &[f64], right: &[f64], row: &mut [f64]) -> Scored {
         let w = self.window.len();
         for (x, (re, im)) in [left, right].into_iter().zip(&mut self.spectra) {
             let time = self.fft.input();
@@ -293,19 +308,26 @@ impl Localiser {
         // |v^H x|² / |x|² = |v_L|²·|l|² + |v_R|²·|r|² + 2·Re(conj(v_L)·v_R · l·conj(r)),
         // over |x|² = |l|² + |r|²: four products per bin and azimuth
         let [(lr, li), (rr, ri)] = &self.spectra;
-        let mut energy = 0.0;
-        let mut used = 0usize;
+        let (mut energy, mut weight) = (0.0, 0.0);
         for (b, k) in (self.first_bin..self.first_bin + self.bins).enumerate() {
             let (l, r) = (Complex64::new(lr[k], li[k]), Complex64::new(rr[k], ri[k]));
             let e = l.norm_sqr() + r.norm_sqr();
+            let level = (e + ENERGY_FLOOR).ln();
+            let rise = if self.primed {
+                (level - self.previous[b]).max(0.0)
+            } else {
+                0.0
+            };
+            self.previous[b] = level;
             let w = &mut self.weights[4 * b..4 * b + 4];
             if e <= 0.0 {
                 w.fill(0.0);
                 continue;
             }
             energy += e;
-            used += 1;
-            let inv = 1.0 / e;
+            let onset = rise * rise + ONSET_FLOOR;
+            weight += onset;
+            let inv = onset / e;
             let cross = l * r.conj() * inv;
             w.copy_from_slice(&[
                 l.norm_sqr() * inv,
@@ -314,13 +336,35 @@ impl Localiser {
                 -2.0 * cross.im,
             ]);
         }
+        self.primed = true;
         project(row, &self.gains, &self.weights);
-        if used > 0 {
-            row.iter_mut().for_each(|s| *s /= used as f64);
+        if weight > 0.0 {
+            row.iter_mut().for_each(|s| *s /= weight);
         }
-        energy
+        Scored { energy, weight }
     }
 }
+
+/// What [`Localiser::score`] tells of a frame besides its scores.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Scored {
+    /// The band's energy (both ears).
+    pub energy: f64,
+    /// The sum of the bins' onset weights: how much the frame's scores count beside
+    /// other frames'.
+    pub weight: f64,
+}
+
+/// Added to a bin's energy before its logarithm, so that a silent bin has a level.
+const ENERGY_FLOOR: f64 = 1e-30;
+
+/// A bin's weight is the square of its rise in log energy from the previous frame, plus
+/// this: onsets, where the direct sound leads its reflections (the precedence effect),
+/// vote for a direction, while a frame without one still has its own best direction.
+/// Measured (tools/eval_localisation.py): in rooms at T60 0.6 and 0.9 s on KEMAR, the
+/// plain mean of the shares put 40 % of the talkers within 5 degrees (folded), the
+/// onset weights all of them.
+pub const ONSET_FLOOR: f64 = 1e-6;
 
 afe_core::simd_kernel!(
     fma,
@@ -366,7 +410,7 @@ fn refine(azimuths: &[f64], scores: &[f64], k: usize) -> f64 {
         (k + n - 1) % n
     };
     let step = crate::turn_deg(azimuths[k], azimuths[next]);
-    (azimuths[k] + shift.abs() * step).rem_euclid(360.0)
+    crate::wrap_deg(azimuths[k] + shift.abs() * step)
 }
 
 /// Salience, as a share of the first source's, that another source needs to be reported

@@ -175,7 +175,10 @@ impl Processor for Localisation {
                     *e = x[0];
                 }
             }
-            let energy = self.localiser.score(&self.ears[0], &self.ears[1], row);
+            let energy = self
+                .localiser
+                .score(&self.ears[0], &self.ears[1], row)
+                .energy;
             let total: f64 = row.iter().sum();
             if total > 0.0 {
                 row.iter_mut().for_each(|s| *s /= total);
@@ -196,6 +199,7 @@ impl Processor for Localisation {
 
     fn reset(&mut self) {
         self.frames.reset();
+        self.localiser.reset();
         self.loudest = 0.0;
     }
 }
