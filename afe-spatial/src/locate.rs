@@ -8,26 +8,34 @@
 
 use afe_core::real_fft::RealFft;
 use num_complex::Complex64;
+use serde::{Deserialize, Serialize};
 
 use crate::head::Head;
 use crate::yaw::{score_at, HeadYaw};
 use crate::SpatialError;
 
-/// The localiser's parameters; messages name them in the AFE's style (`loc_*`).
-#[derive(Debug, Clone, PartialEq)]
+/// The localiser's parameters, (de)serialised under their AFE-style names (`loc_*`),
+/// which its messages use too.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct LocaliserParams {
     /// Frame length, s (`loc_wSizeSec`).
+    #[serde(rename = "loc_wSizeSec")]
     pub w_size_sec: f64,
     /// Hop between frames, s (`loc_hSizeSec`).
+    #[serde(rename = "loc_hSizeSec")]
     pub h_size_sec: f64,
     /// Lowest frequency used, Hz (`loc_fLowHz`).
+    #[serde(rename = "loc_fLowHz")]
     pub f_low_hz: f64,
     /// Highest frequency used, Hz (`loc_fHighHz`): the pinnae's cues lie above 5 kHz.
+    #[serde(rename = "loc_fHighHz")]
     pub f_high_hz: f64,
     /// Azimuth step of the sphere's grid, deg (`loc_stepDeg`; a measured head has its own).
+    #[serde(rename = "loc_stepDeg")]
     pub step_deg: f64,
     /// Frames quieter than the loudest by more than this are inactive, dB
-    /// (`loc_activityDb`).
+    /// (`loc_activityDb`; the request's: than the loudest so far).
+    #[serde(rename = "loc_activityDb")]
     pub activity_db: f64,
 }
 

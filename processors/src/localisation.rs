@@ -19,46 +19,25 @@ use serde::{Deserialize, Serialize};
 
 use crate::framed::EarFrames;
 
-/// Parameters of the localisation, AFE-style names under the `loc_` prefix.
+/// Parameters of the localisation, AFE-style names under the `loc_` prefix: the head,
+/// and the localiser's own (frame, hop, band, grid step, activity).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct LocalisationParams {
     /// The head that hears (`loc_head`): `sphere[:radius=M,ears=DEG,distance=M]`, `kemar`
     /// (the MIT KEMAR set from Debian's libmysofa1) or a SimpleFreeFieldHRIR `.sofa` file.
     #[serde(rename = "loc_head")]
     pub head: String,
-    /// Frame length, s (`loc_wSizeSec`).
-    #[serde(rename = "loc_wSizeSec")]
-    pub w_size_sec: f64,
-    /// Hop between frames, s (`loc_hSizeSec`).
-    #[serde(rename = "loc_hSizeSec")]
-    pub h_size_sec: f64,
-    /// Lowest frequency used, Hz (`loc_fLowHz`).
-    #[serde(rename = "loc_fLowHz")]
-    pub f_low_hz: f64,
-    /// Highest frequency used, Hz (`loc_fHighHz`).
-    #[serde(rename = "loc_fHighHz")]
-    pub f_high_hz: f64,
-    /// Azimuth step of a sphere's grid, deg (`loc_stepDeg`; a measured head has its own).
-    #[serde(rename = "loc_stepDeg")]
-    pub step_deg: f64,
-    /// Frames quieter than the loudest so far by more than this are inactive, dB
-    /// (`loc_activityDb`).
-    #[serde(rename = "loc_activityDb")]
-    pub activity_db: f64,
+    /// `loc_wSizeSec`, `loc_hSizeSec`, `loc_fLowHz`, `loc_fHighHz`, `loc_stepDeg` and
+    /// `loc_activityDb`.
+    #[serde(flatten)]
+    pub localiser: LocaliserParams,
 }
 
 impl Default for LocalisationParams {
     fn default() -> Self {
-        let p = LocaliserParams::default();
         LocalisationParams {
             head: "sphere".to_string(),
-            w_size_sec: p.w_size_sec,
-            h_size_sec: p.h_size_sec,
-            f_low_hz: p.f_low_hz,
-            f_high_hz: p.f_high_hz,
-            step_deg: p.step_deg,
-            activity_db: p.activity_db,
+            localiser: LocaliserParams::default(),
         }
     }
 }
@@ -130,21 +109,13 @@ impl Localisation {
     pub fn new(p: &LocalisationParams, fs_hz: f64) -> Result<Self> {
         let head =
             Head::parse(&p.head).map_err(|e| Error::invalid("loc_head", &p.head, e.to_string()))?;
-        let params = LocaliserParams {
-            w_size_sec: p.w_size_sec,
-            h_size_sec: p.h_size_sec,
-            f_low_hz: p.f_low_hz,
-            f_high_hz: p.f_high_hz,
-            step_deg: p.step_deg,
-            activity_db: p.activity_db,
-        };
-        let localiser = Localiser::new(&head, fs_hz, &params)
+        let localiser = Localiser::new(&head, fs_hz, &p.localiser)
             .map_err(|e| Error::InvalidInput(format!("localisation: {e}")))?;
         let w = localiser.frame_len();
         Ok(Localisation {
             frames: EarFrames::new(1, w, localiser.hop()),
             ears: [vec![0.0; w], vec![0.0; w]],
-            floor: 10f64.powf(-p.activity_db / 10.0),
+            floor: 10f64.powf(-p.localiser.activity_db / 10.0),
             loudest: 0.0,
             localiser,
         })
@@ -217,7 +188,7 @@ impl Descriptor for Localisation {
         let input = &inputs[0];
         let p = Localisation::new(params, input.fs_hz)?;
         let rate = input.fs_hz / p.localiser.hop() as f64;
-        let window_s = params.w_size_sec;
+        let window_s = params.localiser.w_size_sec;
         let posterior = SignalInfo::feature(rate, input.audio_fs_hz, Vec::new());
         let posterior = SignalInfo {
             axes: vec![Axis::Azimuth(p.azimuths_deg().to_vec())],
@@ -358,7 +329,10 @@ mod tests {
             "{e}"
         );
         let e = bad(LocalisationParams {
-            w_size_sec: 5.0,
+            localiser: LocaliserParams {
+                w_size_sec: 5.0,
+                ..LocaliserParams::default()
+            },
             ..LocalisationParams::default()
         });
         assert!(e.contains("loc_wSizeSec"), "{e}");
