@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use afe_spatial::{locate, Head, HeadYaw, LocaliserParams, Located};
+use afe_spatial::{locate, track, Head, HeadYaw, LocaliserParams, Located, Tracked, TrackerParams};
 use serde_json::json;
 
 use crate::error::CliError;
@@ -38,6 +38,12 @@ pub(crate) struct LocateArgs {
     /// in the world (world = relative + yaw), and a turning head tells front from back.
     #[arg(long, value_name = "FILE.csv")]
     head_yaw: Option<PathBuf>,
+    /// Track the sources over time (a Bayes filter over world azimuth that carries the
+    /// head's turns: a turn tells front from back), reported at 6 Hz: with --json as
+    /// "tracked": [{"t_s", "yaw_deg", "tracks": [{"id", "azimuth_deg",
+    /// "uncertainty_deg", "mass"}, ...]}, ...].
+    #[arg(long)]
+    track: bool,
     /// Print the sources and the frames as JSON: {"sources": [{"azimuth_deg",
     /// "salience"}, ...], "frames": [{"t_s", "active", "azimuth_deg", "yaw_deg"}, ...],
     /// ...}.
@@ -100,10 +106,22 @@ impl LocateArgs {
             self.sources,
             yaw.as_ref(),
         )?;
+        let tracked = if self.track {
+            Some(track(&found, &TrackerParams::default())?)
+        } else {
+            None
+        };
         if self.json {
-            outln!("{}", to_json(&head, audio.fs, &found));
+            let mut v = to_json(&head, audio.fs, &found);
+            if let Some(tracked) = &tracked {
+                v["tracked"] = tracked_json(tracked);
+            }
+            outln!("{v}");
         } else {
             outln!("{}", table(&head, &found, yaw.is_some()));
+            if let Some(last) = tracked.as_ref().and_then(|t| t.last()) {
+                outln!("{}", tracks_table(last));
+            }
         }
         Ok(())
     }
@@ -124,6 +142,42 @@ fn to_json(head: &Head, fs_hz: f64, found: &Located) -> serde_json::Value {
             "yaw_deg": f.yaw_deg,
         })).collect::<Vec<_>>(),
     })
+}
+
+fn tracked_json(tracked: &[Tracked]) -> serde_json::Value {
+    json!(tracked
+        .iter()
+        .map(|at| json!({
+            "t_s": at.t_s,
+            "yaw_deg": at.yaw_deg,
+            "tracks": at.tracks.iter().map(|t| json!({
+                "id": t.id,
+                "azimuth_deg": t.azimuth_deg,
+                "uncertainty_deg": t.uncertainty_deg,
+                "mass": t.mass,
+            })).collect::<Vec<_>>(),
+        }))
+        .collect::<Vec<_>>())
+}
+
+/// The sources tracked at the end, in the world.
+fn tracks_table(last: &Tracked) -> String {
+    let mut lines = vec![format!(
+        "{} source(s) tracked at {:.2} s, in the world",
+        last.tracks.len(),
+        last.t_s
+    )];
+    lines.push(format!(
+        "{:>4} {:>12} {:>15}",
+        "id", "azimuth_deg", "uncertainty_deg"
+    ));
+    for t in &last.tracks {
+        lines.push(format!(
+            "{:>4} {:>12.1} {:>15.1}",
+            t.id, t.azimuth_deg, t.uncertainty_deg
+        ));
+    }
+    lines.join("\n")
 }
 
 fn table(head: &Head, found: &Located, world: bool) -> String {

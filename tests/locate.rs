@@ -182,6 +182,83 @@ fn a_turning_head_tells_front_from_back_given_its_yaw() {
     }
 }
 
+/// `afe locate --json --track` of `ears` with `options`: the last report's tracks as
+/// (azimuth, mass), the most probable first.
+fn tracked(name: &str, ears: &[Vec<f64>; 2], fs: u32, options: &[&str]) -> Vec<(f64, f64)> {
+    let wav = tmp(&format!("track-{name}.wav"));
+    write_binaural(&wav, ears, fs);
+    let mut args = vec!["locate", wav.to_str().expect("path"), "--json", "--track"];
+    args.extend_from_slice(options);
+    let out = afe(&args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Value = serde_json::from_slice(&out.stdout).expect("json");
+    let reports = v["tracked"].as_array().expect("reports");
+    assert!(
+        reports.len() >= 10,
+        "{} reports in 2 s at 6 Hz",
+        reports.len()
+    );
+    let mut last: Vec<(f64, f64)> = reports[reports.len() - 1]["tracks"]
+        .as_array()
+        .expect("tracks")
+        .iter()
+        .map(|t| {
+            (
+                t["azimuth_deg"].as_f64().unwrap_or(f64::NAN),
+                t["mass"].as_f64().unwrap_or(0.0),
+            )
+        })
+        .collect();
+    last.sort_by(|a, b| b.1.total_cmp(&a.1));
+    last
+}
+
+#[test]
+fn tracking_a_turning_sphere_keeps_the_source_and_drops_its_image() {
+    // the sphere's static cues cannot tell 150 deg from 30: still, the tracker keeps
+    // both; turning 30 deg and back, the image moves in the world and loses out
+    let (once, fs) = talker();
+    let x: Vec<f64> = once.iter().chain(&once).copied().collect();
+    let half = once.len() as f64 / f64::from(fs);
+    let yaw = |t: f64| 30.0 * (1.0 - (t / half - 1.0).abs()).max(0.0);
+    let track = tmp("track-yaw.csv");
+    std::fs::write(
+        &track,
+        format!("t_s,yaw_deg\n0,0\n{half},30\n{},0\n", 2.0 * half),
+    )
+    .expect("csv");
+    let head = Head::parse("sphere").expect("sphere");
+    let still = head.render(150.0, &x, f64::from(fs)).expect("render");
+    let both = tracked("still", &still, fs, &["--head", "sphere"]);
+    assert_eq!(both.len(), 2, "still: {both:?}");
+    assert!(
+        both.iter().any(|t| gap(t.0, 150.0).abs() <= 5.0),
+        "{both:?}"
+    );
+    assert!(both.iter().any(|t| gap(t.0, 30.0).abs() <= 5.0), "{both:?}");
+    let ears = turning_render(&head, 150.0, yaw, &x, fs);
+    let turned = tracked(
+        "turning",
+        &ears,
+        fs,
+        &[
+            "--head",
+            "sphere",
+            "--head-yaw",
+            track.to_str().expect("path"),
+        ],
+    );
+    assert!(gap(turned[0].0, 150.0).abs() <= 5.0, "turning: {turned:?}");
+    assert!(
+        turned.iter().skip(1).all(|t| t.1 < 0.5 * turned[0].1),
+        "the image is not left behind: {turned:?}"
+    );
+}
+
 #[test]
 fn locate_refuses_what_it_cannot_use_in_one_line() {
     // locate writes no file: nothing may appear here

@@ -88,6 +88,10 @@ pub struct Located {
     /// The mean score over the active frames (each weighted by its onsets), per azimuth
     /// of the grid (in the world when the head's yaw is given).
     pub mean_score: Vec<f64>,
+    /// Each frame's scores over the grid, relative to the head: `frames × azimuths`.
+    pub scores: Vec<f64>,
+    /// Seconds between frames.
+    pub hop_s: f64,
 }
 
 /// The sources in `ears` (left, right at `fs_hz`) as `head` hears them: at most
@@ -181,6 +185,8 @@ pub fn locate(
         sources,
         frames,
         mean_score,
+        scores,
+        hop_s: hop as f64 / fs_hz,
     })
 }
 
