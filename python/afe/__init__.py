@@ -541,6 +541,7 @@ def locate(
     head: str = "kemar",
     sources: Optional[int] = None,
     head_yaw: Any = None,
+    track: bool = False,
 ) -> Dict[str, Any]:
     """Where the sources of a binaural signal are, for the head that heard it (as
     ``afe locate``; docs/localisation.md).
@@ -557,7 +558,11 @@ def locate(
     Returns a dict: ``sources`` (a list of ``{"azimuth_deg", "salience"}``, most salient
     first; azimuth 0 = front, 90 = left, in [0, 360)), per frame ``t_s`` (centres, s),
     ``active`` (bool), ``azimuth_deg`` (its best direction) and ``yaw_deg``, and the score
-    grid ``azimuths_deg`` with the active frames' ``mean_score``. Raises ``ValueError``
+    grid ``azimuths_deg`` with the active frames' ``mean_score``. With ``track``, also
+    ``tracked``: the sources tracked over time in the world (a Bayes filter over world
+    azimuth that carries the head's turns, so a turn tells front from back), at 6 Hz, a
+    list of ``{"t_s", "yaw_deg", "tracks": [{"id", "azimuth_deg", "uncertainty_deg",
+    "mass"}, ...]}``. Raises ``ValueError``
     naming the problem: an unknown head, a bad SOFA file, not two channels, NaN, a signal
     shorter than a 40-ms frame, a yaw track that is not ``[points, 2]`` with increasing
     times.
@@ -572,7 +577,7 @@ def locate(
             raise ValueError(
                 f"head_yaw of shape {yaw.shape}: rows of (t_s, yaw_deg), [points, 2]"
             )
-    return _afe.locate(x, fs, str(head), sources, yaw)
+    return _afe.locate(x, fs, str(head), sources, yaw, bool(track))
 
 
 def render(x: Any, fs: float, azimuth_deg: float, head: str = "sphere") -> np.ndarray:

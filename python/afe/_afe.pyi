@@ -104,7 +104,8 @@ def locate(
     head: str,
     sources: Optional[int],
     head_yaw: Optional[npt.NDArray[np.float64]],
-) -> Dict[str, Union[str, List[Dict[str, float]], npt.NDArray[np.float64], npt.NDArray[np.bool_]]]: ...
+    track: bool,
+) -> Dict[str, Any]: ...
 def render(
     x: npt.NDArray[np.float64], fs: float, head: str, azimuth_deg: float
 ) -> npt.NDArray[np.float64]: ...

@@ -1,7 +1,7 @@
 //! `afe.locate`, `afe.render` and `afe.heads`: head models and localisation
 //! (`afe-spatial`) on numpy arrays.
 
-use afe_spatial::{Head, HeadYaw, LocaliserParams, SpatialError};
+use afe_spatial::{Head, HeadYaw, LocaliserParams, SpatialError, TrackerParams};
 use numpy::{
     Complex64, PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods,
 };
@@ -19,9 +19,11 @@ fn value_error(e: SpatialError) -> PyErr {
 /// of `sources` (a list of dicts with `azimuth_deg` and `salience`), per frame `t_s`,
 /// `active`, `azimuth_deg` and `yaw_deg` (arrays), and the score grid `azimuths_deg`
 /// with the active frames' `mean_score`; in the world with the `[points, 2]` track
-/// `head_yaw` of `(t_s, yaw_deg)`.
+/// `head_yaw` of `(t_s, yaw_deg)`; with `track`, the sources tracked over time
+/// (`tracked`: a list of dicts of `t_s`, `yaw_deg` and `tracks`, each a dict of `id`,
+/// `azimuth_deg`, `uncertainty_deg` and `mass`).
 #[pyfunction]
-#[pyo3(signature = (x, fs, head, sources, head_yaw))]
+#[pyo3(signature = (x, fs, head, sources, head_yaw, track))]
 pub fn locate<'py>(
     py: Python<'py>,
     x: PyReadonlyArray2<'py, f64>,
@@ -29,6 +31,7 @@ pub fn locate<'py>(
     head: &str,
     sources: Option<usize>,
     head_yaw: Option<PyReadonlyArray2<'py, f64>>,
+    track: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     if x.shape()[1] != 2 {
         return Err(PyValueError::new_err(format!(
@@ -63,6 +66,13 @@ pub fn locate<'py>(
             )
         })
         .map_err(value_error)?;
+    let tracked = match track {
+        true => Some(
+            py.allow_threads(|| afe_spatial::track(&found, &TrackerParams::default()))
+                .map_err(value_error)?,
+        ),
+        false => None,
+    };
     let out = PyDict::new(py);
     out.set_item("head", head.name())?;
     let list = PyList::empty(py);
@@ -84,6 +94,26 @@ pub fn locate<'py>(
     let active: Vec<bool> = frames.iter().map(|f| f.active).collect();
     out.set_item("active", PyArray1::from_vec(py, active))?;
     out.set_item("azimuths_deg", PyArray1::from_vec(py, found.azimuths_deg))?;
+    if let Some(tracked) = tracked {
+        let reports = PyList::empty(py);
+        for at in &tracked {
+            let d = PyDict::new(py);
+            d.set_item("t_s", at.t_s)?;
+            d.set_item("yaw_deg", at.yaw_deg)?;
+            let tracks = PyList::empty(py);
+            for t in &at.tracks {
+                let one = PyDict::new(py);
+                one.set_item("id", t.id)?;
+                one.set_item("azimuth_deg", t.azimuth_deg)?;
+                one.set_item("uncertainty_deg", t.uncertainty_deg)?;
+                one.set_item("mass", t.mass)?;
+                tracks.append(one)?;
+            }
+            d.set_item("tracks", tracks)?;
+            reports.append(d)?;
+        }
+        out.set_item("tracked", reports)?;
+    }
     out.set_item("mean_score", PyArray1::from_vec(py, found.mean_score))?;
     Ok(out)
 }

@@ -104,3 +104,13 @@ def test_the_localisation_request_gives_a_posterior_over_azimuth_per_frame():
 def test_the_localisation_request_names_a_bad_head():
     with pytest.raises(ValueError, match="loc_head.*unknown head 'dummy'"):
         afe.process(np.zeros((4000, 2)), FS, "localisation", {"loc_head": "dummy"})
+
+
+def test_tracking_keeps_a_source_and_its_image_apart_until_the_head_turns():
+    ears = afe.render(noise(2 * int(FS)), FS, 150.0, head="sphere")
+    still = afe.locate(ears, FS, head="sphere", track=True)["tracked"]
+    assert len(still) >= 10 and still[-1]["t_s"] == pytest.approx(2.0, abs=0.05)
+    last = sorted(still[-1]["tracks"], key=lambda t: -t["mass"])
+    assert len(last) == 2, last
+    assert sorted(round(folded(t["azimuth_deg"])) for t in last) == [30, 30]
+    assert "tracked" not in afe.locate(ears, FS, head="sphere")
