@@ -59,7 +59,7 @@ pub struct TrackerParams {
     /// Exponent of a frame's scores in the likelihood: how much one frame counts
     /// (`trk_sharpness`).
     pub sharpness: f64,
-    /// Probability within a peak's ±[`PEAK_HALF_WIDTH_DEG`] for it to be a source
+    /// Probability within ±10 deg of a peak for it to be a source
     /// (`trk_birth`).
     pub birth: f64,
     /// Seconds a source lives on without its peak (`trk_holdSec`).
