@@ -4,7 +4,7 @@
 //! from back folded for the sphere (it has no pinnae), and how often KEMAR's pinnae tell
 //! them apart counted; and both heads turning, their yaw track telling front from back.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use afe_spatial::locate::lateral_deg;
 use afe_spatial::Head;
@@ -144,28 +144,51 @@ fn turning_render(
     ears
 }
 
+/// The talker twice over while the head turns 30 deg to the left during the first pass
+/// and back during the second: the signal, its rate, and the yaw track written to a CSV
+/// file named after `name`.
+struct TurnAndBack {
+    x: Vec<f64>,
+    fs: u32,
+    /// Seconds of one pass.
+    half: f64,
+    track: PathBuf,
+}
+
+impl TurnAndBack {
+    fn new(name: &str) -> Self {
+        let (once, fs) = talker();
+        let x: Vec<f64> = once.iter().chain(&once).copied().collect();
+        let half = once.len() as f64 / f64::from(fs);
+        let track = tmp(&format!("{name}-yaw.csv"));
+        std::fs::write(
+            &track,
+            format!("t_s,yaw_deg\n0,0\n{half},30\n{},0\n", 2.0 * half),
+        )
+        .expect("csv");
+        TurnAndBack { x, fs, half, track }
+    }
+
+    /// The head's yaw at `t` s, deg.
+    fn yaw(&self, t: f64) -> f64 {
+        30.0 * (1.0 - (t / self.half - 1.0).abs()).max(0.0)
+    }
+}
+
 #[test]
 fn a_turning_head_tells_front_from_back_given_its_yaw() {
     // the head turns 30 deg to the left within the first second and back within the
     // next; a source's front-back image moves by twice the turn in the world while the
     // source stays put. The sphere has no pinnae: alone, 30 and 150 deg sound the same
     // to it, and only the turn can decide.
-    let (once, fs) = talker();
-    let x: Vec<f64> = once.iter().chain(&once).copied().collect();
-    let half = once.len() as f64 / f64::from(fs);
-    let yaw = |t: f64| 30.0 * (1.0 - (t / half - 1.0).abs()).max(0.0);
-    let track = tmp("locate-yaw.csv");
-    std::fs::write(
-        &track,
-        format!("t_s,yaw_deg\n0,0\n{half},30\n{},0\n", 2.0 * half),
-    )
-    .expect("csv");
-    let track = track.to_str().expect("path");
+    let turn = TurnAndBack::new("locate");
+    let (x, fs, yaw) = (&turn.x, turn.fs, |t: f64| turn.yaw(t));
+    let track = turn.track.to_str().expect("path");
     for name in ["sphere", "kemar"] {
         let head = Head::parse(name).unwrap_or_else(|e| panic!("{e}"));
         let mut unaware = 0;
         for world in [30.0, 150.0, 210.0, 330.0] {
-            let ears = turning_render(&head, world, yaw, &x, fs);
+            let ears = turning_render(&head, world, yaw, x, fs);
             let wav = format!("turning-{name}-{world}");
             let found = located_with(&wav, &ears, fs, &["--head", name, "--head-yaw", track]);
             assert!(
@@ -221,18 +244,11 @@ fn tracked(name: &str, ears: &[Vec<f64>; 2], fs: u32, options: &[&str]) -> Vec<(
 fn tracking_a_turning_sphere_keeps_the_source_and_drops_its_image() {
     // the sphere's static cues cannot tell 150 deg from 30: still, the tracker keeps
     // both; turning 30 deg and back, the image moves in the world and loses out
-    let (once, fs) = talker();
-    let x: Vec<f64> = once.iter().chain(&once).copied().collect();
-    let half = once.len() as f64 / f64::from(fs);
-    let yaw = |t: f64| 30.0 * (1.0 - (t / half - 1.0).abs()).max(0.0);
-    let track = tmp("track-yaw.csv");
-    std::fs::write(
-        &track,
-        format!("t_s,yaw_deg\n0,0\n{half},30\n{},0\n", 2.0 * half),
-    )
-    .expect("csv");
+    let turn = TurnAndBack::new("track");
+    let (x, fs, yaw) = (&turn.x, turn.fs, |t: f64| turn.yaw(t));
+    let track = &turn.track;
     let head = Head::parse("sphere").expect("sphere");
-    let still = head.render(150.0, &x, f64::from(fs)).expect("render");
+    let still = head.render(150.0, x, f64::from(fs)).expect("render");
     let both = tracked("still", &still, fs, &["--head", "sphere"]);
     assert_eq!(both.len(), 2, "still: {both:?}");
     assert!(
@@ -240,7 +256,7 @@ fn tracking_a_turning_sphere_keeps_the_source_and_drops_its_image() {
         "{both:?}"
     );
     assert!(both.iter().any(|t| gap(t.0, 30.0).abs() <= 5.0), "{both:?}");
-    let ears = turning_render(&head, 150.0, yaw, &x, fs);
+    let ears = turning_render(&head, 150.0, yaw, x, fs);
     let turned = tracked(
         "turning",
         &ears,

@@ -253,6 +253,16 @@ impl Localiser {
         let freqs: Vec<f64> = (first_bin..=last_bin).map(|k| k as f64 * df).collect();
         let azimuths = head.azimuths_deg(p.step_deg);
         let na = azimuths.len();
+        if na.saturating_mul(bins) > MAX_STEERING {
+            return Err(SpatialError::Invalid(format!(
+                "{na} azimuths (loc_stepDeg {}) by {bins} frequency bins (loc_wSizeSec {}, \
+                 loc_fLowHz to loc_fHighHz) are {} steering vectors, more than {MAX_STEERING}: \
+                 a coarser grid, a shorter frame or a narrower band",
+                p.step_deg,
+                p.w_size_sec,
+                na * bins
+            )));
+        }
         let mut gains = vec![0.0; 4 * bins * na];
         for (a, &az) in azimuths.iter().enumerate() {
             for (b, [l, r]) in head.transfer(az, &freqs).into_iter().enumerate() {
@@ -363,6 +373,11 @@ impl Localiser {
         Scored { energy, weight }
     }
 }
+
+/// Most steering vectors (azimuths × bins of the band) a localiser designs: 2^20, 32 MiB
+/// of gains and about eight times the default's design time (found by fuzzing: a grid of
+/// 0.1 degree over a 1-s frame asked for billions).
+pub const MAX_STEERING: usize = 1 << 20;
 
 /// What [`Localiser::score`] tells of a frame besides its scores.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -568,6 +583,16 @@ mod tests {
         let quiet = vec![0.0; 2000];
         let e = locate(&head, [&quiet, &quiet], 16000.0, &low, None, None).expect_err("band");
         assert!(e.to_string().contains("loc_fLowHz (9000 Hz)"), "{e}");
+        let fine = LocaliserParams {
+            step_deg: 0.1,
+            w_size_sec: 0.5,
+            ..LocaliserParams::default()
+        };
+        let e = locate(&head, [&quiet, &quiet], 16000.0, &fine, None, None).expect_err("size");
+        assert!(
+            e.to_string().contains("3600 azimuths (loc_stepDeg 0.1) by"),
+            "{e}"
+        );
     }
 
     #[test]
