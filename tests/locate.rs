@@ -54,8 +54,9 @@ fn located(name: &str, ears: &[Vec<f64>; 2], fs: u32, head: &str) -> f64 {
     located_with(name, ears, fs, &["--head", head])
 }
 
-/// `afe locate --json` of `ears` at `fs` with `options`: the first source's azimuth.
-fn located_with(name: &str, ears: &[Vec<f64>; 2], fs: u32, options: &[&str]) -> f64 {
+/// What `afe locate --json` with `options` prints for `ears` at `fs` (written to a WAV
+/// file named after `name`).
+fn locate_json(name: &str, ears: &[Vec<f64>; 2], fs: u32, options: &[&str]) -> Value {
     let wav = tmp(&format!("locate-{name}.wav"));
     write_binaural(&wav, ears, fs);
     let mut args = vec!["locate", wav.to_str().expect("path"), "--json"];
@@ -66,7 +67,12 @@ fn located_with(name: &str, ears: &[Vec<f64>; 2], fs: u32, options: &[&str]) -> 
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let v: Value = serde_json::from_slice(&out.stdout).expect("json");
+    serde_json::from_slice(&out.stdout).expect("json")
+}
+
+/// `afe locate --json` of `ears` at `fs` with `options`: the first source's azimuth.
+fn located_with(name: &str, ears: &[Vec<f64>; 2], fs: u32, options: &[&str]) -> f64 {
+    let v = locate_json(name, ears, fs, options);
     let first = &v["sources"][0];
     let az = first["azimuth_deg"].as_f64().expect("azimuth");
     assert!((0.0..360.0).contains(&az), "{v}");
@@ -208,17 +214,10 @@ fn a_turning_head_tells_front_from_back_given_its_yaw() {
 /// `afe locate --json --track` of `ears` with `options`: the last report's tracks as
 /// (azimuth, mass), the most probable first.
 fn tracked(name: &str, ears: &[Vec<f64>; 2], fs: u32, options: &[&str]) -> Vec<(f64, f64)> {
-    let wav = tmp(&format!("track-{name}.wav"));
-    write_binaural(&wav, ears, fs);
-    let mut args = vec!["locate", wav.to_str().expect("path"), "--json", "--track"];
-    args.extend_from_slice(options);
-    let out = afe(&args);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: Value = serde_json::from_slice(&out.stdout).expect("json");
+    let options: Vec<&str> = std::iter::once("--track")
+        .chain(options.iter().copied())
+        .collect();
+    let v = locate_json(&format!("track-{name}"), ears, fs, &options);
     let reports = v["tracked"].as_array().expect("reports");
     assert!(
         reports.len() >= 10,
