@@ -310,6 +310,11 @@ impl Localiser {
         self.hop
     }
 
+    /// Multiply-adds a frame's projection takes (four per azimuth and bin of the band).
+    pub fn work_per_frame(&self) -> usize {
+        self.gains.len()
+    }
+
     /// Forgets the previous frame: the next one is scored as the first.
     pub fn reset(&mut self) {
         self.primed = 0;
