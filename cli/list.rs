@@ -15,10 +15,17 @@ pub(crate) struct ListArgs {
     /// Print JSON instead of text.
     #[arg(long)]
     json: bool,
+    /// Print every request's parameters as the Markdown tables of docs/parameters.md.
+    #[arg(long, conflicts_with_all = ["name", "json"])]
+    markdown: bool,
 }
 
 impl ListArgs {
     pub(crate) fn run(self) -> Result<(), CliError> {
+        if self.markdown {
+            out(&afe::catalog::markdown());
+            return Ok(());
+        }
         list(self.name.as_deref(), self.json)
     }
 }

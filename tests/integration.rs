@@ -16,6 +16,7 @@ mod fuzz;
 mod locate;
 mod moc_feedback;
 mod oracle;
+mod parameters;
 mod plot;
 mod raa;
 mod reliability;

@@ -26,7 +26,7 @@ pub fn fir2(n: usize, f: &[f64], m: &[f64]) -> Vec<f64> {
     let ifft = afe_fft::inverse(2 * npt);
     ifft.process(&mut full);
     let scale = 1.0 / (2 * npt) as f64;
-    let win = crate::window::window("hamming", nn, "fir2").unwrap_or_default();
+    let win = crate::window::window(crate::window::Window::Hamming, nn);
     (0..nn).map(|k| full[k].re * scale * win[k]).collect()
 }
 

@@ -23,6 +23,7 @@ pub mod hilbert;
 mod huge_pages;
 pub mod interrupt;
 pub mod lanes;
+pub mod param_decl;
 pub mod params;
 pub mod plan;
 pub mod power;

@@ -82,8 +82,15 @@ pub struct ParamSpec {
     pub kind: ParamKind,
     /// Unit (`"s"`, `"Hz"`, `"dB"`, or `""` when dimensionless).
     pub unit: &'static str,
-    /// One-line meaning.
+    /// One-line meaning (a declaration's doc comment, as written).
     pub description: &'static str,
+}
+
+impl ParamSpec {
+    /// The meaning without the doc comment's leading spaces or final full stop.
+    pub fn meaning(&self) -> &'static str {
+        self.description.trim().trim_end_matches('.')
+    }
 }
 
 /// The name among `known` that `given` most likely misspells: the closest by edit
@@ -158,11 +165,7 @@ pub fn unless_set(e: Error, request: &ParamMap) -> Error {
         } if reason.contains(DEFAULT_NOTE)
             && request.get(&name).is_some_and(|v| !is_default_marker(v)) =>
         {
-            Error::InvalidParameter {
-                reason: reason.replace(DEFAULT_NOTE, ""),
-                name,
-                value,
-            }
+            Error::invalid(name, value, reason.replace(DEFAULT_NOTE, ""))
         }
         e => e,
     }
@@ -199,11 +202,11 @@ impl ParamSpec {
                     .unwrap_or_default(),
                 _ => String::new(),
             };
-            Error::InvalidParameter {
-                name: self.name.to_string(),
-                value: value.to_string(),
-                reason: format!("expected {}{hint}", self.kind.describe()),
-            }
+            Error::invalid(
+                self.name,
+                value,
+                format!("expected {}{hint}", self.kind.describe()),
+            )
         };
         let finite = |v: &Value| v.as_f64().filter(|x| x.is_finite());
         let out = match self.kind {
@@ -285,14 +288,16 @@ pub trait Params: Serialize + DeserializeOwned + Default + Clone + PartialEq {
                 }
             }
         }
-        serde_json::from_value(Value::Object(obj)).map_err(|e| Error::InvalidParameter {
-            name: Self::SPECS
-                .iter()
-                .map(|s| s.name)
-                .collect::<Vec<_>>()
-                .join("/"),
-            value: "(combination)".into(),
-            reason: e.to_string(),
+        serde_json::from_value(Value::Object(obj)).map_err(|e| {
+            Error::invalid(
+                Self::SPECS
+                    .iter()
+                    .map(|s| s.name)
+                    .collect::<Vec<_>>()
+                    .join("/"),
+                "(combination)",
+                e.to_string(),
+            )
         })
     }
 
@@ -320,11 +325,11 @@ pub fn per_channel(name: &str, values: &[f64], channels: usize) -> Result<Vec<f6
     match values.len() {
         1 => Ok(vec![values[0]; channels]),
         n if n == channels => Ok(values.to_vec()),
-        n => Err(Error::InvalidParameter {
-            name: name.into(),
-            value: format!("{values:?}"),
-            reason: format!("expected one value or {channels} (one per channel), got {n}"),
-        }),
+        n => Err(Error::invalid(
+            name,
+            format!("{values:?}"),
+            format!("expected one value or {channels} (one per channel), got {n}"),
+        )),
     }
 }
 

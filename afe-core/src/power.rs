@@ -84,7 +84,7 @@ mod tests {
             let x: Vec<f64> = (0..40 * nc)
                 .map(|i| ((i * 7919) % 1009) as f64 / 1009.0 - 0.3)
                 .collect();
-            let win = window("hann", 30, "").expect("hann");
+            let win = window(crate::window::Window::Hann, 30);
             // Ten rows kept from a first chunk, twenty from the second: head and tail.
             let mut fb = FrameBuffer::new(nc, 30, 10);
             fb.advance(&x[..20 * nc], 1);

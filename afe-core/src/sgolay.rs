@@ -22,11 +22,11 @@ impl SavitzkyGolay {
     /// `frame` must be odd and larger than `order` (MATLAB's conditions).
     pub fn new(order: usize, frame: usize) -> Result<Self> {
         if frame.is_multiple_of(2) || frame <= order {
-            return Err(Error::InvalidParameter {
-                name: "Savitzky-Golay frame".into(),
-                value: frame.to_string(),
-                reason: format!("the frame must be odd and longer than the order {order}"),
-            });
+            return Err(Error::invalid(
+                "Savitzky-Golay frame",
+                frame,
+                format!("the frame must be odd and longer than the order {order}"),
+            ));
         }
         let m = order + 1;
         let half = (frame / 2) as f64;

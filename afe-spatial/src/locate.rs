@@ -8,47 +8,36 @@
 
 use afe_core::real_fft::RealFft;
 use num_complex::Complex64;
-use serde::{Deserialize, Serialize};
 
 use crate::head::Head;
 use crate::yaw::{score_at, HeadYaw};
 use crate::SpatialError;
 
-/// The localiser's parameters, (de)serialised under their AFE-style names (`loc_*`),
-/// which its messages use too.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct LocaliserParams {
-    /// Frame length, s (`loc_wSizeSec`).
-    #[serde(rename = "loc_wSizeSec")]
-    pub w_size_sec: f64,
-    /// Hop between frames, s (`loc_hSizeSec`).
-    #[serde(rename = "loc_hSizeSec")]
-    pub h_size_sec: f64,
-    /// Lowest frequency used, Hz (`loc_fLowHz`).
-    #[serde(rename = "loc_fLowHz")]
-    pub f_low_hz: f64,
-    /// Highest frequency used, Hz (`loc_fHighHz`): the pinnae's cues lie above 5 kHz.
-    #[serde(rename = "loc_fHighHz")]
-    pub f_high_hz: f64,
-    /// Azimuth step of the sphere's grid, deg (`loc_stepDeg`; a measured head has its own).
-    #[serde(rename = "loc_stepDeg")]
-    pub step_deg: f64,
-    /// Frames quieter than the loudest by more than this are inactive, dB
-    /// (`loc_activityDb`; the request's: than the loudest so far).
-    #[serde(rename = "loc_activityDb")]
-    pub activity_db: f64,
-}
-
-impl Default for LocaliserParams {
-    fn default() -> Self {
-        LocaliserParams {
-            w_size_sec: 0.04,
-            h_size_sec: 0.02,
-            f_low_hz: 100.0,
-            f_high_hz: 8000.0,
-            step_deg: 1.0,
-            activity_db: 30.0,
-        }
+afe_core::params! {
+    /// The localisation's parameters under their AFE-style names (`loc_*`), which its
+    /// messages use too: the head that hears and the localiser's own.
+    pub struct LocaliserParams / LocaliserNames {
+        /// head model: sphere[:radius=M,ears=DEG,distance=M], kemar or a .sofa file
+        #[afe = "loc_head", unit = ""]
+        pub head: String = "sphere".to_string(),
+        /// frame length
+        #[afe = "loc_wSizeSec", unit = "s"]
+        pub w_size_sec: f64 = 0.04,
+        /// hop between frames
+        #[afe = "loc_hSizeSec", unit = "s"]
+        pub h_size_sec: f64 = 0.02,
+        /// lowest frequency used
+        #[afe = "loc_fLowHz", unit = "Hz"]
+        pub f_low_hz: f64 = 100.0,
+        /// highest frequency used
+        #[afe = "loc_fHighHz", unit = "Hz"]
+        pub f_high_hz: f64 = 8000.0,
+        /// azimuth step of a sphere's grid (a measured head has its own)
+        #[afe = "loc_stepDeg", unit = "deg"]
+        pub step_deg: f64 = 1.0,
+        /// frames this far below the loudest so far are inactive
+        #[afe = "loc_activityDb", unit = "dB"]
+        pub activity_db: f64 = 30.0,
     }
 }
 
@@ -219,29 +208,42 @@ impl Localiser {
     /// The localiser of `head` for ears at `fs_hz` with parameters `p` (each one out of
     /// its range named).
     pub fn new(head: &Head, fs_hz: f64, p: &LocaliserParams) -> Result<Localiser, SpatialError> {
-        let bad = |what: &str| Err(SpatialError::Invalid(what.to_string()));
+        let bad = |what: String| Err(SpatialError::Invalid(what));
         if !(fs_hz.is_finite() && fs_hz >= 8000.0) {
-            return bad("the sampling rate must be at least 8000 Hz");
+            return bad("the sampling rate must be at least 8000 Hz".into());
         }
+        let names = LocaliserParams::NAMES;
         if !(p.w_size_sec > 0.0 && p.w_size_sec <= 1.0) {
-            return bad("loc_wSizeSec must be above 0 and at most 1 s");
+            return bad(format!(
+                "{} must be above 0 and at most 1 s",
+                names.w_size_sec
+            ));
         }
         if !(p.h_size_sec > 0.0 && p.h_size_sec <= p.w_size_sec) {
-            return bad("loc_hSizeSec must be above 0 and at most loc_wSizeSec");
+            return bad(format!(
+                "{} must be above 0 and at most {}",
+                names.h_size_sec, names.w_size_sec
+            ));
         }
         if !(p.step_deg >= 0.1 && p.step_deg <= 30.0) {
-            return bad("loc_stepDeg must be between 0.1 and 30 degrees");
+            return bad(format!(
+                "{} must be between 0.1 and 30 degrees",
+                names.step_deg
+            ));
         }
         if !(p.activity_db > 0.0 && p.activity_db.is_finite()) {
-            return bad("loc_activityDb must be a positive number of dB");
+            return bad(format!(
+                "{} must be a positive number of dB",
+                names.activity_db
+            ));
         }
         let top = p.f_high_hz.min(fs_hz / 2.0).min(head.max_frequency_hz());
         if !(p.f_low_hz >= 0.0 && p.f_low_hz < top) {
-            return Err(SpatialError::Invalid(format!(
-                "loc_fLowHz ({} Hz) must be below the band's top, {top} Hz (loc_fHighHz, \
-                 the Nyquist frequency and the head's)",
-                p.f_low_hz
-            )));
+            return bad(format!(
+                "{} ({} Hz) must be below the band's top, {top} Hz ({}, the Nyquist \
+                 frequency and the head's)",
+                names.f_low_hz, p.f_low_hz, names.f_high_hz
+            ));
         }
         let w = ((p.w_size_sec * fs_hz).round() as usize).max(16);
         let hop = ((p.h_size_sec * fs_hz).round() as usize).max(1);
@@ -255,11 +257,15 @@ impl Localiser {
         let na = azimuths.len();
         if na.saturating_mul(bins) > MAX_STEERING {
             return Err(SpatialError::Invalid(format!(
-                "{na} azimuths (loc_stepDeg {}) by {bins} frequency bins (loc_wSizeSec {}, \
-                 loc_fLowHz to loc_fHighHz) are {} steering vectors, more than {MAX_STEERING}: \
-                 a coarser grid, a shorter frame or a narrower band",
+                "{na} azimuths ({} {}) by {bins} frequency bins ({} {}, {} to {}) are {} \
+                 steering vectors, more than {MAX_STEERING}: a coarser grid, a shorter frame \
+                 or a narrower band",
+                names.step_deg,
                 p.step_deg,
+                names.w_size_sec,
                 p.w_size_sec,
+                names.f_low_hz,
+                names.f_high_hz,
                 na * bins
             )));
         }

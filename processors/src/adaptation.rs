@@ -7,104 +7,51 @@
 
 use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::erb::linspace;
-use afe_core::{Block, DrawAs, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
-use serde::{Deserialize, Serialize};
+use afe_core::{Block, DrawAs, Error, Params, Processor, Result, SignalInfo};
 
 use crate::exp::exp;
 
-/// A named parameter preset of the AFE (`adpt_model`), which overrides `adpt_lim`,
-/// `adpt_mindB` and `adpt_tau`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-pub enum AdaptationModel {
-    /// No preset: the three parameters as given.
-    #[default]
-    #[serde(rename = "")]
-    None,
-    /// Dau et al. (1996): limitation 10, floor 0 dB SPL, the five standard time constants.
-    #[serde(rename = "adt_dau")]
-    Dau,
-    /// Püschel (1988): no limitation, time constants evenly spaced from 5 to 500 ms.
-    #[serde(rename = "adt_puschel")]
-    Puschel,
-    /// Breebaart et al. (2001): limitation 10, time constants evenly spaced from 5 to 500 ms.
-    #[serde(rename = "adt_breebaart")]
-    Breebaart,
-    /// van Dorp Schuitman (2009): no limitation, standard time constants, and a floor per
-    /// channel at the absolute threshold of hearing of its centre frequency.
-    #[serde(rename = "adt_vandorpschuitman")]
-    VanDorpSchuitman,
+afe_core::choices! {
+    /// A named parameter preset of the AFE (`adpt_model`), which overrides `adpt_lim`,
+    /// `adpt_mindB` and `adpt_tau`.
+    pub enum AdaptationModel {
+        /// No preset: the three parameters as given.
+        None = "",
+        /// Dau et al. (1996): limitation 10, floor 0 dB SPL, the five standard time
+        /// constants.
+        Dau = "adt_dau",
+        /// Püschel (1988): no limitation, time constants evenly spaced from 5 to 500 ms.
+        Puschel = "adt_puschel",
+        /// Breebaart et al. (2001): limitation 10, time constants evenly spaced from 5 to
+        /// 500 ms.
+        Breebaart = "adt_breebaart",
+        /// van Dorp Schuitman (2009): no limitation, standard time constants, and a floor
+        /// per
+        /// channel at the absolute threshold of hearing of its centre frequency.
+        VanDorpSchuitman = "adt_vandorpschuitman",
+    }
 }
 
-/// The accepted `adpt_model` names (`''` for no preset).
-pub const ADAPTATION_MODELS: &[&str] = &[
-    "",
-    "adt_dau",
-    "adt_puschel",
-    "adt_breebaart",
-    "adt_vandorpschuitman",
-];
-
-/// Parameters of the adaptation loops, under their AFE names.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct AdaptationParams {
-    /// Overshoot limitation factor; at most 1 disables the limitation (AFE `adpt_lim`).
-    #[serde(rename = "adpt_lim")]
-    pub lim: f64,
-    /// Lowest signal level in dB SPL (amplitude 1 is 100 dB SPL), the floor every input is
-    /// raised to (AFE `adpt_mindB`).
-    #[serde(rename = "adpt_mindB")]
-    pub min_db_spl: f64,
-    /// Time constant of each loop in s, one loop per value (AFE `adpt_tau`).
-    #[serde(rename = "adpt_tau")]
-    pub tau_sec: Vec<f64>,
-    /// Preset overriding the three others (AFE `adpt_model`).
-    #[serde(rename = "adpt_model")]
-    pub model: AdaptationModel,
+afe_core::params! {
+    /// Parameters of the adaptation loops, under their AFE names.
+    pub struct AdaptationParams / AdaptationNames {
+        /// overshoot limitation factor (at most 1: no limitation)
+        #[afe = "adpt_lim"]
+        pub lim: f64 = 10.0,
+        /// lowest signal level, the floor of the input
+        #[afe = "adpt_mindB", unit = "dB SPL"]
+        pub min_db_spl: f64 = 0.0,
+        /// time constant of each adaptation loop
+        #[afe = "adpt_tau", unit = "s"]
+        pub tau_sec: Vec<f64> = DAU_TAU_SEC.to_vec(),
+        /// preset overriding adpt_lim, adpt_mindB and adpt_tau ('' for none)
+        #[afe = "adpt_model"]
+        pub model: AdaptationModel = AdaptationModel::None,
+    }
 }
 
 /// The five time constants of Dau et al., in s.
 const DAU_TAU_SEC: [f64; 5] = [0.005, 0.05, 0.129, 0.253, 0.5];
-
-impl Default for AdaptationParams {
-    fn default() -> Self {
-        AdaptationParams {
-            lim: 10.0,
-            min_db_spl: 0.0,
-            tau_sec: DAU_TAU_SEC.to_vec(),
-            model: AdaptationModel::None,
-        }
-    }
-}
-
-impl Params for AdaptationParams {
-    const SPECS: &'static [ParamSpec] = &[
-        ParamSpec {
-            name: "adpt_lim",
-            kind: ParamKind::Number,
-            unit: "",
-            description: "overshoot limitation factor (at most 1: no limitation)",
-        },
-        ParamSpec {
-            name: "adpt_mindB",
-            kind: ParamKind::Number,
-            unit: "dB SPL",
-            description: "lowest signal level, the floor of the input",
-        },
-        ParamSpec {
-            name: "adpt_tau",
-            kind: ParamKind::Numbers,
-            unit: "s",
-            description: "time constant of each adaptation loop",
-        },
-        ParamSpec {
-            name: "adpt_model",
-            kind: ParamKind::Choice(ADAPTATION_MODELS),
-            unit: "",
-            description: "preset overriding adpt_lim, adpt_mindB and adpt_tau ('' for none)",
-        },
-    ];
-}
 
 /// `linspace(0.005, 0.5, 5)`, the time constants of the Püschel and Breebaart presets.
 fn spaced_tau_sec() -> Vec<f64> {
@@ -194,11 +141,11 @@ impl Adaptation {
         let p = params.with_preset();
         let fs = input.fs_hz;
         if p.tau_sec.is_empty() || p.tau_sec.iter().any(|t| *t <= 0.0) {
-            return Err(Error::InvalidParameter {
-                name: "adpt_tau".into(),
-                value: format!("{:?}", p.tau_sec),
-                reason: "needs at least one time constant, each > 0 s".into(),
-            });
+            return Err(Error::invalid(
+                AdaptationParams::NAMES.tau_sec,
+                format!("{:?}", p.tau_sec),
+                "needs at least one time constant, each > 0 s",
+            ));
         }
         let floor_db: Vec<f64> = match p.model {
             AdaptationModel::VanDorpSchuitman => input
@@ -213,20 +160,17 @@ impl Adaptation {
             .find(|db| db.is_nan() || **db >= 100.0 || **db < MIN_FLOOR_DB)
         {
             let (name, value) = match p.model {
-                AdaptationModel::VanDorpSchuitman => {
-                    ("adpt_model", "\"adt_vandorpschuitman\"".to_string())
-                }
-                _ => ("adpt_mindB", p.min_db_spl.to_string()),
+                AdaptationModel::VanDorpSchuitman => (
+                    AdaptationParams::NAMES.model,
+                    "\"adt_vandorpschuitman\"".to_string(),
+                ),
+                _ => (AdaptationParams::NAMES.min_db_spl, p.min_db_spl.to_string()),
             };
-            return Err(Error::InvalidParameter {
-                name: name.into(),
-                value,
-                reason: format!(
+            return Err(Error::invalid(name, value, format!(
                     "the level floor ({db} dB SPL) must be below 100 dB SPL (amplitude 1) and \
                      at least {MIN_FLOOR_DB} dB SPL (the loops divide by it: lower floors reach \
                      0 and give NaN); the van Dorp Schuitman floor exceeds 100 dB above about 17.8 kHz"
-                ),
-            });
+                )));
         }
         let loops = p.tau_sec.len();
         let a1: Vec<f64> = p.tau_sec.iter().map(|t| (-1.0 / (t * fs)).exp()).collect();
@@ -248,7 +192,7 @@ impl Adaptation {
         let mult: Vec<f64> = corr.iter().map(|c| 100.0 / (1.0 - c)).collect();
         if p.lim > MAX_LIM {
             return Err(Error::invalid(
-                "adpt_lim",
+                AdaptationParams::NAMES.lim,
                 p.lim,
                 format!(
                     "must be at most {MAX_LIM:e}: larger factors overflow the limitation's \
@@ -266,13 +210,12 @@ impl Adaptation {
                 })
                 .collect();
             if constants.iter().any(|[f, _, _]| f.is_nan() || *f <= 0.0) {
-                return Err(Error::InvalidParameter {
-                    name: "adpt_lim".into(),
-                    value: p.lim.to_string(),
-                    reason: "above 1, the limitation factor must exceed 1/(1 − s0²) of every \
-                             loop's initial state s0 (use at most 1 to disable it)"
-                        .into(),
-                });
+                return Err(Error::invalid(
+                    AdaptationParams::NAMES.lim,
+                    p.lim,
+                    "above 1, the limitation factor must exceed 1/(1 − s0²) of every \
+                             loop's initial state s0 (use at most 1 to disable it)",
+                ));
             }
             Some(Limit {
                 f: constants.iter().map(|c| c[0]).collect(),
@@ -337,7 +280,8 @@ struct Limit {
 afe_core::simd_kernel!(
     fma,
     /// Runs the loops over `input` (`[time][channel]`) into `out`, eight lanes at a time so
-    /// that the divisions, state updates and the overshoot limitation (computed for the eight
+    /// that the divisions, state updates and the overshoot limitation (computed for the
+    /// eight
     /// lanes where one of them is above 1, kept where the value is) vectorise.
     ///
     /// The loops are staggered: at step `t`, loop `j` works on sample `t − j`, taking what
@@ -436,11 +380,6 @@ pub static REQUEST: RequestDef = request_def::<Adaptation>();
 mod tests {
     use super::*;
     use proptest::prelude::*;
-
-    #[test]
-    fn specs_match_struct() {
-        afe_core::params::check_param_specs::<AdaptationParams>();
-    }
 
     fn ihc(nc: usize) -> SignalInfo {
         SignalInfo::time_frequency(16000.0, (0..nc).map(|c| 200.0 * (c + 1) as f64).collect())

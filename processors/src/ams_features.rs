@@ -8,13 +8,10 @@ use std::sync::Arc;
 use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::filter::Df2t;
 use afe_core::framing::FrameBuffer;
-use afe_core::window::{window, WINDOW_NAMES};
-use afe_core::{
-    Axis, Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
-};
+use afe_core::window::{window, Window};
+use afe_core::{Axis, Block, Error, ParamKind, Processor, Result, SignalInfo, SignalKind};
 use afe_fft::RealToComplex;
 use num_complex::Complex64;
-use serde::{Deserialize, Serialize};
 
 use crate::framed::{check_frame_values, MAX_WINDOW};
 
@@ -28,129 +25,48 @@ use design::{lin_weights, log_bank};
 use down_sampler::DownSampler;
 use frame_sums::{abs_sums, HopSums};
 
-/// How the modulation bands are computed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub enum AmsFbType {
-    /// Log-spaced IIR modulation filters; each band is the mean |filter output| over a
-    /// frame.
-    #[serde(rename = "log")]
-    Log,
-    /// Linearly spaced triangular weights on the magnitude spectrum of each frame.
-    #[serde(rename = "lin")]
-    Lin,
-}
-
-/// Parameters of the modulation spectrogram, under their AFE names.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct AmsParams {
-    /// Filterbank type (AFE `ams_fbType`).
-    #[serde(rename = "ams_fbType")]
-    pub fb_type: AmsFbType,
-    /// Number of modulation bands (AFE `ams_nFilters`).
-    #[serde(rename = "ams_nFilters")]
-    pub n_filters: usize,
-    /// Lowest modulation centre frequency in Hz (`log`), or the lower edge of the
-    /// triangles (`lin`) (AFE `ams_lowFreqHz`).
-    #[serde(rename = "ams_lowFreqHz")]
-    pub low_freq_hz: f64,
-    /// Highest modulation centre frequency in Hz (`log`), or the upper edge of the
-    /// triangles (`lin`) (AFE `ams_highFreqHz`).
-    #[serde(rename = "ams_highFreqHz")]
-    pub high_freq_hz: f64,
-    /// Explicit modulation centre frequencies in Hz, `log` only; empty = from the range
-    /// (AFE `ams_cfHz`, which crashes in the AFE itself).
-    #[serde(rename = "ams_cfHz")]
-    pub cf_hz: Vec<f64>,
-    /// Decimation factor applied to the envelope first (AFE `ams_dsRatio`).
-    #[serde(rename = "ams_dsRatio")]
-    pub ds_ratio: usize,
-    /// Frame length in s (AFE `ams_wSizeSec`).
-    #[serde(rename = "ams_wSizeSec")]
-    pub w_size_sec: f64,
-    /// Frame hop in s (AFE `ams_hSizeSec`).
-    #[serde(rename = "ams_hSizeSec")]
-    pub h_size_sec: f64,
-    /// Window applied to each frame (AFE `ams_wname`).
-    #[serde(rename = "ams_wname")]
-    pub wname: String,
-}
-
-impl Default for AmsParams {
-    fn default() -> Self {
-        AmsParams {
-            fb_type: AmsFbType::Log,
-            n_filters: 15,
-            low_freq_hz: 4.0,
-            high_freq_hz: 1024.0,
-            cf_hz: Vec::new(),
-            ds_ratio: 4,
-            w_size_sec: 0.032,
-            h_size_sec: 0.016,
-            wname: "rectwin".into(),
-        }
+afe_core::choices! {
+    /// How the modulation bands are computed.
+    pub enum AmsFbType {
+        /// Log-spaced IIR modulation filters; each band is the mean |filter output| over a
+        /// frame.
+        Log = "log",
+        /// Linearly spaced triangular weights on the magnitude spectrum of each frame.
+        Lin = "lin",
     }
 }
 
-impl Params for AmsParams {
-    const SPECS: &'static [ParamSpec] = &[
-        ParamSpec {
-            name: "ams_fbType",
-            kind: ParamKind::Choice(&["log", "lin"]),
-            unit: "",
-            description:
-                "log-spaced IIR modulation filters ('log') or linear FFT triangles ('lin')",
-        },
-        ParamSpec {
-            name: "ams_nFilters",
-            kind: ParamKind::Count,
-            unit: "",
-            description: "number of modulation bands",
-        },
-        ParamSpec {
-            name: "ams_lowFreqHz",
-            kind: ParamKind::Number,
-            unit: "Hz",
-            description: "lowest modulation frequency",
-        },
-        ParamSpec {
-            name: "ams_highFreqHz",
-            kind: ParamKind::Number,
-            unit: "Hz",
-            description: "highest modulation frequency",
-        },
-        ParamSpec {
-            name: "ams_cfHz",
-            kind: ParamKind::Numbers,
-            unit: "Hz",
-            description:
-                "explicit modulation centre frequencies ('log' only; empty: from the range)",
-        },
-        ParamSpec {
-            name: "ams_dsRatio",
-            kind: ParamKind::Count,
-            unit: "",
-            description: "decimation factor of the envelope (no anti-aliasing filter)",
-        },
-        ParamSpec {
-            name: "ams_wSizeSec",
-            kind: ParamKind::Number,
-            unit: "s",
-            description: "frame length",
-        },
-        ParamSpec {
-            name: "ams_hSizeSec",
-            kind: ParamKind::Number,
-            unit: "s",
-            description: "hop between frames",
-        },
-        ParamSpec {
-            name: "ams_wname",
-            kind: ParamKind::Choice(WINDOW_NAMES),
-            unit: "",
-            description: "window applied to each frame",
-        },
-    ];
+afe_core::params! {
+    /// Parameters of the modulation spectrogram, under their AFE names.
+    pub struct AmsParams / AmsNames {
+        /// log-spaced IIR modulation filters ('log') or linear FFT triangles ('lin')
+        #[afe = "ams_fbType"]
+        pub fb_type: AmsFbType = AmsFbType::Log,
+        /// number of modulation bands
+        #[afe = "ams_nFilters", kind = ParamKind::Count]
+        pub n_filters: usize = 15,
+        /// lowest modulation frequency
+        #[afe = "ams_lowFreqHz", unit = "Hz"]
+        pub low_freq_hz: f64 = 4.0,
+        /// highest modulation frequency
+        #[afe = "ams_highFreqHz", unit = "Hz"]
+        pub high_freq_hz: f64 = 1024.0,
+        /// explicit modulation centre frequencies ('log' only; empty: from the range)
+        #[afe = "ams_cfHz", unit = "Hz"]
+        pub cf_hz: Vec<f64> = Vec::new(),
+        /// decimation factor of the envelope (no anti-aliasing filter)
+        #[afe = "ams_dsRatio", kind = ParamKind::Count]
+        pub ds_ratio: usize = 4,
+        /// frame length
+        #[afe = "ams_wSizeSec", unit = "s"]
+        pub w_size_sec: f64 = 0.032,
+        /// hop between frames
+        #[afe = "ams_hSizeSec", unit = "s"]
+        pub h_size_sec: f64 = 0.016,
+        /// window applied to each frame
+        #[afe = "ams_wname"]
+        pub wname: Window = Window::Rectwin,
+    }
 }
 
 /// Most modulation filters (the AFE uses 9 to 15): beyond, the features of every
@@ -211,35 +127,35 @@ impl AmsFeatures {
         let p = params;
         if p.ds_ratio == 0 {
             return Err(Error::invalid(
-                "ams_dsRatio",
+                AmsParams::NAMES.ds_ratio,
                 0,
                 "must be a positive integer",
             ));
         }
         if p.cf_hz.len() > MAX_FILTERS {
             return Err(Error::invalid(
-                "ams_cfHz",
+                AmsParams::NAMES.cf_hz,
                 format!("{} frequencies", p.cf_hz.len()),
                 format!("at most {MAX_FILTERS} modulation centre frequencies"),
             ));
         }
         if p.n_filters == 0 || p.n_filters > MAX_FILTERS {
             return Err(Error::invalid(
-                "ams_nFilters",
+                AmsParams::NAMES.n_filters,
                 p.n_filters,
                 format!("must be a positive integer, at most {MAX_FILTERS}"),
             ));
         }
         if p.low_freq_hz <= 0.0 {
             return Err(Error::invalid(
-                "ams_lowFreqHz",
+                AmsParams::NAMES.low_freq_hz,
                 p.low_freq_hz,
                 "must be > 0 Hz",
             ));
         }
         if p.high_freq_hz <= p.low_freq_hz {
             return Err(Error::invalid(
-                "ams_highFreqHz",
+                AmsParams::NAMES.high_freq_hz,
                 p.high_freq_hz,
                 format!("must be above ams_lowFreqHz = {} Hz", p.low_freq_hz),
             ));
@@ -248,7 +164,7 @@ impl AmsFeatures {
         let w = (2.0 * (p.w_size_sec * fs_ds / 2.0).round()).max(0.0) as usize;
         if p.w_size_sec <= 0.0 || !(2..=MAX_WINDOW).contains(&w) {
             return Err(Error::invalid(
-                "ams_wSizeSec",
+                AmsParams::NAMES.w_size_sec,
                 p.w_size_sec,
                 format!(
                     "the frame must span between 2 and {MAX_WINDOW} samples at the decimated \
@@ -259,7 +175,7 @@ impl AmsFeatures {
         let h = (w as f64 / (p.w_size_sec / p.h_size_sec)).round();
         if p.h_size_sec <= 0.0 || !(1.0..=MAX_WINDOW as f64).contains(&h) {
             return Err(Error::invalid(
-                "ams_hSizeSec",
+                AmsParams::NAMES.h_size_sec,
                 p.h_size_sec,
                 format!(
                     "the hop must span between 1 and {MAX_WINDOW} samples at the decimated \
@@ -268,7 +184,7 @@ impl AmsFeatures {
             ));
         }
         let h = h as usize;
-        let win = window(&p.wname, w, "ams_wname")?;
+        let win = window(p.wname, w);
         let ones_over_two_hops = w == 2 * h && win.iter().all(|v| *v == 1.0);
         let channels = input.channels();
         // the frame buffer's row: every band of every channel ('log') or every channel
@@ -279,7 +195,7 @@ impl AmsFeatures {
             AmsFbType::Log => channels * p.cf_hz.len(),
             AmsFbType::Lin => channels,
         };
-        check_frame_values(("ams_wSizeSec", p.w_size_sec), w, framed_width)?;
+        check_frame_values((AmsParams::NAMES.w_size_sec, p.w_size_sec), w, framed_width)?;
         let (mod_cf_hz, kind, width, hidden_work) = match p.fb_type {
             AmsFbType::Log => {
                 let (mf, filters) = log_bank(p, fs_ds, channels)?;
@@ -290,7 +206,7 @@ impl AmsFeatures {
             AmsFbType::Lin => {
                 if !p.cf_hz.is_empty() {
                     return Err(Error::invalid(
-                        "ams_cfHz",
+                        AmsParams::NAMES.cf_hz,
                         format!("{:?}", p.cf_hz),
                         "explicit centre frequencies need ams_fbType = 'log'",
                     ));

@@ -8,9 +8,8 @@
 
 use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::framing::FrameBuffer;
-use afe_core::window::{window, WINDOW_NAMES};
-use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
-use serde::{Deserialize, Serialize};
+use afe_core::window::{window, Window};
+use afe_core::{Block, Error, Processor, Result, SignalInfo};
 
 use crate::even_inverse::EvenInverse;
 use crate::framed::{check_framing, check_work};
@@ -27,100 +26,42 @@ const POWER_RANGE: std::ops::RangeInclusive<f64> = 1e-200..=1e200;
 /// fact takes over.
 const UNSCALED: std::ops::RangeInclusive<f64> = 1e-90..=1e90;
 
-/// How a frame is centre-clipped (AFE `ac_clipMethod`): samples between the thresholds
-/// become 0, the others are kept as below.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-pub enum ClipMethod {
-    /// Kept samples are moved towards 0 by the threshold (centre clipping and compression).
-    #[serde(rename = "clc")]
-    Compress,
-    /// Kept samples keep their value.
-    #[default]
-    #[serde(rename = "clp")]
-    Keep,
-    /// Kept samples become +1 (above) or −1 (below).
-    #[serde(rename = "sgn")]
-    Sign,
-}
-
-/// Parameters of the autocorrelation, under their AFE names.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct AutocorrelationParams {
-    /// Window name (AFE `ac_wname`).
-    #[serde(rename = "ac_wname")]
-    pub wname: String,
-    /// Window length in s (AFE `ac_wSizeSec`).
-    #[serde(rename = "ac_wSizeSec")]
-    pub w_size_sec: f64,
-    /// Hop in s (AFE `ac_hSizeSec`).
-    #[serde(rename = "ac_hSizeSec")]
-    pub h_size_sec: f64,
-    /// Centre-clipping method (AFE `ac_clipMethod`).
-    #[serde(rename = "ac_clipMethod")]
-    pub clip_method: ClipMethod,
-    /// Clipping thresholds as a fraction of the frame's largest and smallest value, in
-    /// [0, 1] (AFE `ac_clipAlpha`).
-    #[serde(rename = "ac_clipAlpha")]
-    pub clip_alpha: f64,
-    /// Exponent of the magnitude spectrum: 2 gives the plain autocorrelation, smaller
-    /// values whiten it (AFE `ac_K`).
-    #[serde(rename = "ac_K")]
-    pub spectral_exponent: f64,
-}
-
-impl Default for AutocorrelationParams {
-    fn default() -> Self {
-        AutocorrelationParams {
-            wname: "hann".into(),
-            w_size_sec: 0.02,
-            h_size_sec: 0.01,
-            clip_method: ClipMethod::Keep,
-            clip_alpha: 0.6,
-            spectral_exponent: 2.0,
-        }
+afe_core::choices! {
+    /// How a frame is centre-clipped (AFE `ac_clipMethod`): samples between the thresholds
+    /// become 0, the others are kept as below.
+    pub enum ClipMethod {
+        /// Kept samples are moved towards 0 by the threshold (centre clipping and
+        /// compression).
+        Compress = "clc",
+        /// Kept samples keep their value.
+        Keep = "clp",
+        /// Kept samples become +1 (above) or −1 (below).
+        Sign = "sgn",
     }
 }
 
-impl Params for AutocorrelationParams {
-    const SPECS: &'static [ParamSpec] = &[
-        ParamSpec {
-            name: "ac_wname",
-            kind: ParamKind::Choice(WINDOW_NAMES),
-            unit: "",
-            description: "window applied to each frame",
-        },
-        ParamSpec {
-            name: "ac_wSizeSec",
-            kind: ParamKind::Number,
-            unit: "s",
-            description: "window length",
-        },
-        ParamSpec {
-            name: "ac_hSizeSec",
-            kind: ParamKind::Number,
-            unit: "s",
-            description: "hop between frames",
-        },
-        ParamSpec {
-            name: "ac_clipMethod",
-            kind: ParamKind::Choice(&["clc", "clp", "sgn"]),
-            unit: "",
-            description: "centre clipping: compress ('clc'), keep ('clp') or sign ('sgn')",
-        },
-        ParamSpec {
-            name: "ac_clipAlpha",
-            kind: ParamKind::Number,
-            unit: "",
-            description: "clipping threshold as a fraction of the frame's extreme values",
-        },
-        ParamSpec {
-            name: "ac_K",
-            kind: ParamKind::Number,
-            unit: "",
-            description: "exponent of the magnitude spectrum (2: plain autocorrelation)",
-        },
-    ];
+afe_core::params! {
+    /// Parameters of the autocorrelation, under their AFE names.
+    pub struct AutocorrelationParams / AutocorrelationNames {
+        /// window applied to each frame
+        #[afe = "ac_wname"]
+        pub wname: Window = Window::Hann,
+        /// window length
+        #[afe = "ac_wSizeSec", unit = "s"]
+        pub w_size_sec: f64 = 0.02,
+        /// hop between frames
+        #[afe = "ac_hSizeSec", unit = "s"]
+        pub h_size_sec: f64 = 0.01,
+        /// centre clipping: compress ('clc'), keep ('clp') or sign ('sgn')
+        #[afe = "ac_clipMethod"]
+        pub clip_method: ClipMethod = ClipMethod::Keep,
+        /// clipping threshold as a fraction of the frame's extreme values
+        #[afe = "ac_clipAlpha"]
+        pub clip_alpha: f64 = 0.6,
+        /// exponent of the magnitude spectrum (2: plain autocorrelation)
+        #[afe = "ac_K"]
+        pub spectral_exponent: f64 = 2.0,
+    }
 }
 
 /// The autocorrelation of one ear: IHC `[time][channel]` in, `[frame][channel][lag]` out
@@ -165,36 +106,35 @@ impl Autocorrelation {
     pub fn new(params: &AutocorrelationParams, input: &SignalInfo) -> Result<(Self, SignalInfo)> {
         let fs = input.fs_hz;
         let (w, h) = check_framing(
-            ("ac_wSizeSec", params.w_size_sec),
-            ("ac_hSizeSec", params.h_size_sec),
+            (AutocorrelationParams::NAMES.w_size_sec, params.w_size_sec),
+            (AutocorrelationParams::NAMES.h_size_sec, params.h_size_sec),
             fs,
             input.channels(),
         )?;
         if !(0.0..=1.0).contains(&params.clip_alpha) {
-            return Err(Error::InvalidParameter {
-                name: "ac_clipAlpha".into(),
-                value: params.clip_alpha.to_string(),
-                reason: "must be between 0 and 1 (a fraction of the frame's extreme values)".into(),
-            });
+            return Err(Error::invalid(
+                AutocorrelationParams::NAMES.clip_alpha,
+                params.clip_alpha,
+                "must be between 0 and 1 (a fraction of the frame's extreme values)",
+            ));
         }
         // (within 1e-12 of 1, α·max rounds to max itself)
         if params.clip_method == ClipMethod::Compress && params.clip_alpha >= 1.0 - 1e-12 {
-            return Err(Error::InvalidParameter {
-                name: "ac_clipAlpha".into(),
-                value: params.clip_alpha.to_string(),
-                reason: "with ac_clipMethod 'clc' a threshold of 1 clips every sample to 0 and \
-                         the autocorrelation is NaN: give a value below 1 − 1e-12"
-                    .into(),
-            });
+            return Err(Error::invalid(
+                AutocorrelationParams::NAMES.clip_alpha,
+                params.clip_alpha,
+                "with ac_clipMethod 'clc' a threshold of 1 clips every sample to 0 and \
+                         the autocorrelation is NaN: give a value below 1 − 1e-12",
+            ));
         }
         if params.spectral_exponent <= 0.0 {
-            return Err(Error::InvalidParameter {
-                name: "ac_K".into(),
-                value: params.spectral_exponent.to_string(),
-                reason: "must be > 0 (2 gives the plain autocorrelation)".into(),
-            });
+            return Err(Error::invalid(
+                AutocorrelationParams::NAMES.spectral_exponent,
+                params.spectral_exponent,
+                "must be > 0 (2 gives the plain autocorrelation)",
+            ));
         }
-        let win = window(&params.wname, w, "ac_wname")?;
+        let win = window(params.wname, w);
         let nc = input.channels();
         // The AFE's transform length is 2^nextpow2(2W − 1). For K = 2 the ACF is a linear
         // correlation, which any length from 2W − 2 on gives without wrap-around up to
@@ -208,7 +148,7 @@ impl Autocorrelation {
         // the transforms' buffers, beside the columns, spectra and lags (found by fuzzing:
         // a window of minutes over one channel asked for gigabytes of transform buffers)
         check_work(
-            ("ac_wSizeSec", params.w_size_sec),
+            (AutocorrelationParams::NAMES.w_size_sec, params.w_size_sec),
             nc * (w + 2) + 2 * w + 3 * (nfft / 2 + 1) + 2 * transform_values(nfft),
             &format!("this window over {nc} channels"),
             "shorten the window or use fewer channels",
@@ -242,7 +182,8 @@ impl Autocorrelation {
         Ok((ac, info))
     }
 
-    /// The normalised ACF of channel `c`'s windowed frame into `out` (`W − 1` lags); inlined
+    /// The normalised ACF of channel `c`'s windowed frame into `out` (`W − 1` lags);
+    /// inlined
     /// into [`correlate_frames`] so that its loops get that function's vector width.
     #[inline(always)]
     fn correlate(&mut self, c: usize, out: &mut [f64]) {
@@ -502,12 +443,8 @@ pub static REQUEST: RequestDef = request_def::<Autocorrelation>();
 mod tests {
     use super::*;
     use crate::testing::{noise, plain_dft};
+    use afe_core::Params;
     use proptest::prelude::*;
-
-    #[test]
-    fn specs_match_struct() {
-        afe_core::params::check_param_specs::<AutocorrelationParams>();
-    }
 
     fn ihc(fs: f64, nc: usize) -> SignalInfo {
         SignalInfo::time_frequency(fs, (0..nc).map(|c| 100.0 * (c + 1) as f64).collect())
@@ -577,7 +514,7 @@ mod tests {
             let (nl, out) = run(&p, nc, &x, &[60]);
             let frames = (60 - w) / h + 1;
             assert_eq!((nl, out.len()), (w - 1, frames * nc * nl));
-            let win = window("hann", w, "").expect("hann");
+            let win = window(Window::Hann, w);
             for t in 0..frames {
                 for c in 0..nc {
                     let f: Vec<f64> = (0..w).map(|n| win[n] * x[(t * h + n) * nc + c]).collect();
@@ -629,7 +566,7 @@ mod tests {
     #[test]
     fn other_spectral_exponents_match_direct_transforms() {
         let x = signal(40, 3);
-        let win = window("hann", 20, "").expect("hann");
+        let win = window(Window::Hann, 20);
         for k in [1.0, 0.5, 3.0] {
             let p = AutocorrelationParams {
                 spectral_exponent: k,
@@ -789,13 +726,6 @@ mod tests {
                     ..Default::default()
                 },
                 "ac_hSizeSec",
-            ),
-            (
-                AutocorrelationParams {
-                    wname: "hanning2".into(),
-                    ..Default::default()
-                },
-                "ac_wname",
             ),
         ];
         for (p, name) in cases {

@@ -4,59 +4,25 @@
 use afe_core::butter::{butter, butter_sos, round_off_gain, Biquad, ButterType};
 use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::filter::Df2t;
-use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
-use serde::{Deserialize, Serialize};
+use afe_core::{Block, Error, ParamKind, Processor, Result, SignalInfo};
 
 /// Largest `bw_order` accepted: beyond it the roll-off is steeper than double precision
 /// resolves.
 const MAX_ORDER: u64 = 32;
 
-/// Parameters of the Butterworth filter (`bw_` prefix, in the AFE naming style).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ButterworthParams {
-    /// `'low'`, `'high'`, `'bandpass'` or `'stop'`, as MATLAB's `butter` (`bw_type`).
-    #[serde(rename = "bw_type")]
-    pub kind: String,
-    /// Prototype order; band designs have twice this order (`bw_order`).
-    #[serde(rename = "bw_order")]
-    pub order: u32,
-    /// Cut-off(s) in Hz: one for low/high, two for bandpass/stop (`bw_cutoffHz`).
-    #[serde(rename = "bw_cutoffHz")]
-    pub cutoff_hz: Vec<f64>,
-}
-
-impl Default for ButterworthParams {
-    fn default() -> Self {
-        ButterworthParams {
-            kind: "low".into(),
-            order: 4,
-            cutoff_hz: vec![1000.0],
-        }
+afe_core::params! {
+    /// Parameters of the Butterworth filter (`bw_` prefix, in the AFE naming style).
+    pub struct ButterworthParams / ButterworthNames {
+        /// response type of the Butterworth filter
+        #[afe = "bw_type", kind = ParamKind::Choice(&["low", "high", "bandpass", "stop"])]
+        pub kind: String = "low".into(),
+        /// filter order (band designs have twice this order)
+        #[afe = "bw_order", kind = ParamKind::CountUpTo(MAX_ORDER)]
+        pub order: u32 = 4,
+        /// cut-off frequency, or [low, high] for bandpass/stop
+        #[afe = "bw_cutoffHz", unit = "Hz"]
+        pub cutoff_hz: Vec<f64> = vec![1000.0],
     }
-}
-
-impl Params for ButterworthParams {
-    const SPECS: &'static [ParamSpec] = &[
-        ParamSpec {
-            name: "bw_type",
-            kind: ParamKind::Choice(&["low", "high", "bandpass", "stop"]),
-            unit: "",
-            description: "response type of the Butterworth filter",
-        },
-        ParamSpec {
-            name: "bw_order",
-            kind: ParamKind::CountUpTo(MAX_ORDER),
-            unit: "",
-            description: "filter order (band designs have twice this order)",
-        },
-        ParamSpec {
-            name: "bw_cutoffHz",
-            kind: ParamKind::Numbers,
-            unit: "Hz",
-            description: "cut-off frequency, or [low, high] for bandpass/stop",
-        },
-    ];
 }
 
 impl ButterworthParams {
@@ -75,10 +41,12 @@ impl ButterworthParams {
         };
         let nyq = fs / 2.0;
         let fc = &self.cutoff_hz;
-        let bad = |reason: String| Error::InvalidParameter {
-            name: "bw_cutoffHz".into(),
-            value: format!("{fc:?}"),
-            reason,
+        let bad = |reason: String| {
+            Error::invalid(
+                ButterworthParams::NAMES.cutoff_hz,
+                format!("{fc:?}"),
+                reason,
+            )
         };
         if fc.len() != want {
             return Err(bad(format!(
@@ -93,13 +61,12 @@ impl ButterworthParams {
             )));
         }
         if u64::from(self.order) > MAX_ORDER {
-            return Err(Error::InvalidParameter {
-                name: "bw_order".into(),
-                value: self.order.to_string(),
-                reason: "orders above 32 are not supported (the roll-off is then steeper than \
-                         double precision resolves)"
-                    .into(),
-            });
+            return Err(Error::invalid(
+                ButterworthParams::NAMES.order,
+                self.order,
+                "orders above 32 are not supported (the roll-off is then steeper than \
+                         double precision resolves)",
+            ));
         }
         let wn: Vec<f64> = fc.iter().map(|f| f / nyq).collect();
         Ok((self.order as usize, wn, kind))
@@ -134,7 +101,7 @@ impl ButterworthParams {
             None => "narrow the band".into(),
         };
         Err(Error::invalid(
-            "bw_order",
+            ButterworthParams::NAMES.order,
             self.order,
             format!(
                 "a '{}' design of order {} over {:?} Hz at {fs} Hz cannot be computed in double \
@@ -206,11 +173,6 @@ pub static REQUEST: RequestDef = request_def::<Butterworth>();
 mod tests {
     use super::*;
     use crate::testing::feed;
-
-    #[test]
-    fn specs_match_struct() {
-        afe_core::params::check_param_specs::<ButterworthParams>();
-    }
 
     fn params(kind: &str, order: u32, cutoff_hz: &[f64]) -> ButterworthParams {
         ButterworthParams {

@@ -6,9 +6,8 @@ use std::ops::Range;
 
 use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::framing::FrameBuffer;
-use afe_core::window::{window, WINDOW_NAMES};
-use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Part, Processor, Result, SignalInfo};
-use serde::{Deserialize, Serialize};
+use afe_core::window::{window, Window};
+use afe_core::{Block, Error, Part, Processor, Result, SignalInfo};
 
 use crate::framed::{check_framing, check_work, EarFrames};
 
@@ -18,62 +17,22 @@ mod fft;
 use direct::{direct_work, Direct, LANES};
 use fft::FftEngine;
 
-/// Parameters of the cross-correlation, under their AFE names.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct CrosscorrelationParams {
-    /// Window name (AFE `cc_wname`).
-    #[serde(rename = "cc_wname")]
-    pub wname: String,
-    /// Window length in s (AFE `cc_wSizeSec`).
-    #[serde(rename = "cc_wSizeSec")]
-    pub w_size_sec: f64,
-    /// Hop in s (AFE `cc_hSizeSec`).
-    #[serde(rename = "cc_hSizeSec")]
-    pub h_size_sec: f64,
-    /// Largest lag in s (AFE `cc_maxDelaySec`).
-    #[serde(rename = "cc_maxDelaySec")]
-    pub max_delay_sec: f64,
-}
-
-impl Default for CrosscorrelationParams {
-    fn default() -> Self {
-        CrosscorrelationParams {
-            wname: "hann".into(),
-            w_size_sec: 0.02,
-            h_size_sec: 0.01,
-            max_delay_sec: 0.0011,
-        }
+afe_core::params! {
+    /// Parameters of the cross-correlation, under their AFE names.
+    pub struct CrosscorrelationParams / CrosscorrelationNames {
+        /// window applied to each frame
+        #[afe = "cc_wname"]
+        pub wname: Window = Window::Hann,
+        /// window length
+        #[afe = "cc_wSizeSec", unit = "s"]
+        pub w_size_sec: f64 = 0.02,
+        /// hop between frames
+        #[afe = "cc_hSizeSec", unit = "s"]
+        pub h_size_sec: f64 = 0.01,
+        /// largest interaural lag computed
+        #[afe = "cc_maxDelaySec", unit = "s"]
+        pub max_delay_sec: f64 = 0.0011,
     }
-}
-
-impl Params for CrosscorrelationParams {
-    const SPECS: &'static [ParamSpec] = &[
-        ParamSpec {
-            name: "cc_wname",
-            kind: ParamKind::Choice(WINDOW_NAMES),
-            unit: "",
-            description: "window applied to each frame",
-        },
-        ParamSpec {
-            name: "cc_wSizeSec",
-            kind: ParamKind::Number,
-            unit: "s",
-            description: "window length",
-        },
-        ParamSpec {
-            name: "cc_hSizeSec",
-            kind: ParamKind::Number,
-            unit: "s",
-            description: "hop between frames",
-        },
-        ParamSpec {
-            name: "cc_maxDelaySec",
-            kind: ParamKind::Number,
-            unit: "s",
-            description: "largest interaural lag computed",
-        },
-    ];
 }
 
 /// The cross-correlation: left and right IHC in, `[frame][channel][lag]` out.
@@ -112,30 +71,30 @@ impl Crosscorrelation {
     pub fn new(params: &CrosscorrelationParams, input: &SignalInfo) -> Result<(Self, SignalInfo)> {
         let fs = input.fs_hz;
         let (w, h) = check_framing(
-            ("cc_wSizeSec", params.w_size_sec),
-            ("cc_hSizeSec", params.h_size_sec),
+            (CrosscorrelationParams::NAMES.w_size_sec, params.w_size_sec),
+            (CrosscorrelationParams::NAMES.h_size_sec, params.h_size_sec),
             fs,
             input.channels(),
         )?;
         let max_lag = (params.max_delay_sec * fs).ceil();
         if params.max_delay_sec < 0.0 || max_lag > w as f64 {
-            return Err(Error::InvalidParameter {
-                name: "cc_maxDelaySec".into(),
-                value: params.max_delay_sec.to_string(),
-                reason: format!(
+            return Err(Error::invalid(
+                CrosscorrelationParams::NAMES.max_delay_sec,
+                params.max_delay_sec,
+                format!(
                     "must be ≥ 0 s and at most the window ({} s): longer lags are all zero",
                     params.w_size_sec
                 ),
-            });
+            ));
         }
         let max_lag = max_lag as usize;
-        let win = window(&params.wname, w, "cc_wname")?;
+        let win = window(params.wname, w);
         let nc = input.channels();
         let engine = if prefer_direct(w, max_lag) {
             // found by fuzzing: 1.4 GB for a long window when it kept every group's rows
             // (one group of channels at a time, few lags: the window is what counts)
             check_work(
-                ("cc_wSizeSec", params.w_size_sec),
+                (CrosscorrelationParams::NAMES.w_size_sec, params.w_size_sec),
                 direct_work(w, max_lag),
                 &format!("this window of {w} samples"),
                 "shorten the window",
@@ -420,11 +379,6 @@ mod tests {
         }
     }
 
-    #[test]
-    fn specs_match_struct() {
-        afe_core::params::check_param_specs::<CrosscorrelationParams>();
-    }
-
     /// The cost model's crossover at 44.1 kHz (882-sample window, a 2048-point FFT from
     /// 143 lags on): dot products up to 407 lags each way (3·441·408/8 = 67,473 against
     /// 3·2048·11 = 67,584), the FFT from 408; below 143 lags the FFT has 1024 points.
@@ -473,7 +427,7 @@ mod tests {
         let mut out = vec![Block::new(11)];
         cc.process(&[&l, &r], &mut out);
         assert_eq!(out[0].frames(), 3);
-        let win = window("hann", 20, "").unwrap_or_default();
+        let win = window(Window::Hann, 20);
         let lw: Vec<f64> = (0..20).map(|n| win[n] * l.as_slice()[n]).collect();
         let rw: Vec<f64> = (0..20).map(|n| win[n] * r.as_slice()[n]).collect();
         for (i, v) in out[0].row(0).iter().enumerate() {

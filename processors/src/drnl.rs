@@ -35,14 +35,22 @@ pub(crate) fn verified(params: &FilterbankParams) -> Result<ParamMap> {
     let n = grid.cf_hz.len();
     let mut map = ParamMap::new();
     grid.insert_into(&mut map);
-    map.insert("fb_model".into(), json!(params.model));
+    map.insert(FilterbankParams::NAMES.model.into(), json!(params.model));
     map.insert(
-        "fb_mocIpsi".into(),
-        json!(per_channel("fb_mocIpsi", &params.moc_ipsi, n)?),
+        FilterbankParams::NAMES.moc_ipsi.into(),
+        json!(per_channel(
+            FilterbankParams::NAMES.moc_ipsi,
+            &params.moc_ipsi,
+            n
+        )?),
     );
     map.insert(
-        "fb_mocContra".into(),
-        json!(per_channel("fb_mocContra", &params.moc_contra, n)?),
+        FilterbankParams::NAMES.moc_contra.into(),
+        json!(per_channel(
+            FilterbankParams::NAMES.moc_contra,
+            &params.moc_contra,
+            n
+        )?),
     );
     Ok(map)
 }
@@ -132,9 +140,12 @@ impl Drnl {
         if let Some(&f) = grid.cf_hz.iter().find(|&&f| f <= 0.0) {
             // its bandwidths and gains are powers of log10(cf): NaN at 0 Hz
             let (name, value) = if params.cf_hz.is_empty() {
-                ("fb_lowFreqHz", params.low_freq_hz.to_string())
+                (
+                    FilterbankParams::NAMES.low_freq_hz,
+                    params.low_freq_hz.to_string(),
+                )
             } else {
-                ("fb_cfHz", format!("{:?}", params.cf_hz))
+                (FilterbankParams::NAMES.cf_hz, format!("{:?}", params.cf_hz))
             };
             return Err(Error::invalid(
                 name,
@@ -143,8 +154,8 @@ impl Drnl {
             ));
         }
         let nc = grid.cf_hz.len();
-        let moc_ipsi = per_channel("fb_mocIpsi", &params.moc_ipsi, nc)?;
-        let moc_contra = per_channel("fb_mocContra", &params.moc_contra, nc)?;
+        let moc_ipsi = per_channel(FilterbankParams::NAMES.moc_ipsi, &params.moc_ipsi, nc)?;
+        let moc_contra = per_channel(FilterbankParams::NAMES.moc_contra, &params.moc_contra, nc)?;
         let designs: Vec<ChannelDesign> = grid
             .cf_hz
             .iter()
@@ -228,7 +239,10 @@ impl Drnl {
     /// state: the AFE's MOC feedback. Refuses vectors of another length.
     pub fn set_moc(&mut self, ipsi: &[f64], contra: &[f64]) -> Result<()> {
         let nc = self.channels;
-        for (name, v) in [("fb_mocIpsi", ipsi), ("fb_mocContra", contra)] {
+        for (name, v) in [
+            (FilterbankParams::NAMES.moc_ipsi, ipsi),
+            (FilterbankParams::NAMES.moc_contra, contra),
+        ] {
             if v.len() != nc {
                 return Err(Error::invalid(
                     name,

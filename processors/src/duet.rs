@@ -22,101 +22,37 @@ use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::framing::{window_samples, FrameBuffer};
 use afe_core::sgolay::SavitzkyGolay;
 use afe_core::window::hamming_periodic;
-use afe_core::{
-    Axis, Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
-};
+use afe_core::{Axis, Block, Error, ParamKind, Processor, Result, SignalInfo, SignalKind};
 use afe_fft::RealToComplex;
 use num_complex::Complex64;
-use serde::{Deserialize, Serialize};
 
 use crate::framed::{EarFrames, MAX_WINDOW};
 
-/// Parameters of the DUET histogram, under their AFE names.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct DuetParams {
-    /// STFT window length in s (AFE `duet_wSTFTSec`); the STFT hop is half of it.
-    #[serde(rename = "duet_wSTFTSec")]
-    pub w_stft_sec: f64,
-    /// Histogram block length in s (AFE `duet_wDUETSec`).
-    #[serde(rename = "duet_wDUETSec")]
-    pub w_duet_sec: f64,
-    /// Histogram block hop in s (AFE `duet_hDUETSec`).
-    #[serde(rename = "duet_hDUETSec")]
-    pub h_duet_sec: f64,
-    /// Number of attenuation bins (AFE `duet_binsAlpha`).
-    #[serde(rename = "duet_binsAlpha")]
-    pub bins_alpha: usize,
-    /// Number of delay bins (AFE `duet_binsDelta`).
-    #[serde(rename = "duet_binsDelta")]
-    pub bins_delta: usize,
-    /// Largest |α| counted (AFE `duet_maxAlpha`).
-    #[serde(rename = "duet_maxAlpha")]
-    pub max_alpha: f64,
-    /// Largest |δ| counted, in samples (AFE `duet_maxDelta`).
-    #[serde(rename = "duet_maxDelta")]
-    pub max_delta: f64,
-}
-
-impl Default for DuetParams {
-    fn default() -> Self {
-        DuetParams {
-            w_stft_sec: 0.02,
-            w_duet_sec: 0.5,
-            h_duet_sec: 1.0 / 6.0,
-            bins_alpha: 35,
-            bins_delta: 51,
-            max_alpha: 0.7,
-            max_delta: 3.6,
-        }
+afe_core::params! {
+    /// Parameters of the DUET histogram, under their AFE names.
+    pub struct DuetParams / DuetNames {
+        /// STFT window length (the STFT hop is half of it)
+        #[afe = "duet_wSTFTSec", unit = "s"]
+        pub w_stft_sec: f64 = 0.02,
+        /// histogram block length
+        #[afe = "duet_wDUETSec", unit = "s"]
+        pub w_duet_sec: f64 = 0.5,
+        /// hop between histogram blocks
+        #[afe = "duet_hDUETSec", unit = "s"]
+        pub h_duet_sec: f64 = 1.0 / 6.0,
+        /// number of attenuation bins (at least 5)
+        #[afe = "duet_binsAlpha", kind = ParamKind::Count]
+        pub bins_alpha: usize = 35,
+        /// number of delay bins (at least 5)
+        #[afe = "duet_binsDelta", kind = ParamKind::Count]
+        pub bins_delta: usize = 51,
+        /// largest symmetric attenuation |α| counted
+        #[afe = "duet_maxAlpha"]
+        pub max_alpha: f64 = 0.7,
+        /// largest delay |δ| counted
+        #[afe = "duet_maxDelta", unit = "samples"]
+        pub max_delta: f64 = 3.6,
     }
-}
-
-impl Params for DuetParams {
-    const SPECS: &'static [ParamSpec] = &[
-        ParamSpec {
-            name: "duet_wSTFTSec",
-            kind: ParamKind::Number,
-            unit: "s",
-            description: "STFT window length (the STFT hop is half of it)",
-        },
-        ParamSpec {
-            name: "duet_wDUETSec",
-            kind: ParamKind::Number,
-            unit: "s",
-            description: "histogram block length",
-        },
-        ParamSpec {
-            name: "duet_hDUETSec",
-            kind: ParamKind::Number,
-            unit: "s",
-            description: "hop between histogram blocks",
-        },
-        ParamSpec {
-            name: "duet_binsAlpha",
-            kind: ParamKind::Count,
-            unit: "",
-            description: "number of attenuation bins (at least 5)",
-        },
-        ParamSpec {
-            name: "duet_binsDelta",
-            kind: ParamKind::Count,
-            unit: "",
-            description: "number of delay bins (at least 5)",
-        },
-        ParamSpec {
-            name: "duet_maxAlpha",
-            kind: ParamKind::Number,
-            unit: "",
-            description: "largest symmetric attenuation |α| counted",
-        },
-        ParamSpec {
-            name: "duet_maxDelta",
-            kind: ParamKind::Number,
-            unit: "samples",
-            description: "largest delay |δ| counted",
-        },
-    ];
 }
 
 /// Most histogram cells per block (`binsAlpha·binsDelta`); beyond is a mistake.
@@ -174,7 +110,7 @@ impl Duet {
         let ws = window_samples(p.w_stft_sec, fs);
         if p.w_stft_sec <= 0.0 || !(2..=MAX_WINDOW).contains(&ws) {
             return Err(Error::invalid(
-                "duet_wSTFTSec",
+                DuetParams::NAMES.w_stft_sec,
                 p.w_stft_sec,
                 format!("the STFT window must span between 2 and {MAX_WINDOW} samples at {fs} Hz"),
             ));
@@ -186,7 +122,7 @@ impl Duet {
         let max_frames = (MAX_WINDOW / (ws / 2)) as f64;
         if !(1.0..=max_frames).contains(&wd) {
             return Err(Error::invalid(
-                "duet_wDUETSec",
+                DuetParams::NAMES.w_duet_sec,
                 p.w_duet_sec,
                 format!(
                     "a block must span between 1 and {max_frames} STFT frames of {} s",
@@ -196,7 +132,7 @@ impl Duet {
         }
         if !(1.0..=max_frames).contains(&hd) {
             return Err(Error::invalid(
-                "duet_hDUETSec",
+                DuetParams::NAMES.h_duet_sec,
                 p.h_duet_sec,
                 format!(
                     "the block hop must span between 1 and {max_frames} STFT frames of {} s",
@@ -206,8 +142,8 @@ impl Duet {
         }
         let sgolay = SavitzkyGolay::new(3, 5)?;
         for (name, bins) in [
-            ("duet_binsAlpha", p.bins_alpha),
-            ("duet_binsDelta", p.bins_delta),
+            (DuetParams::NAMES.bins_alpha, p.bins_alpha),
+            (DuetParams::NAMES.bins_delta, p.bins_delta),
         ] {
             if bins < sgolay.frame() {
                 return Err(Error::invalid(
@@ -225,9 +161,9 @@ impl Duet {
         if n_cells > MAX_CELLS {
             // named after the larger of the two: the one to bring down
             let (name, value) = if p.bins_delta > p.bins_alpha {
-                ("duet_binsDelta", p.bins_delta)
+                (DuetParams::NAMES.bins_delta, p.bins_delta)
             } else {
-                ("duet_binsAlpha", p.bins_alpha)
+                (DuetParams::NAMES.bins_alpha, p.bins_alpha)
             };
             return Err(Error::invalid(
                 name,
@@ -236,8 +172,8 @@ impl Duet {
             ));
         }
         for (name, max) in [
-            ("duet_maxAlpha", p.max_alpha),
-            ("duet_maxDelta", p.max_delta),
+            (DuetParams::NAMES.max_alpha, p.max_alpha),
+            (DuetParams::NAMES.max_delta, p.max_delta),
         ] {
             if max <= 0.0 {
                 return Err(Error::invalid(name, max, "the range limit must be above 0"));
@@ -442,6 +378,7 @@ pub static REQUEST: RequestDef = request_def::<Duet>();
 mod tests {
     use super::*;
     use crate::testing::{noise, plain_dft};
+    use afe_core::Params;
     use proptest::prelude::*;
 
     /// The bin centres along `axis` (`alpha` or `delta`) of a histogram's description.
@@ -478,11 +415,6 @@ mod tests {
             h_duet_sec: 0.02,
             ..DuetParams::default()
         }
-    }
-
-    #[test]
-    fn specs_match_struct() {
-        afe_core::params::check_param_specs::<DuetParams>();
     }
 
     #[test]

@@ -27,11 +27,11 @@ impl Descriptor for Filterbank {
     const OUTPUT_UNIT: &'static str = "";
     /// The class and the channel grid, which every representation above is laid out on.
     const FIXED: &'static [&'static str] = &[
-        "fb_type",
-        "fb_lowFreqHz",
-        "fb_highFreqHz",
-        "fb_nERBs",
-        "fb_cfHz",
+        FilterbankParams::NAMES.fb_type,
+        FilterbankParams::NAMES.low_freq_hz,
+        FilterbankParams::NAMES.high_freq_hz,
+        FilterbankParams::NAMES.n_erbs,
+        FilterbankParams::NAMES.cf_hz,
     ];
 
     fn build(params: &FilterbankParams, inputs: &[SignalInfo]) -> Result<Built> {
@@ -61,7 +61,10 @@ impl Descriptor for Filterbank {
             FbType::Gammatone => crate::gammatone::verified(params)?,
             FbType::Drnl => crate::drnl::verified(params)?,
         };
-        map.insert("fb_type".into(), json!(params.fb_type));
+        map.insert(
+            FilterbankParams::NAMES.fb_type.into(),
+            json!(params.fb_type),
+        );
         Ok(map)
     }
 }

@@ -4,185 +4,91 @@
 //! them from here, so that neither type depends on the dispatch that chooses it.
 
 use afe_core::erb::{colon_range, erb2freq, freq2erb, linspace};
-use afe_core::{Error, ParamKind, ParamMap, ParamSpec, Params, Result};
-use serde::{Deserialize, Serialize};
+use afe_core::{Error, ParamKind, ParamMap, ParamSpec, Result};
 use serde_json::json;
 
 /// Largest gammatone order accepted (`fb_nGamma`): higher orders' expanded denominators
 /// lose the filter's stability in double precision.
 pub const MAX_N_GAMMA: u64 = 8;
 
-/// The filterbank class of a `filterbank` request (AFE `fb_type`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub enum FbType {
-    /// Linear complex gammatone filters (spec 11-gammatone).
-    #[serde(rename = "gammatone")]
-    Gammatone,
-    /// Dual-resonance non-linear filters (spec 12-drnl).
-    #[serde(rename = "drnl")]
-    Drnl,
+afe_core::choices! {
+    /// The filterbank class of a `filterbank` request (AFE `fb_type`).
+    pub enum FbType {
+        /// Linear complex gammatone filters (spec 11-gammatone).
+        Gammatone = "gammatone",
+        /// Dual-resonance non-linear filters (spec 12-drnl).
+        Drnl = "drnl",
+    }
 }
 
-/// DRNL parameter set (AFE `fb_model`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub enum DrnlModel {
-    /// Lopez-Poveda & Meddis (2001) as used in CASP (Jepsen et al. 2008): low-pass
-    /// sections on both paths, broken-stick compression.
-    #[serde(rename = "CASP")]
-    Casp,
-    /// MAP 1.14h: middle-ear (tympanic membrane and stapes) stage, no low-pass sections,
-    /// compression above a threshold.
-    #[serde(rename = "MAP")]
-    Map,
+afe_core::choices! {
+    /// DRNL parameter set (AFE `fb_model`).
+    pub enum DrnlModel {
+        /// Lopez-Poveda & Meddis (2001) as used in CASP (Jepsen et al. 2008): low-pass
+        /// sections on both paths, broken-stick compression.
+        Casp = "CASP",
+        /// MAP 1.14h: middle-ear (tympanic membrane and stapes) stage, no low-pass
+        /// sections,
+        /// compression above a threshold.
+        Map = "MAP",
+    }
 }
 
-/// Parameters of a `filterbank` request, under their AFE names: the grid shared by both
-/// types and those of each type. Every one is accepted whatever `fb_type` says (as in the
-/// AFE); a type ignores the others', and its canonical map (which decides sharing) holds
-/// only its own.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct FilterbankParams {
-    /// Filterbank class (AFE `fb_type`).
-    #[serde(rename = "fb_type")]
-    pub fb_type: FbType,
-    /// Lowest centre frequency in Hz (AFE `fb_lowFreqHz`).
-    #[serde(rename = "fb_lowFreqHz")]
-    pub low_freq_hz: f64,
-    /// Highest requested centre frequency in Hz (AFE `fb_highFreqHz`).
-    #[serde(rename = "fb_highFreqHz")]
-    pub high_freq_hz: f64,
-    /// Channel spacing in ERBs (AFE `fb_nERBs`).
-    #[serde(rename = "fb_nERBs")]
-    pub n_erbs: f64,
-    /// Number of channels; overrides the spacing when given (AFE `fb_nChannels`).
-    #[serde(rename = "fb_nChannels")]
-    pub n_channels: Option<u32>,
-    /// Explicit centre frequencies in Hz; highest priority when given (AFE `fb_cfHz`).
-    #[serde(rename = "fb_cfHz")]
-    pub cf_hz: Vec<f64>,
-    /// Gammatone order, gammatone only (AFE `fb_nGamma`).
-    #[serde(rename = "fb_nGamma")]
-    pub n_gamma: u32,
-    /// Gammatone bandwidth in ERBs, gammatone only (AFE `fb_bwERBs`).
-    #[serde(rename = "fb_bwERBs")]
-    pub bw_erbs: f64,
-    /// Phase-align the gammatone impulse responses, gammatone only (AFE `fb_bAlign`).
-    #[serde(rename = "fb_bAlign")]
-    pub align: bool,
-    /// Ipsilateral MOC gain on the DRNL's non-linear path, one value or one per channel,
-    /// DRNL only (AFE `fb_mocIpsi`).
-    #[serde(rename = "fb_mocIpsi")]
-    pub moc_ipsi: Vec<f64>,
-    /// Contralateral MOC gain on the DRNL's non-linear path, one value or one per
-    /// channel, DRNL only (AFE `fb_mocContra`).
-    #[serde(rename = "fb_mocContra")]
-    pub moc_contra: Vec<f64>,
-    /// DRNL parameter set, DRNL only (AFE `fb_model`).
-    #[serde(rename = "fb_model")]
-    pub model: DrnlModel,
-}
-
-impl Default for FilterbankParams {
-    fn default() -> Self {
-        FilterbankParams {
-            fb_type: FbType::Gammatone,
-            low_freq_hz: 80.0,
-            high_freq_hz: 8000.0,
-            n_erbs: 1.0,
-            n_channels: None,
-            cf_hz: Vec::new(),
-            n_gamma: 4,
-            bw_erbs: 1.018,
-            align: false,
-            moc_ipsi: vec![1.0],
-            moc_contra: vec![1.0],
-            model: DrnlModel::Casp,
-        }
+afe_core::params! {
+    /// Parameters of a `filterbank` request, under their AFE names: the grid shared by both
+    /// types and those of each type. Every one is accepted whatever `fb_type` says (as in
+    /// the
+    /// AFE); a type ignores the others', and its canonical map (which decides sharing)
+    /// holds
+    /// only its own.
+    pub struct FilterbankParams / FilterbankNames {
+        /// filterbank type: linear gammatone or dual-resonance non-linear
+        #[afe = "fb_type"]
+        pub fb_type: FbType = FbType::Gammatone,
+        /// lowest centre frequency
+        #[afe = "fb_lowFreqHz", unit = "Hz"]
+        pub low_freq_hz: f64 = 80.0,
+        /// highest requested centre frequency
+        #[afe = "fb_highFreqHz", unit = "Hz"]
+        pub high_freq_hz: f64 = 8000.0,
+        /// channel spacing on the ERB-number scale
+        #[afe = "fb_nERBs", unit = "ERB"]
+        pub n_erbs: f64 = 1.0,
+        /// number of channels (overrides fb_nERBs; [] = derive from the spacing)
+        #[afe = "fb_nChannels"]
+        pub n_channels: Option<u32> = None,
+        /// explicit centre frequencies (overrides everything; [] = derive)
+        #[afe = "fb_cfHz", unit = "Hz"]
+        pub cf_hz: Vec<f64> = Vec::new(),
+        /// gammatone filter order (gammatone only)
+        #[afe = "fb_nGamma", kind = ParamKind::CountUpTo(MAX_N_GAMMA)]
+        pub n_gamma: u32 = 4,
+        /// gammatone bandwidth in ERBs (gammatone only)
+        #[afe = "fb_bwERBs", unit = "ERB"]
+        pub bw_erbs: f64 = 1.018,
+        /// phase-align the channels' impulse responses (gammatone only)
+        #[afe = "fb_bAlign"]
+        pub align: bool = false,
+        /// ipsilateral MOC gain on the non-linear path, one or one per channel (drnl only)
+        #[afe = "fb_mocIpsi"]
+        pub moc_ipsi: Vec<f64> = vec![1.0],
+        /// contralateral MOC gain on the non-linear path, one or one per channel (drnl
+        /// only)
+        #[afe = "fb_mocContra"]
+        pub moc_contra: Vec<f64> = vec![1.0],
+        /// DRNL parameter set: CASP (Jepsen et al. 2008) or MAP 1.14h (drnl only)
+        #[afe = "fb_model"]
+        pub model: DrnlModel = DrnlModel::Casp,
     }
 }
 
 /// The declaration of `fb_type`, which the pre-processing reads as well.
 const FB_TYPE: ParamSpec = ParamSpec {
-    name: "fb_type",
+    name: FilterbankParams::NAMES.fb_type,
     kind: ParamKind::Choice(&["gammatone", "drnl"]),
     unit: "",
     description: "filterbank type: linear gammatone or dual-resonance non-linear",
 };
-
-impl Params for FilterbankParams {
-    const SPECS: &'static [ParamSpec] = &[
-        FB_TYPE,
-        ParamSpec {
-            name: "fb_lowFreqHz",
-            kind: ParamKind::Number,
-            unit: "Hz",
-            description: "lowest centre frequency",
-        },
-        ParamSpec {
-            name: "fb_highFreqHz",
-            kind: ParamKind::Number,
-            unit: "Hz",
-            description: "highest requested centre frequency",
-        },
-        ParamSpec {
-            name: "fb_nERBs",
-            kind: ParamKind::Number,
-            unit: "ERB",
-            description: "channel spacing on the ERB-number scale",
-        },
-        ParamSpec {
-            name: "fb_nChannels",
-            kind: ParamKind::Count,
-            unit: "",
-            description: "number of channels (overrides fb_nERBs; [] = derive from the spacing)",
-        },
-        ParamSpec {
-            name: "fb_cfHz",
-            kind: ParamKind::Numbers,
-            unit: "Hz",
-            description: "explicit centre frequencies (overrides everything; [] = derive)",
-        },
-        ParamSpec {
-            name: "fb_nGamma",
-            kind: ParamKind::CountUpTo(MAX_N_GAMMA),
-            unit: "",
-            description: "gammatone filter order (gammatone only)",
-        },
-        ParamSpec {
-            name: "fb_bwERBs",
-            kind: ParamKind::Number,
-            unit: "ERB",
-            description: "gammatone bandwidth in ERBs (gammatone only)",
-        },
-        ParamSpec {
-            name: "fb_bAlign",
-            kind: ParamKind::Flag,
-            unit: "",
-            description: "phase-align the channels' impulse responses (gammatone only)",
-        },
-        ParamSpec {
-            name: "fb_mocIpsi",
-            kind: ParamKind::Numbers,
-            unit: "",
-            description:
-                "ipsilateral MOC gain on the non-linear path, one or one per channel (drnl only)",
-        },
-        ParamSpec {
-            name: "fb_mocContra",
-            kind: ParamKind::Numbers,
-            unit: "",
-            description:
-                "contralateral MOC gain on the non-linear path, one or one per channel (drnl only)",
-        },
-        ParamSpec {
-            name: "fb_model",
-            kind: ParamKind::Choice(&["CASP", "MAP"]),
-            unit: "",
-            description: "DRNL parameter set: CASP (Jepsen et al. 2008) or MAP 1.14h (drnl only)",
-        },
-    ];
-}
 
 /// Highest `fb_highFreqHz` accepted, Hz: far above any sampling rate's Nyquist frequency,
 /// low enough that the ERB grid up to it stays countable.
@@ -209,14 +115,23 @@ pub struct CfGrid {
 impl CfGrid {
     /// The grid's parameters under their AFE names, in `map`.
     pub fn insert_into(&self, map: &mut ParamMap) {
-        map.insert("fb_cfHz".into(), json!(self.cf_hz));
-        map.insert("fb_nChannels".into(), json!(self.cf_hz.len()));
+        map.insert(FilterbankParams::NAMES.cf_hz.into(), json!(self.cf_hz));
         map.insert(
-            "fb_nERBs".into(),
+            FilterbankParams::NAMES.n_channels.into(),
+            json!(self.cf_hz.len()),
+        );
+        map.insert(
+            FilterbankParams::NAMES.n_erbs.into(),
             self.n_erbs.map_or_else(|| json!("n/a"), |e| json!(e)),
         );
-        map.insert("fb_lowFreqHz".into(), json!(self.low_freq_hz));
-        map.insert("fb_highFreqHz".into(), json!(self.high_freq_hz));
+        map.insert(
+            FilterbankParams::NAMES.low_freq_hz.into(),
+            json!(self.low_freq_hz),
+        );
+        map.insert(
+            FilterbankParams::NAMES.high_freq_hz.into(),
+            json!(self.high_freq_hz),
+        );
     }
 
     /// Refuses a grid beyond the Nyquist frequency of input rate `fs` Hz, naming the
@@ -243,7 +158,7 @@ impl CfGrid {
                 ""
             };
             Error::invalid(
-                "fb_highFreqHz",
+                FilterbankParams::NAMES.high_freq_hz,
                 format_args!("{:?}", params.high_freq_hz),
                 format!(
                     "{}{which} puts {channels} above the Nyquist frequency ({nyquist} Hz) of \
@@ -253,7 +168,7 @@ impl CfGrid {
             )
         } else {
             Error::invalid(
-                "fb_cfHz",
+                FilterbankParams::NAMES.cf_hz,
                 format_args!("{bad:?}"),
                 format!(
                     "centre frequencies must not exceed the Nyquist frequency ({nyquist} Hz) \
@@ -271,14 +186,14 @@ impl FilterbankParams {
         if !self.cf_hz.is_empty() {
             if let Some(bad) = self.cf_hz.iter().find(|f| **f <= 0.0) {
                 return Err(Error::invalid(
-                    "fb_cfHz",
+                    FilterbankParams::NAMES.cf_hz,
                     format_args!("{bad:?}"),
                     "centre frequencies must be > 0 Hz",
                 ));
             }
             if self.cf_hz.len() > MAX_CHANNELS {
                 return Err(Error::invalid(
-                    "fb_cfHz",
+                    FilterbankParams::NAMES.cf_hz,
                     format_args!("[{} values]", self.cf_hz.len()),
                     format!("at most {MAX_CHANNELS} channels are supported"),
                 ));
@@ -292,31 +207,37 @@ impl FilterbankParams {
         }
         if self.low_freq_hz <= 0.0 {
             return Err(Error::invalid(
-                "fb_lowFreqHz",
+                FilterbankParams::NAMES.low_freq_hz,
                 format_args!("{:?}", self.low_freq_hz),
                 "must be > 0 Hz",
             ));
         }
         if self.high_freq_hz.is_nan() || self.high_freq_hz > MAX_HIGH_FREQ_HZ {
             return Err(Error::invalid(
-                "fb_highFreqHz",
+                FilterbankParams::NAMES.high_freq_hz,
                 format_args!("{:?}", self.high_freq_hz),
                 "must be a frequency in Hz below the Nyquist frequency of the input",
             ));
         }
         if self.high_freq_hz < self.low_freq_hz {
             return Err(Error::invalid(
-                "fb_highFreqHz",
+                FilterbankParams::NAMES.high_freq_hz,
                 format_args!("{:?}", self.high_freq_hz),
                 format!("must be ≥ fb_lowFreqHz ({} Hz)", self.low_freq_hz),
             ));
         }
         let (elo, ehi) = (freq2erb(self.low_freq_hz), freq2erb(self.high_freq_hz));
         let (cf_hz, n_erbs): (Vec<f64>, f64) = match self.n_channels {
-            Some(0) => return Err(Error::invalid("fb_nChannels", 0, "must be at least 1")),
+            Some(0) => {
+                return Err(Error::invalid(
+                    FilterbankParams::NAMES.n_channels,
+                    0,
+                    "must be at least 1",
+                ))
+            }
             Some(n) if n as usize > MAX_CHANNELS => {
                 return Err(Error::invalid(
-                    "fb_nChannels",
+                    FilterbankParams::NAMES.n_channels,
                     n,
                     format!("at most {MAX_CHANNELS} channels are supported"),
                 ))
@@ -330,7 +251,7 @@ impl FilterbankParams {
                 let count = (ehi - elo) / self.n_erbs;
                 if self.n_erbs <= 0.0 || count >= MAX_CHANNELS as f64 {
                     return Err(Error::invalid(
-                        "fb_nERBs",
+                        FilterbankParams::NAMES.n_erbs,
                         format_args!("{:?}", self.n_erbs),
                         format!(
                             "must be > 0 and give at most {MAX_CHANNELS} channels between \
@@ -373,11 +294,6 @@ pub fn fb_type_of(map: &ParamMap) -> Result<FbType> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn specs_match_struct() {
-        afe_core::params::check_param_specs::<FilterbankParams>();
-    }
 
     #[test]
     fn default_grid_has_31_channels_with_the_afe_bits() {

@@ -25,15 +25,15 @@ pub fn check_work(w: (&str, f64), values: usize, what: &str, remedy: &str) -> Re
     if values <= MAX_WORK_VALUES {
         return Ok(());
     }
-    Err(Error::InvalidParameter {
-        name: w.0.into(),
-        value: w.1.to_string(),
-        reason: format!(
+    Err(Error::invalid(
+        w.0,
+        w.1,
+        format!(
             "{what} would need {} MiB of working memory (at most {} MiB): {remedy}",
             values / (1 << 17),
             MAX_WORK_VALUES / (1 << 17)
         ),
-    })
+    ))
 }
 
 /// Refuses a frame buffer of `ws` rows of `width` values beyond [`MAX_FRAME_VALUES`],
@@ -42,15 +42,11 @@ pub fn check_frame_values(w: (&str, f64), ws: usize, width: usize) -> Result<()>
     if ws.saturating_mul(width.max(1)) <= MAX_FRAME_VALUES {
         return Ok(());
     }
-    Err(Error::InvalidParameter {
-        name: w.0.into(),
-        value: w.1.to_string(),
-        reason: format!(
+    Err(Error::invalid(w.0, w.1, format!(
             "a window of {ws} samples over {width} channels would buffer {} MiB (at most {} MiB): shorten the window or use fewer channels",
             ws.saturating_mul(width) / (1 << 17),
             MAX_FRAME_VALUES / (1 << 17)
-        ),
-    })
+        )))
 }
 
 /// Window and hop lengths in samples at `fs`, checked: `0 < W, H ≤ MAX_WINDOW`. A hop
@@ -66,19 +62,19 @@ pub fn check_framing(
     let ws = window_samples(w.1, fs);
     let hs = hop_samples(h.1, fs);
     if w.1 <= 0.0 || !(2..=MAX_WINDOW).contains(&ws) {
-        return Err(Error::InvalidParameter {
-            name: w.0.into(),
-            value: w.1.to_string(),
-            reason: format!("the window must span between 2 and {MAX_WINDOW} samples at {fs} Hz"),
-        });
+        return Err(Error::invalid(
+            w.0,
+            w.1,
+            format!("the window must span between 2 and {MAX_WINDOW} samples at {fs} Hz"),
+        ));
     }
     check_frame_values(w, ws, width)?;
     if h.1 <= 0.0 || !(1..=MAX_WINDOW).contains(&hs) {
-        return Err(Error::InvalidParameter {
-            name: h.0.into(),
-            value: h.1.to_string(),
-            reason: format!("the hop must span between 1 and {MAX_WINDOW} samples at {fs} Hz"),
-        });
+        return Err(Error::invalid(
+            h.0,
+            h.1,
+            format!("the hop must span between 1 and {MAX_WINDOW} samples at {fs} Hz"),
+        ));
     }
     Ok((ws, hs))
 }

@@ -8,35 +8,16 @@
 use std::f64::consts::PI;
 
 use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
-use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
+use afe_core::{Block, Error, Processor, Result, SignalInfo};
 use num_complex::Complex64;
-use serde::{Deserialize, Serialize};
 
-/// Parameters of the Gabor features, under their AFE names.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct GaborParams {
-    /// Dynamic range kept below the chunk's largest ratemap value, in dB
-    /// (AFE `gb_maxDynamicRangeDB`).
-    #[serde(rename = "gb_maxDynamicRangeDB")]
-    pub max_dynamic_range_db: f64,
-}
-
-impl Default for GaborParams {
-    fn default() -> Self {
-        GaborParams {
-            max_dynamic_range_db: 80.0,
-        }
+afe_core::params! {
+    /// Parameters of the Gabor features, under their AFE names.
+    pub struct GaborParams / GaborNames {
+        /// dynamic range kept below the chunk's maximum before the log
+        #[afe = "gb_maxDynamicRangeDB", unit = "dB"]
+        pub max_dynamic_range_db: f64 = 80.0,
     }
-}
-
-impl Params for GaborParams {
-    const SPECS: &'static [ParamSpec] = &[ParamSpec {
-        name: "gb_maxDynamicRangeDB",
-        kind: ParamKind::Number,
-        unit: "dB",
-        description: "dynamic range kept below the chunk's maximum before the log",
-    }];
 }
 
 /// Largest modulation frequencies (spectral, temporal), rad per channel / per frame.
@@ -191,11 +172,11 @@ impl Gabor {
     /// Builds the feature extractor for the ratemap `input`.
     pub fn new(params: &GaborParams, input: &SignalInfo) -> Result<(Self, SignalInfo)> {
         if params.max_dynamic_range_db <= 0.0 {
-            return Err(Error::InvalidParameter {
-                name: "gb_maxDynamicRangeDB".into(),
-                value: params.max_dynamic_range_db.to_string(),
-                reason: "must be > 0 dB".into(),
-            });
+            return Err(Error::invalid(
+                GaborParams::NAMES.max_dynamic_range_db,
+                params.max_dynamic_range_db,
+                "must be > 0 dB",
+            ));
         }
         let channels = input.channels();
         if channels == 0 {
@@ -266,9 +247,12 @@ impl Gabor {
 
 afe_core::simd_kernel!(
     fma,
-    /// Kept row `r` of filter `f`'s 'same' convolution over the padded log spectrogram of `k`
-    /// channels, for `acc_real.len()` frames: `out[t] = Σ G[a, b]·S[r + half_k − a, t + half_n − b]`
-    /// with `Re G` into `acc_real` and, where the filter has them, the DC weights into `acc_dc`.
+    /// Kept row `r` of filter `f`'s 'same' convolution over the padded log spectrogram of
+    /// `k`
+    /// channels, for `acc_real.len()` frames: `out[t] = Σ G[a, b]·S[r + half_k − a, t +
+    /// half_n − b]`
+    /// with `Re G` into `acc_real` and, where the filter has them, the DC weights into
+    /// `acc_dc`.
     fn convolve_row(
         spectrogram: &[f64],
         k: usize,
@@ -417,11 +401,6 @@ mod tests {
             (0..channels).map(|c| 100.0 * (c + 1) as f64).collect(),
         )
         .framed(100.0)
-    }
-
-    #[test]
-    fn specs_match_struct() {
-        afe_core::params::check_param_specs::<GaborParams>();
     }
 
     #[test]

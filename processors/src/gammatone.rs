@@ -24,9 +24,15 @@ pub(crate) fn verified(params: &FilterbankParams) -> Result<ParamMap> {
     let (grid, delay_s) = grid_and_delays(params)?;
     let mut map = ParamMap::new();
     grid.insert_into(&mut map);
-    map.insert("fb_nGamma".into(), json!(params.n_gamma));
-    map.insert("fb_bwERBs".into(), json!(params.bw_erbs));
-    map.insert("fb_bAlign".into(), json!(params.align));
+    map.insert(
+        FilterbankParams::NAMES.n_gamma.into(),
+        json!(params.n_gamma),
+    );
+    map.insert(
+        FilterbankParams::NAMES.bw_erbs.into(),
+        json!(params.bw_erbs),
+    );
+    map.insert(FilterbankParams::NAMES.align.into(), json!(params.align));
     map.insert("fb_delaySec".into(), json!(delay_s));
     Ok(map)
 }
@@ -36,7 +42,7 @@ pub(crate) fn verified(params: &FilterbankParams) -> Result<ParamMap> {
 fn grid_and_delays(params: &FilterbankParams) -> Result<(CfGrid, Vec<f64>)> {
     if params.bw_erbs <= 0.0 {
         return Err(Error::invalid(
-            "fb_bwERBs",
+            FilterbankParams::NAMES.bw_erbs,
             format_args!("{:?}", params.bw_erbs),
             "must be > 0",
         ));
@@ -281,7 +287,7 @@ impl Gammatone {
         let order = params.n_gamma as usize;
         if !(1..=MAX_ORDER).contains(&order) {
             return Err(Error::invalid(
-                "fb_nGamma",
+                FilterbankParams::NAMES.n_gamma,
                 order,
                 format!("the gammatone order must be between 1 and {MAX_ORDER}"),
             ));

@@ -8,64 +8,41 @@ use afe_core::butter::{butter, ButterType};
 use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::filter::Df2t;
 use afe_core::hilbert::Hilbert;
-use afe_core::{Block, DrawAs, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
-use serde::{Deserialize, Serialize};
+use afe_core::{Block, DrawAs, Processor, Result, SignalInfo};
 
-/// The accepted `ihc_method` names.
-pub const IHC_METHODS: &[&str] = &[
-    "none",
-    "halfwave",
-    "fullwave",
-    "square",
-    "hilbert",
-    "joergensen",
-    "dau",
-    "breebart",
-    "bernstein",
-];
-
-/// Parameters of the inner-hair-cell stage, under their AFE names.
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct IhcParams {
-    /// Envelope extraction method (AFE `ihc_method`).
-    #[serde(rename = "ihc_method")]
-    pub method: Method,
+afe_core::params! {
+    /// Parameters of the inner-hair-cell stage, under their AFE names.
+    pub struct IhcParams / IhcNames {
+        /// inner-hair-cell envelope extraction method
+        #[afe = "ihc_method"]
+        pub method: Method = Method::Dau,
+    }
 }
 
-impl Params for IhcParams {
-    const SPECS: &'static [ParamSpec] = &[ParamSpec {
-        name: "ihc_method",
-        kind: ParamKind::Choice(IHC_METHODS),
-        unit: "",
-        description: "inner-hair-cell envelope extraction method",
-    }];
-}
-
-/// Envelope extraction methods of the AFE (spec 13-ihc), under their AFE names.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Method {
-    /// The filterbank output unchanged.
-    None,
-    /// Half-wave rectification.
-    Halfwave,
-    /// Full-wave rectification.
-    Fullwave,
-    /// Squared signal.
-    Square,
-    /// Hilbert envelope (per chunk).
-    Hilbert,
-    /// Hilbert envelope, then a 150 Hz first-order low-pass (Jørgensen & Dau).
-    Joergensen,
-    /// Half-wave rectification, then a 1 kHz second-order low-pass (Dau et al.).
-    #[default]
-    Dau,
-    /// Half-wave rectification, then five 2 kHz first-order low-passes (Breebaart et al.).
-    Breebart,
-    /// Compressed Hilbert envelope, squared and half-wave rectified, then a 425 Hz
-    /// second-order low-pass (Bernstein et al.).
-    Bernstein,
+afe_core::choices! {
+    /// Envelope extraction methods of the AFE (spec 13-ihc), under their AFE names.
+    pub enum Method {
+        /// The filterbank output unchanged.
+        None = "none",
+        /// Half-wave rectification.
+        Halfwave = "halfwave",
+        /// Full-wave rectification.
+        Fullwave = "fullwave",
+        /// Squared signal.
+        Square = "square",
+        /// Hilbert envelope (per chunk).
+        Hilbert = "hilbert",
+        /// Hilbert envelope, then a 150 Hz first-order low-pass (Jørgensen & Dau).
+        Joergensen = "joergensen",
+        /// Half-wave rectification, then a 1 kHz second-order low-pass (Dau et al.).
+        Dau = "dau",
+        /// Half-wave rectification, then five 2 kHz first-order low-passes (Breebaart et
+        /// al.).
+        Breebart = "breebart",
+        /// Compressed Hilbert envelope, squared and half-wave rectified, then a 425 Hz
+        /// second-order low-pass (Bernstein et al.).
+        Bernstein = "bernstein",
+    }
 }
 
 impl Method {
@@ -113,15 +90,15 @@ impl Ihc {
         let channels = input.channels();
         let lowpass = match method.lowpass() {
             Some((_, fc, _)) if fc >= input.fs_hz / 2.0 => {
-                return Err(afe_core::Error::InvalidParameter {
-                    name: "ihc_method".into(),
-                    value: serde_json::to_string(&method).unwrap_or_default(),
-                    reason: format!(
-                        "its {fc} Hz low-pass needs a sampling rate above {} Hz (the input has {} Hz)",
-                        2.0 * fc,
-                        input.fs_hz
-                    ),
-                })
+                return Err(afe_core::Error::invalid(
+                    IhcParams::NAMES.method,
+                    format_args!("\"{method}\""),
+                    format!(
+                    "its {fc} Hz low-pass needs a sampling rate above {} Hz (the input has {} Hz)",
+                    2.0 * fc,
+                    input.fs_hz
+                ),
+                ))
             }
             Some((order, fc, count)) => {
                 let (b, a) = butter(order, &[fc / (input.fs_hz / 2.0)], ButterType::Low);
@@ -234,6 +211,7 @@ pub static REQUEST: RequestDef = request_def::<Ihc>();
 #[cfg(test)]
 mod tests {
     use super::*;
+    use afe_core::Params;
 
     fn run(method: Method, x: &[f64]) -> Vec<f64> {
         let info = SignalInfo::time_frequency(16000.0, vec![1000.0]);
@@ -348,11 +326,6 @@ mod tests {
     }
 
     #[test]
-    fn specs_match_struct() {
-        afe_core::params::check_param_specs::<IhcParams>();
-    }
-
-    #[test]
     fn memoryless_methods() {
         let x = [-2.0, -0.5, 0.0, 0.5, 3.0];
         assert_eq!(run(Method::None, &x), x.to_vec());
@@ -395,7 +368,7 @@ mod tests {
 
     #[test]
     fn every_listed_name_parses_and_unknown_ones_are_errors() {
-        for name in IHC_METHODS {
+        for name in Method::NAMES {
             let map = [("ihc_method".to_string(), serde_json::json!(name))]
                 .into_iter()
                 .collect();

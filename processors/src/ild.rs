@@ -3,58 +3,24 @@
 
 use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::power::frame_power;
-use afe_core::window::{window, WINDOW_NAMES};
-use afe_core::{Block, DrawAs, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
-use serde::{Deserialize, Serialize};
+use afe_core::window::{window, Window};
+use afe_core::{Block, DrawAs, Processor, Result, SignalInfo};
 
 use crate::framed::{check_framing, EarFrames};
 
-/// Parameters of the ILD, under their AFE names.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct IldParams {
-    /// Window name (AFE `ild_wname`).
-    #[serde(rename = "ild_wname")]
-    pub wname: String,
-    /// Window length in s (AFE `ild_wSizeSec`).
-    #[serde(rename = "ild_wSizeSec")]
-    pub w_size_sec: f64,
-    /// Hop in s (AFE `ild_hSizeSec`).
-    #[serde(rename = "ild_hSizeSec")]
-    pub h_size_sec: f64,
-}
-
-impl Default for IldParams {
-    fn default() -> Self {
-        IldParams {
-            wname: "hann".into(),
-            w_size_sec: 0.02,
-            h_size_sec: 0.01,
-        }
+afe_core::params! {
+    /// Parameters of the ILD, under their AFE names.
+    pub struct IldParams / IldNames {
+        /// window applied to each frame
+        #[afe = "ild_wname"]
+        pub wname: Window = Window::Hann,
+        /// window length
+        #[afe = "ild_wSizeSec", unit = "s"]
+        pub w_size_sec: f64 = 0.02,
+        /// hop between frames
+        #[afe = "ild_hSizeSec", unit = "s"]
+        pub h_size_sec: f64 = 0.01,
     }
-}
-
-impl Params for IldParams {
-    const SPECS: &'static [ParamSpec] = &[
-        ParamSpec {
-            name: "ild_wname",
-            kind: ParamKind::Choice(WINDOW_NAMES),
-            unit: "",
-            description: "window applied to each frame",
-        },
-        ParamSpec {
-            name: "ild_wSizeSec",
-            kind: ParamKind::Number,
-            unit: "s",
-            description: "window length",
-        },
-        ParamSpec {
-            name: "ild_hSizeSec",
-            kind: ParamKind::Number,
-            unit: "s",
-            description: "hop between frames",
-        },
-    ];
 }
 
 /// The ILD: left and right IHC `[time][channel]` in, `[frame][channel]` dB out.
@@ -70,14 +36,14 @@ impl Ild {
     /// Builds the ILD for the IHC signal `input` (the same for both ears).
     pub fn new(params: &IldParams, input: &SignalInfo) -> Result<(Self, SignalInfo)> {
         let (w, h) = check_framing(
-            ("ild_wSizeSec", params.w_size_sec),
-            ("ild_hSizeSec", params.h_size_sec),
+            (IldParams::NAMES.w_size_sec, params.w_size_sec),
+            (IldParams::NAMES.h_size_sec, params.h_size_sec),
             input.fs_hz,
             input.channels(),
         )?;
         let nc = input.channels();
         let ild = Ild {
-            win: window(&params.wname, w, "ild_wname")?,
+            win: window(params.wname, w),
             frames: EarFrames::new(nc, w, h),
             power_l: vec![0.0; nc],
             power_r: vec![0.0; nc],
@@ -134,11 +100,6 @@ pub static REQUEST: RequestDef = request_def::<Ild>();
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn specs_match_struct() {
-        afe_core::params::check_param_specs::<IldParams>();
-    }
 
     #[test]
     fn right_louder_by_6_db() {

@@ -11,83 +11,14 @@
 //! gives the output of one call, bit for bit.
 
 use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
-use afe_core::{
-    Axis, Block, DrawAs, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo,
-};
+use afe_core::{Axis, Block, DrawAs, Error, Processor, Result, SignalInfo};
 use afe_spatial::{Head, Localiser, LocaliserParams};
-use serde::{Deserialize, Serialize};
 
 use crate::framed::EarFrames;
 
-/// Parameters of the localisation, AFE-style names under the `loc_` prefix: the head,
-/// and the localiser's own (frame, hop, band, grid step, activity).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct LocalisationParams {
-    /// The head that hears (`loc_head`): `sphere[:radius=M,ears=DEG,distance=M]`, `kemar`
-    /// (the MIT KEMAR set from Debian's libmysofa1) or a SimpleFreeFieldHRIR `.sofa` file.
-    #[serde(rename = "loc_head")]
-    pub head: String,
-    /// `loc_wSizeSec`, `loc_hSizeSec`, `loc_fLowHz`, `loc_fHighHz`, `loc_stepDeg` and
-    /// `loc_activityDb`.
-    #[serde(flatten)]
-    pub localiser: LocaliserParams,
-}
-
-impl Default for LocalisationParams {
-    fn default() -> Self {
-        LocalisationParams {
-            head: "sphere".to_string(),
-            localiser: LocaliserParams::default(),
-        }
-    }
-}
-
-impl Params for LocalisationParams {
-    const SPECS: &'static [ParamSpec] = &[
-        ParamSpec {
-            name: "loc_head",
-            kind: ParamKind::Text,
-            unit: "",
-            description: "head model: sphere[:radius=M,ears=DEG,distance=M], kemar or a .sofa file",
-        },
-        ParamSpec {
-            name: "loc_wSizeSec",
-            kind: ParamKind::Number,
-            unit: "s",
-            description: "frame length",
-        },
-        ParamSpec {
-            name: "loc_hSizeSec",
-            kind: ParamKind::Number,
-            unit: "s",
-            description: "hop between frames",
-        },
-        ParamSpec {
-            name: "loc_fLowHz",
-            kind: ParamKind::Number,
-            unit: "Hz",
-            description: "lowest frequency used",
-        },
-        ParamSpec {
-            name: "loc_fHighHz",
-            kind: ParamKind::Number,
-            unit: "Hz",
-            description: "highest frequency used",
-        },
-        ParamSpec {
-            name: "loc_stepDeg",
-            kind: ParamKind::Number,
-            unit: "deg",
-            description: "azimuth step of a sphere's grid (a measured head has its own)",
-        },
-        ParamSpec {
-            name: "loc_activityDb",
-            kind: ParamKind::Number,
-            unit: "dB",
-            description: "frames this far below the loudest so far are inactive",
-        },
-    ];
-}
+/// Parameters of the localisation: the head and the localiser's own (frame, hop, band,
+/// grid step, activity), declared with the localiser.
+pub type LocalisationParams = LocaliserParams;
 
 /// The posterior over azimuth and the activity of each frame of both ears.
 pub struct Localisation {
@@ -109,9 +40,9 @@ const SILENT_DB: f64 = -300.0;
 impl Localisation {
     /// Builds the localisation of `p.head` for ears at `fs_hz`.
     pub fn new(p: &LocalisationParams, fs_hz: f64) -> Result<Self> {
-        let head =
-            Head::parse(&p.head).map_err(|e| Error::invalid("loc_head", &p.head, e.to_string()))?;
-        let localiser = Localiser::new(&head, fs_hz, &p.localiser)
+        let head = Head::parse(&p.head)
+            .map_err(|e| Error::invalid(LocaliserParams::NAMES.head, &p.head, e.to_string()))?;
+        let localiser = Localiser::new(&head, fs_hz, p)
             .map_err(|e| Error::InvalidInput(format!("localisation: {e}")))?;
         let w = localiser.frame_len();
         let work_per_second = fs_hz / localiser.hop() as f64 * localiser.work_per_frame() as f64;
@@ -119,7 +50,7 @@ impl Localisation {
             work_per_second,
             frames: EarFrames::new(1, w, localiser.hop()),
             ears: [vec![0.0; w], vec![0.0; w]],
-            floor: 10f64.powf(-p.localiser.activity_db / 10.0),
+            floor: 10f64.powf(-p.activity_db / 10.0),
             loudest: 0.0,
             localiser,
         })
@@ -198,7 +129,7 @@ impl Descriptor for Localisation {
         let input = &inputs[0];
         let p = Localisation::new(params, input.fs_hz)?;
         let rate = input.fs_hz / p.localiser.hop() as f64;
-        let window_s = params.localiser.w_size_sec;
+        let window_s = params.w_size_sec;
         let posterior = SignalInfo::feature(rate, input.audio_fs_hz, Vec::new());
         let posterior = SignalInfo {
             axes: vec![Axis::Azimuth(p.azimuths_deg().to_vec())],
@@ -339,10 +270,7 @@ mod tests {
             "{e}"
         );
         let e = bad(LocalisationParams {
-            localiser: LocaliserParams {
-                w_size_sec: 5.0,
-                ..LocaliserParams::default()
-            },
+            w_size_sec: 5.0,
             ..LocalisationParams::default()
         });
         assert!(e.contains("loc_wSizeSec"), "{e}");

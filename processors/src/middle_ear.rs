@@ -7,6 +7,16 @@ use afe_core::fir2::fir2;
 use afe_core::hilbert::Hilbert;
 use num_complex::Complex64;
 
+afe_core::choices! {
+    /// The middle-ear filter's design (spec 10-preProc).
+    pub enum MiddleEarModel {
+        /// Jepsen et al. (2008): linear phase.
+        Jepsen = "jepsen",
+        /// Lopez-Poveda & Meddis (2001): minimum phase.
+        LopezPoveda = "lopezpoveda",
+    }
+}
+
 /// FIR order of both designs.
 const ORDER: usize = 512;
 
@@ -83,11 +93,10 @@ const LOPEZ_ABOVE: &[(f64, f64)] = &[
 ];
 
 /// Gain in dB that brings each design's peak to about 0 dB (`pp_bUnityComp`).
-pub fn unity_comp_db(model: &str) -> f64 {
-    if model == "lopezpoveda" {
-        66.2888
-    } else {
-        55.9986
+pub fn unity_comp_db(model: MiddleEarModel) -> f64 {
+    match model {
+        MiddleEarModel::LopezPoveda => 66.2888,
+        MiddleEarModel::Jepsen => 55.9986,
     }
 }
 
@@ -199,7 +208,7 @@ mod tests {
             for k in 0..513 {
                 assert!((b[k] - b[512 - k]).abs() <= 1e-12 * b[256].abs());
             }
-            let p = peak_db(&b) + unity_comp_db("jepsen");
+            let p = peak_db(&b) + unity_comp_db(MiddleEarModel::Jepsen);
             assert!(p.abs() < 0.05, "fs {fs}: compensated peak {p} dB");
         }
     }
@@ -212,7 +221,7 @@ mod tests {
         let e: f64 = b.iter().map(|v| v * v).sum();
         let head: f64 = b[..64].iter().map(|v| v * v).sum();
         assert!(head > 0.9 * e, "{head} of {e}");
-        let p = peak_db(&b) + unity_comp_db("lopezpoveda");
+        let p = peak_db(&b) + unity_comp_db(MiddleEarModel::LopezPoveda);
         assert!(p.abs() < 1.0, "compensated peak {p} dB");
     }
 

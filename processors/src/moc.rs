@@ -10,65 +10,24 @@
 
 use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::params::per_channel;
-use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
-use serde::{Deserialize, Serialize};
+use afe_core::{Block, Error, Processor, Result, SignalInfo};
 
-/// Parameters of the MOC, under their AFE names.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct MocParams {
-    /// External ipsilateral factor, one value or one per channel (AFE `moc_extIpsi`).
-    #[serde(rename = "moc_extIpsi")]
-    pub ext_ipsi: Vec<f64>,
-    /// External contralateral factor, one value or one per channel (AFE `moc_extContra`).
-    #[serde(rename = "moc_extContra")]
-    pub ext_contra: Vec<f64>,
-    /// Ratemap level in dB below which the level is clamped (AFE `moc_thresholdRatedB`).
-    #[serde(rename = "moc_thresholdRatedB")]
-    pub threshold_rate_db: f64,
-    /// Largest attenuation in dB (AFE `moc_maxAttenuationdB`).
-    #[serde(rename = "moc_maxAttenuationdB")]
-    pub max_attenuation_db: f64,
-}
-
-impl Default for MocParams {
-    fn default() -> Self {
-        MocParams {
-            ext_ipsi: vec![1.0],
-            ext_contra: vec![1.0],
-            threshold_rate_db: -180.0,
-            max_attenuation_db: 40.0,
-        }
+afe_core::params! {
+    /// Parameters of the MOC, under their AFE names.
+    pub struct MocParams / MocNames {
+        /// external ipsilateral MOC factor, one value or one per channel
+        #[afe = "moc_extIpsi"]
+        pub ext_ipsi: Vec<f64> = vec![1.0],
+        /// external contralateral MOC factor, one value or one per channel
+        #[afe = "moc_extContra"]
+        pub ext_contra: Vec<f64> = vec![1.0],
+        /// ratemap level below which the level is clamped
+        #[afe = "moc_thresholdRatedB", unit = "dB"]
+        pub threshold_rate_db: f64 = -180.0,
+        /// largest attenuation
+        #[afe = "moc_maxAttenuationdB", unit = "dB"]
+        pub max_attenuation_db: f64 = 40.0,
     }
-}
-
-impl Params for MocParams {
-    const SPECS: &'static [ParamSpec] = &[
-        ParamSpec {
-            name: "moc_extIpsi",
-            kind: ParamKind::Numbers,
-            unit: "",
-            description: "external ipsilateral MOC factor, one value or one per channel",
-        },
-        ParamSpec {
-            name: "moc_extContra",
-            kind: ParamKind::Numbers,
-            unit: "",
-            description: "external contralateral MOC factor, one value or one per channel",
-        },
-        ParamSpec {
-            name: "moc_thresholdRatedB",
-            kind: ParamKind::Number,
-            unit: "dB",
-            description: "ratemap level below which the level is clamped",
-        },
-        ParamSpec {
-            name: "moc_maxAttenuationdB",
-            kind: ParamKind::Number,
-            unit: "dB",
-            description: "largest attenuation",
-        },
-    ];
 }
 
 /// Cubic fit of attenuation (dB) against ratemap level (dB), highest power first.
@@ -91,14 +50,14 @@ impl Moc {
         let nc = input.channels();
         if params.max_attenuation_db < 0.0 {
             return Err(Error::invalid(
-                "moc_maxAttenuationdB",
+                MocParams::NAMES.max_attenuation_db,
                 format_args!("{:?}", params.max_attenuation_db),
                 "must be >= 0 dB",
             ));
         }
         let moc = Moc {
-            ext_ipsi: per_channel("moc_extIpsi", &params.ext_ipsi, nc)?,
-            ext_contra: per_channel("moc_extContra", &params.ext_contra, nc)?,
+            ext_ipsi: per_channel(MocParams::NAMES.ext_ipsi, &params.ext_ipsi, nc)?,
+            ext_contra: per_channel(MocParams::NAMES.ext_contra, &params.ext_contra, nc)?,
             threshold_db: params.threshold_rate_db,
             max_db: params.max_attenuation_db,
         };
@@ -168,11 +127,6 @@ pub static REQUEST: RequestDef = request_def::<Moc>();
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn specs_match_struct() {
-        afe_core::params::check_param_specs::<MocParams>();
-    }
 
     fn ratemap(channels: usize) -> SignalInfo {
         SignalInfo::time_frequency(44100.0, vec![500.0; channels]).framed(100.0)

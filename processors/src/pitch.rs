@@ -10,59 +10,21 @@ use std::cmp::Ordering;
 use std::collections::VecDeque;
 
 use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
-use afe_core::{
-    Block, DrawAs, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
-};
-use serde::{Deserialize, Serialize};
+use afe_core::{Block, DrawAs, Error, Processor, Result, SignalInfo, SignalKind};
 
-/// Parameters of the pitch estimator, under their AFE names.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct PitchParams {
-    /// `[lowest, highest]` plausible pitch in Hz (AFE `pi_rangeHz`).
-    #[serde(rename = "pi_rangeHz")]
-    pub range_hz: Vec<f64>,
-    /// Confidence threshold as a fraction of the largest confidence of the last 5 s, in
-    /// [0, 1] (AFE `pi_confThres`).
-    #[serde(rename = "pi_confThres")]
-    pub conf_thres: f64,
-    /// Order of the median filter smoothing the pitch track, in frames (rounded to an
-    /// integer) (AFE `pi_medianOrder`).
-    #[serde(rename = "pi_medianOrder")]
-    pub median_order: f64,
-}
-
-impl Default for PitchParams {
-    fn default() -> Self {
-        PitchParams {
-            range_hz: vec![80.0, 400.0],
-            conf_thres: 0.7,
-            median_order: 3.0,
-        }
+afe_core::params! {
+    /// Parameters of the pitch estimator, under their AFE names.
+    pub struct PitchParams / PitchNames {
+        /// lowest and highest plausible pitch
+        #[afe = "pi_rangeHz", unit = "Hz"]
+        pub range_hz: Vec<f64> = vec![80.0, 400.0],
+        /// confidence threshold, fraction of the largest confidence of the last 5 s
+        #[afe = "pi_confThres"]
+        pub conf_thres: f64 = 0.7,
+        /// order in frames of the median filter smoothing the pitch (rounded)
+        #[afe = "pi_medianOrder"]
+        pub median_order: f64 = 3.0,
     }
-}
-
-impl Params for PitchParams {
-    const SPECS: &'static [ParamSpec] = &[
-        ParamSpec {
-            name: "pi_rangeHz",
-            kind: ParamKind::Numbers,
-            unit: "Hz",
-            description: "lowest and highest plausible pitch",
-        },
-        ParamSpec {
-            name: "pi_confThres",
-            kind: ParamKind::Number,
-            unit: "",
-            description: "confidence threshold, fraction of the largest confidence of the last 5 s",
-        },
-        ParamSpec {
-            name: "pi_medianOrder",
-            kind: ParamKind::Number,
-            unit: "frames",
-            description: "order of the median filter smoothing the pitch (rounded)",
-        },
-    ];
 }
 
 /// Names of the output columns, in order.
@@ -119,28 +81,24 @@ impl Pitch {
                 "pitch reads an autocorrelation (a correlation signal with lags)".into(),
             ));
         }
-        let bad = |name: &str, value: String, reason: &str| Error::InvalidParameter {
-            name: name.into(),
-            value,
-            reason: reason.into(),
-        };
+        let bad = |name: &str, value: String, reason: &str| Error::invalid(name, value, reason);
         let [fmin, fmax] = params.range_hz[..] else {
             return Err(bad(
-                "pi_rangeHz",
+                PitchParams::NAMES.range_hz,
                 format!("{:?}", params.range_hz),
                 "expected two frequencies [lowest, highest] in Hz",
             ));
         };
         if !(fmin > 0.0 && fmin < fmax) {
             return Err(bad(
-                "pi_rangeHz",
+                PitchParams::NAMES.range_hz,
                 format!("{:?}", params.range_hz),
                 "expected 0 < lowest < highest (Hz)",
             ));
         }
         if !(0.0..=1.0).contains(&params.conf_thres) {
             return Err(bad(
-                "pi_confThres",
+                PitchParams::NAMES.conf_thres,
                 params.conf_thres.to_string(),
                 "must be between 0 and 1 (a fraction of the recent maximum confidence)",
             ));
@@ -148,7 +106,7 @@ impl Pitch {
         let order = params.median_order.round();
         if !(1.0..=1e6).contains(&order) {
             return Err(bad(
-                "pi_medianOrder",
+                PitchParams::NAMES.median_order,
                 params.median_order.to_string(),
                 "must round to a frame count between 1 and 1e6",
             ));
@@ -161,7 +119,7 @@ impl Pitch {
             .collect();
         let (Some(&first), Some(&last)) = (valid.first(), valid.last()) else {
             return Err(bad(
-                "pi_rangeHz",
+                PitchParams::NAMES.range_hz,
                 format!("{:?}", params.range_hz),
                 &format!(
                     "no autocorrelation lag (up to {} s) lies within the range",
@@ -336,11 +294,6 @@ pub static REQUEST: RequestDef = request_def::<Pitch>();
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn specs_match_struct() {
-        afe_core::params::check_param_specs::<PitchParams>();
-    }
 
     #[test]
     fn peaks_follow_the_voicebox_definition() {

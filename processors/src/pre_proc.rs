@@ -6,137 +6,54 @@
 use afe_core::butter::{butter_filters, ButterType};
 use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::filter::Df2t;
-use afe_core::{
-    Block, DrawAs, Error, ParamKind, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo,
-};
-use serde::{Deserialize, Serialize};
+use afe_core::{Block, DrawAs, Error, ParamMap, Params, Processor, Result, SignalInfo};
 
 use crate::filterbank_params::{fb_type_of, FbType};
-use crate::middle_ear;
+use crate::middle_ear::{self, MiddleEarModel};
 
-/// Parameters of the pre-processor, under their AFE names.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct PreProcParams {
-    /// Enable the DC-removal high-pass (AFE `pp_bRemoveDC`).
-    #[serde(rename = "pp_bRemoveDC")]
-    pub remove_dc: bool,
-    /// DC-removal cut-off in Hz (AFE `pp_cutoffHzDC`).
-    #[serde(rename = "pp_cutoffHzDC")]
-    pub cutoff_hz_dc: f64,
-    /// Enable pre-emphasis (AFE `pp_bPreEmphasis`).
-    #[serde(rename = "pp_bPreEmphasis")]
-    pub pre_emphasis: bool,
-    /// Pre-emphasis coefficient; its absolute value is used (AFE `pp_coefPreEmphasis`).
-    #[serde(rename = "pp_coefPreEmphasis")]
-    pub coef_pre_emphasis: f64,
-    /// Enable the running RMS normalisation (AFE `pp_bNormalizeRMS`).
-    #[serde(rename = "pp_bNormalizeRMS")]
-    pub normalize_rms: bool,
-    /// Link both ears' AGC gains (AFE `pp_bBinauralRMS`).
-    #[serde(rename = "pp_bBinauralRMS")]
-    pub binaural_rms: bool,
-    /// AGC integration time constant in s (AFE `pp_intTimeSecRMS`).
-    #[serde(rename = "pp_intTimeSecRMS")]
-    pub int_time_sec_rms: f64,
-    /// Enable level scaling (AFE `pp_bLevelScaling`).
-    #[serde(rename = "pp_bLevelScaling")]
-    pub level_scaling: bool,
-    /// Level reference in dB, one value or [left, right] (AFE `pp_refSPLdB`): the input is
-    /// multiplied by `10^((100 − ref)/20)`, the sign of the AFE's code (spec 10).
-    #[serde(rename = "pp_refSPLdB")]
-    pub ref_spl_db: Vec<f64>,
-    /// Enable the middle-ear filter (AFE `pp_bMiddleEarFiltering`).
-    #[serde(rename = "pp_bMiddleEarFiltering")]
-    pub middle_ear_filtering: bool,
-    /// Middle-ear model (AFE `pp_middleEarModel`).
-    #[serde(rename = "pp_middleEarModel")]
-    pub middle_ear_model: String,
-    /// Bring the middle-ear peak gain to about 0 dB (AFE `pp_bUnityComp`).
-    #[serde(rename = "pp_bUnityComp")]
-    pub unity_comp: bool,
-}
-
-impl Default for PreProcParams {
-    fn default() -> Self {
-        PreProcParams {
-            remove_dc: false,
-            cutoff_hz_dc: 20.0,
-            pre_emphasis: false,
-            coef_pre_emphasis: 0.97,
-            normalize_rms: false,
-            binaural_rms: true,
-            int_time_sec_rms: 0.5,
-            level_scaling: false,
-            ref_spl_db: vec![100.0],
-            middle_ear_filtering: false,
-            middle_ear_model: "jepsen".into(),
-            unity_comp: true,
-        }
+afe_core::params! {
+    /// Parameters of the pre-processor, under their AFE names.
+    pub struct PreProcParams / PreProcNames {
+        /// remove DC with a 4th-order Butterworth high-pass
+        #[afe = "pp_bRemoveDC"]
+        pub remove_dc: bool = false,
+        /// cut-off of the DC-removal high-pass
+        #[afe = "pp_cutoffHzDC", unit = "Hz"]
+        pub cutoff_hz_dc: f64 = 20.0,
+        /// apply the pre-emphasis FIR y[n] = x[n] − |c|·x[n−1]
+        #[afe = "pp_bPreEmphasis"]
+        pub pre_emphasis: bool = false,
+        /// pre-emphasis coefficient c
+        #[afe = "pp_coefPreEmphasis"]
+        pub coef_pre_emphasis: f64 = 0.97,
+        /// normalise by the running RMS (AGC)
+        #[afe = "pp_bNormalizeRMS"]
+        pub normalize_rms: bool = false,
+        /// link the AGC gains of both ears
+        #[afe = "pp_bBinauralRMS"]
+        pub binaural_rms: bool = true,
+        /// AGC integration time constant
+        #[afe = "pp_intTimeSecRMS", unit = "s"]
+        pub int_time_sec_rms: f64 = 0.5,
+        /// scale the input by 10^((100 − pp_refSPLdB)/20) (see pp_refSPLdB)
+        #[afe = "pp_bLevelScaling"]
+        pub level_scaling: bool = false,
+        /// level reference: the input is multiplied by 10^((100 − pp_refSPLdB)/20) as the
+        /// AFE's code does, so 80 amplifies by 20 dB (the AFE calls it the dB SPL of RMS 1,
+        /// which its code inverts; the models take RMS 1 as 100 dB SPL); one value, or
+        /// [left, right]
+        #[afe = "pp_refSPLdB", unit = "dB"]
+        pub ref_spl_db: Vec<f64> = vec![100.0],
+        /// apply the middle-ear FIR
+        #[afe = "pp_bMiddleEarFiltering"]
+        pub middle_ear_filtering: bool = false,
+        /// middle-ear filter model
+        #[afe = "pp_middleEarModel"]
+        pub middle_ear_model: MiddleEarModel = MiddleEarModel::Jepsen,
+        /// compensate the middle-ear filter to a 0 dB peak
+        #[afe = "pp_bUnityComp"]
+        pub unity_comp: bool = true,
     }
-}
-
-const fn flag(name: &'static str, description: &'static str) -> ParamSpec {
-    ParamSpec {
-        name,
-        kind: ParamKind::Flag,
-        unit: "",
-        description,
-    }
-}
-
-impl Params for PreProcParams {
-    const SPECS: &'static [ParamSpec] = &[
-        flag(
-            "pp_bRemoveDC",
-            "remove DC with a 4th-order Butterworth high-pass",
-        ),
-        ParamSpec {
-            name: "pp_cutoffHzDC",
-            kind: ParamKind::Number,
-            unit: "Hz",
-            description: "cut-off of the DC-removal high-pass",
-        },
-        flag(
-            "pp_bPreEmphasis",
-            "apply the pre-emphasis FIR y[n] = x[n] − |c|·x[n−1]",
-        ),
-        ParamSpec {
-            name: "pp_coefPreEmphasis",
-            kind: ParamKind::Number,
-            unit: "",
-            description: "pre-emphasis coefficient c",
-        },
-        flag("pp_bNormalizeRMS", "normalise by the running RMS (AGC)"),
-        flag("pp_bBinauralRMS", "link the AGC gains of both ears"),
-        ParamSpec {
-            name: "pp_intTimeSecRMS",
-            kind: ParamKind::Number,
-            unit: "s",
-            description: "AGC integration time constant",
-        },
-        flag(
-            "pp_bLevelScaling",
-            "scale the input by 10^((100 − pp_refSPLdB)/20) (see pp_refSPLdB)",
-        ),
-        ParamSpec {
-            name: "pp_refSPLdB",
-            kind: ParamKind::Numbers,
-            unit: "dB",
-            description: "level reference: the input is multiplied by 10^((100 − pp_refSPLdB)/20) as the AFE's code does, so 80 amplifies by 20 dB (the AFE calls it the dB SPL of RMS 1, which its code inverts; the models take RMS 1 as 100 dB SPL); one value, or [left, right]",
-        },
-        flag("pp_bMiddleEarFiltering", "apply the middle-ear FIR"),
-        ParamSpec {
-            name: "pp_middleEarModel",
-            kind: ParamKind::Choice(&["jepsen", "lopezpoveda"]),
-            unit: "",
-            description: "middle-ear filter model",
-        },
-        flag(
-            "pp_bUnityComp",
-            "compensate the middle-ear filter to a 0 dB peak",
-        ),
-    ];
 }
 
 /// Lowest sampling rate in Hz at which the middle-ear designs have data to work from.
@@ -182,7 +99,7 @@ impl PreProc {
         let p = params;
         if p.remove_dc && !(p.cutoff_hz_dc > 0.0 && p.cutoff_hz_dc < fs / 2.0) {
             return Err(Error::invalid(
-                "pp_cutoffHzDC",
+                PreProcParams::NAMES.cutoff_hz_dc,
                 p.cutoff_hz_dc,
                 format!(
                     "must lie between 0 and the Nyquist frequency ({} Hz)",
@@ -192,7 +109,7 @@ impl PreProc {
         }
         if p.middle_ear_filtering && fs < MIN_MIDDLE_EAR_FS {
             return Err(Error::invalid(
-                "pp_bMiddleEarFiltering",
+                PreProcParams::NAMES.middle_ear_filtering,
                 "true",
                 format!(
                     "the middle-ear data tables start at 50–400 Hz: filtering needs a sampling rate of at least {MIN_MIDDLE_EAR_FS} Hz (the input has {fs} Hz)"
@@ -201,14 +118,14 @@ impl PreProc {
         }
         if p.normalize_rms && p.int_time_sec_rms <= 0.0 {
             return Err(Error::invalid(
-                "pp_intTimeSecRMS",
+                PreProcParams::NAMES.int_time_sec_rms,
                 p.int_time_sec_rms,
                 "must be > 0 s",
             ));
         }
         if !(1..=2).contains(&p.ref_spl_db.len()) {
             return Err(Error::invalid(
-                "pp_refSPLdB",
+                PreProcParams::NAMES.ref_spl_db,
                 format!("{:?}", p.ref_spl_db),
                 "expected one value or two ([left, right])",
             ));
@@ -216,7 +133,7 @@ impl PreProc {
         let (lo, hi) = REF_SPL_DB_RANGE;
         if let Some(db) = p.ref_spl_db.iter().find(|db| !(lo..=hi).contains(*db)) {
             return Err(Error::invalid(
-                "pp_refSPLdB",
+                PreProcParams::NAMES.ref_spl_db,
                 format!("{:?}", p.ref_spl_db),
                 format!(
                     "{db} dB would scale the signal by 10^({:.3e}/20): give levels between {lo} and \
@@ -228,7 +145,7 @@ impl PreProc {
         }
         if p.coef_pre_emphasis.is_nan() || p.coef_pre_emphasis.abs() > MAX_PRE_EMPHASIS {
             return Err(Error::invalid(
-                "pp_coefPreEmphasis",
+                PreProcParams::NAMES.coef_pre_emphasis,
                 p.coef_pre_emphasis,
                 format!(
                     "the pre-emphasis y[n] = x[n] − |c|·x[n−1] takes |c| up to \
@@ -251,16 +168,15 @@ impl PreProc {
         let alpha = (-1.0 / (p.int_time_sec_rms * fs)).exp();
         let mut middle_ear_l1 = 1.0;
         let middle_ear = p.middle_ear_filtering.then(|| {
-            let b = if p.middle_ear_model == "lopezpoveda" {
-                middle_ear::lopezpoveda(fs)
-            } else {
-                middle_ear::jepsen(fs)
+            let b = match p.middle_ear_model {
+                MiddleEarModel::LopezPoveda => middle_ear::lopezpoveda(fs),
+                MiddleEarModel::Jepsen => middle_ear::jepsen(fs),
             };
             middle_ear_l1 = b.iter().map(|v| v.abs()).sum();
             Df2t::new(&b, &[1.0], 1)
         });
         let middle_ear_gain = if p.unity_comp {
-            10f64.powf(middle_ear::unity_comp_db(&p.middle_ear_model) / 20.0)
+            10f64.powf(middle_ear::unity_comp_db(p.middle_ear_model) / 20.0)
         } else {
             1.0
         };
@@ -467,11 +383,6 @@ mod tests {
     }
 
     #[test]
-    fn specs_match_struct() {
-        afe_core::params::check_param_specs::<PreProcParams>();
-    }
-
-    #[test]
     fn defaults_are_identity() {
         let x = vec![0.1, -0.5, 0.25, 1.0];
         let y = run(&PreProcParams::default(), &[x.clone(), x.clone()], 16000.0);
@@ -550,7 +461,8 @@ mod tests {
 
     /// Issue 44, item 3: a DC-removal cut-off whose 4th-order transfer function is
     /// unstable (1 Hz, and 1 Hz below Nyquist, at 44.1 kHz) runs as second-order
-    /// sections: white noise stays bounded, and a 1-Hz high-pass keeps its energy. The 20-Hz default keeps the AFE's transfer function (one filter).
+    /// sections: white noise stays bounded, and a 1-Hz high-pass keeps its energy. The
+    /// 20-Hz default keeps the AFE's transfer function (one filter).
     #[test]
     fn dc_removal_at_any_cut_off_is_stable() {
         let fs = 44100.0;
@@ -622,12 +534,15 @@ mod tests {
     fn middle_ear_output_is_the_independent_design_with_its_unity_gain() {
         let text = include_str!("../../data/middle_ear_fir2.json");
         let fixture: serde_json::Value = serde_json::from_str(text).expect("fixture");
-        for (model, peak_db) in [("jepsen", 55.9986), ("lopezpoveda", 66.2888)] {
+        for (model, peak_db) in [
+            (MiddleEarModel::Jepsen, 55.9986),
+            (MiddleEarModel::LopezPoveda, 66.2888),
+        ] {
             let case = fixture["middle_ear"]
                 .as_array()
                 .expect("designs")
                 .iter()
-                .find(|c| c["model"] == model && c["fs_hz"] == 16000.0)
+                .find(|c| c["model"] == model.name() && c["fs_hz"] == 16000.0)
                 .expect("16 kHz design");
             let gain = 10f64.powf(peak_db / 20.0);
             let taps: Vec<f64> = case["taps"]
@@ -641,7 +556,7 @@ mod tests {
                 .collect();
             let p = PreProcParams {
                 middle_ear_filtering: true,
-                middle_ear_model: model.into(),
+                middle_ear_model: model,
                 ..Default::default()
             };
             let y = run(&p, std::slice::from_ref(&x), 16000.0);
@@ -666,7 +581,7 @@ mod tests {
     fn middle_ear_needs_a_usable_rate() {
         let p = PreProcParams {
             middle_ear_filtering: true,
-            middle_ear_model: "lopezpoveda".into(),
+            middle_ear_model: MiddleEarModel::LopezPoveda,
             ..Default::default()
         };
         let e = PreProc::new(&p, 100.0, 2).expect_err("no table rows below 50 Hz");

@@ -12,9 +12,8 @@
 //! truncated `L` signals are correlated directly.
 
 use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
-use afe_core::window::window;
-use afe_core::{Block, DrawAs, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
-use serde::{Deserialize, Serialize};
+use afe_core::window::{window, Window};
+use afe_core::{Block, DrawAs, Error, Processor, Result, SignalInfo};
 
 use crate::even_inverse::EvenInverse;
 use crate::framed::{check_framing, check_work, EarFrames};
@@ -27,52 +26,19 @@ mod model;
 use lag_removal::{decay_table, LagRemoval};
 use model::{Ear, Model, Spectra};
 
-/// Parameters of the precedence model, under their AFE names.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct PrecedenceParams {
-    /// Window length in s (AFE `prec_wSizeSec`).
-    #[serde(rename = "prec_wSizeSec")]
-    pub w_size_sec: f64,
-    /// Hop in s (AFE `prec_hSizeSec`).
-    #[serde(rename = "prec_hSizeSec")]
-    pub h_size_sec: f64,
-    /// Largest interaural lag in s (AFE `prec_maxDelaySec`).
-    #[serde(rename = "prec_maxDelaySec")]
-    pub max_delay_sec: f64,
-}
-
-impl Default for PrecedenceParams {
-    fn default() -> Self {
-        PrecedenceParams {
-            w_size_sec: 0.02,
-            h_size_sec: 0.01,
-            max_delay_sec: 0.001,
-        }
+afe_core::params! {
+    /// Parameters of the precedence model, under their AFE names.
+    pub struct PrecedenceParams / PrecedenceNames {
+        /// window length (longer than the 10-ms lag search)
+        #[afe = "prec_wSizeSec", unit = "s"]
+        pub w_size_sec: f64 = 0.02,
+        /// hop between frames
+        #[afe = "prec_hSizeSec", unit = "s"]
+        pub h_size_sec: f64 = 0.01,
+        /// largest interaural lag computed
+        #[afe = "prec_maxDelaySec", unit = "s"]
+        pub max_delay_sec: f64 = 0.001,
     }
-}
-
-impl Params for PrecedenceParams {
-    const SPECS: &'static [ParamSpec] = &[
-        ParamSpec {
-            name: "prec_wSizeSec",
-            kind: ParamKind::Number,
-            unit: "s",
-            description: "window length (longer than the 10-ms lag search)",
-        },
-        ParamSpec {
-            name: "prec_hSizeSec",
-            kind: ParamKind::Number,
-            unit: "s",
-            description: "hop between frames",
-        },
-        ParamSpec {
-            name: "prec_maxDelaySec",
-            kind: ParamKind::Number,
-            unit: "s",
-            description: "largest interaural lag computed",
-        },
-    ];
 }
 
 /// The precedence model: left and right filterbank `[time][channel]` in; ITD
@@ -101,8 +67,8 @@ impl Precedence {
     pub fn new(params: &PrecedenceParams, input: &SignalInfo) -> Result<(Self, [SignalInfo; 3])> {
         let fs = input.fs_hz;
         let (w, h) = check_framing(
-            ("prec_wSizeSec", params.w_size_sec),
-            ("prec_hSizeSec", params.h_size_sec),
+            (PrecedenceParams::NAMES.w_size_sec, params.w_size_sec),
+            (PrecedenceParams::NAMES.h_size_sec, params.h_size_sec),
             fs,
             input.channels(),
         )?;
@@ -118,25 +84,25 @@ impl Precedence {
             )));
         }
         if ac_lag >= w {
-            return Err(Error::InvalidParameter {
-                name: "prec_wSizeSec".into(),
-                value: params.w_size_sec.to_string(),
-                reason: format!(
+            return Err(Error::invalid(
+                PrecedenceParams::NAMES.w_size_sec,
+                params.w_size_sec,
+                format!(
                     "the window must be longer than the lead/lag search ({ac_lag} samples, \
                      10 ms, at {fs} Hz)"
                 ),
-            });
+            ));
         }
         let max_lag = (params.max_delay_sec * fs).ceil();
         if params.max_delay_sec < 0.0 || max_lag > w as f64 {
-            return Err(Error::InvalidParameter {
-                name: "prec_maxDelaySec".into(),
-                value: params.max_delay_sec.to_string(),
-                reason: format!(
+            return Err(Error::invalid(
+                PrecedenceParams::NAMES.max_delay_sec,
+                params.max_delay_sec,
+                format!(
                     "must be ≥ 0 s and at most the window ({} s): longer lags are all zero",
                     params.w_size_sec
                 ),
-            });
+            ));
         }
         let max_lag = max_lag as usize;
         let nc = input.channels();
@@ -147,7 +113,7 @@ impl Precedence {
         // per ear: columns, complex spectra, power and the lag-removal variant; and the
         // three transforms
         check_work(
-            ("prec_wSizeSec", params.w_size_sec),
+            (PrecedenceParams::NAMES.w_size_sec, params.w_size_sec),
             2 * nc * (w + 3 * bins + longest) + 3 * transform_values(nfft),
             &format!("this window over {nc} channels"),
             "shorten the window or use fewer channels",
@@ -179,7 +145,7 @@ impl Precedence {
             .collect();
         let model = Model {
             tail_peaks: [vec![0.0; nc], vec![0.0; nc]],
-            win: window("hanning", w, "prec_wSizeSec")?,
+            win: window(Window::Hanning, w),
             nc,
             max_lag,
             ac_lag,
@@ -285,11 +251,6 @@ mod tests {
     use crate::testing::noise;
     use proptest::prelude::*;
     use std::f64::consts::PI;
-
-    #[test]
-    fn specs_match_struct() {
-        afe_core::params::check_param_specs::<PrecedenceParams>();
-    }
 
     fn filterbank(fs: f64, nc: usize) -> SignalInfo {
         SignalInfo::time_frequency(fs, (0..nc).map(|c| 300.0 * (c + 1) as f64).collect())

@@ -5,78 +5,30 @@ use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::filter::Df2t;
 use afe_core::framing::FrameBuffer;
 use afe_core::power::frame_power;
-use afe_core::window::{window, WINDOW_NAMES};
-use afe_core::{Block, DrawAs, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
-use serde::{Deserialize, Serialize};
+use afe_core::window::{window, Window};
+use afe_core::{Block, DrawAs, ParamKind, Processor, Result, SignalInfo};
 
 use crate::framed::check_framing;
 
-/// Parameters of the ratemap, under their AFE names.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RatemapParams {
-    /// Window name (AFE `rm_wname`).
-    #[serde(rename = "rm_wname")]
-    pub wname: String,
-    /// Window length in s (AFE `rm_wSizeSec`).
-    #[serde(rename = "rm_wSizeSec")]
-    pub w_size_sec: f64,
-    /// Hop in s (AFE `rm_hSizeSec`).
-    #[serde(rename = "rm_hSizeSec")]
-    pub h_size_sec: f64,
-    /// `'power'` (mean of squares) or `'magnitude'` (mean) (AFE `rm_scaling`).
-    #[serde(rename = "rm_scaling")]
-    pub scaling: String,
-    /// Leaky-integrator time constant in s (AFE `rm_decaySec`).
-    #[serde(rename = "rm_decaySec")]
-    pub decay_sec: f64,
-}
-
-impl Default for RatemapParams {
-    fn default() -> Self {
-        RatemapParams {
-            wname: "hann".into(),
-            w_size_sec: 0.02,
-            h_size_sec: 0.01,
-            scaling: "power".into(),
-            decay_sec: 0.008,
-        }
+afe_core::params! {
+    /// Parameters of the ratemap, under their AFE names.
+    pub struct RatemapParams / RatemapNames {
+        /// window applied to each frame
+        #[afe = "rm_wname"]
+        pub wname: Window = Window::Hann,
+        /// window length
+        #[afe = "rm_wSizeSec", unit = "s"]
+        pub w_size_sec: f64 = 0.02,
+        /// hop between frames
+        #[afe = "rm_hSizeSec", unit = "s"]
+        pub h_size_sec: f64 = 0.01,
+        /// average the squared ('power') or plain ('magnitude') envelope
+        #[afe = "rm_scaling", kind = ParamKind::Choice(&["power", "magnitude"])]
+        pub scaling: String = "power".into(),
+        /// leaky-integrator time constant
+        #[afe = "rm_decaySec", unit = "s"]
+        pub decay_sec: f64 = 0.008,
     }
-}
-
-impl Params for RatemapParams {
-    const SPECS: &'static [ParamSpec] = &[
-        ParamSpec {
-            name: "rm_wname",
-            kind: ParamKind::Choice(WINDOW_NAMES),
-            unit: "",
-            description: "window applied to each frame",
-        },
-        ParamSpec {
-            name: "rm_wSizeSec",
-            kind: ParamKind::Number,
-            unit: "s",
-            description: "window length",
-        },
-        ParamSpec {
-            name: "rm_hSizeSec",
-            kind: ParamKind::Number,
-            unit: "s",
-            description: "hop between frames",
-        },
-        ParamSpec {
-            name: "rm_scaling",
-            kind: ParamKind::Choice(&["power", "magnitude"]),
-            unit: "",
-            description: "average the squared ('power') or plain ('magnitude') envelope",
-        },
-        ParamSpec {
-            name: "rm_decaySec",
-            kind: ParamKind::Number,
-            unit: "s",
-            description: "leaky-integrator time constant",
-        },
-    ];
 }
 
 /// The ratemap of one ear: IHC `[time][channel]` in, `[frame][channel]` out.
@@ -94,19 +46,19 @@ impl Ratemap {
     pub fn new(params: &RatemapParams, input: &SignalInfo) -> Result<(Self, SignalInfo)> {
         let fs = input.fs_hz;
         let (w, h) = check_framing(
-            ("rm_wSizeSec", params.w_size_sec),
-            ("rm_hSizeSec", params.h_size_sec),
+            (RatemapParams::NAMES.w_size_sec, params.w_size_sec),
+            (RatemapParams::NAMES.h_size_sec, params.h_size_sec),
             fs,
             input.channels(),
         )?;
         if params.decay_sec <= 0.0 {
-            return Err(afe_core::Error::InvalidParameter {
-                name: "rm_decaySec".into(),
-                value: params.decay_sec.to_string(),
-                reason: "must be > 0 s".into(),
-            });
+            return Err(afe_core::Error::invalid(
+                RatemapParams::NAMES.decay_sec,
+                params.decay_sec,
+                "must be > 0 s",
+            ));
         }
-        let win = window(&params.wname, w, "rm_wname")?;
+        let win = window(params.wname, w);
         let d = (-1.0 / (fs * params.decay_sec)).exp();
         let nc = input.channels();
         let rm = Ratemap {
@@ -181,11 +133,6 @@ mod tests {
     use super::*;
 
     #[test]
-    fn specs_match_struct() {
-        afe_core::params::check_param_specs::<RatemapParams>();
-    }
-
-    #[test]
     fn magnitude_scaling_is_the_windowed_mean_and_reset_starts_over() {
         let fs = 1000.0;
         let info = SignalInfo::time_frequency(fs, vec![100.0, 200.0]);
@@ -198,7 +145,7 @@ mod tests {
         let mut out = vec![Block::new(2)];
         rm.process(&[&x], &mut out);
         // Once the integrator settles, each channel is its value times the window's mean.
-        let win = window("hann", 20, "").expect("hann");
+        let win = window(Window::Hann, 20);
         let mean = win.iter().sum::<f64>() / 20.0;
         let last = out[0].row(out[0].frames() - 1).to_vec();
         assert!((last[0] - 2.0 * mean).abs() < 1e-9, "{last:?}");
@@ -214,7 +161,7 @@ mod tests {
         let fs = 1000.0;
         let info = SignalInfo::time_frequency(fs, vec![100.0]);
         let p = RatemapParams {
-            wname: "rectwin".into(),
+            wname: Window::Rectwin,
             ..Default::default()
         };
         let (mut rm, out_info) = Ratemap::new(&p, &info).expect("valid");

@@ -252,6 +252,10 @@ mod tests {
                 "{}",
                 r.name
             );
+            for p in r.params {
+                let given = p.normalize(&defaults[p.name]);
+                assert!(given.is_ok(), "{}'s default {}: {given:?}", r.name, p.name);
+            }
             let configured = (r.configure)(&defaults).expect("defaults are valid");
             assert_eq!(
                 configured.chunk_invariant(),

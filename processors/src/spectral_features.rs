@@ -2,43 +2,42 @@
 //! channels (centroid, crest, ..., variation; spec 26-spectralFeatures).
 
 use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
-use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
-use serde::{Deserialize, Serialize};
+use afe_core::{Block, Error, Params, Processor, Result, SignalInfo};
 
-/// One spectral feature, or `all` of them (AFE names).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum SpectralFeature {
-    /// Every feature below, in this order.
-    All,
-    /// Centre of gravity of the channel CFs, over the highest CF.
-    Centroid,
-    /// Peak over mean.
-    Crest,
-    /// Spread of the CFs around the centroid, over the highest CF.
-    Spread,
-    /// Entropy of the normalised frame, over `ln(channels)`.
-    Entropy,
-    /// Share of the frame above `sf_brCF`.
-    Brightness,
-    /// High-frequency content: mean of CF² weighted by the frame, in Hz².
-    Hfc,
-    /// Mean decrease from the first channel, weighted by 1/k.
-    Decrease,
-    /// Geometric over arithmetic mean.
-    Flatness,
-    /// RMS change of the dB frame from the previous frame.
-    Flux,
-    /// Excess kurtosis across channels.
-    Kurtosis,
-    /// Skewness across channels.
-    Skewness,
-    /// RMS dB step between adjacent channels.
-    Irregularity,
-    /// CF below which `sf_roPerc` of the frame lies, over the highest CF.
-    Rolloff,
-    /// One minus the cosine similarity with the previous frame.
-    Variation,
+afe_core::choices! {
+    /// One spectral feature, or `all` of them (AFE names).
+    pub enum SpectralFeature {
+        /// Every feature below, in this order.
+        All = "all",
+        /// Centre of gravity of the channel CFs, over the highest CF.
+        Centroid = "centroid",
+        /// Peak over mean.
+        Crest = "crest",
+        /// Spread of the CFs around the centroid, over the highest CF.
+        Spread = "spread",
+        /// Entropy of the normalised frame, over `ln(channels)`.
+        Entropy = "entropy",
+        /// Share of the frame above `sf_brCF`.
+        Brightness = "brightness",
+        /// High-frequency content: mean of CF² weighted by the frame, in Hz².
+        Hfc = "hfc",
+        /// Mean decrease from the first channel, weighted by 1/k.
+        Decrease = "decrease",
+        /// Geometric over arithmetic mean.
+        Flatness = "flatness",
+        /// RMS change of the dB frame from the previous frame.
+        Flux = "flux",
+        /// Excess kurtosis across channels.
+        Kurtosis = "kurtosis",
+        /// Skewness across channels.
+        Skewness = "skewness",
+        /// RMS dB step between adjacent channels.
+        Irregularity = "irregularity",
+        /// CF below which `sf_roPerc` of the frame lies, over the highest CF.
+        Rolloff = "rolloff",
+        /// One minus the cosine similarity with the previous frame.
+        Variation = "variation",
+    }
 }
 
 /// The features `all` stands for, in the AFE's output order.
@@ -59,94 +58,37 @@ const EVERY_FEATURE: [SpectralFeature; 14] = [
     SpectralFeature::Variation,
 ];
 
-/// The accepted values of `sf_requests`, as the serde names of [`SpectralFeature`].
-const FEATURE_NAMES: &[&str] = &[
-    "all",
-    "centroid",
-    "crest",
-    "spread",
-    "entropy",
-    "brightness",
-    "hfc",
-    "decrease",
-    "flatness",
-    "flux",
-    "kurtosis",
-    "skewness",
-    "irregularity",
-    "rolloff",
-    "variation",
-];
-
-impl SpectralFeature {
-    /// The AFE name, used as the output column label.
-    pub fn name(self) -> &'static str {
-        FEATURE_NAMES[self as usize]
+afe_core::params! {
+    /// Parameters of the spectral features, under their AFE names.
+    pub struct SpectralFeaturesParams / SpectralFeaturesNames {
+        /// features to compute, in output order, or 'all'
+        #[afe = "sf_requests"]
+        pub requests: Vec<SpectralFeature> = vec![SpectralFeature::All],
+        /// cut-off frequency of the brightness
+        #[afe = "sf_brCF", unit = "Hz"]
+        pub brightness_cf_hz: f64 = 1500.0,
+        /// fraction of the frame's total below the rolloff frequency
+        #[afe = "sf_roPerc"]
+        pub rolloff_fraction: f64 = 0.8,
     }
-}
-
-/// Parameters of the spectral features, under their AFE names.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SpectralFeaturesParams {
-    /// The features to compute, in output order, or `all` (AFE `sf_requests`).
-    #[serde(rename = "sf_requests")]
-    pub requests: Vec<SpectralFeature>,
-    /// Cut-off frequency of `brightness` in Hz (AFE `sf_brCF`).
-    #[serde(rename = "sf_brCF")]
-    pub brightness_cf_hz: f64,
-    /// Fraction of the frame's total below the `rolloff` frequency (AFE `sf_roPerc`).
-    #[serde(rename = "sf_roPerc")]
-    pub rolloff_fraction: f64,
-}
-
-impl Default for SpectralFeaturesParams {
-    fn default() -> Self {
-        SpectralFeaturesParams {
-            requests: vec![SpectralFeature::All],
-            brightness_cf_hz: 1500.0,
-            rolloff_fraction: 0.8,
-        }
-    }
-}
-
-impl Params for SpectralFeaturesParams {
-    const SPECS: &'static [ParamSpec] = &[
-        ParamSpec {
-            name: "sf_requests",
-            kind: ParamKind::Choices(FEATURE_NAMES),
-            unit: "",
-            description: "features to compute, in output order, or 'all'",
-        },
-        ParamSpec {
-            name: "sf_brCF",
-            kind: ParamKind::Number,
-            unit: "Hz",
-            description: "cut-off frequency of the brightness",
-        },
-        ParamSpec {
-            name: "sf_roPerc",
-            kind: ParamKind::Number,
-            unit: "",
-            description: "fraction of the frame's total below the rolloff frequency",
-        },
-    ];
 }
 
 impl SpectralFeaturesParams {
     /// The requested features with `all` expanded, as the AFE's verification does.
     pub fn features(&self) -> Result<Vec<SpectralFeature>> {
-        let bad = |reason: &str| Error::InvalidParameter {
-            name: "sf_requests".into(),
-            value: format!(
-                "[{}]",
-                self.requests
-                    .iter()
-                    .map(|f| format!("'{}'", f.name()))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ),
-            reason: reason.into(),
+        let bad = |reason: &str| {
+            Error::invalid(
+                SpectralFeaturesParams::NAMES.requests,
+                format!(
+                    "[{}]",
+                    self.requests
+                        .iter()
+                        .map(|f| format!("'{}'", f.name()))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+                reason,
+            )
         };
         match self.requests.as_slice() {
             [] => Err(bad("name at least one feature, or 'all'")),
@@ -189,18 +131,18 @@ impl SpectralFeatures {
         let features = params.features()?;
         let f = params.rolloff_fraction;
         if !(0.0..=1.0).contains(&f) {
-            return Err(Error::InvalidParameter {
-                name: "sf_roPerc".into(),
-                value: f.to_string(),
-                reason: "must be a fraction between 0 and 1".into(),
-            });
+            return Err(Error::invalid(
+                SpectralFeaturesParams::NAMES.rolloff_fraction,
+                f,
+                "must be a fraction between 0 and 1",
+            ));
         }
         if !params.brightness_cf_hz.is_finite() {
-            return Err(Error::InvalidParameter {
-                name: "sf_brCF".into(),
-                value: params.brightness_cf_hz.to_string(),
-                reason: "must be a finite frequency in Hz".into(),
-            });
+            return Err(Error::invalid(
+                SpectralFeaturesParams::NAMES.brightness_cf_hz,
+                params.brightness_cf_hz,
+                "must be a finite frequency in Hz",
+            ));
         }
         let k = input.channels();
         if k < 2 {
@@ -424,11 +366,6 @@ mod tests {
         let mut out = vec![Block::new(sf.features.len())];
         sf.process(&[&Block::from_vec(data.to_vec(), nc)], &mut out);
         out[0].as_slice().to_vec()
-    }
-
-    #[test]
-    fn specs_match_struct() {
-        afe_core::params::check_param_specs::<SpectralFeaturesParams>();
     }
 
     #[test]

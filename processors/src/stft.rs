@@ -6,52 +6,20 @@ use std::sync::Arc;
 
 use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::framing::{window_samples, FrameBuffer};
-use afe_core::{
-    Axis, Block, DrawAs, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo,
-    SignalKind,
-};
+use afe_core::{Axis, Block, DrawAs, Error, Processor, Result, SignalInfo, SignalKind};
 use afe_fft::RealToComplex;
 use num_complex::Complex64;
-use serde::{Deserialize, Serialize};
 
-/// Parameters of the STFT, under their AFE names.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct StftParams {
-    /// Window length in s (AFE `stft_wSizeSec`); the hop is half of it.
-    #[serde(rename = "stft_wSizeSec")]
-    pub w_size_sec: f64,
-    /// Keep only bins `0 .. NFFT/2 − 1` (DC kept, Nyquist and negative frequencies
-    /// dropped) instead of all `NFFT` bins (AFE `stft_isPruned`).
-    #[serde(rename = "stft_isPruned")]
-    pub is_pruned: bool,
-}
-
-impl Default for StftParams {
-    fn default() -> Self {
-        StftParams {
-            w_size_sec: 0.02,
-            is_pruned: true,
-        }
+afe_core::params! {
+    /// Parameters of the STFT, under their AFE names.
+    pub struct StftParams / StftNames {
+        /// window length (the hop is half of it)
+        #[afe = "stft_wSizeSec", unit = "s"]
+        pub w_size_sec: f64 = 0.02,
+        /// keep the NFFT/2 bins from DC up (Nyquist and negative frequencies dropped)
+        #[afe = "stft_isPruned"]
+        pub is_pruned: bool = true,
     }
-}
-
-impl Params for StftParams {
-    const SPECS: &'static [ParamSpec] = &[
-        ParamSpec {
-            name: "stft_wSizeSec",
-            kind: ParamKind::Number,
-            unit: "s",
-            description: "window length (the hop is half of it)",
-        },
-        ParamSpec {
-            name: "stft_isPruned",
-            kind: ParamKind::Flag,
-            unit: "",
-            description:
-                "keep the NFFT/2 bins from DC up (Nyquist and negative frequencies dropped)",
-        },
-    ];
 }
 
 /// The STFT of one ear: time signal `[time][1]` in, `[frame][bin]` complex out, each bin
@@ -90,13 +58,9 @@ impl Stft {
         let fs = input.fs_hz;
         let w = window_samples(params.w_size_sec, fs);
         if params.w_size_sec <= 0.0 || !(2..=MAX_STFT_WINDOW).contains(&w) {
-            return Err(Error::InvalidParameter {
-                name: "stft_wSizeSec".into(),
-                value: params.w_size_sec.to_string(),
-                reason: format!(
+            return Err(Error::invalid(StftParams::NAMES.w_size_sec, params.w_size_sec, format!(
                     "the window must span between 2 and {MAX_STFT_WINDOW} samples at {fs} Hz (its FFT is twice as long)"
-                ),
-            });
+                )));
         }
         let win: Vec<f64> = (0..w)
             .map(|k| 0.54 - 0.46 * (2.0 * PI * k as f64 / w as f64).cos())
@@ -204,11 +168,6 @@ mod tests {
     fn run(stft: &mut Stft, x: &[f64], chunks: &[usize]) -> Vec<f64> {
         let then_the_rest = chunks.iter().copied().chain([usize::MAX]);
         crate::testing::feed(stft, x, 1, 2 * stft.bins, then_the_rest)
-    }
-
-    #[test]
-    fn specs_match_struct() {
-        afe_core::params::check_param_specs::<StftParams>();
     }
 
     #[test]

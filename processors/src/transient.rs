@@ -5,58 +5,24 @@
 //! parameter, so one processor computes both.
 
 use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
-use afe_core::{Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo};
-use serde::{Deserialize, Serialize};
+use afe_core::{Block, Error, Processor, Result, SignalInfo};
 
-/// Parameters of the onset strength, under their AFE names.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct OnsetParams {
-    /// Upper limit of the onset strength in dB (AFE `ons_maxOnsetdB`).
-    #[serde(rename = "ons_maxOnsetdB")]
-    pub max_onset_db: f64,
-}
-
-impl Default for OnsetParams {
-    fn default() -> Self {
-        OnsetParams { max_onset_db: 30.0 }
+afe_core::params! {
+    /// Parameters of the onset strength, under their AFE names.
+    pub struct OnsetParams / OnsetNames {
+        /// upper limit of the onset strength
+        #[afe = "ons_maxOnsetdB", unit = "dB"]
+        pub max_onset_db: f64 = 30.0,
     }
 }
 
-impl Params for OnsetParams {
-    const SPECS: &'static [ParamSpec] = &[ParamSpec {
-        name: "ons_maxOnsetdB",
-        kind: ParamKind::Number,
-        unit: "dB",
-        description: "upper limit of the onset strength",
-    }];
-}
-
-/// Parameters of the offset strength, under their AFE names.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct OffsetParams {
-    /// Upper limit of the offset strength in dB; its absolute value is used, as in the
-    /// AFE (AFE `ofs_maxOffsetdB`).
-    #[serde(rename = "ofs_maxOffsetdB")]
-    pub max_offset_db: f64,
-}
-
-impl Default for OffsetParams {
-    fn default() -> Self {
-        OffsetParams {
-            max_offset_db: 30.0,
-        }
+afe_core::params! {
+    /// Parameters of the offset strength, under their AFE names.
+    pub struct OffsetParams / OffsetNames {
+        /// upper limit of the offset strength (its absolute value is used)
+        #[afe = "ofs_maxOffsetdB", unit = "dB"]
+        pub max_offset_db: f64 = 30.0,
     }
-}
-
-impl Params for OffsetParams {
-    const SPECS: &'static [ParamSpec] = &[ParamSpec {
-        name: "ofs_maxOffsetdB",
-        kind: ParamKind::Number,
-        unit: "dB",
-        description: "upper limit of the offset strength (its absolute value is used)",
-    }];
 }
 
 /// Which level change a [`TransientStrength`] keeps.
@@ -87,11 +53,11 @@ impl TransientStrength {
     /// Builds the onset strength for the ratemap `input`.
     pub fn onset(params: &OnsetParams, input: &SignalInfo) -> Result<(Self, SignalInfo)> {
         if params.max_onset_db.is_nan() || params.max_onset_db < 0.0 {
-            return Err(Error::InvalidParameter {
-                name: "ons_maxOnsetdB".into(),
-                value: params.max_onset_db.to_string(),
-                reason: "must be at least 0 dB".into(),
-            });
+            return Err(Error::invalid(
+                OnsetParams::NAMES.max_onset_db,
+                params.max_onset_db,
+                "must be at least 0 dB",
+            ));
         }
         Ok(Self::new(Direction::Onset, params.max_onset_db, input))
     }
@@ -99,11 +65,11 @@ impl TransientStrength {
     /// Builds the offset strength for the ratemap `input`.
     pub fn offset(params: &OffsetParams, input: &SignalInfo) -> Result<(Self, SignalInfo)> {
         if !params.max_offset_db.is_finite() {
-            return Err(Error::InvalidParameter {
-                name: "ofs_maxOffsetdB".into(),
-                value: params.max_offset_db.to_string(),
-                reason: "must be a finite number of dB".into(),
-            });
+            return Err(Error::invalid(
+                OffsetParams::NAMES.max_offset_db,
+                params.max_offset_db,
+                "must be a finite number of dB",
+            ));
         }
         Ok(Self::new(
             Direction::Offset,
@@ -210,12 +176,6 @@ mod tests {
         let mut out = vec![Block::new(nc)];
         p.process(&[&Block::from_vec(data.to_vec(), nc)], &mut out);
         out[0].as_slice().to_vec()
-    }
-
-    #[test]
-    fn specs_match_structs() {
-        afe_core::params::check_param_specs::<OnsetParams>();
-        afe_core::params::check_param_specs::<OffsetParams>();
     }
 
     #[test]

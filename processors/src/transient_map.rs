@@ -6,70 +6,24 @@
 //! parameters.
 
 use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
-use afe_core::{
-    Block, Error, ParamKind, ParamSpec, Params, Processor, Result, SignalInfo, SignalKind,
-};
-use serde::{Deserialize, Serialize};
+use afe_core::{Block, Error, ParamKind, Processor, Result, SignalInfo, SignalKind};
 
-/// Parameters of the transient maps, under their AFE names.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct TransientMapParams {
-    /// Minimum transient strength in dB; weaker cells are ignored (AFE
-    /// `trm_minStrengthdB`).
-    #[serde(rename = "trm_minStrengthdB")]
-    pub min_strength_db: f64,
-    /// Minimum number of cells of a connected transient (AFE `trm_minSpread`).
-    #[serde(rename = "trm_minSpread")]
-    pub min_spread: u64,
-    /// Peaks closer than this in s are fused, only the strongest is kept (AFE
-    /// `trm_fuseWithinSec`).
-    #[serde(rename = "trm_fuseWithinSec")]
-    pub fuse_within_sec: f64,
-    /// When set, transients where the ratemap level is below this many dB are discarded
-    /// (AFE `trm_minValuedB`; unset by default).
-    #[serde(rename = "trm_minValuedB")]
-    pub min_value_db: Option<f64>,
-}
-
-impl Default for TransientMapParams {
-    fn default() -> Self {
-        TransientMapParams {
-            min_strength_db: 3.0,
-            min_spread: 5,
-            fuse_within_sec: 0.03,
-            min_value_db: None,
-        }
+afe_core::params! {
+    /// Parameters of the transient maps, under their AFE names.
+    pub struct TransientMapParams / TransientMapNames {
+        /// minimum transient strength
+        #[afe = "trm_minStrengthdB", unit = "dB"]
+        pub min_strength_db: f64 = 3.0,
+        /// minimum number of time-frequency cells of a connected transient
+        #[afe = "trm_minSpread", kind = ParamKind::Count]
+        pub min_spread: u64 = 5,
+        /// peaks closer than this in time are fused (the strongest is kept)
+        #[afe = "trm_fuseWithinSec", unit = "s"]
+        pub fuse_within_sec: f64 = 0.03,
+        /// if set, discard transients where the ratemap level is below this
+        #[afe = "trm_minValuedB", unit = "dB", kind = ParamKind::Number]
+        pub min_value_db: Option<f64> = None,
     }
-}
-
-impl Params for TransientMapParams {
-    const SPECS: &'static [ParamSpec] = &[
-        ParamSpec {
-            name: "trm_minStrengthdB",
-            kind: ParamKind::Number,
-            unit: "dB",
-            description: "minimum transient strength",
-        },
-        ParamSpec {
-            name: "trm_minSpread",
-            kind: ParamKind::Count,
-            unit: "",
-            description: "minimum number of time-frequency cells of a connected transient",
-        },
-        ParamSpec {
-            name: "trm_fuseWithinSec",
-            kind: ParamKind::Number,
-            unit: "s",
-            description: "peaks closer than this in time are fused (the strongest is kept)",
-        },
-        ParamSpec {
-            name: "trm_minValuedB",
-            kind: ParamKind::Number,
-            unit: "dB",
-            description: "if set, discard transients where the ratemap level is below this",
-        },
-    ];
 }
 
 /// The transient map of one ear: onset or offset strength `[frame][channel]` in dB (and,
@@ -131,19 +85,19 @@ impl TransientMap {
     ) -> Result<(Self, SignalInfo)> {
         let fuse = params.fuse_within_sec;
         if fuse.is_nan() || fuse < 0.0 {
-            return Err(Error::InvalidParameter {
-                name: "trm_fuseWithinSec".into(),
-                value: fuse.to_string(),
-                reason: "must be at least 0 s".into(),
-            });
+            return Err(Error::invalid(
+                TransientMapParams::NAMES.fuse_within_sec,
+                fuse,
+                "must be at least 0 s",
+            ));
         }
         if let Some(min) = params.min_value_db {
             let Some(rm) = ratemap else {
-                return Err(Error::InvalidParameter {
-                    name: "trm_minValuedB".into(),
-                    value: min.to_string(),
-                    reason: "needs the ratemap as a second input".into(),
-                });
+                return Err(Error::invalid(
+                    TransientMapParams::NAMES.min_value_db,
+                    min,
+                    "needs the ratemap as a second input",
+                ));
             };
             if rm.channels() != input.channels() {
                 return Err(Error::InvalidInput(format!(
@@ -422,11 +376,6 @@ mod tests {
             .filter(|&i| v[i] == 1.0)
             .map(|i| (i / nc, i % nc))
             .collect()
-    }
-
-    #[test]
-    fn specs_match_struct() {
-        afe_core::params::check_param_specs::<TransientMapParams>();
     }
 
     #[test]

@@ -27,6 +27,10 @@ pub mod streams;
 use afe_core::filter::Df2t;
 use afe_core::{Block, ParamMap};
 use afe_graph::{Channel, Manager};
+use afe_processors::adaptation::{AdaptationModel, AdaptationParams};
+use afe_processors::filterbank::{FbType, FilterbankParams};
+use afe_processors::ihc::{IhcParams, Method};
+use afe_processors::pre_proc::PreProcParams;
 use serde::Serialize;
 use serde_json::{json, Value};
 
@@ -45,14 +49,17 @@ const ENVELOPE_TAU_S: f64 = 0.02;
 /// The parameters of the AFE request `adaptation` under the RAA, as `afeRAA` sets them.
 pub fn adaptation_params() -> ParamMap {
     [
-        ("pp_bLevelScaling", json!(true)),
-        ("fb_type", json!("gammatone")),
-        ("fb_lowFreqHz", json!(FB_LOW_FREQ_HZ)),
-        ("fb_highFreqHz", json!(FB_HIGH_FREQ_HZ)),
-        ("fb_nChannels", json!(FB_N_CHANNELS)),
-        ("ihc_method", json!("breebart")),
-        ("adpt_model", json!("adt_vandorpschuitman")),
-        ("adpt_lim", json!(0)),
+        (PreProcParams::NAMES.level_scaling, json!(true)),
+        (FilterbankParams::NAMES.fb_type, json!(FbType::Gammatone)),
+        (FilterbankParams::NAMES.low_freq_hz, json!(FB_LOW_FREQ_HZ)),
+        (FilterbankParams::NAMES.high_freq_hz, json!(FB_HIGH_FREQ_HZ)),
+        (FilterbankParams::NAMES.n_channels, json!(FB_N_CHANNELS)),
+        (IhcParams::NAMES.method, json!(Method::Breebart)),
+        (
+            AdaptationParams::NAMES.model,
+            json!(AdaptationModel::VanDorpSchuitman),
+        ),
+        (AdaptationParams::NAMES.lim, json!(0)),
     ]
     .into_iter()
     .map(|(k, v)| (k.to_string(), v))

@@ -124,11 +124,7 @@ impl Manager {
             .iter()
             .any(|r| r.fixed.contains(&name))
         {
-            return Err(Error::InvalidParameter {
-                name: name.into(),
-                value: single[name].to_string(),
-                reason: "this parameter cannot be changed at run time (as in the AFE); place a new request instead".into(),
-            });
+            return Err(Error::invalid(name, &single[name], "this parameter cannot be changed at run time (as in the AFE); place a new request instead"));
         }
         let Some(Some(req)) = self.requests.get(handle.0) else {
             return Err(Error::UnknownHandle(handle.0));
@@ -142,11 +138,11 @@ impl Manager {
                 .is_some_and(|d| d.params.iter().any(|p| p.name == name))
         });
         if !used {
-            return Err(Error::InvalidParameter {
-                name: name.into(),
-                value: params[name].to_string(),
-                reason: format!("no processor of request {} uses this parameter", handle.0),
-            });
+            return Err(Error::invalid(
+                name,
+                &params[name],
+                format!("no processor of request {} uses this parameter", handle.0),
+            ));
         }
         self.edit(|m| {
             for n in m.graph.modify(&chain, name, &params[name])? {

@@ -25,7 +25,7 @@ pub(super) fn log_bank(
     } else {
         if p.cf_hz.iter().any(|f| *f <= 0.0) {
             return Err(Error::invalid(
-                "ams_cfHz",
+                AmsParams::NAMES.cf_hz,
                 format!("{:?}", p.cf_hz),
                 "centre frequencies must be > 0 Hz",
             ));
@@ -47,9 +47,9 @@ pub(super) fn log_bank(
                 ""
             };
             let given = format!("with ams_highFreqHz = {}{which}, ", p.high_freq_hz);
-            ("ams_highFreqHz", p.high_freq_hz, given)
+            (AmsParams::NAMES.high_freq_hz, p.high_freq_hz, given)
         } else {
-            ("ams_cfHz", f, String::new())
+            (AmsParams::NAMES.cf_hz, f, String::new())
         };
         let fs = fs_ds * p.ds_ratio as f64;
         Error::invalid(

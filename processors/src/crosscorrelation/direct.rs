@@ -309,12 +309,12 @@ mod tests {
     use super::*;
     use crate::crosscorrelation::fft::FftEngine;
     use crate::framed::EarFrames;
-    use afe_core::window::window;
+    use afe_core::window::{window, Window};
 
     #[test]
     fn the_working_memory_bound_holds_every_buffer() {
         for (w, max_lag) in [(40, 0), (40, 11), (42, 12), (882, 49), (882, 882)] {
-            let win = window("hann", w, "").expect("hann");
+            let win = window(Window::Hann, w);
             for lag_block in [4, 5, 8, 9, 10, 11, 12] {
                 let d = Direct::with_lag_block(win.clone(), max_lag, 37, lag_block);
                 let held = LANES * (d.left.len() + d.right.len() + d.acc.len());
@@ -337,7 +337,7 @@ mod tests {
         let configs = [(40, 11), (42, 3), (42, 37), (40, 20)];
         for ((w, nc), wname) in configs
             .into_iter()
-            .flat_map(|c| [(c, "hann"), (c, "hamming")])
+            .flat_map(|c| [(c, Window::Hann), (c, Window::Hamming)])
         {
             let x = |seed: usize| -> Vec<f64> {
                 (0..w * nc)
@@ -351,7 +351,7 @@ mod tests {
             let (fl, fr) = framing.frame((&xl[split..], &xr[split..]), 0);
             assert_eq!(fl.head.len(), split);
             for max_lag in [0, 3, 4, 9, 10, 17, w - 1, w] {
-                let win = window(wname, w, "").expect(wname);
+                let win = window(wname, w);
                 let nl = 2 * max_lag + 1;
                 let mut fft = FftEngine::new(win.clone(), max_lag);
                 let mut b = vec![0.0; nc * nl];
