@@ -123,6 +123,18 @@ impl Head {
         }
     }
 
+    /// [`Head::transfer`] of each of `azimuths_deg` (outer) at `freqs_hz` (inner): a
+    /// sphere's series is run once per frequency for every azimuth.
+    pub fn transfers(&self, azimuths_deg: &[f64], freqs_hz: &[f64]) -> Vec<Vec<[Complex64; 2]>> {
+        match self {
+            Head::Sphere(s) => s.transfers(azimuths_deg, freqs_hz),
+            Head::Measured { .. } => azimuths_deg
+                .iter()
+                .map(|&az| self.transfer(az, freqs_hz))
+                .collect(),
+        }
+    }
+
     /// `x` (a mono signal at `fs_hz`) as the two ears hear it from `azimuth_deg`: each
     /// ear's transfer function applied in one transform over the zero-padded signal, so
     /// that any head renders at any rate below its highest frequency.

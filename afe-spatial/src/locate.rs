@@ -270,8 +270,8 @@ impl Localiser {
             )));
         }
         let mut gains = vec![0.0; 4 * bins * na];
-        for (a, &az) in azimuths.iter().enumerate() {
-            for (b, [l, r]) in head.transfer(az, &freqs).into_iter().enumerate() {
+        for (a, row) in head.transfers(&azimuths, &freqs).into_iter().enumerate() {
+            for (b, [l, r]) in row.into_iter().enumerate() {
                 let energy = l.norm_sqr() + r.norm_sqr();
                 let unit = if energy > 0.0 { 1.0 / energy } else { 0.0 };
                 let cross = l.conj() * r * unit;

@@ -9,12 +9,15 @@ use num_complex::Complex64;
 /// Speed of sound, m/s (20 °C).
 pub const SPEED_OF_SOUND: f64 = 343.0;
 
-/// Terms beyond the normalised frequency μ that the series keeps at least; it stops once a
-/// term falls below 1e-15 of the sum.
+/// Terms beyond the normalised frequency μ that the series keeps at least; it stops once
+/// no term of any angle can exceed 1e-17 of the first.
 const EXTRA_TERMS: usize = 30;
 /// Where the Hankel recurrences are rescaled (near source) or the series ends (far): they
 /// grow as (2m − 1)!!/x^{m+1}, and a complex division squares its divisor.
 const HUGE: f64 = 1e100;
+/// The largest term, over the first, at which the series ends: below the sum's rounding
+/// at any angle where |H| is above 1e-2.
+const NEGLIGIBLE: f64 = 1e-17;
 /// Most terms of the series (μ = 2πf·a/c is below 300 for any head at audio rates).
 const MAX_TERMS: usize = 600;
 
@@ -47,9 +50,33 @@ impl Sphere {
     pub fn transfer(&self, azimuth_deg: f64, f_hz: f64) -> [Complex64; 2] {
         let left = incidence(azimuth_deg, self.ear_deg);
         let right = incidence(azimuth_deg, -self.ear_deg);
+        let h = self.series(f_hz).responses(&[left, right]);
+        [h[0], h[1]]
+    }
+
+    /// The series at `f_hz`, which every azimuth shares.
+    pub fn series(&self, f_hz: f64) -> Series {
         let mu = 2.0 * std::f64::consts::PI * f_hz * self.radius_m / SPEED_OF_SOUND;
-        let rho = self.distance_m / self.radius_m;
-        [response(rho, mu, left), response(rho, mu, right)]
+        Series::new(self.distance_m / self.radius_m, mu)
+    }
+
+    /// The transfer functions of each of `azimuths_deg` (outer) at each of `freqs_hz`
+    /// (inner), as [`Sphere::transfer`] gives them, one series per frequency.
+    pub fn transfers(&self, azimuths_deg: &[f64], freqs_hz: &[f64]) -> Vec<Vec<[Complex64; 2]>> {
+        let mut out = vec![Vec::with_capacity(freqs_hz.len()); azimuths_deg.len()];
+        // the left microphone's angle of each azimuth, then the right one's
+        let cos_thetas: Vec<f64> = [self.ear_deg, -self.ear_deg]
+            .iter()
+            .flat_map(|&ear| azimuths_deg.iter().map(move |&az| incidence(az, ear)))
+            .collect();
+        let na = azimuths_deg.len();
+        for &f in freqs_hz {
+            let h = self.series(f).responses(&cos_thetas);
+            for (a, row) in out.iter_mut().enumerate() {
+                row.push([h[a], h[na + a]]);
+            }
+        }
+        out
     }
 }
 
@@ -63,76 +90,104 @@ fn incidence(azimuth_deg: f64, ear_deg: f64) -> f64 {
 /// convention: ρ = distance/radius (> 1, or infinite), μ = ωa/c. At μ = 0 the sphere is
 /// transparent: 1.
 pub fn response(rho: f64, mu: f64, cos_theta: f64) -> Complex64 {
-    if mu <= 0.0 {
-        return Complex64::new(1.0, 0.0);
-    }
-    let far = rho.is_infinite();
-    // h_m(μ) and h_m(μρ) by upward recurrence (spherical Hankel of the first kind, time
-    // convention e^{−iωt}), with P_m(cos θ); h'_m = h_{m−1} − (m + 1)/x·h_m
-    let i = Complex64::new(0.0, 1.0);
-    let h0 = |x: f64| -i * Complex64::from_polar(1.0 / x, x);
-    let h1 = |x: f64| -Complex64::from_polar(1.0 / (x * x), x) * Complex64::new(x, 1.0);
-    let (mut ha_prev, mut ha) = (h0(mu), h1(mu));
-    let (mut hr_prev, mut hr) = if far {
-        (Complex64::new(0.0, 0.0), Complex64::new(0.0, 0.0))
-    } else {
-        (h0(mu * rho), h1(mu * rho))
-    };
-    let (mut p_prev, mut p) = (1.0, cos_theta);
-    // m = 0: h'_0 = −h_1
-    let mut sum = term(0, far, hr_prev, -ha, 1.0);
-    let mut m = 1usize;
-    loop {
-        let dh = ha_prev - (m as f64 + 1.0) / mu * ha;
-        let t = term(m, far, hr, dh, p);
-        sum += t;
-        if (m > mu as usize + EXTRA_TERMS && t.norm() < 1e-15 * sum.norm()) || m >= MAX_TERMS {
-            break;
-        }
-        let k = (2 * m + 1) as f64;
-        (ha_prev, ha) = (ha, k / mu * ha - ha_prev);
-        if !far {
-            (hr_prev, hr) = (hr, k / (mu * rho) * hr - hr_prev);
-        }
-        if ha.norm() > HUGE {
-            if far {
-                // 1/h'_m below 1e-100 of the first terms: the rest is nothing
-                break;
-            }
-            // the near terms are ratios: both recurrences scaled alike keep them
-            for h in [&mut ha_prev, &mut ha, &mut hr_prev, &mut hr] {
-                *h /= HUGE;
-            }
-        }
-        (p_prev, p) = (
-            p,
-            (k * cos_theta * p - m as f64 * p_prev) / (m as f64 + 1.0),
-        );
-        m += 1;
-    }
-    let h = if far {
-        sum / (mu * mu)
-    } else {
-        -(rho / mu) * Complex64::from_polar(1.0, -mu * rho) * sum
-    };
-    h.conj()
+    Series::new(rho, mu).responses(&[cos_theta])[0]
 }
 
-/// The series' term of order `m`: (2m + 1)·P_m·h_m(μρ)/h'_m(μ), or for a plane wave
-/// (2m + 1)·P_m·(−i)^{m−1}/h'_m(μ) (the far limit of h_m(μρ)·(−ρ/μ)·e^{−iμρ}, times μ²).
-fn term(m: usize, far: bool, h_rho: Complex64, dh_mu: Complex64, p: f64) -> Complex64 {
-    let k = (2 * m + 1) as f64 * p;
-    if far {
-        // (−i)^{m−1}: i, 1, −i, −1, ...
-        let phase = match m % 4 {
-            0 => Complex64::new(0.0, 1.0),
-            1 => Complex64::new(1.0, 0.0),
-            2 => Complex64::new(0.0, -1.0),
-            _ => Complex64::new(-1.0, 0.0),
+/// The part of the series that does not depend on the angle, at one (ρ, μ): each order's
+/// coefficient, so that every microphone and azimuth at one frequency shares one run of
+/// the Hankel recurrences and the angles are summed side by side.
+pub struct Series {
+    rho: f64,
+    mu: f64,
+    far: bool,
+    /// (2m + 1)·h_m(μρ)/h'_m(μ) of each order m, or for a plane wave
+    /// (2m + 1)·(−i)^{m−1}/h'_m(μ) (the far limit of h_m(μρ)·(−ρ/μ)·e^{−iμρ}, times μ²):
+    /// H is their sum with P_m(cos θ), scaled.
+    coef: Vec<Complex64>,
+}
+
+impl Series {
+    /// The orders of the series at (`rho`, `mu`): h_m(μ) and h_m(μρ) by upward recurrence
+    /// (spherical Hankel of the first kind, time convention e^{−iωt}), with
+    /// h'_m = h_{m−1} − (m + 1)/x·h_m, up to the first order beyond μ + 30 whose largest
+    /// term at any angle (|P_m| <= 1) is below 1e-17 of the first.
+    pub fn new(rho: f64, mu: f64) -> Series {
+        let far = rho.is_infinite();
+        let mut coef = Vec::new();
+        if mu > 0.0 {
+            let i = Complex64::new(0.0, 1.0);
+            let h0 = |x: f64| -i * Complex64::from_polar(1.0 / x, x);
+            let h1 = |x: f64| -Complex64::from_polar(1.0 / (x * x), x) * Complex64::new(x, 1.0);
+            let (mut ha_prev, mut ha) = (h0(mu), h1(mu));
+            let (mut hr_prev, mut hr) = if far {
+                (Complex64::new(0.0, 0.0), Complex64::new(0.0, 0.0))
+            } else {
+                (h0(mu * rho), h1(mu * rho))
+            };
+            // (−i)^{m−1}: i, 1, −i, −1, ...
+            let phases = [i, Complex64::new(1.0, 0.0), -i, Complex64::new(-1.0, 0.0)];
+            let order = |m: usize, h_rho: Complex64, h_prime: Complex64| {
+                (2 * m + 1) as f64 * if far { phases[m % 4] } else { h_rho } / h_prime
+            };
+            // m = 0: h'_0 = −h_1
+            coef.push(order(0, hr_prev, -ha));
+            let first = coef[0].norm();
+            for m in 1..=MAX_TERMS {
+                let c = order(m, hr, ha_prev - (m as f64 + 1.0) / mu * ha);
+                coef.push(c);
+                if m > mu as usize + EXTRA_TERMS && c.norm() < NEGLIGIBLE * first {
+                    break;
+                }
+                let k = (2 * m + 1) as f64;
+                (ha_prev, ha) = (ha, k / mu * ha - ha_prev);
+                if !far {
+                    (hr_prev, hr) = (hr, k / (mu * rho) * hr - hr_prev);
+                }
+                if ha.norm() > HUGE {
+                    if far {
+                        // 1/h'_m below 1e-100 of the first terms: the rest is nothing
+                        break;
+                    }
+                    // the near terms are ratios: both recurrences scaled alike keep them
+                    for h in [&mut ha_prev, &mut ha, &mut hr_prev, &mut hr] {
+                        *h /= HUGE;
+                    }
+                }
+            }
+        }
+        Series { rho, mu, far, coef }
+    }
+
+    /// H(ρ, μ, θ) at each of `cos_thetas` (cos θ): the orders summed with P_m(cos θ), by
+    /// the Legendre recurrence, all angles at once.
+    pub fn responses(&self, cos_thetas: &[f64]) -> Vec<Complex64> {
+        let n = cos_thetas.len();
+        let Some(&c0) = self.coef.first() else {
+            return vec![Complex64::new(1.0, 0.0); n];
         };
-        k * phase / dh_mu
-    } else {
-        k * h_rho / dh_mu
+        let (mut re, mut im) = (vec![c0.re; n], vec![c0.im; n]);
+        let (mut p_prev, mut p) = (vec![1.0; n], cos_thetas.to_vec());
+        for (m, c) in self.coef.iter().enumerate().skip(1) {
+            // P_{m+1} = ((2m + 1)·x·P_m − m·P_{m−1})/(m + 1)
+            let a = (2 * m + 1) as f64 / (m + 1) as f64;
+            let b = m as f64 / (m + 1) as f64;
+            for k in 0..n {
+                re[k] += c.re * p[k];
+                im[k] += c.im * p[k];
+                let next = a * cos_thetas[k] * p[k] - b * p_prev[k];
+                p_prev[k] = p[k];
+                p[k] = next;
+            }
+        }
+        let scale = if self.far {
+            Complex64::new(1.0 / (self.mu * self.mu), 0.0)
+        } else {
+            -(self.rho / self.mu) * Complex64::from_polar(1.0, -self.mu * self.rho)
+        };
+        re.iter()
+            .zip(&im)
+            .map(|(&r, &i)| (scale * Complex64::new(r, i)).conj())
+            .collect()
     }
 }
 
