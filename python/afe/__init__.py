@@ -76,7 +76,7 @@ Audio = Union[np.ndarray, Sequence[float], Sequence[Sequence[float]], str, os.Pa
 
 
 def _catalog() -> List[Dict[str, Any]]:
-    return json.loads(_afe.catalog_json())
+    return _afe.catalog()
 
 
 def requests() -> List[str]:
@@ -124,7 +124,7 @@ def host() -> Dict[str, Any]:
     ``threads=2`` gains less; ``None`` with one core, or on a machine too busy to run
     two threads side by side).
     """
-    return json.loads(_afe.host_json())
+    return _afe.host()
 
 
 def read_wav(path: Union[str, os.PathLike]) -> Tuple[np.ndarray, float]:
@@ -173,21 +173,26 @@ def _as_channels(signal: Audio, channels: Optional[int] = None) -> np.ndarray:
     return np.ascontiguousarray(x)
 
 
-def _json(value: Any) -> str:
-    def default(v: Any) -> Any:
-        if isinstance(v, np.ndarray):
-            # MATLAB values arrive as 1×1, 1×N or N×1 matrices (scipy.io.loadmat): a
-            # scalar or a vector either way
-            if v.size == 1:
-                return v.item()
-            if v.ndim == 2 and 1 in v.shape:
-                return v.reshape(-1).tolist()
-            return v.tolist()
-        if isinstance(v, np.generic):
-            return v.item()
-        raise ValueError(f"parameter value {v!r} of type {type(v).__name__} is not supported")
-
-    return json.dumps(value, default=default)
+def _plain(value: Any) -> Any:
+    """``value`` as the plain Python values the core takes (dicts with string keys, lists,
+    strings, numbers, booleans, ``None``): numpy arrays and scalars as lists and numbers."""
+    if isinstance(value, np.ndarray):
+        # MATLAB values arrive as 1×1, 1×N or N×1 matrices (scipy.io.loadmat): a scalar or
+        # a vector either way
+        if value.size == 1:
+            return value.item()
+        if value.ndim == 2 and 1 in value.shape:
+            return value.reshape(-1).tolist()
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    raise ValueError(f"parameter value {value!r} of type {type(value).__name__} is not supported")
 
 
 def _non_finite(value: Any) -> bool:
@@ -201,15 +206,15 @@ def _non_finite(value: Any) -> bool:
     return False
 
 
-def _params_json(params: Optional[Mapping[str, Any]]) -> str:
+def _plain_params(params: Optional[Mapping[str, Any]]) -> Dict[str, Any]:
     if params is None:
-        return "{}"
+        return {}
     if not isinstance(params, Mapping):
         raise ValueError("params must be a dict of AFE parameter names to values")
     for name, value in params.items():
         if _non_finite(value):
             raise ValueError(f"parameter '{name}' is {value!r}: AFE parameters take finite numbers")
-    return _json(dict(params))
+    return {str(k): _plain(v) for k, v in params.items()}
 
 
 class Manager:
@@ -247,8 +252,8 @@ class Manager:
     def _with_descriptions(self, arrays: Dict[str, np.ndarray]) -> Dict[str, Signal]:
         """The last chunk's arrays as signals, stamped with where they start."""
         if self._described is None:
-            self._described = json.loads(self._m.describe_json())
-        clocks = json.loads(self._m.frames_json())
+            self._described = self._m.describe()
+        clocks = self._m.frames()
         return {
             k: Signal(v, dict(self._described[k], first_frame=clocks[k]["first_frame"],
                               first_time_s=clocks[k]["first_time_s"]))
@@ -277,7 +282,7 @@ class Manager:
         requests. Raises ``ValueError`` for an unknown request or parameter, an ill-typed
         value (the message lists what is accepted), or a binaural request on mono input.
         """
-        handle = self._m.add_request(str(name), _params_json(params))
+        handle = self._m.add_request(str(name), _plain_params(params))
         self._names[handle] = str(name)
         self._described = None
         return handle
@@ -290,7 +295,7 @@ class Manager:
         ``first_time_s + k / fs_hz``. An output whose framing restarts (placed, reset,
         rebuilt by ``modify_parameter``) at input sample ``s`` has its next frame at
         ``s / fs``, the AFE's time axis (first frame at the start)."""
-        return json.loads(self._m.frames_json())
+        return self._m.frames()
 
     def request_outputs(self, handle: int) -> List[str]:
         """The names of request ``handle``'s outputs (keys of :meth:`process_chunk`'s and
@@ -302,7 +307,7 @@ class Manager:
         """The parameters every processor of request ``handle``'s chain runs with, defaults
         included (the AFE's ``getParameterSummary``). Raises ``KeyError`` for an unknown
         handle."""
-        return json.loads(self._m.request_parameters_json(int(handle)))
+        return self._m.request_parameters(int(handle))
 
     def remove_request(self, handle: int) -> None:
         """Removes a request; its processors go when no other request uses them.
@@ -319,12 +324,12 @@ class Manager:
         uses it or the value is invalid."""
         self._described = None
         if handle is not None:
-            self._m.modify_parameter(int(handle), str(name), _json(value))
+            self._m.modify_parameter(int(handle), str(name), _plain(value))
             return
         changed = False
         for h in self._m.handles():
             try:
-                self._m.modify_parameter(h, str(name), _json(value))
+                self._m.modify_parameter(h, str(name), _plain(value))
                 changed = True
             except ValueError as e:
                 if "uses this parameter" not in str(e):
@@ -371,7 +376,7 @@ class Manager:
         (``KeyError`` for an unknown handle)."""
         wanted = None if handle is None else set(self.request_outputs(handle))
         arrays, meta = self._m.outputs()
-        return {k: v for k, v in _signals(arrays, json.loads(meta)).items()
+        return {k: v for k, v in _signals(arrays, meta).items()
                 if wanted is None or k in wanted}
 
     def info(self) -> Dict[str, Dict[str, Any]]:
@@ -385,7 +390,7 @@ class Manager:
         (modulation centre frequencies), ``features`` (feature names, in column order),
         ``alpha`` and ``delta_samples`` (DUET histogram bin centres: attenuation, and delay
         in samples) and ``frame_shape`` (shape of one time step)."""
-        return json.loads(self._m.info_json())
+        return self._m.info()
 
     def __repr__(self) -> str:
         """``afe.Manager(fs=..., channels=..., threads=...): N requests`` and the
@@ -442,14 +447,14 @@ def process(
     items = []
     for i, (name, own) in enumerate(_request_items(requests)):
         try:
-            items.append((name, _params_json(own)))
+            items.append((name, _plain_params(own)))
         except ValueError as e:
             raise ValueError(f"requests[{i}] ({name!r}): {e}") from None
     if chunk is not None and int(chunk) < 1:
         raise ValueError(f"chunk = {chunk}: expected a positive number of samples")
     settings = (
         items,
-        _params_json(params),
+        _plain_params(params),
         None if chunk is None else int(chunk),
         _cores() if threads is None else int(threads),
         keep == "all",
@@ -460,7 +465,7 @@ def process(
         arrays, meta = _afe.process_file(
             os.fspath(signal), None if fs is None else float(fs), *settings
         )
-        return _signals(arrays, json.loads(meta))
+        return _signals(arrays, meta)
     if fs is None:
         raise ValueError("fs is required when the signal is an array")
     x = _as_channels(signal)
@@ -476,7 +481,7 @@ def process(
                     f"np.column_stack([left, right]) (shape ({x.shape[0]}, 2))"
                 )
     arrays, meta = _afe.process(x, float(fs), *settings)
-    return _signals(arrays, json.loads(meta))
+    return _signals(arrays, meta)
 
 
 def raa(
@@ -519,7 +524,7 @@ def raa(
         if _non_finite(value):
             raise ValueError(f"constant '{name}' is {value!r}: the RAA takes finite numbers")
     x, fs = _signal_at_rate(ear_signals, fs)
-    return _afe.raa(x, fs, _json(constants))
+    return _afe.raa(x, fs, _plain_params(constants))
 
 
 def _signal_at_rate(signal: Audio, fs: Optional[float]) -> Tuple[np.ndarray, float]:
@@ -608,9 +613,9 @@ def heads() -> List[Tuple[str, str]]:
     return [(name, description) for name, description in _afe.heads()]
 
 
-from .corpus import Store, batch, open_store  # noqa: E402  (uses _params_json above)
+from .corpus import Store, batch, open_store  # noqa: E402  (uses _plain_params above)
 from .saving import load, save  # noqa: E402
 from .summary import summary  # noqa: E402  (uses Manager and _catalog above)
 from .plot import plot  # noqa: E402  (calls process above)
 from .frames import Frames, stream  # noqa: E402  (uses Manager and read_wav above)
-from .remote import Audio, AudioBlock, Remote, RemoteError, Subscription, connect  # noqa: E402  (uses _params_json)
+from .remote import Audio, AudioBlock, Remote, RemoteError, Subscription, connect  # noqa: E402  (uses _plain_params)

@@ -42,7 +42,7 @@ def _requests(requests: Union[str, Sequence[str]]) -> List[str]:
 
 def _compute_one(store: str, file_id: str, path: str, audio_s: float) -> Dict[str, Any]:
     """One file on an executor's worker (imports afe there); returns its record."""
-    return json.loads(_afe.batch_compute(store, file_id, path, audio_s))
+    return _afe.batch_compute(store, file_id, path, audio_s)
 
 
 def batch(
@@ -95,7 +95,7 @@ def batch(
     ``incomplete`` (files recorded as done but found incomplete on disk, computed again)
     and ``warnings`` (log lines that could not be read).
     """
-    from . import _params_json
+    from . import _plain_params
 
     if out is None:
         raise ValueError("give the store folder: out='features.zarr'")
@@ -110,26 +110,22 @@ def batch(
         shard = (i, n)
     if jobs is not None and int(jobs) < 1:
         raise ValueError(f"jobs must be 1 or more, got {jobs}")
-    spec = json.dumps(
-        {
-            "requests": _requests(requests),
-            "params": json.loads(_params_json(params)),
-            "format": format,
-            "dtype": str(dtype),
-        }
-    )
-    options = json.dumps(
-        {
-            "jobs": int(jobs or 0),
-            "shard": shard,
-            "on_error": on_error,
-            "progress": progress,
-            "overwrite": bool(overwrite),
-        }
-    )
+    spec = {
+        "requests": _requests(requests),
+        "params": _plain_params(params),
+        "format": format,
+        "dtype": str(dtype),
+    }
+    options = {
+        "jobs": int(jobs or 0),
+        "shard": list(shard) if shard is not None else None,
+        "on_error": on_error,
+        "progress": progress,
+        "overwrite": bool(overwrite),
+    }
     paths, store = _paths(inputs), os.path.abspath(os.fspath(out))
     if executor is None:
-        return json.loads(_afe.batch_run(paths, store, spec, options))
+        return _afe.batch_run(paths, store, spec, options)
     return _distribute(executor, paths, store, spec, options, on_error, progress)
 
 
@@ -137,8 +133,8 @@ def _distribute(
     executor: Executor,
     paths: List[str],
     store: str,
-    spec: str,
-    options: str,
+    spec: Dict[str, Any],
+    options: Dict[str, Any],
     on_error: str,
     progress: str,
 ) -> Dict[str, Any]:
@@ -218,7 +214,7 @@ class Store:
         if _is_saved_group(self.path):
             self._open_saved("zarr-group", ".zarr")
             return
-        status = json.loads(_afe.store_status(self.path))
+        status = _afe.store_status(self.path)
         self.format: str = status["format"]
         self.requests: List[str] = status["requests"]
         self.params: Dict[str, Any] = status["params"]
@@ -313,7 +309,7 @@ class Store:
                 meta = json.loads(str(z["afe_metadata"]))
                 return {k: z[k] for k in z.files if k != "afe_metadata"}, meta
         arrays, infos = _afe.store_read(self.path, file_id)
-        return arrays, {k: json.loads(v) for k, v in infos.items()}
+        return arrays, dict(infos)
 
     def __repr__(self) -> str:
         return (

@@ -283,12 +283,12 @@ class Remote:
         parameters that cannot be sent, ``ConnectionError`` when the server does not
         answer.
         """
-        from . import _params_json
+        from . import _plain_params
 
         self._check_open()
         capacity = _capacity(capacity)
         specs = [
-            {"name": n, "params": json.loads(_params_json(p))} for n, p in request_list(requests, params)
+            {"name": n, "params": _plain_params(p)} for n, p in request_list(requests, params)
         ]
         with self._secret_lock:
             body: Dict[str, Any] = {"client": self.id, "requests": specs}

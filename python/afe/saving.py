@@ -75,7 +75,7 @@ def save(path: PathLike, signals: Union[Signal, Mapping[str, Signal]]) -> None:
         # native byte order: the group stores the values as this machine holds them
         native = {k: a.astype(a.dtype.newbyteorder("="), copy=False) for k, a in arrays.items()}
         items = [
-            (k, a.dtype.name, list(a.shape), a.tobytes(), json.dumps(meta[k]))
+            (k, a.dtype.name, list(a.shape), a.tobytes(), meta[k])
             for k, a in native.items()
         ]
         _afe.save_zarr(os.fspath(path), items)
@@ -118,7 +118,7 @@ def read_zarr(path: PathLike) -> "tuple[Dict[str, np.ndarray], Dict[str, Dict[st
     """The arrays of a Zarr group written by :func:`afe.save` (in their saved order) and
     their descriptions."""
     arrays, infos = _afe.load_zarr(os.fspath(path))
-    return dict(arrays), {k: json.loads(v) for k, v in infos.items()}
+    return dict(arrays), dict(infos)
 
 
 def read_descriptions(path: PathLike) -> Dict[str, Dict[str, Any]]:

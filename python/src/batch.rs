@@ -15,7 +15,7 @@ use pyo3::types::PyDict;
 
 use numpy::{Complex32, PyArray1, PyArrayMethods};
 
-use crate::{array, parse_params, stored_type, to_py};
+use crate::{array, py_value, stored_type, to_py, value_of};
 
 fn to_py_batch(e: BatchError) -> PyErr {
     match e {
@@ -32,16 +32,23 @@ fn to_py_batch(e: BatchError) -> PyErr {
 
 /// The store's spec from `{"requests": [...], "params": {...}, "format": "zarr"|"npz",
 /// "dtype": "float64"|"float32"}`.
-fn spec(json: &str) -> PyResult<StoreSpec> {
-    let v: serde_json::Value =
-        serde_json::from_str(json).map_err(|e| PyValueError::new_err(e.to_string()))?;
+fn spec(obj: &Bound<'_, PyAny>) -> PyResult<StoreSpec> {
+    let v = value_of(obj)?;
     let requests = v["requests"]
         .as_array()
         .and_then(|r| r.iter().map(|r| r.as_str().map(str::to_string)).collect())
         .ok_or_else(|| PyValueError::new_err("requests must be a list of request names"))?;
     Ok(StoreSpec {
         requests,
-        params: parse_params(&v["params"].to_string())?,
+        params: match &v["params"] {
+            serde_json::Value::Object(o) => o.clone().into_iter().collect(),
+            serde_json::Value::Null => afe::ParamMap::new(),
+            _ => {
+                return Err(PyValueError::new_err(
+                    "params must be a dict of AFE parameter names to values",
+                ))
+            }
+        },
         format: v["format"]
             .as_str()
             .unwrap_or("zarr")
@@ -53,9 +60,8 @@ fn spec(json: &str) -> PyResult<StoreSpec> {
 
 /// The run's options from `{"jobs": N, "shard": [I, N] | null, "on_error": ...,
 /// "progress": ..., "overwrite": bool}`.
-fn options(json: &str) -> PyResult<BatchOptions> {
-    let v: serde_json::Value =
-        serde_json::from_str(json).map_err(|e| PyValueError::new_err(e.to_string()))?;
+fn options(obj: &Bound<'_, PyAny>) -> PyResult<BatchOptions> {
+    let v = value_of(obj)?;
     let shard = match &v["shard"] {
         serde_json::Value::Array(a) if a.len() == 2 => Some((
             a[0].as_u64().unwrap_or(u64::MAX),
@@ -86,23 +92,22 @@ fn options(json: &str) -> PyResult<BatchOptions> {
     })
 }
 
-/// Runs a whole batch in Rust; returns the summary as JSON text.
+/// Runs a whole batch in Rust; returns the summary.
 #[pyfunction]
-pub fn batch_run(
-    py: Python<'_>,
+pub fn batch_run<'py>(
+    py: Python<'py>,
     inputs: Vec<PathBuf>,
     store: PathBuf,
-    spec_json: &str,
-    options_json: &str,
-) -> PyResult<String> {
-    let spec = spec(spec_json)?;
-    let options = options(options_json)?;
+    spec: &Bound<'py, PyAny>,
+    options: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let (spec, options) = (self::spec(spec)?, self::options(options)?);
     let cancel = options.cancel.clone();
     let summary = crate::interrupt::interruptible(py, &cancel, || {
         afe_batch::run(&inputs, &store, &spec, &options)
     })?
     .map_err(to_py_batch)?;
-    Ok(summary.to_json().to_string())
+    py_value(py, &summary.to_json())
 }
 
 /// One file to compute: id, path, seconds of audio.
@@ -115,11 +120,10 @@ pub fn batch_plan(
     py: Python<'_>,
     inputs: Vec<PathBuf>,
     store: PathBuf,
-    spec_json: &str,
-    options_json: &str,
+    spec: &Bound<'_, PyAny>,
+    options: &Bound<'_, PyAny>,
 ) -> PyResult<(Vec<Planned>, usize)> {
-    let spec = spec(spec_json)?;
-    let options = options(options_json)?;
+    let (spec, options) = (self::spec(spec)?, self::options(options)?);
     let plan = py
         .allow_threads(|| afe_batch::plan(&inputs, &store, &spec, &options))
         .map_err(to_py_batch)?;
@@ -134,7 +138,7 @@ pub fn batch_plan(
 
 /// Computes one file into an existing store and records it in this process's log, under
 /// the store's lock and the file's claim (waiting while another run holds it); returns its
-/// record as JSON text (a failed file is a record, not an exception; a file another run
+/// record (a failed file is a record, not an exception; a file another run
 /// did meanwhile, that run's record with `"elsewhere": true`). A store that cannot be
 /// written raises `OSError`.
 #[pyfunction]
@@ -144,26 +148,25 @@ pub fn batch_compute(
     id: String,
     path: PathBuf,
     audio_s: f64,
-) -> PyResult<String> {
-    py.allow_threads(|| afe_batch::compute_one(&store, &InputFile { id, path, audio_s }))
-        .map(|(record, elsewhere)| {
-            let mut v = record.to_json();
-            if elsewhere {
-                v["elsewhere"] = true.into();
-            }
-            v.to_string()
-        })
-        .map_err(to_py_batch)
+) -> PyResult<Bound<'_, PyAny>> {
+    let (record, elsewhere) = py
+        .allow_threads(|| afe_batch::compute_one(&store, &InputFile { id, path, audio_s }))
+        .map_err(to_py_batch)?;
+    let mut v = record.to_json();
+    if elsewhere {
+        v["elsewhere"] = true.into();
+    }
+    py_value(py, &v)
 }
 
-/// A store's spec and the latest record of each file, as JSON text.
+/// A store's spec and the latest record of each file.
 #[pyfunction]
-pub fn store_status(py: Python<'_>, store: PathBuf) -> PyResult<String> {
+pub fn store_status(py: Python<'_>, store: PathBuf) -> PyResult<Bound<'_, PyAny>> {
     let status = py
         .allow_threads(|| afe_batch::status(&store))
         .map_err(to_py_batch)?;
     let (spec, records) = (status.spec, status.records);
-    Ok(serde_json::json!({
+    let status = serde_json::json!({
         "format": spec.format.as_str(),
         "requests": spec.requests,
         "params": spec.params,
@@ -171,11 +174,11 @@ pub fn store_status(py: Python<'_>, store: PathBuf) -> PyResult<String> {
         "dtype": spec.dtype.name(false),
         "files": records.iter().map(afe_batch::Record::to_json).collect::<Vec<_>>(),
         "warnings": status.warnings,
-    })
-    .to_string())
+    });
+    py_value(py, &status)
 }
 
-/// File `id`'s arrays from a zarr store: `({name: array}, {name: metadata JSON text})`;
+/// File `id`'s arrays from a zarr store: `({name: array}, {name: metadata})`;
 /// Ctrl-C stops the read between chunks (KeyboardInterrupt).
 #[pyfunction]
 pub fn store_read<'py>(
@@ -191,7 +194,7 @@ pub fn store_read<'py>(
     numpy_dicts(py, arrays)
 }
 
-/// `({name: array}, {name: metadata JSON text})` of arrays read back, in their order.
+/// `({name: array}, {name: metadata})` of arrays read back, in their order.
 fn numpy_dicts<'py>(
     py: Python<'py>,
     arrays: Vec<StoredArray>,
@@ -206,14 +209,14 @@ fn numpy_dicts<'py>(
             _ => array(py, &a.shape, &a.data, false)?,
         };
         values.set_item(&a.key, value)?;
-        infos.set_item(&a.key, a.info.to_string())?;
+        infos.set_item(&a.key, py_value(py, &a.info)?)?;
     }
     Ok((values, infos))
 }
 
 /// One array for [`save_zarr`]: name, numpy dtype name, shape, raw bytes (C order,
-/// native byte order), metadata JSON text.
-type ToSave = (String, String, Vec<usize>, PyBackedBytes, String);
+/// native byte order), metadata.
+type ToSave = (String, String, Vec<usize>, PyBackedBytes, PyObject);
 
 /// Writes `arrays` as the Zarr group `path` (`afe.save` to a `.zarr` path).
 #[pyfunction]
@@ -226,8 +229,7 @@ pub fn save_zarr(py: Python<'_>, path: PathBuf, arrays: Vec<ToSave>) -> PyResult
                     "'{key}' is {dtype}: a Zarr group of afe.save holds float64, float32, complex128 or complex64"
                 ))
             })?;
-            let mut info: serde_json::Value =
-                serde_json::from_str(&info).map_err(|e| PyValueError::new_err(e.to_string()))?;
+            let mut info = value_of(info.bind(py))?;
             // the description says what the values are, whatever they were computed as
             if let Some(meta) = info.as_object_mut() {
                 meta.insert("dtype".into(), dtype.clone().into());

@@ -39,14 +39,26 @@ fn to_py(e: afe::Error) -> PyErr {
     }
 }
 
-fn parse_params(json: &str) -> PyResult<ParamMap> {
-    match serde_json::from_str::<serde_json::Value>(json) {
+/// A Python value (a parameter's value, a store's spec) as the JSON-like value the core
+/// takes: dicts with string keys, lists, strings, numbers, booleans and `None`.
+fn value_of(obj: &Bound<'_, PyAny>) -> PyResult<serde_json::Value> {
+    pythonize::depythonize(obj).map_err(|e| PyValueError::new_err(e.to_string()))
+}
+
+/// A request's parameters from a dict of AFE names to values (`None`: none).
+fn params_of(obj: &Bound<'_, PyAny>) -> PyResult<ParamMap> {
+    match value_of(obj) {
         Ok(serde_json::Value::Object(o)) => Ok(o.into_iter().collect()),
         Ok(serde_json::Value::Null) => Ok(ParamMap::new()),
         _ => Err(PyValueError::new_err(
             "params must be a dict of AFE parameter names to values",
         )),
     }
+}
+
+/// A description, summary or listing as Python dicts and lists.
+fn py_value<'py>(py: Python<'py>, v: &impl serde::Serialize) -> PyResult<Bound<'py, PyAny>> {
+    pythonize::pythonize(py, v).map_err(|e| PyValueError::new_err(e.to_string()))
 }
 
 /// Columns of a `[samples, channels]` float64 array, as owned per-ear signals.
@@ -97,14 +109,14 @@ fn owned_array<'py>(
 
 /// A run's recorded outputs, moved into numpy arrays of `dtype` (float32 arrays are
 /// rounded one output at a time, each float64 history freed once converted), and their
-/// descriptions as JSON text.
+/// descriptions.
 fn recorded<'py>(
     py: Python<'py>,
     rec: afe::Recorder,
     dtype: Dtype,
-) -> PyResult<(Bound<'py, PyDict>, String)> {
+) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyAny>)> {
     rec.check_dtype(dtype).map_err(to_py)?;
-    let meta = rec.metadata_as(dtype).to_string();
+    let meta = py_value(py, &rec.metadata_as(dtype))?;
     let d = PyDict::new(py);
     for r in rec.into_signals() {
         let (shape, complex) = (r.shape(), r.info.is_complex());
@@ -322,8 +334,13 @@ impl PyManager {
         self.with(py, |st| Ok(st.manager.threads()))
     }
 
-    fn add_request(&self, py: Python<'_>, name: &str, params_json: &str) -> PyResult<usize> {
-        let params = parse_params(params_json)?;
+    fn add_request(
+        &self,
+        py: Python<'_>,
+        name: &str,
+        params: &Bound<'_, PyAny>,
+    ) -> PyResult<usize> {
+        let params = params_of(params)?;
         self.with(py, |st| {
             let h = st.manager.add_request(name, &params)?;
             st.history.follow_edit(&st.manager, &[]);
@@ -346,10 +363,10 @@ impl PyManager {
         py: Python<'_>,
         handle: usize,
         name: &str,
-        value_json: &str,
+        value: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
-        let value: serde_json::Value = serde_json::from_str(value_json)
-            .map_err(|e| PyValueError::new_err(format!("value of {name}: {e}")))?;
+        let value =
+            value_of(value).map_err(|e| PyValueError::new_err(format!("value of {name}: {e}")))?;
         self.with(py, |st| {
             let h = RequestHandle::from_index(handle);
             st.manager.modify_parameter(h, name, value)?;
@@ -365,8 +382,8 @@ impl PyManager {
         })
     }
 
-    fn frames_json(&self, py: Python<'_>) -> PyResult<String> {
-        self.with(py, |st| {
+    fn frames<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let map = self.with(py, |st| {
             let map: serde_json::Map<String, serde_json::Value> = st
                 .manager
                 .signals(false)
@@ -381,8 +398,9 @@ impl PyManager {
                     (s.key(), v)
                 })
                 .collect();
-            Ok(serde_json::Value::Object(map).to_string())
-        })
+            Ok(serde_json::Value::Object(map))
+        })?;
+        py_value(py, &map)
     }
 
     fn request_outputs(&self, py: Python<'_>, handle: usize) -> PyResult<Vec<String>> {
@@ -396,13 +414,16 @@ impl PyManager {
         })
     }
 
-    fn request_parameters_json(&self, py: Python<'_>, handle: usize) -> PyResult<String> {
-        self.with(py, |st| {
-            let used = st
-                .manager
-                .request_parameters(RequestHandle::from_index(handle))?;
-            Ok(serde_json::to_string(&used).unwrap_or_default())
-        })
+    fn request_parameters<'py>(
+        &self,
+        py: Python<'py>,
+        handle: usize,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let used = self.with(py, |st| {
+            st.manager
+                .request_parameters(RequestHandle::from_index(handle))
+        })?;
+        py_value(py, &used)
     }
 
     fn handles(&self, py: Python<'_>) -> PyResult<Vec<usize>> {
@@ -439,8 +460,8 @@ impl PyManager {
         })
     }
 
-    /// The history as `{name: array}`, with the arrays' descriptions as JSON text.
-    fn outputs<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyDict>, String)> {
+    /// The history as `{name: array}`, with the arrays' descriptions.
+    fn outputs<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyAny>)> {
         let (all, meta) = self.with(py, |st| {
             Ok((
                 st.history
@@ -451,36 +472,38 @@ impl PyManager {
                         (s.key.clone(), s.shape(), data, s.info.is_complex())
                     })
                     .collect::<Vec<_>>(),
-                st.history.metadata().to_string(),
+                st.history.metadata(),
             ))
         })?;
         let arrays = signals_dict(py, all.iter())?;
-        Ok((arrays, meta))
+        Ok((arrays, py_value(py, &meta)?))
     }
 
-    /// Each current output's description as JSON text (`afe::metadata::describe`).
-    fn describe_json(&self, py: Python<'_>) -> PyResult<String> {
-        self.with(py, |st| {
+    /// Each current output's description (`afe::metadata::describe`).
+    fn describe<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let map = self.with(py, |st| {
             let map: serde_json::Map<String, serde_json::Value> = st
                 .manager
                 .signals(false)
                 .iter()
                 .map(|s| (s.key(), afe::metadata::describe(&st.manager, s)))
                 .collect();
-            Ok(serde_json::Value::Object(map).to_string())
-        })
+            Ok(serde_json::Value::Object(map))
+        })?;
+        py_value(py, &map)
     }
 
-    fn info_json(&self, py: Python<'_>) -> PyResult<String> {
-        self.with(py, |st| {
+    fn info<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let map = self.with(py, |st| {
             let map: serde_json::Map<String, serde_json::Value> = st
                 .manager
                 .signals(false)
                 .iter()
                 .map(|s| (s.key(), afe::metadata::info_json(s.info)))
                 .collect();
-            Ok(serde_json::Value::Object(map).to_string())
-        })
+            Ok(serde_json::Value::Object(map))
+        })?;
+        py_value(py, &map)
     }
 
     fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
@@ -498,29 +521,34 @@ impl PyManager {
 /// The job of `process` and `process_file`: no request of its own (they are placed on the
 /// manager first, by [`place`]), the shared parameters for the record.
 fn job(
-    params_json: &str,
+    params: &Bound<'_, PyAny>,
     chunk: Option<usize>,
     threads: usize,
     all: bool,
 ) -> PyResult<afe::extract::Job> {
     Ok(afe::extract::Job {
         requests: Vec::new(),
-        params: parse_params(params_json)?,
+        params: params_of(params)?,
         chunk,
         all,
         threads,
     })
 }
 
-/// One item of `afe.process`'s requests: its name and its own parameters as JSON text.
-type Item = (String, String);
+/// One item of `afe.process`'s requests: its name and its own parameters.
+type Item = (String, PyObject);
 
 /// Places each item on `mgr` with the shared `params` under its own. An error about the
 /// item (its name, its own parameters, a binaural request on mono input) names it,
 /// `requests[i]: ...`; one about a shared parameter names the parameter alone.
-fn place(mgr: &mut Manager, items: &[Item], params: &afe::ParamMap) -> PyResult<()> {
-    for (i, (name, own_json)) in items.iter().enumerate() {
-        let own = parse_params(own_json)?;
+fn place(
+    py: Python<'_>,
+    mgr: &mut Manager,
+    items: &[Item],
+    params: &afe::ParamMap,
+) -> PyResult<()> {
+    for (i, (name, own)) in items.iter().enumerate() {
+        let own = params_of(own.bind(py))?;
         let mut merged = params.clone();
         merged.extend(own.clone());
         if let Err(e) = mgr.add_request(name, &merged) {
@@ -541,25 +569,25 @@ fn place(mgr: &mut Manager, items: &[Item], params: &afe::ParamMap) -> PyResult<
 }
 
 /// Computes `requests` on a whole signal (`afe extract`'s code path): `{name: array}`
-/// and the arrays' descriptions as JSON text (see `afe::metadata::describe`).
+/// and the arrays' descriptions (see `afe::metadata::describe`).
 #[pyfunction]
-#[pyo3(signature = (x, fs, requests, params_json, chunk, threads, all, dtype))]
+#[pyo3(signature = (x, fs, requests, params, chunk, threads, all, dtype))]
 #[allow(clippy::too_many_arguments)]
 fn process<'py>(
     py: Python<'py>,
     x: PyReadonlyArray2<'py, f64>,
     fs: f64,
     requests: Vec<Item>,
-    params_json: &str,
+    params: &Bound<'py, PyAny>,
     chunk: Option<usize>,
     threads: usize,
     all: bool,
     dtype: &str,
-) -> PyResult<(Bound<'py, PyDict>, String)> {
+) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyAny>)> {
     let dtype = stored_type(dtype)?;
-    let job = job(params_json, chunk, threads, all)?;
+    let job = job(params, chunk, threads, all)?;
     let mut mgr = Manager::with_threads(fs, x.shape()[1], threads).map_err(to_py)?;
-    place(&mut mgr, &requests, &job.params)?;
+    place(py, &mut mgr, &requests, &job.params)?;
     check_memory(py, &mut mgr, x.shape()[0] as u64, all, dtype)?;
     let ears = columns(&x);
     let cancel = mgr.cancel_token().clone();
@@ -575,21 +603,21 @@ fn process<'py>(
 /// As [`process`] on the WAV file at `path`, decoded block by block where the graph
 /// allows (the file is never held whole), with `fs` (if given) checked against the file's.
 #[pyfunction]
-#[pyo3(signature = (path, fs, requests, params_json, chunk, threads, all, dtype))]
+#[pyo3(signature = (path, fs, requests, params, chunk, threads, all, dtype))]
 #[allow(clippy::too_many_arguments)]
 fn process_file<'py>(
     py: Python<'py>,
     path: PathBuf,
     fs: Option<f64>,
     requests: Vec<Item>,
-    params_json: &str,
+    params: &Bound<'py, PyAny>,
     chunk: Option<usize>,
     threads: usize,
     all: bool,
     dtype: &str,
-) -> PyResult<(Bound<'py, PyDict>, String)> {
+) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyAny>)> {
     let dtype = stored_type(dtype)?;
-    let job = job(params_json, chunk, threads, all)?;
+    let job = job(params, chunk, threads, all)?;
     let mut wav = afe::wav::WavBlocks::open(&path).map_err(wav_error)?;
     if let Some(fs) = fs.filter(|f| *f != wav.fs()) {
         return Err(PyValueError::new_err(format!(
@@ -600,7 +628,7 @@ fn process_file<'py>(
     }
     afe::wav::check_input(&path, &wav).map_err(to_py)?;
     let mut mgr = Manager::with_threads(wav.fs(), wav.channels(), threads).map_err(to_py)?;
-    place(&mut mgr, &requests, &job.params)?;
+    place(py, &mut mgr, &requests, &job.params)?;
     check_memory(py, &mut mgr, wav.frames(), all, dtype)?;
     let cancel = mgr.cancel_token().clone();
     let rec = interrupt::interruptible(py, &cancel, || {
@@ -623,17 +651,18 @@ fn wav_error(e: afe::wav::WavError) -> PyErr {
     }
 }
 
-/// The catalogue of requests and parameters, as JSON text (`afe list --json`).
+/// The catalogue of requests and parameters (`afe list --json`).
 #[pyfunction]
-fn catalog_json() -> String {
-    afe::catalog::listing().to_string()
+fn catalog(py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
+    py_value(py, &afe::catalog::listing())
 }
 
-/// The machine and instruction set this runs on, as JSON text (`afe bench`'s `host`).
+/// The machine and instruction set this runs on (`afe bench`'s `host`).
 #[pyfunction]
-fn host_json(py: Python<'_>) -> String {
+fn host(py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
     // the cores' round trip is measured with two threads spinning a few ms
-    py.allow_threads(|| serde_json::json!(afe::host::Host::detect()).to_string())
+    let host = py.allow_threads(afe::host::Host::detect);
+    py_value(py, &host)
 }
 
 /// Reads a WAV file: `(samples as a [samples, channels] float64 array, fs in Hz)`.
@@ -658,8 +687,8 @@ fn _afe(m: &Bound<'_, PyModule>) -> PyResult<()> {
     // pending Ctrl-C interrupts (a PanicException instead of KeyboardInterrupt)
     numpy::PyArray1::<f64>::zeros(m.py(), 0, false);
     m.add_class::<PyManager>()?;
-    m.add_function(wrap_pyfunction!(catalog_json, m)?)?;
-    m.add_function(wrap_pyfunction!(host_json, m)?)?;
+    m.add_function(wrap_pyfunction!(catalog, m)?)?;
+    m.add_function(wrap_pyfunction!(host, m)?)?;
     m.add_function(wrap_pyfunction!(process, m)?)?;
     m.add_function(wrap_pyfunction!(process_file, m)?)?;
     m.add_function(wrap_pyfunction!(read_wav, m)?)?;

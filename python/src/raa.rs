@@ -6,7 +6,7 @@ use pyo3::exceptions::{PyMemoryError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::{columns, interrupt, owned_array, parse_params, to_py};
+use crate::{columns, interrupt, owned_array, params_of, to_py};
 
 /// The Python exception for an RAA error: the AFE's own mapping for the processing
 /// under it (an interrupt is a KeyboardInterrupt), `ValueError` for the input and the
@@ -24,7 +24,7 @@ fn raa_error(e: RaaError) -> PyErr {
 }
 
 /// `(par, psi)` of `afeRAA(x, fs, parConf)` for the `[samples, 2]` signal `x` at `fs`
-/// Hz, with the constants of `constants_json` (AFE names) over the AFE's: `par` maps each
+/// Hz, with the constants of the dict `constants` (AFE names) over the AFE's: `par` maps each
 /// predictor to a float; `psi` maps each array to a numpy array and `fs` (float),
 /// `numSamples`, `numBands`, `itdNumFrames` (ints).
 #[pyfunction]
@@ -32,9 +32,9 @@ pub fn raa<'py>(
     py: Python<'py>,
     x: PyReadonlyArray2<'py, f64>,
     fs: f64,
-    constants_json: &str,
+    constants: &Bound<'py, PyAny>,
 ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
-    let constants = RaaConstants::from_params(&parse_params(constants_json)?).map_err(raa_error)?;
+    let constants = RaaConstants::from_params(&params_of(constants)?).map_err(raa_error)?;
     if x.shape()[1] != 2 {
         return Err(raa_error(RaaError::NotBinaural(x.shape()[1])));
     }
