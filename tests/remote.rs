@@ -398,19 +398,28 @@ fn hostile_subscriptions_get_error_replies_and_change_nothing_for_the_others() {
         &[],
         6.0,
     );
-    // a good client reads throughout
+    // a good client reads throughout; the hostile queries start once it has its first
+    // block (its chain placed: under load its subscription came after them, and the
+    // report then counted no processor at all)
+    let (subscribed, placed) = std::sync::mpsc::channel();
     let good = std::thread::spawn(move || {
         let client = connect(port);
         let mut sub = subscribe(&client, &requests(&["ild"], &ParamMap::new()));
-        for _ in 0..300 {
+        for k in 0..300 {
             let f = sub
                 .recv(Duration::from_secs(5))
                 .expect("recv")
                 .expect("a block");
             assert_eq!(f.signals.len(), 1);
+            if k == 0 {
+                subscribed.send(()).expect("the test waits");
+            }
         }
         sub.lost_messages()
     });
+    placed
+        .recv_timeout(Duration::from_secs(20))
+        .expect("the good client's first block");
     let raw = raw_session(port);
     let raw_id = raw.zid().to_string();
     let token = raw

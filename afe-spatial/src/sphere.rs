@@ -260,6 +260,26 @@ mod tests {
         }
     }
 
+    /// One series per frequency for all azimuths gives each azimuth's transfer functions
+    /// as one call per azimuth and frequency does, bit for bit, near and far.
+    #[test]
+    fn a_grid_of_azimuths_is_each_azimuths_transfer() {
+        let freqs = [0.0, 100.0, 1500.0, 7000.0, 16000.0];
+        let azimuths = [0.0, 37.5, 90.0, 181.0, 300.0];
+        for distance_m in [f64::INFINITY, 0.5] {
+            let sphere = Sphere {
+                distance_m,
+                ..Sphere::antipodal(0.075)
+            };
+            let grid = sphere.transfers(&azimuths, &freqs);
+            for (row, &az) in grid.iter().zip(&azimuths) {
+                let each: Vec<[Complex64; 2]> =
+                    freqs.iter().map(|&f| sphere.transfer(az, f)).collect();
+                assert_eq!(row, &each, "{az} deg at {distance_m} m");
+            }
+        }
+    }
+
     #[test]
     fn the_facing_side_gains_6_db_at_high_frequency_and_the_far_side_is_shadowed() {
         let facing = response(f64::INFINITY, 40.0, 1.0).norm();

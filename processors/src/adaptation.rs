@@ -17,16 +17,13 @@ afe_core::choices! {
     pub enum AdaptationModel {
         /// No preset: the three parameters as given.
         None = "",
-        /// Dau et al. (1996): limitation 10, floor 0 dB SPL, the five standard time
-        /// constants.
+        /// Dau et al. (1996): limitation 10, floor 0 dB SPL, the five standard time constants.
         Dau = "adt_dau",
         /// Püschel (1988): no limitation, time constants evenly spaced from 5 to 500 ms.
         Puschel = "adt_puschel",
-        /// Breebaart et al. (2001): limitation 10, time constants evenly spaced from 5 to
-        /// 500 ms.
+        /// Breebaart et al. (2001): limitation 10, time constants evenly spaced from 5 to 500 ms.
         Breebaart = "adt_breebaart",
-        /// van Dorp Schuitman (2009): no limitation, standard time constants, and a floor
-        /// per
+        /// van Dorp Schuitman (2009): no limitation, standard time constants, and a floor per
         /// channel at the absolute threshold of hearing of its centre frequency.
         VanDorpSchuitman = "adt_vandorpschuitman",
     }
@@ -125,8 +122,8 @@ fn padded(values: &[f64], channels: usize, lanes: usize, fill: f64) -> Vec<f64> 
         .collect()
 }
 
-/// Largest `adpt_lim` accepted: the limitation's constants are products of it, which
-/// overflowed near 1.8e308.
+/// Largest `adpt_lim` accepted: the limitation's constants are products of it, which overflowed
+/// near 1.8e308.
 const MAX_LIM: f64 = 1e100;
 
 /// Lowest level floor accepted, dB SPL (amplitude 10^-15): the loops divide by the
@@ -279,10 +276,9 @@ struct Limit {
 
 afe_core::simd_kernel!(
     fma,
-    /// Runs the loops over `input` (`[time][channel]`) into `out`, eight lanes at a time so
-    /// that the divisions, state updates and the overshoot limitation (computed for the
-    /// eight
-    /// lanes where one of them is above 1, kept where the value is) vectorise.
+    /// Runs the loops over `input` (`[time][channel]`) into `out`, eight lanes at a time so that
+    /// the divisions, state updates and the overshoot limitation (computed for the eight lanes
+    /// where one of them is above 1, kept where the value is) vectorise.
     ///
     /// The loops are staggered: at step `t`, loop `j` works on sample `t − j`, taking what
     /// loop `j − 1` gave at step `t − 1`. The loops of one step are then independent, so

@@ -20,18 +20,16 @@ use afe_core::real_fft::{fast_len, transform_values, RealFft};
 /// scaled by its largest magnitude.
 const POWER_RANGE: std::ops::RangeInclusive<f64> = 1e-200..=1e200;
 
-/// Frames whose largest magnitude lies in this range keep their scale (`K = 2`): lag 0
-/// (the unnormalised inverse's, `N·Σx²` over the clipped frame) then stays within
-/// [`POWER_RANGE`] unless `clc` clipping shrinks the frame, where the rescaling after the
-/// fact takes over.
+/// Frames whose largest magnitude lies in this range keep their scale (`K = 2`): lag 0 (the
+/// unnormalised inverse's, `N·Σx²` over the clipped frame) then stays within [`POWER_RANGE`] unless
+/// `clc` clipping shrinks the frame, where the rescaling after the fact takes over.
 const UNSCALED: std::ops::RangeInclusive<f64> = 1e-90..=1e90;
 
 afe_core::choices! {
     /// How a frame is centre-clipped (AFE `ac_clipMethod`): samples between the thresholds
     /// become 0, the others are kept as below.
     pub enum ClipMethod {
-        /// Kept samples are moved towards 0 by the threshold (centre clipping and
-        /// compression).
+        /// Kept samples are moved towards 0 by the threshold (centre clipping and compression).
         Compress = "clc",
         /// Kept samples keep their value.
         Keep = "clp",
@@ -182,9 +180,8 @@ impl Autocorrelation {
         Ok((ac, info))
     }
 
-    /// The normalised ACF of channel `c`'s windowed frame into `out` (`W − 1` lags);
-    /// inlined
-    /// into [`correlate_frames`] so that its loops get that function's vector width.
+    /// The normalised ACF of channel `c`'s windowed frame into `out` (`W − 1` lags); inlined into
+    /// [`correlate_frames`] so that its loops get that function's vector width.
     #[inline(always)]
     fn correlate(&mut self, c: usize, out: &mut [f64]) {
         // the windowed frame's largest magnitude; sign clipping makes every sample ±1
@@ -278,8 +275,8 @@ impl Autocorrelation {
         afe_core::denormals::flush_subnormals(out);
     }
 
-    /// Writes channel `c`'s windowed frame, centre-clipped and zero-padded, into the
-    /// transform's input.
+    /// Writes channel `c`'s windowed frame, centre-clipped and zero-padded, into the transform's
+    /// input.
     #[inline(always)]
     fn load(&mut self, c: usize) {
         let w = self.win.len();

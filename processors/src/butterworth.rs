@@ -10,12 +10,26 @@ use afe_core::{Block, Error, ParamKind, Processor, Result, SignalInfo};
 /// resolves.
 const MAX_ORDER: u64 = 32;
 
+afe_core::choices! {
+    /// The Butterworth filter's response.
+    pub enum BwType {
+        /// Low-pass.
+        Low = "low",
+        /// High-pass.
+        High = "high",
+        /// Band-pass between two cut-offs.
+        BandPass = "bandpass",
+        /// Band-stop between two cut-offs.
+        Stop = "stop",
+    }
+}
+
 afe_core::params! {
     /// Parameters of the Butterworth filter (`bw_` prefix, in the AFE naming style).
     pub struct ButterworthParams / ButterworthNames {
         /// response type of the Butterworth filter
-        #[afe = "bw_type", kind = ParamKind::Choice(&["low", "high", "bandpass", "stop"])]
-        pub kind: String = "low".into(),
+        #[afe = "bw_type"]
+        pub kind: BwType = BwType::Low,
         /// filter order (band designs have twice this order)
         #[afe = "bw_order", kind = ParamKind::CountUpTo(MAX_ORDER)]
         pub order: u32 = 4,
@@ -28,11 +42,11 @@ afe_core::params! {
 impl ButterworthParams {
     /// Order, normalised cut-offs and type, after checking them.
     fn checked(&self, fs: f64) -> Result<(usize, Vec<f64>, ButterType)> {
-        let kind = match self.kind.as_str() {
-            "high" => ButterType::High,
-            "bandpass" => ButterType::BandPass,
-            "stop" => ButterType::BandStop,
-            _ => ButterType::Low,
+        let kind = match self.kind {
+            BwType::Low => ButterType::Low,
+            BwType::High => ButterType::High,
+            BwType::BandPass => ButterType::BandPass,
+            BwType::Stop => ButterType::BandStop,
         };
         let want = if matches!(kind, ButterType::Low | ButterType::High) {
             1
@@ -174,9 +188,9 @@ mod tests {
     use super::*;
     use crate::testing::feed;
 
-    fn params(kind: &str, order: u32, cutoff_hz: &[f64]) -> ButterworthParams {
+    fn params(kind: BwType, order: u32, cutoff_hz: &[f64]) -> ButterworthParams {
         ButterworthParams {
-            kind: kind.into(),
+            kind,
             order,
             cutoff_hz: cutoff_hz.to_vec(),
         }
@@ -186,10 +200,10 @@ mod tests {
     fn each_type_is_its_butter_design_at_the_normalised_cut_offs() {
         let fs = 16000.0;
         for (kind, cutoffs, ty) in [
-            ("low", vec![1000.0], ButterType::Low),
-            ("high", vec![3000.0], ButterType::High),
-            ("bandpass", vec![500.0, 2000.0], ButterType::BandPass),
-            ("stop", vec![500.0, 2000.0], ButterType::BandStop),
+            (BwType::Low, vec![1000.0], ButterType::Low),
+            (BwType::High, vec![3000.0], ButterType::High),
+            (BwType::BandPass, vec![500.0, 2000.0], ButterType::BandPass),
+            (BwType::Stop, vec![500.0, 2000.0], ButterType::BandStop),
         ] {
             let wn: Vec<f64> = cutoffs.iter().map(|f| f / 8000.0).collect();
             let got = params(kind, 3, &cutoffs).design(fs).expect("valid");
@@ -201,19 +215,19 @@ mod tests {
     fn cut_offs_lie_strictly_inside_the_band_and_orders_stop_at_32() {
         let fs = 16000.0;
         for ok in [
-            params("low", 1, &[1.0]),
-            params("low", 32, &[7999.0]),
-            params("bandpass", 2, &[1000.0, 1001.0]),
+            params(BwType::Low, 1, &[1.0]),
+            params(BwType::Low, 32, &[7999.0]),
+            params(BwType::BandPass, 2, &[1000.0, 1001.0]),
         ] {
             assert!(ok.design(fs).is_ok(), "{ok:?}");
         }
         for bad in [
-            params("low", 2, &[0.0]),
-            params("low", 2, &[8000.0]),
-            params("high", 2, &[-100.0]),
-            params("stop", 2, &[1000.0, 1000.0]),
-            params("bandpass", 2, &[2000.0, 1000.0]),
-            params("bandpass", 2, &[1000.0, 8000.0]),
+            params(BwType::Low, 2, &[0.0]),
+            params(BwType::Low, 2, &[8000.0]),
+            params(BwType::High, 2, &[-100.0]),
+            params(BwType::Stop, 2, &[1000.0, 1000.0]),
+            params(BwType::BandPass, 2, &[2000.0, 1000.0]),
+            params(BwType::BandPass, 2, &[1000.0, 8000.0]),
         ] {
             let e = bad.design(fs).expect_err("out of range");
             assert!(
@@ -221,7 +235,7 @@ mod tests {
                 "{bad:?}: {e}"
             );
         }
-        let e = params("low", 33, &[1000.0])
+        let e = params(BwType::Low, 33, &[1000.0])
             .design(fs)
             .expect_err("order 33");
         assert!(e.to_string().contains("bw_order"), "{e}");
@@ -231,7 +245,7 @@ mod tests {
     fn the_processor_runs_the_design_across_chunks() {
         // Order 2: the transfer function is well conditioned, an independent reference
         // for the cascade of sections the processor runs.
-        let p = params("bandpass", 2, &[500.0, 2000.0]);
+        let p = params(BwType::BandPass, 2, &[500.0, 2000.0]);
         let (b, a) = p.design(16000.0).expect("valid");
         let x: Vec<f64> = (0..1000)
             .map(|t| ((t * 7919 % 1000) as f64) / 500.0 - 1.0)
@@ -260,11 +274,11 @@ mod tests {
             (32, [1.0, 22049.0]),
         ] {
             assert!(
-                params("bandpass", order, &band).sections(fs).is_ok(),
+                params(BwType::BandPass, order, &band).sections(fs).is_ok(),
                 "{band:?}"
             );
         }
-        let msg = params("stop", 8, &[20.0, 20000.0])
+        let msg = params(BwType::Stop, 8, &[20.0, 20000.0])
             .sections(fs)
             .expect_err("round-off")
             .to_string();
@@ -280,7 +294,7 @@ mod tests {
             .and_then(|rest| rest.split(' ').next())
             .and_then(|n| n.parse().ok())
             .expect("the highest order");
-        assert!(params("stop", highest, &[20.0, 20000.0])
+        assert!(params(BwType::Stop, highest, &[20.0, 20000.0])
             .sections(fs)
             .is_ok());
     }
@@ -288,7 +302,7 @@ mod tests {
     #[test]
     fn cutoff_count_and_range_are_checked() {
         let p = ButterworthParams {
-            kind: "bandpass".into(),
+            kind: BwType::BandPass,
             ..Default::default()
         };
         let e = p.design(16000.0).expect_err("one cut-off for a band");

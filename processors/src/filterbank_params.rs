@@ -4,7 +4,7 @@
 //! them from here, so that neither type depends on the dispatch that chooses it.
 
 use afe_core::erb::{colon_range, erb2freq, freq2erb, linspace};
-use afe_core::{Error, ParamKind, ParamMap, ParamSpec, Result};
+use afe_core::{Error, ParamKind, ParamMap, Params, Result};
 use serde_json::json;
 
 /// Largest gammatone order accepted (`fb_nGamma`): higher orders' expanded denominators
@@ -27,20 +27,16 @@ afe_core::choices! {
         /// Lopez-Poveda & Meddis (2001) as used in CASP (Jepsen et al. 2008): low-pass
         /// sections on both paths, broken-stick compression.
         Casp = "CASP",
-        /// MAP 1.14h: middle-ear (tympanic membrane and stapes) stage, no low-pass
-        /// sections,
+        /// MAP 1.14h: middle-ear (tympanic membrane and stapes) stage, no low-pass sections,
         /// compression above a threshold.
         Map = "MAP",
     }
 }
 
 afe_core::params! {
-    /// Parameters of a `filterbank` request, under their AFE names: the grid shared by both
-    /// types and those of each type. Every one is accepted whatever `fb_type` says (as in
-    /// the
-    /// AFE); a type ignores the others', and its canonical map (which decides sharing)
-    /// holds
-    /// only its own.
+    /// Parameters of a `filterbank` request, under their AFE names: the grid shared by both types
+    /// and those of each type. Every one is accepted whatever `fb_type` says (as in the AFE); a
+    /// type ignores the others', and its canonical map (which decides sharing) holds only its own.
     pub struct FilterbankParams / FilterbankNames {
         /// filterbank type: linear gammatone or dual-resonance non-linear
         #[afe = "fb_type"]
@@ -72,8 +68,7 @@ afe_core::params! {
         /// ipsilateral MOC gain on the non-linear path, one or one per channel (drnl only)
         #[afe = "fb_mocIpsi"]
         pub moc_ipsi: Vec<f64> = vec![1.0],
-        /// contralateral MOC gain on the non-linear path, one or one per channel (drnl
-        /// only)
+        /// contralateral MOC gain on the non-linear path, one or one per channel (drnl only)
         #[afe = "fb_mocContra"]
         pub moc_contra: Vec<f64> = vec![1.0],
         /// DRNL parameter set: CASP (Jepsen et al. 2008) or MAP 1.14h (drnl only)
@@ -81,14 +76,6 @@ afe_core::params! {
         pub model: DrnlModel = DrnlModel::Casp,
     }
 }
-
-/// The declaration of `fb_type`, which the pre-processing reads as well.
-const FB_TYPE: ParamSpec = ParamSpec {
-    name: FilterbankParams::NAMES.fb_type,
-    kind: ParamKind::Choice(&["gammatone", "drnl"]),
-    unit: "",
-    description: "filterbank type: linear gammatone or dual-resonance non-linear",
-};
 
 /// Highest `fb_highFreqHz` accepted, Hz: far above any sampling rate's Nyquist frequency,
 /// low enough that the ERB grid up to it stays countable.
@@ -280,14 +267,15 @@ impl FilterbankParams {
 /// that a chain without a filterbank (the pre-processing reads `fb_type`) does not take
 /// a mistyped class for the default.
 pub fn fb_type_of(map: &ParamMap) -> Result<FbType> {
-    let Some(given) = map.get(FB_TYPE.name) else {
+    // the declaration of fb_type, the first field
+    let spec = &FilterbankParams::SPECS[0];
+    let Some(given) = map.get(spec.name) else {
         return Ok(FbType::Gammatone);
     };
-    match FB_TYPE.normalize(given)? {
+    match spec.normalize(given)? {
         None => Ok(FbType::Gammatone),
-        Some(v) => serde_json::from_value(v).map_err(|e| {
-            Error::invalid(FB_TYPE.name, given, format!("not a filterbank type ({e})"))
-        }),
+        Some(v) => serde_json::from_value(v)
+            .map_err(|e| Error::invalid(spec.name, given, format!("not a filterbank type ({e})"))),
     }
 }
 
@@ -297,6 +285,11 @@ mod tests {
 
     #[test]
     fn default_grid_has_31_channels_with_the_afe_bits() {
+        // fb_type_of reads the first declaration
+        assert_eq!(
+            FilterbankParams::SPECS[0].name,
+            FilterbankParams::NAMES.fb_type
+        );
         let grid = FilterbankParams::default().grid().expect("valid");
         assert_eq!(grid.cf_hz.len(), 31);
         assert_eq!(grid.cf_hz[0], 80.00000000000001);

@@ -26,15 +26,14 @@ const OMEGA_MAX: [f64; 2] = [PI / 2.0, PI / 2.0];
 const NU: [f64; 2] = [3.5, 3.5];
 /// Spacing of neighbouring filters (spectral, temporal).
 const DISTANCE: [f64; 2] = [0.3, 0.2];
-/// Largest temporal filter extent in frames; the spectral one is three times the number
-/// of channels.
+/// Largest temporal filter extent in frames; the spectral one is three times the number of
+/// channels.
 const SIZE_MAX_TIME: f64 = 40.0;
 /// Frames of edge padding on each side of a chunk: `floor(SIZE_MAX_TIME/2)`.
 const CONTEXT: usize = 20;
 
-/// One Gabor filter, reduced to what the features need: the real part of the filter
-/// (the features are real), the DC-map weights where the AFE subtracts a DC map, and the
-/// kept output rows.
+/// One Gabor filter, reduced to what the features need: the real part of the filter (the features
+/// are real), the DC-map weights where the AFE subtracts a DC map, and the kept output rows.
 #[derive(Debug, Clone)]
 struct Filter {
     /// Spectral half-length: taps `−half_k ..= half_k`.

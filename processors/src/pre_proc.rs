@@ -38,10 +38,9 @@ afe_core::params! {
         /// scale the input by 10^((100 − pp_refSPLdB)/20) (see pp_refSPLdB)
         #[afe = "pp_bLevelScaling"]
         pub level_scaling: bool = false,
-        /// level reference: the input is multiplied by 10^((100 − pp_refSPLdB)/20) as the
-        /// AFE's code does, so 80 amplifies by 20 dB (the AFE calls it the dB SPL of RMS 1,
-        /// which its code inverts; the models take RMS 1 as 100 dB SPL); one value, or
-        /// [left, right]
+        /// level reference: the input is multiplied by 10^((100 − pp_refSPLdB)/20) as the AFE's
+        /// code does, so 80 amplifies by 20 dB (the AFE calls it the dB SPL of RMS 1, which its
+        /// code inverts; the models take RMS 1 as 100 dB SPL); one value, or [left, right]
         #[afe = "pp_refSPLdB", unit = "dB"]
         pub ref_spl_db: Vec<f64> = vec![100.0],
         /// apply the middle-ear FIR

@@ -6,9 +6,19 @@ use afe_core::filter::Df2t;
 use afe_core::framing::FrameBuffer;
 use afe_core::power::frame_power;
 use afe_core::window::{window, Window};
-use afe_core::{Block, DrawAs, ParamKind, Processor, Result, SignalInfo};
+use afe_core::{Block, DrawAs, Processor, Result, SignalInfo};
 
 use crate::framed::check_framing;
+
+afe_core::choices! {
+    /// What the ratemap averages.
+    pub enum Scaling {
+        /// The squared envelope.
+        Power = "power",
+        /// The envelope itself.
+        Magnitude = "magnitude",
+    }
+}
 
 afe_core::params! {
     /// Parameters of the ratemap, under their AFE names.
@@ -23,8 +33,8 @@ afe_core::params! {
         #[afe = "rm_hSizeSec", unit = "s"]
         pub h_size_sec: f64 = 0.01,
         /// average the squared ('power') or plain ('magnitude') envelope
-        #[afe = "rm_scaling", kind = ParamKind::Choice(&["power", "magnitude"])]
-        pub scaling: String = "power".into(),
+        #[afe = "rm_scaling"]
+        pub scaling: Scaling = Scaling::Power,
         /// leaky-integrator time constant
         #[afe = "rm_decaySec", unit = "s"]
         pub decay_sec: f64 = 0.008,
@@ -62,7 +72,7 @@ impl Ratemap {
         let d = (-1.0 / (fs * params.decay_sec)).exp();
         let nc = input.channels();
         let rm = Ratemap {
-            power: params.scaling == "power",
+            power: params.scaling == Scaling::Power,
             win,
             leaky: Df2t::new(&[1.0 - d], &[1.0, -d], nc),
             frames: FrameBuffer::new(nc, w, h),
@@ -137,7 +147,7 @@ mod tests {
         let fs = 1000.0;
         let info = SignalInfo::time_frequency(fs, vec![100.0, 200.0]);
         let p = RatemapParams {
-            scaling: "magnitude".into(),
+            scaling: Scaling::Magnitude,
             ..Default::default()
         };
         let (mut rm, _) = Ratemap::new(&p, &info).expect("valid");

@@ -159,7 +159,7 @@ fn check_registration(def: &RequestDef, known: &[&RequestDef]) -> Result<()> {
             .flat_map(|r| r.params.iter().map(move |q| (r.name, q)))
             .find(|(_, q)| q.name == p.name);
         if let Some((owner, q)) = other {
-            if (q.kind, q.unit, q.description) != (p.kind, p.unit, p.description) {
+            if (q.kind, q.unit, q.meaning()) != (p.kind, p.unit, p.meaning()) {
                 return Err(refuse(format!(
                     "parameter '{}' is declared by '{owner}' with another kind, unit or \
                      meaning; rename it or declare it as '{owner}' does",
@@ -183,7 +183,7 @@ fn names(requests: &[&RequestDef]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use afe_core::{ParamMap, ParamSpec};
+    use afe_core::{ParamKind, ParamMap, ParamSpec};
 
     /// issue 46: a request name given in the wrong case or with a typo is named with the
     /// request meant; the known names follow either way.
@@ -224,8 +224,8 @@ mod tests {
             for p in r.params {
                 if let Some(q) = specs.insert(p.name, p) {
                     assert_eq!(
-                        (q.kind, q.unit, q.description),
-                        (p.kind, p.unit, p.description),
+                        (q.kind, q.unit, q.meaning()),
+                        (p.kind, p.unit, p.meaning()),
                         "{} declared twice with different meanings",
                         p.name
                     );
@@ -255,6 +255,17 @@ mod tests {
             for p in r.params {
                 let given = p.normalize(&defaults[p.name]);
                 assert!(given.is_ok(), "{}'s default {}: {given:?}", r.name, p.name);
+                // an unknown string for a choice is refused with the parameter named and
+                // what it accepts listed (`rm_wname = 'kaiser'`)
+                if let ParamKind::Choice(accepted) | ParamKind::Choices(accepted) = p.kind {
+                    let map = ParamMap::from([(p.name.to_string(), serde_json::json!("kaiser"))]);
+                    let e = (r.configure)(&map).map(|_| ()).unwrap_err().to_string();
+                    let first = format!(
+                        "'{}'",
+                        accepted.iter().find(|a| !a.is_empty()).unwrap_or(&"")
+                    );
+                    assert!(e.contains(p.name) && e.contains(&first), "{}: {e}", p.name);
+                }
             }
             let configured = (r.configure)(&defaults).expect("defaults are valid");
             assert_eq!(

@@ -25,7 +25,6 @@ to those ``afe serve`` computes from its live audio, over Zenoh.
 
 from __future__ import annotations
 
-import json
 import os
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
@@ -180,12 +179,14 @@ def _plain(value: Any) -> Any:
         # MATLAB values arrive as 1×1, 1×N or N×1 matrices (scipy.io.loadmat): a scalar or
         # a vector either way
         if value.size == 1:
-            return value.item()
+            return _plain(value.item())
         if value.ndim == 2 and 1 in value.shape:
-            return value.reshape(-1).tolist()
-        return value.tolist()
+            return _plain(value.reshape(-1).tolist())
+        return _plain(value.tolist())
     if isinstance(value, np.generic):
-        return value.item()
+        return _plain(value.item())
+    if isinstance(value, float) and not np.isfinite(value):
+        raise ValueError(f"parameter value {value!r}: AFE parameters take finite numbers")
     if value is None or isinstance(value, (bool, int, float, str)):
         return value
     if isinstance(value, (list, tuple)):

@@ -50,9 +50,12 @@ fn params_of(obj: &Bound<'_, PyAny>) -> PyResult<ParamMap> {
     match value_of(obj) {
         Ok(serde_json::Value::Object(o)) => Ok(o.into_iter().collect()),
         Ok(serde_json::Value::Null) => Ok(ParamMap::new()),
-        _ => Err(PyValueError::new_err(
-            "params must be a dict of AFE parameter names to values",
-        )),
+        Ok(other) => Err(PyValueError::new_err(format!(
+            "params must be a dict of AFE parameter names to values, not {other}"
+        ))),
+        Err(e) => Err(PyValueError::new_err(format!(
+            "params must be a dict of AFE parameter names to values: {e}"
+        ))),
     }
 }
 

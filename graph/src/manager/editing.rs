@@ -124,7 +124,12 @@ impl Manager {
             .iter()
             .any(|r| r.fixed.contains(&name))
         {
-            return Err(Error::invalid(name, &single[name], "this parameter cannot be changed at run time (as in the AFE); place a new request instead"));
+            return Err(Error::invalid(
+                name,
+                &single[name],
+                "this parameter cannot be changed at run time (as in the AFE); place a new \
+                 request instead",
+            ));
         }
         let Some(Some(req)) = self.requests.get(handle.0) else {
             return Err(Error::UnknownHandle(handle.0));
