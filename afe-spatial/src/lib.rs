@@ -4,6 +4,7 @@
 
 pub mod head;
 pub mod locate;
+mod peak;
 pub mod platform;
 pub mod sofa;
 pub mod sphere;

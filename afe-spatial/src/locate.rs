@@ -10,6 +10,7 @@ use afe_core::real_fft::RealFft;
 use num_complex::Complex64;
 
 use crate::head::Head;
+use crate::peak::{local_maxima, refine};
 use crate::yaw::{score_at, HeadYaw};
 use crate::SpatialError;
 
@@ -439,30 +440,6 @@ fn argmax(v: &[f64]) -> usize {
         .unwrap_or(0)
 }
 
-/// The azimuth of the peak at `k` of `scores` on the circular grid `azimuths`, refined
-/// by the parabola through it and its neighbours.
-fn refine(azimuths: &[f64], scores: &[f64], k: usize) -> f64 {
-    let n = scores.len();
-    if n < 3 {
-        return azimuths[k];
-    }
-    let (a, b, c) = (scores[(k + n - 1) % n], scores[k], scores[(k + 1) % n]);
-    let curve = a - 2.0 * b + c;
-    let shift = if curve < 0.0 {
-        (0.5 * (a - c) / curve).clamp(-0.5, 0.5)
-    } else {
-        0.0
-    };
-    // the step towards the neighbour the shift leans to (grids may be uneven)
-    let next = if shift >= 0.0 {
-        (k + 1) % n
-    } else {
-        (k + n - 1) % n
-    };
-    let step = crate::turn_deg(azimuths[k], azimuths[next]);
-    crate::wrap_deg(azimuths[k] + shift.abs() * step)
-}
-
 /// Salience, as a share of the first source's, that another source needs to be reported
 /// by default: a single source's side lobes reach 0.8 of its peak on the sphere, and its
 /// front-back image (a head without pinnae) equals it.
@@ -489,14 +466,7 @@ const IMAGE_DEG: f64 = 5.0;
 /// that is a stronger one's front-back image left out when more than one is asked
 /// for), or the ones at least [`SALIENT_SHARE`] as salient as the first.
 fn peaks(azimuths: &[f64], scores: &[f64], max: Option<usize>) -> Vec<Source> {
-    let n = scores.len();
-    let mut found: Vec<(usize, f64)> = (0..n)
-        .filter(|&k| {
-            let (a, c) = (scores[(k + n - 1) % n], scores[(k + 1) % n]);
-            scores[k] > a && scores[k] >= c
-        })
-        .map(|k| (k, scores[k]))
-        .collect();
+    let mut found: Vec<(usize, f64)> = local_maxima(scores).map(|k| (k, scores[k])).collect();
     found.sort_by(|a, b| b.1.total_cmp(&a.1));
     if max.is_some_and(|m| m > 1) {
         // a peak on the lateral angle of a stronger one is that one's front-back image

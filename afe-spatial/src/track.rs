@@ -6,6 +6,7 @@
 //! the static cues of a head without pinnae cannot.
 
 use crate::locate::Located;
+use crate::peak::{local_maxima, refine};
 use crate::yaw::score_at;
 use crate::SpatialError;
 
@@ -79,6 +80,17 @@ impl Default for TrackerParams {
 
 /// Half the width over which a peak's probability is summed, deg.
 const PEAK_HALF_WIDTH_DEG: usize = 10;
+
+/// The filter's grid: every whole degree, deg.
+const GRID_DEG: [f64; 360] = {
+    let mut grid = [0.0; 360];
+    let mut k = 0;
+    while k < 360 {
+        grid[k] = k as f64;
+        k += 1;
+    }
+    grid
+};
 /// Farthest a source moves between two frames and keeps its identity, deg.
 const ASSOCIATE_DEG: f64 = 15.0;
 /// Share of the posterior spread evenly each frame, so that a new source can be born
@@ -208,15 +220,14 @@ impl Tracker {
                 .map(|j| p[(k + 360 + j - PEAK_HALF_WIDTH_DEG) % 360])
                 .sum()
         };
-        let mut peaks: Vec<(usize, f64)> = (0..360)
-            .filter(|&k| p[k] > p[(k + 359) % 360] && p[k] >= p[(k + 1) % 360])
+        let mut peaks: Vec<(usize, f64)> = local_maxima(p)
             .map(|k| (k, mass(k)))
             .filter(|&(_, m)| m >= self.params.birth)
             .collect();
         peaks.sort_by(|a, b| b.1.total_cmp(&a.1));
         let mut taken = vec![false; self.tracks.len()];
         for (k, m) in peaks {
-            let azimuth_deg = refine(p, k);
+            let azimuth_deg = refine(&GRID_DEG, p, k);
             let uncertainty_deg = spread(p, azimuth_deg);
             let nearest = (0..self.tracks.len())
                 .filter(|&i| !taken[i])
@@ -255,19 +266,6 @@ impl Tracker {
         }
         self.tracks.sort_by_key(|t| t.id);
     }
-}
-
-/// The peak at `k` of the 1-degree circular `p`, refined by the parabola through it and
-/// its neighbours, deg in [0, 360).
-fn refine(p: &[f64], k: usize) -> f64 {
-    let (a, b, c) = (p[(k + 359) % 360], p[k], p[(k + 1) % 360]);
-    let curve = a - 2.0 * b + c;
-    let shift = if curve < 0.0 {
-        (0.5 * (a - c) / curve).clamp(-0.5, 0.5)
-    } else {
-        0.0
-    };
-    crate::wrap_deg(k as f64 + shift)
 }
 
 /// The circular standard deviation of `p` within ±30 deg of `centre_deg`, deg.
