@@ -12,12 +12,11 @@ pub trait ParamType {
     const KIND: ParamKind;
 }
 
-/// An enum of accepted strings, declared by [`choices!`](crate::choices!).
-pub trait Choice: Copy + 'static {
+/// An enum of accepted strings, declared by [`choices!`](crate::choices!): what a list
+/// of it accepts.
+pub trait Choice {
     /// The accepted strings, in declaration order.
     const NAMES: &'static [&'static str];
-    /// The string of this choice.
-    fn name(self) -> &'static str;
 }
 
 impl ParamType for f64 {
@@ -180,9 +179,6 @@ macro_rules! choices {
 
         impl $crate::param_decl::Choice for $name {
             const NAMES: &'static [&'static str] = $name::NAMES;
-            fn name(self) -> &'static str {
-                $name::name(self)
-            }
         }
 
         impl $crate::param_decl::ParamType for $name {
