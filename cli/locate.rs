@@ -2,7 +2,9 @@
 
 use std::path::PathBuf;
 
-use afe_spatial::{locate, track, Head, HeadYaw, LocaliserParams, Located, Tracked, TrackerParams};
+use afe_spatial::{
+    locate, track, Head, HeadYaw, LocaliserParams, Located, Neck, Tracked, TrackerParams,
+};
 use serde_json::json;
 
 use crate::error::CliError;
@@ -41,7 +43,10 @@ pub(crate) struct LocateArgs {
     /// Track the sources over time (a Bayes filter over world azimuth that carries the
     /// head's turns: a turn tells front from back), reported at 6 Hz: with --json as
     /// "tracked": [{"t_s", "yaw_deg", "tracks": [{"id", "azimuth_deg",
-    /// "uncertainty_deg", "mass"}, ...]}, ...].
+    /// "uncertainty_deg", "mass", "velocity_deg_s", "seen_s", "resolved"}, ...],
+    /// "suggested_turn": null or {"turn_deg", "target_yaw_deg", "why": "mirror", "ids"}
+    /// or {..., "why": "behind", "id"}}, ...]
+    /// (the turn within the platform's neck limits, else ±90 deg).
     #[arg(long)]
     track: bool,
     /// Print the sources and the frames as JSON: {"sources": [{"azimuth_deg",
@@ -107,14 +112,15 @@ impl LocateArgs {
             yaw.as_ref(),
         )?;
         let tracked = if self.track {
-            Some(track(&found, &TrackerParams::default())?)
+            let neck = platform.as_ref().and_then(Neck::of).unwrap_or_default();
+            Some(track(&found, &TrackerParams::default(), &neck)?)
         } else {
             None
         };
         if self.json {
             let mut v = to_json(&head, audio.fs, &found);
             if let Some(tracked) = &tracked {
-                v["tracked"] = tracked_json(tracked);
+                v["tracked"] = json!(tracked);
             }
             outln!("{v}");
         } else {
@@ -142,22 +148,6 @@ fn to_json(head: &Head, fs_hz: f64, found: &Located) -> serde_json::Value {
             "yaw_deg": f.yaw_deg,
         })).collect::<Vec<_>>(),
     })
-}
-
-fn tracked_json(tracked: &[Tracked]) -> serde_json::Value {
-    json!(tracked
-        .iter()
-        .map(|at| json!({
-            "t_s": at.t_s,
-            "yaw_deg": at.yaw_deg,
-            "tracks": at.tracks.iter().map(|t| json!({
-                "id": t.id,
-                "azimuth_deg": t.azimuth_deg,
-                "uncertainty_deg": t.uncertainty_deg,
-                "mass": t.mass,
-            })).collect::<Vec<_>>(),
-        }))
-        .collect::<Vec<_>>())
 }
 
 /// The sources tracked at the end, in the world.

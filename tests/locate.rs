@@ -110,9 +110,7 @@ fn a_talker_on_the_sphere_is_found_within_5_degrees_folded_off_the_grid() {
     }
 }
 
-/// `x` from `world_deg` as `head` hears it while turning by `yaw(t)` deg: 50-ms Hann
-/// windows at half overlap (they add up to 1), each rendered from the azimuth relative to
-/// the head at its centre.
+/// `x` from `world_deg` as `head` hears it while turning by `yaw(t)` deg.
 fn turning_render(
     head: &Head,
     world_deg: f64,
@@ -120,6 +118,12 @@ fn turning_render(
     x: &[f64],
     fs: u32,
 ) -> [Vec<f64>; 2] {
+    moving_render(head, |t| world_deg - yaw(t), x, fs)
+}
+
+/// `x` as `head` hears it from the head-relative `azimuth(t)` deg: 50-ms Hann windows at
+/// half overlap (they add up to 1), each rendered from the azimuth at its centre.
+fn moving_render(head: &Head, azimuth: impl Fn(f64) -> f64, x: &[f64], fs: u32) -> [Vec<f64>; 2] {
     let hop = fs as usize / 40;
     let window: Vec<f64> = (0..2 * hop)
         .map(|k| 0.5 - 0.5 * (std::f64::consts::PI * k as f64 / hop as f64).cos())
@@ -137,7 +141,7 @@ fn turning_render(
             .collect();
         let centre = (start + hop as isize) as f64 / f64::from(fs);
         let rendered = head
-            .render(world_deg - yaw(centre), &piece, f64::from(fs))
+            .render(azimuth(centre), &piece, f64::from(fs))
             .expect("render");
         for (ear, r) in ears.iter_mut().zip(&rendered) {
             for (k, v) in r.iter().enumerate() {
@@ -272,6 +276,131 @@ fn tracking_a_turning_sphere_keeps_the_source_and_drops_its_image() {
         turned.iter().skip(1).all(|t| t.1 < 0.5 * turned[0].1),
         "the image is not left behind: {turned:?}"
     );
+}
+
+/// The active loop on the sphere, frame by frame: each localiser frame of the talker
+/// rendered from 160 deg in the world as the head is turned now, scored, tracked; when the
+/// head has held still for a second, the tracks are asked for a turn (Stage C), which the
+/// neck makes at its speed. Returns the number of turns made before the likeliest track
+/// came within 5 deg of the truth with no image left (`None`: never) and the tracks at the
+/// end.
+fn active_run(follow: bool) -> (Option<usize>, Vec<afe_spatial::Track>) {
+    use afe_spatial::{suggest, Localiser, LocaliserParams, Neck, Tracker, TrackerParams};
+    let (once, fs) = talker();
+    let x: Vec<f64> = (0..5).flat_map(|_| once.iter().copied()).collect();
+    let fs = f64::from(fs);
+    let head = Head::parse("sphere").expect("sphere");
+    let mut localiser = Localiser::new(&head, fs, &LocaliserParams::default()).expect("design");
+    let (w, hop) = (localiser.frame_len(), localiser.hop());
+    let mut tracker = Tracker::new(&TrackerParams::default(), hop as f64 / fs).expect("tracker");
+    let neck = Neck::default();
+    let mut row = vec![0.0; localiser.azimuths_deg().len()];
+    let (mut yaw, mut target, mut still_since, mut loudest) = (0.0, 0.0, 0.0, 0.0f64);
+    let (mut turns, mut found) = (0, None);
+    for k in 0..(x.len() - w) / hop {
+        let t = (k * hop + w / 2) as f64 / fs;
+        let [l, r] = head
+            .render(160.0 - yaw, &x[k * hop..k * hop + w], fs)
+            .expect("render");
+        let scored = localiser.score(&l, &r, &mut row);
+        loudest = loudest.max(scored.energy);
+        let active = scored.energy >= loudest * 1e-3;
+        tracker.step(t, yaw, localiser.azimuths_deg(), active.then_some(&row[..]));
+        let tracks = tracker.tracks();
+        let likeliest = tracks.iter().max_by(|a, b| a.mass.total_cmp(&b.mass));
+        let image = tracks
+            .iter()
+            .any(|t| gap(t.azimuth_deg, 20.0).abs() <= 10.0);
+        if found.is_none()
+            && !image
+            && likeliest.is_some_and(|l| gap(l.azimuth_deg, 160.0).abs() <= 5.0)
+        {
+            found = Some(turns);
+        }
+        if yaw != target {
+            yaw = neck.step_towards(yaw, target, hop as f64 / fs);
+            still_since = t;
+        } else if follow && t - still_since >= 1.0 {
+            if let Some(s) = suggest(tracks, yaw, &neck) {
+                target = s.target_yaw_deg;
+                turns += 1;
+            }
+            still_since = t;
+        }
+    }
+    (found, tracker.tracks().to_vec())
+}
+
+#[test]
+fn an_active_head_turns_as_asked_and_finds_the_source_behind_it() {
+    // 160 deg on the sphere: its image at 20 deg sounds the same, and a still head keeps
+    // both; the suggested turns decide it in at most two
+    let (still, tracks) = active_run(false);
+    assert_eq!(still, None, "a still head told 160 from 20: {tracks:?}");
+    assert!(
+        tracks.iter().any(|t| gap(t.azimuth_deg, 20.0).abs() <= 5.0),
+        "{tracks:?}"
+    );
+    let (turned, tracks) = active_run(true);
+    assert!(
+        turned.is_some_and(|n| (1..=2).contains(&n)),
+        "{turned:?} turns: {tracks:?}"
+    );
+}
+
+/// Two talkers (the example's speech, forwards and backwards) walking on the sphere at 20
+/// deg/s, one from 0 to 80 deg and the other from 80 to 0 over 4 s, crossing at 2 s.
+#[test]
+fn two_walking_talkers_keep_their_identities_through_a_crossing() {
+    let (once, fs) = talker();
+    let forwards: Vec<f64> = (0..4).flat_map(|_| once.iter().copied()).collect();
+    let backwards: Vec<f64> = forwards.iter().rev().copied().collect();
+    let seconds = forwards.len() as f64 / f64::from(fs);
+    let head = Head::parse("sphere").expect("sphere");
+    let (a, b) = (|t: f64| 20.0 * t, move |t: f64| 20.0 * (seconds - t));
+    let [al, ar] = moving_render(&head, a, &forwards, fs);
+    let [bl, br] = moving_render(&head, b, &backwards, fs);
+    let ears = [
+        al.iter().zip(&bl).map(|(x, y)| x + y).collect(),
+        ar.iter().zip(&br).map(|(x, y)| x + y).collect(),
+    ];
+    let v = locate_json("walkers", &ears, fs, &["--head", "sphere", "--track"]);
+    let reports = v["tracked"].as_array().expect("reports");
+    // the track nearest each talker at a time, its id and gap
+    let nearest = |report: &Value, truth: f64| {
+        report["tracks"]
+            .as_array()
+            .expect("tracks")
+            .iter()
+            .map(|t| {
+                (
+                    t["id"].as_u64().unwrap_or(0),
+                    gap(t["azimuth_deg"].as_f64().unwrap_or(f64::NAN), truth),
+                )
+            })
+            .min_by(|x, y| x.1.abs().total_cmp(&y.1.abs()))
+            .unwrap_or((0, f64::NAN))
+    };
+    let at = |s: f64| {
+        reports
+            .iter()
+            .min_by(|x, y| {
+                let d = |r: &Value| (r["t_s"].as_f64().unwrap_or(f64::NAN) - s).abs();
+                d(x).total_cmp(&d(y))
+            })
+            .expect("a report")
+    };
+    // 1 s in (40 deg apart, before the crossing), and 3.5 s in (60 deg apart, after it)
+    let (before, after) = (at(1.0), at(3.5));
+    let t = |r: &Value| r["t_s"].as_f64().unwrap_or(f64::NAN);
+    let ids = |r: &Value| {
+        let (ia, ga) = nearest(r, a(t(r)));
+        let (ib, gb) = nearest(r, b(t(r)));
+        assert!(ga.abs() <= 5.0 && gb.abs() <= 5.0, "{r}");
+        assert_ne!(ia, ib, "{r}");
+        (ia, ib)
+    };
+    assert_eq!(ids(before), ids(after), "{before}\n{after}");
 }
 
 #[test]

@@ -9,12 +9,14 @@ pub mod platform;
 pub mod sofa;
 pub mod sphere;
 pub mod track;
+pub mod turn;
 pub mod yaw;
 
 pub use head::Head;
 pub use locate::{locate, Localiser, LocaliserParams, Located, Scored, Source};
 pub use platform::Platform;
 pub use track::{track, Track, Tracked, Tracker, TrackerParams};
+pub use turn::{suggest, Neck, Suggestion};
 pub use yaw::HeadYaw;
 
 use thiserror::Error;

@@ -1,12 +1,17 @@
-//! Tracking (binauloc's Stage B, as a grid Bayes filter): a posterior over world azimuth,
-//! carried from frame to frame with the head's motion and each frame's localisation
-//! scores, whose peaks are tracked sources with identities. A source stays put in the
-//! world while the head turns; its front-back image, mirrored about the interaural axis,
-//! moves by twice the turn and loses its probability: a turn tells front from back, which
-//! the static cues of a head without pinnae cannot.
+//! Tracking (binauloc's Stage B, on a grid): the evidence over world azimuth, each active
+//! frame's scores turned into the world with the head's yaw and averaged over the last
+//! half second (as the Two!Ears localisation averages its posteriors), whose peaks are
+//! tracked sources with identities and velocities. A head without pinnae hears a source
+//! and its front-back image (mirrored about the interaural axis) alike: both are tracked,
+//! linked as mirror images, until the head turns. Then the source stays put in the world
+//! while its image moves by twice the turn: the track that moved is the image and ends,
+//! and the other is told from back (`resolved`), its image no longer born as a track.
 
-use crate::locate::Located;
+use serde::Serialize;
+
+use crate::locate::{lateral_deg, Located};
 use crate::peak::{local_maxima, refine};
+use crate::turn::{suggest, Neck, Suggestion};
 use crate::yaw::score_at;
 use crate::SpatialError;
 
@@ -15,7 +20,7 @@ use crate::SpatialError;
 pub const REPORT_HZ: f64 = 6.0;
 
 /// The tracked sources at one time.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Tracked {
     /// The frame's centre, s.
     pub t_s: f64,
@@ -23,11 +28,19 @@ pub struct Tracked {
     pub yaw_deg: f64,
     /// The sources tracked then, by identity.
     pub tracks: Vec<Track>,
+    /// The head turn they ask for then (Stage C), if any.
+    #[serde(rename = "suggested_turn")]
+    pub suggestion: Option<Suggestion>,
 }
 
 /// The sources of a whole localisation tracked over its frames (their scores, the
-/// head's yaw, their activity), reported at [`REPORT_HZ`] and at the last frame.
-pub fn track(found: &Located, params: &TrackerParams) -> Result<Vec<Tracked>, SpatialError> {
+/// head's yaw, their activity), reported at [`REPORT_HZ`] and at the last frame, each
+/// report with the turn its tracks ask of `neck`.
+pub fn track(
+    found: &Located,
+    params: &TrackerParams,
+    neck: &Neck,
+) -> Result<Vec<Tracked>, SpatialError> {
     let mut tracker = Tracker::new(params, found.hop_s)?;
     let na = found.azimuths_deg.len();
     let every = ((1.0 / REPORT_HZ) / found.hop_s).round().max(1.0) as usize;
@@ -45,6 +58,7 @@ pub fn track(found: &Located, params: &TrackerParams) -> Result<Vec<Tracked>, Sp
                 t_s: frame.t_s,
                 yaw_deg: frame.yaw_deg,
                 tracks: tracker.tracks().to_vec(),
+                suggestion: suggest(tracker.tracks(), frame.yaw_deg, neck),
             });
         }
     }
@@ -54,31 +68,33 @@ pub fn track(found: &Located, params: &TrackerParams) -> Result<Vec<Tracked>, Sp
 /// The tracker's parameters.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrackerParams {
-    /// How fast a source may move, deg/s: the spread of the random walk the posterior is
+    /// How fast a source may move, deg/s: the spread of the random walk the evidence is
     /// blurred by between frames (`trk_driftDegPerSec`).
     pub drift_deg_per_sec: f64,
-    /// Exponent of a frame's scores in the likelihood: how much one frame counts
-    /// (`trk_sharpness`).
+    /// Exponent of a frame's scores (above their median) in its evidence: how sharply one
+    /// frame points (`trk_sharpness`).
     pub sharpness: f64,
-    /// Probability within ±10 deg of a peak for it to be a source
-    /// (`trk_birth`).
+    /// Share of the evidence within ±10 deg of a peak for it to be a source (`trk_birth`).
     pub birth: f64,
     /// Seconds a source lives on without its peak (`trk_holdSec`).
     pub hold_sec: f64,
+    /// Time constant over which the frames' evidence is averaged, s (`trk_averageSec`).
+    pub average_sec: f64,
 }
 
 impl Default for TrackerParams {
     fn default() -> Self {
         TrackerParams {
-            drift_deg_per_sec: 20.0,
-            sharpness: 2.0,
-            birth: 0.2,
+            drift_deg_per_sec: 10.0,
+            sharpness: 4.0,
+            birth: 0.08,
             hold_sec: 0.5,
+            average_sec: 0.5,
         }
     }
 }
 
-/// Half the width over which a peak's probability is summed, deg.
+/// Half the width over which a peak's evidence is summed, deg.
 const PEAK_HALF_WIDTH_DEG: usize = 10;
 
 /// The filter's grid: every whole degree, deg.
@@ -91,40 +107,75 @@ const GRID_DEG: [f64; 360] = {
     }
     grid
 };
-/// Farthest a source moves between two frames and keeps its identity, deg.
+/// Farthest a peak lies from where a source was predicted and keeps its identity, deg.
 const ASSOCIATE_DEG: f64 = 15.0;
-/// Share of the posterior spread evenly each frame, so that a new source can be born
-/// anywhere.
-const UNIFORM_SHARE: f64 = 1e-3;
+/// Time constant of a track's velocity, s: long against a frame's jitter of the peak, short
+/// against a walker's change of pace.
+pub const VELOCITY_TAU_S: f64 = 0.5;
+/// How far the evidence's peak of a moving source lags it, as a share of `average_sec`: a
+/// track lies ahead of its peak by its velocity times this lag. Measured on two talkers
+/// walking at 20 deg/s on the sphere (tests/locate.rs): their peaks lagged by 3 to 5 deg.
+const LAG_SHARE: f64 = 0.3;
+/// Two tracks predicted closer than this have one merged peak between them, deg: they
+/// coast through it on their velocities (two peaks' half widths).
+const MERGED_DEG: f64 = 2.0 * PEAK_HALF_WIDTH_DEG as f64;
+/// Two tracks whose head-relative lateral angles are this close, and that lie farther
+/// apart than twice this, are a source and its front-back image, deg.
+pub const MIRROR_DEG: f64 = 10.0;
+/// Turn of the head since two tracks were linked as mirror images that tells which is
+/// the image, deg.
+pub const TELLING_TURN_DEG: f64 = 10.0;
 
 /// A tracked source.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Track {
     /// Its identity, kept while it lives.
     pub id: usize,
     /// World azimuth, deg in [0, 360) (0 = the world's front, 90 = left).
     pub azimuth_deg: f64,
-    /// Circular standard deviation of the posterior around it, deg.
+    /// Circular standard deviation of the evidence around it, deg.
     pub uncertainty_deg: f64,
-    /// Probability within ±10 deg of it.
+    /// Share of the evidence within ±10 deg of it.
     pub mass: f64,
+    /// How fast it moves in the world, deg/s (positive to the left), smoothed over about
+    /// [`VELOCITY_TAU_S`]: between frames it is predicted to move on so, which keeps two
+    /// sources apart through a crossing, where their peaks merge.
+    pub velocity_deg_s: f64,
     /// Time it was last seen as a peak, s.
     pub seen_s: f64,
+    /// Whether a turn of the head has told it from its front-back image.
+    pub resolved: bool,
 }
 
-/// The grid Bayes filter over world azimuth (1-degree grid).
+/// Two tracks taken for a source and its front-back image: where each was, and the yaw,
+/// when they were linked.
+#[derive(Debug, Clone, Copy)]
+struct Mirror {
+    ids: [usize; 2],
+    at_deg: [f64; 2],
+    yaw_deg: f64,
+}
+
+/// The tracker: the evidence over world azimuth (1-degree grid) and its tracks.
 pub struct Tracker {
     params: TrackerParams,
-    posterior: Vec<f64>,
+    evidence: Vec<f64>,
     scratch: Vec<f64>,
+    /// A frame's evidence in any order, for its median.
+    order: Vec<f64>,
     /// Random-walk kernel per frame, centred (odd length).
     kernel: Vec<f64>,
+    /// Weight of a new frame's evidence in the average.
+    share: f64,
     tracks: Vec<Track>,
+    mirrors: Vec<Mirror>,
     next_id: usize,
+    /// Time of the last active frame, s (`None` before the first).
+    last_active_s: Option<f64>,
 }
 
 impl Tracker {
-    /// A tracker for frames `hop_s` apart, its posterior uniform.
+    /// A tracker for frames `hop_s` apart, with no evidence yet.
     pub fn new(params: &TrackerParams, hop_s: f64) -> Result<Tracker, SpatialError> {
         let bad = |what: &str| Err(SpatialError::Invalid(what.to_string()));
         if !(hop_s > 0.0 && hop_s.is_finite()) {
@@ -142,6 +193,9 @@ impl Tracker {
         if !(params.hold_sec >= 0.0 && params.hold_sec.is_finite()) {
             return bad("trk_holdSec must be a non-negative number of seconds");
         }
+        if !(params.average_sec > 0.0 && params.average_sec <= 60.0) {
+            return bad("trk_averageSec must be above 0 and at most 60 s");
+        }
         // a random walk of drift·√hop deg per frame (at least a tenth of a degree)
         let sigma = (params.drift_deg_per_sec * hop_s.sqrt()).max(0.1);
         let half = (3.0 * sigma).ceil() as usize;
@@ -152,17 +206,22 @@ impl Tracker {
         kernel.iter_mut().for_each(|k| *k /= total);
         Ok(Tracker {
             params: params.clone(),
-            posterior: vec![1.0 / 360.0; 360],
+            evidence: vec![0.0; 360],
             scratch: vec![0.0; 360],
+            order: vec![0.0; 360],
             kernel,
+            share: (hop_s / params.average_sec).min(1.0),
             tracks: Vec::new(),
+            mirrors: Vec::new(),
             next_id: 1,
+            last_active_s: None,
         })
     }
 
-    /// The posterior over world azimuth, one value per degree from 0.
-    pub fn posterior(&self) -> &[f64] {
-        &self.posterior
+    /// The evidence over world azimuth, one value per degree from 0: each active frame's
+    /// share of it sums to 1, and the whole to 1 after the first `average_sec` of them.
+    pub fn evidence(&self) -> &[f64] {
+        &self.evidence
     }
 
     /// The sources tracked now, by identity.
@@ -172,100 +231,269 @@ impl Tracker {
 
     /// One frame at `t_s`: the head's `yaw_deg`, and, for an active frame, its `scores`
     /// over the head-relative `azimuths` (deg, ascending in [0, 360)); an inactive frame
-    /// (`None`) only lets the posterior spread, and its sources are not seen.
+    /// (`None`) only lets the evidence spread, and its sources are not seen.
     pub fn step(&mut self, t_s: f64, yaw_deg: f64, azimuths: &[f64], scores: Option<&[f64]>) {
-        self.predict();
+        self.blur();
         if let Some(scores) = scores {
-            let top = scores.iter().fold(0.0f64, |m, &s| m.max(s));
-            if top > 0.0 {
-                for (world, p) in self.posterior.iter_mut().enumerate() {
-                    let s = score_at(azimuths, scores, world as f64 - yaw_deg) / top;
-                    *p *= s.max(0.0).powf(self.params.sharpness);
-                }
-                let total: f64 = self.posterior.iter().sum();
-                if total > 0.0 && total.is_finite() {
-                    self.posterior.iter_mut().for_each(|p| *p /= total);
-                } else {
-                    self.posterior.fill(1.0 / 360.0);
-                }
+            if self.add_frame(yaw_deg, azimuths, scores) {
+                self.associate(t_s, yaw_deg);
             }
-            self.associate(t_s);
         }
-        let hold = self.params.hold_sec;
-        self.tracks.retain(|t| t_s - t.seen_s <= hold);
+        self.end_unseen(t_s, yaw_deg);
     }
 
-    /// Blurs the posterior by the random walk and mixes in a little of the uniform.
-    fn predict(&mut self) {
+    /// Blurs the evidence by the random walk.
+    fn blur(&mut self) {
         let half = self.kernel.len() / 2;
         for (k, out) in self.scratch.iter_mut().enumerate() {
             *out = self
                 .kernel
                 .iter()
                 .enumerate()
-                .map(|(j, w)| w * self.posterior[(k + 360 * (half / 360 + 1) + j - half) % 360])
+                .map(|(j, w)| w * self.evidence[(k + 360 * (half / 360 + 1) + j - half) % 360])
                 .sum();
         }
-        for (p, s) in self.posterior.iter_mut().zip(&self.scratch) {
-            *p = (1.0 - UNIFORM_SHARE) * s + UNIFORM_SHARE / 360.0;
-        }
+        std::mem::swap(&mut self.evidence, &mut self.scratch);
     }
 
-    /// The posterior's peaks with enough probability become or continue tracks (a track
-    /// unseen, in active frames, for `hold_sec` ends).
-    fn associate(&mut self, t_s: f64) {
-        let p = &self.posterior;
+    /// Mixes a frame's evidence into the average: its scores read at world − yaw, above
+    /// their median, over their range, to the power `sharpness`, summing to 1. False for a
+    /// frame that points nowhere (flat or not finite).
+    fn add_frame(&mut self, yaw_deg: f64, azimuths: &[f64], scores: &[f64]) -> bool {
+        for (world, e) in self.scratch.iter_mut().enumerate() {
+            *e = score_at(azimuths, scores, world as f64 - yaw_deg);
+        }
+        self.order.copy_from_slice(&self.scratch);
+        let (_, &mut median, _) = self.order.select_nth_unstable_by(180, f64::total_cmp);
+        let top = self
+            .scratch
+            .iter()
+            .fold(f64::NEG_INFINITY, |m, &v| m.max(v));
+        if !(top > median && top.is_finite() && median.is_finite()) {
+            return false;
+        }
+        let sharpness = self.params.sharpness;
+        self.scratch
+            .iter_mut()
+            .for_each(|e| *e = ((*e - median) / (top - median)).max(0.0).powf(sharpness));
+        let total: f64 = self.scratch.iter().sum();
+        let share = self.share;
+        for (e, s) in self.evidence.iter_mut().zip(&self.scratch) {
+            *e = (1.0 - share) * *e + share * s / total;
+        }
+        true
+    }
+
+    /// The evidence's peaks with enough of it become or continue tracks: each track moves
+    /// on by its velocity since the last active frame, then takes the nearest peak to
+    /// that prediction (the nearest pairs first, each peak to one track). Two tracks
+    /// predicted within [`MERGED_DEG`] of each other, or one within reach of a peak that
+    /// another took, are seen there but keep their predictions and velocities: their peaks
+    /// have merged, and a peak between them would drag them together. A peak at the
+    /// front-back image of a resolved track is no source.
+    fn associate(&mut self, t_s: f64, yaw_deg: f64) {
+        let dt = self.last_active_s.map_or(0.0, |last| (t_s - last).max(0.0));
+        self.last_active_s = Some(t_s);
+        for t in &mut self.tracks {
+            t.azimuth_deg = crate::wrap_deg(t.azimuth_deg + t.velocity_deg_s * dt);
+        }
+        let e = &self.evidence;
         let mass = |k: usize| -> f64 {
             (0..=2 * PEAK_HALF_WIDTH_DEG)
-                .map(|j| p[(k + 360 + j - PEAK_HALF_WIDTH_DEG) % 360])
+                .map(|j| e[(k + 360 + j - PEAK_HALF_WIDTH_DEG) % 360])
                 .sum()
         };
-        let mut peaks: Vec<(usize, f64)> = local_maxima(p)
+        let peaks: Vec<(f64, f64)> = local_maxima(e)
             .map(|k| (k, mass(k)))
             .filter(|&(_, m)| m >= self.params.birth)
+            .map(|(k, m)| (refine(&GRID_DEG, e, k), m))
             .collect();
-        peaks.sort_by(|a, b| b.1.total_cmp(&a.1));
-        let mut taken = vec![false; self.tracks.len()];
-        for (k, m) in peaks {
-            let azimuth_deg = refine(&GRID_DEG, p, k);
-            let uncertainty_deg = spread(p, azimuth_deg);
-            let nearest = (0..self.tracks.len())
-                .filter(|&i| !taken[i])
-                .map(|i| {
-                    (
-                        i,
-                        crate::turn_deg(self.tracks[i].azimuth_deg, azimuth_deg).abs(),
-                    )
-                })
-                .filter(|&(_, d)| d <= ASSOCIATE_DEG)
-                .min_by(|a, b| a.1.total_cmp(&b.1));
-            let track = Track {
-                id: 0,
-                azimuth_deg,
-                uncertainty_deg,
-                mass: m,
-                seen_s: t_s,
-            };
-            match nearest {
-                Some((i, _)) => {
-                    taken[i] = true;
-                    self.tracks[i] = Track {
-                        id: self.tracks[i].id,
-                        ..track
-                    };
-                }
-                None => {
-                    self.tracks.push(Track {
-                        id: self.next_id,
-                        ..track
-                    });
-                    taken.push(true);
-                    self.next_id += 1;
+        // tracks predicted this close to another have their peaks merged: they coast
+        let contested: Vec<bool> = (0..self.tracks.len())
+            .map(|i| {
+                let at = self.tracks[i].azimuth_deg;
+                self.tracks
+                    .iter()
+                    .enumerate()
+                    .any(|(k, t)| k != i && crate::turn_deg(at, t.azimuth_deg).abs() < MERGED_DEG)
+            })
+            .collect();
+        let lag_s = LAG_SHARE * self.params.average_sec;
+        let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
+        for (i, t) in self.tracks.iter().enumerate() {
+            let behind = t.azimuth_deg - t.velocity_deg_s * lag_s;
+            for (j, &(az, _)) in peaks.iter().enumerate() {
+                let d = crate::turn_deg(behind, az).abs();
+                if d <= ASSOCIATE_DEG {
+                    pairs.push((d, i, j));
                 }
             }
         }
-        self.tracks.sort_by_key(|t| t.id);
+        pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut peak_of: Vec<Option<usize>> = vec![None; self.tracks.len()];
+        let mut taken = vec![false; peaks.len()];
+        for &(_, i, j) in &pairs {
+            if contested[i] {
+                taken[j] = true;
+            } else if peak_of[i].is_none() && !taken[j] {
+                peak_of[i] = Some(j);
+                taken[j] = true;
+            }
+        }
+        let smoothing = (dt / VELOCITY_TAU_S).min(1.0);
+        for (i, track) in self.tracks.iter_mut().enumerate() {
+            match peak_of[i] {
+                Some(j) => {
+                    let (peak, m) = peaks[j];
+                    let az = peak + track.velocity_deg_s * lag_s;
+                    if dt > 0.0 {
+                        let moved = crate::turn_deg(track.azimuth_deg, az) / dt;
+                        track.velocity_deg_s += smoothing * moved;
+                    }
+                    track.azimuth_deg = crate::wrap_deg(peak + track.velocity_deg_s * lag_s);
+                    track.uncertainty_deg = spread(e, peak);
+                    track.mass = m;
+                    track.seen_s = t_s;
+                }
+                None if pairs.iter().any(|&(_, k, _)| k == i) => track.seen_s = t_s,
+                None => {}
+            }
+        }
+        let images: Vec<f64> = self
+            .tracks
+            .iter()
+            .filter(|t| t.resolved)
+            .map(|t| image_deg(t.azimuth_deg, yaw_deg))
+            .collect();
+        for (j, &(azimuth_deg, m)) in peaks.iter().enumerate() {
+            let an_image = images
+                .iter()
+                .any(|&i| crate::turn_deg(i, azimuth_deg).abs() <= ASSOCIATE_DEG);
+            if !taken[j] && !an_image {
+                self.tracks.push(Track {
+                    id: self.next_id,
+                    azimuth_deg,
+                    uncertainty_deg: spread(e, azimuth_deg),
+                    mass: m,
+                    velocity_deg_s: 0.0,
+                    seen_s: t_s,
+                    resolved: false,
+                });
+                self.next_id += 1;
+            }
+        }
+        self.link_mirrors(yaw_deg);
     }
+
+    /// Links the unresolved tracks that are front-back images of each other at `yaw_deg`,
+    /// and, once the head has turned by [`TELLING_TURN_DEG`] since a link, tells them
+    /// apart when one has moved in the world by the turn more than the other (an image
+    /// moves by twice the turn, a source as it walks): the other is resolved and the
+    /// image ends.
+    fn link_mirrors(&mut self, yaw_deg: f64) {
+        let relative = |t: &Track| crate::wrap_deg(t.azimuth_deg - yaw_deg);
+        let position = |tracks: &[Track], id: usize| {
+            tracks
+                .iter()
+                .position(|t| t.id == id)
+                .expect("a linked track lives")
+        };
+        for (i, a) in self.tracks.iter().enumerate() {
+            for b in &self.tracks[i + 1..] {
+                let (ra, rb) = (relative(a), relative(b));
+                let images = !a.resolved
+                    && !b.resolved
+                    && (lateral_deg(ra) - lateral_deg(rb)).abs() <= MIRROR_DEG
+                    && crate::turn_deg(ra, rb).abs() > 2.0 * MIRROR_DEG;
+                let linked = self
+                    .mirrors
+                    .iter()
+                    .any(|m| m.ids.contains(&a.id) || m.ids.contains(&b.id));
+                if images && !linked {
+                    self.mirrors.push(Mirror {
+                        ids: [a.id, b.id],
+                        at_deg: [a.azimuth_deg, b.azimuth_deg],
+                        yaw_deg,
+                    });
+                }
+            }
+        }
+        let mut told = Vec::new();
+        self.mirrors.retain(|m| {
+            let turn = crate::turn_deg(m.yaw_deg, yaw_deg).abs();
+            if turn < TELLING_TURN_DEG {
+                return true;
+            }
+            let moved = |k: usize| {
+                let t = &self.tracks[position(&self.tracks, m.ids[k])];
+                crate::turn_deg(m.at_deg[k], t.azimuth_deg).abs()
+            };
+            let (a, b) = (moved(0), moved(1));
+            if (a - b).abs() < turn {
+                return true;
+            }
+            told.push(if a < b { m.ids[0] } else { m.ids[1] });
+            false
+        });
+        for source in told {
+            self.resolve(source, yaw_deg);
+        }
+    }
+
+    /// Marks track `id` told from back, and ends the unresolved tracks at its front-back
+    /// image for a head at `yaw_deg`.
+    fn resolve(&mut self, id: usize, yaw_deg: f64) {
+        let Some(source) = self.tracks.iter_mut().find(|t| t.id == id) else {
+            return;
+        };
+        source.resolved = true;
+        let image = image_deg(source.azimuth_deg, yaw_deg);
+        self.tracks
+            .retain(|t| t.resolved || crate::turn_deg(image, t.azimuth_deg).abs() > ASSOCIATE_DEG);
+        let live: Vec<usize> = self.tracks.iter().map(|t| t.id).collect();
+        self.mirrors
+            .retain(|m| m.ids.iter().all(|id| live.contains(id)));
+    }
+
+    /// Ends the tracks unseen, in active frames, for `hold_sec`; a track whose linked image
+    /// ended after the head turned by [`TELLING_TURN_DEG`] is resolved (its image lost
+    /// its evidence where it would have stayed, were it the source), and a link whose
+    /// track ended otherwise is dropped.
+    fn end_unseen(&mut self, t_s: f64, yaw_deg: f64) {
+        let hold = self.params.hold_sec;
+        let ended: Vec<usize> = self
+            .tracks
+            .iter()
+            .filter(|t| t_s - t.seen_s > hold)
+            .map(|t| t.id)
+            .collect();
+        if ended.is_empty() {
+            return;
+        }
+        self.tracks.retain(|t| !ended.contains(&t.id));
+        let mut resolved = Vec::new();
+        self.mirrors.retain(|m| {
+            let [a, b] = m.ids;
+            let gone = [ended.contains(&a), ended.contains(&b)];
+            let turned = crate::turn_deg(m.yaw_deg, yaw_deg).abs() >= TELLING_TURN_DEG;
+            match gone {
+                [false, false] => return true,
+                [true, false] if turned => resolved.push(b),
+                [false, true] if turned => resolved.push(a),
+                _ => {}
+            }
+            false
+        });
+        for id in resolved {
+            self.resolve(id, yaw_deg);
+        }
+    }
+}
+
+/// Where the front-back image of a source at `world_deg` lies in the world for a head at
+/// `yaw_deg`: mirrored about the interaural axis, deg in [0, 360).
+fn image_deg(world_deg: f64, yaw_deg: f64) -> f64 {
+    crate::wrap_deg(180.0 - world_deg + 2.0 * yaw_deg)
 }
 
 /// The circular standard deviation of `p` within ±30 deg of `centre_deg`, deg.
@@ -327,6 +555,12 @@ mod tests {
         assert_eq!(tracks.len(), 1, "{tracks:?}");
         assert!((tracks[0].azimuth_deg - 30.0).abs() < 2.0, "{tracks:?}");
         assert!(tracks[0].uncertainty_deg < 10.0, "{tracks:?}");
+        assert!(tracks[0].resolved, "{tracks:?}");
+        assert!(
+            still.tracks().iter().all(|t| !t.resolved),
+            "{:?}",
+            still.tracks()
+        );
     }
 
     #[test]
@@ -360,6 +594,63 @@ mod tests {
             tracker.step(t as f64 * hop, 0.0, &grid, None);
         }
         assert!(tracker.tracks().is_empty(), "{:?}", tracker.tracks());
+    }
+
+    /// Scores over a 1-degree grid with a bump at each of `at` (deg), as a head that tells
+    /// front from back hears them.
+    fn bumps(grid: &[f64], at: &[f64]) -> Vec<f64> {
+        grid.iter()
+            .map(|&a| {
+                let near = at
+                    .iter()
+                    .map(|&c| (-0.5 * (crate::turn_deg(c, a) / 8.0).powi(2)).exp())
+                    .fold(0.0, f64::max);
+                0.3 + 0.7 * near
+            })
+            .collect()
+    }
+
+    #[test]
+    fn two_sources_keep_their_identities_through_a_crossing() {
+        let params = TrackerParams::default();
+        let hop = 0.02;
+        let mut tracker = Tracker::new(&params, hop).expect("tracker");
+        let grid: Vec<f64> = (0..360).map(f64::from).collect();
+        // one walks from 10 to 70 deg, the other from 70 to 10, 20 deg/s each: they meet
+        // at 1.5 s, where their peaks merge into one, and part 60 deg apart
+        let (a, b) = (|t: f64| 10.0 + 20.0 * t, |t: f64| 70.0 - 20.0 * t);
+        let nearest = |tracks: &[Track], at: f64| {
+            tracks
+                .iter()
+                .min_by(|x, y| {
+                    let d = |t: &Track| crate::turn_deg(t.azimuth_deg, at).abs();
+                    d(x).total_cmp(&d(y))
+                })
+                .cloned()
+                .expect("a track")
+        };
+        let mut ids = None;
+        for k in 0..=150 {
+            let t = k as f64 * hop;
+            tracker.step(t, 0.0, &grid, Some(&bumps(&grid, &[a(t), b(t)])));
+            if k == 25 {
+                let tracks = tracker.tracks();
+                assert_eq!(tracks.len(), 2, "{tracks:?}");
+                ids = Some((nearest(tracks, a(t)).id, nearest(tracks, b(t)).id));
+            }
+        }
+        let t = 150.0 * hop;
+        let tracks = tracker.tracks();
+        assert_eq!(tracks.len(), 2, "{tracks:?}");
+        let (first, second) = (nearest(tracks, a(t)), nearest(tracks, b(t)));
+        assert_eq!(Some((first.id, second.id)), ids, "{tracks:?}");
+        for (track, truth, speed) in [(&first, a(t), 20.0), (&second, b(t), -20.0)] {
+            assert!(
+                crate::turn_deg(track.azimuth_deg, truth).abs() < 3.0,
+                "{track:?} for {truth}"
+            );
+            assert!((track.velocity_deg_s - speed).abs() < 5.0, "{track:?}");
+        }
     }
 
     #[test]

@@ -568,7 +568,10 @@ def locate(
     ``tracked``: the sources tracked over time in the world (a Bayes filter over world
     azimuth that carries the head's turns, so a turn tells front from back), at 6 Hz, a
     list of ``{"t_s", "yaw_deg", "tracks": [{"id", "azimuth_deg", "uncertainty_deg",
-    "mass"}, ...]}``. Raises ``ValueError``
+    "mass", "velocity_deg_s", "seen_s", "resolved"}, ...], "suggested_turn"}``, the turn
+    (``None``, or ``{"turn_deg", "target_yaw_deg", "why": "mirror", "ids"}`` or
+    ``{..., "why": "behind", "id"}``, for a neck turning ±90 degrees) that would tell
+    front from back. Raises ``ValueError``
     naming the problem: an unknown head, a bad SOFA file, not two channels, NaN, a signal
     shorter than a 40-ms frame, a yaw track that is not ``[points, 2]`` with increasing
     times.

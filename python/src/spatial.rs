@@ -1,7 +1,7 @@
 //! `afe.locate`, `afe.render` and `afe.heads`: head models and localisation
 //! (`afe-spatial`) on numpy arrays.
 
-use afe_spatial::{Head, HeadYaw, LocaliserParams, SpatialError, TrackerParams};
+use afe_spatial::{Head, HeadYaw, LocaliserParams, Neck, SpatialError, TrackerParams};
 use numpy::{
     Complex64, PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods,
 };
@@ -20,8 +20,10 @@ fn value_error(e: SpatialError) -> PyErr {
 /// `active`, `azimuth_deg` and `yaw_deg` (arrays), and the score grid `azimuths_deg`
 /// with the active frames' `mean_score`; in the world with the `[points, 2]` track
 /// `head_yaw` of `(t_s, yaw_deg)`; with `track`, the sources tracked over time
-/// (`tracked`: a list of dicts of `t_s`, `yaw_deg` and `tracks`, each a dict of `id`,
-/// `azimuth_deg`, `uncertainty_deg` and `mass`).
+/// (`tracked`: a list of dicts of `t_s`, `yaw_deg`, `tracks` (each a dict of `id`,
+/// `azimuth_deg`, `uncertainty_deg`, `mass`, `velocity_deg_s`, `seen_s` and `resolved`)
+/// and `suggested_turn` (`None` or a dict of `turn_deg`, `target_yaw_deg`, `why` and the
+/// track `ids` or `id`, for a neck turning ±90 deg)).
 #[pyfunction]
 #[pyo3(signature = (x, fs, head, sources, head_yaw, track))]
 pub fn locate<'py>(
@@ -68,8 +70,10 @@ pub fn locate<'py>(
         .map_err(value_error)?;
     let tracked = match track {
         true => Some(
-            py.allow_threads(|| afe_spatial::track(&found, &TrackerParams::default()))
-                .map_err(value_error)?,
+            py.allow_threads(|| {
+                afe_spatial::track(&found, &TrackerParams::default(), &Neck::default())
+            })
+            .map_err(value_error)?,
         ),
         false => None,
     };
@@ -95,24 +99,7 @@ pub fn locate<'py>(
     out.set_item("active", PyArray1::from_vec(py, active))?;
     out.set_item("azimuths_deg", PyArray1::from_vec(py, found.azimuths_deg))?;
     if let Some(tracked) = tracked {
-        let reports = PyList::empty(py);
-        for at in &tracked {
-            let d = PyDict::new(py);
-            d.set_item("t_s", at.t_s)?;
-            d.set_item("yaw_deg", at.yaw_deg)?;
-            let tracks = PyList::empty(py);
-            for t in &at.tracks {
-                let one = PyDict::new(py);
-                one.set_item("id", t.id)?;
-                one.set_item("azimuth_deg", t.azimuth_deg)?;
-                one.set_item("uncertainty_deg", t.uncertainty_deg)?;
-                one.set_item("mass", t.mass)?;
-                tracks.append(one)?;
-            }
-            d.set_item("tracks", tracks)?;
-            reports.append(d)?;
-        }
-        out.set_item("tracked", reports)?;
+        out.set_item("tracked", crate::py_value(py, &tracked)?)?;
     }
     out.set_item("mean_score", PyArray1::from_vec(py, found.mean_score))?;
     Ok(out)

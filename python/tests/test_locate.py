@@ -113,4 +113,9 @@ def test_tracking_keeps_a_source_and_its_image_apart_until_the_head_turns():
     last = sorted(still[-1]["tracks"], key=lambda t: -t["mass"])
     assert len(last) == 2, last
     assert sorted(round(folded(t["azimuth_deg"])) for t in last) == [30, 30]
+    assert not any(t["resolved"] for t in last), last
+    # the two are mirror images on the left: a turn to the left would tell them apart
+    turn = still[-1]["suggested_turn"]
+    assert turn["why"] == "mirror" and sorted(turn["ids"]) == sorted(t["id"] for t in last)
+    assert (turn["turn_deg"], turn["target_yaw_deg"]) == (20.0, 20.0), turn
     assert "tracked" not in afe.locate(ears, FS, head="sphere")
