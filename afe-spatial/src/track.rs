@@ -65,32 +65,27 @@ pub fn track(
     Ok(out)
 }
 
-/// The tracker's parameters.
-#[derive(Debug, Clone, PartialEq)]
-pub struct TrackerParams {
-    /// How fast a source may move, deg/s: the spread of the random walk the evidence is
-    /// blurred by between frames (`trk_driftDegPerSec`).
-    pub drift_deg_per_sec: f64,
-    /// Exponent of a frame's scores (above their median) in its evidence: how sharply one
-    /// frame points (`trk_sharpness`).
-    pub sharpness: f64,
-    /// Share of the evidence within ±10 deg of a peak for it to be a source (`trk_birth`).
-    pub birth: f64,
-    /// Seconds a source lives on without its peak (`trk_holdSec`).
-    pub hold_sec: f64,
-    /// Time constant over which the frames' evidence is averaged, s (`trk_averageSec`).
-    pub average_sec: f64,
-}
-
-impl Default for TrackerParams {
-    fn default() -> Self {
-        TrackerParams {
-            drift_deg_per_sec: 10.0,
-            sharpness: 4.0,
-            birth: 0.08,
-            hold_sec: 0.5,
-            average_sec: 0.5,
-        }
+afe_core::params! {
+    /// The tracker's parameters under their AFE-style names (`trk_*`), which its messages
+    /// use too.
+    pub struct TrackerParams / TrackerNames {
+        /// how far old evidence spreads, as a source may move: the random walk it is
+        /// blurred by between frames
+        #[afe = "trk_driftDegPerSec", unit = "deg/s"]
+        pub drift_deg_per_sec: f64 = 10.0,
+        /// exponent of a frame's scores (above their median, over their range) in its
+        /// evidence: how sharply one frame points
+        #[afe = "trk_sharpness", unit = ""]
+        pub sharpness: f64 = 4.0,
+        /// share of the evidence within ±10 deg of a peak for it to be a source
+        #[afe = "trk_birth", unit = ""]
+        pub birth: f64 = 0.08,
+        /// how long a source lives on without its peak
+        #[afe = "trk_holdSec", unit = "s"]
+        pub hold_sec: f64 = 0.5,
+        /// time constant over which the frames' evidence is averaged
+        #[afe = "trk_averageSec", unit = "s"]
+        pub average_sec: f64 = 0.5,
     }
 }
 
@@ -156,6 +151,57 @@ struct Mirror {
     yaw_deg: f64,
 }
 
+/// Most tracks (and mirror links) kept at once: a frame's peaks beyond them are not born.
+pub const MAX_TRACKS: usize = 32;
+
+/// A frame's working lists, kept between frames so that tracking allocates nothing once
+/// they have grown to their largest.
+#[derive(Debug, Default)]
+struct Work {
+    /// The evidence's peaks: (azimuth, deg; share within ±10 deg).
+    peaks: Vec<(f64, f64)>,
+    /// Per track, whether another is predicted within [`MERGED_DEG`].
+    contested: Vec<bool>,
+    /// (gap, deg; track; peak) within [`ASSOCIATE_DEG`].
+    pairs: Vec<(f64, usize, usize)>,
+    /// Per track, the peak it took.
+    peak_of: Vec<Option<usize>>,
+    /// Per peak, whether a track took it.
+    taken: Vec<bool>,
+    /// The front-back images of the resolved tracks, deg.
+    images: Vec<f64>,
+    /// Track identities (those told from their images, or ended).
+    ids: Vec<usize>,
+    /// More track identities (those resolved as their images end).
+    more_ids: Vec<usize>,
+}
+
+impl Work {
+    /// Room for [`MAX_TRACKS`] tracks and a grid's peaks.
+    fn new() -> Self {
+        Work {
+            peaks: Vec::with_capacity(180),
+            contested: Vec::with_capacity(MAX_TRACKS),
+            pairs: Vec::with_capacity(MAX_TRACKS * 16),
+            peak_of: Vec::with_capacity(MAX_TRACKS),
+            taken: Vec::with_capacity(180),
+            images: Vec::with_capacity(MAX_TRACKS),
+            ids: Vec::with_capacity(MAX_TRACKS),
+            more_ids: Vec::with_capacity(MAX_TRACKS),
+        }
+    }
+
+    /// Empties the per-frame lists (keeping their room).
+    fn clear(&mut self) {
+        self.peaks.clear();
+        self.contested.clear();
+        self.pairs.clear();
+        self.peak_of.clear();
+        self.taken.clear();
+        self.images.clear();
+    }
+}
+
 /// The tracker: the evidence over world azimuth (1-degree grid) and its tracks.
 pub struct Tracker {
     params: TrackerParams,
@@ -169,6 +215,7 @@ pub struct Tracker {
     share: f64,
     tracks: Vec<Track>,
     mirrors: Vec<Mirror>,
+    work: Work,
     next_id: usize,
     /// Time of the last active frame, s (`None` before the first).
     last_active_s: Option<f64>,
@@ -177,24 +224,37 @@ pub struct Tracker {
 impl Tracker {
     /// A tracker for frames `hop_s` apart, with no evidence yet.
     pub fn new(params: &TrackerParams, hop_s: f64) -> Result<Tracker, SpatialError> {
-        let bad = |what: &str| Err(SpatialError::Invalid(what.to_string()));
+        let bad = |what: String| Err(SpatialError::Invalid(what));
+        let names = TrackerParams::NAMES;
         if !(hop_s > 0.0 && hop_s.is_finite()) {
-            return bad("the frames' hop must be a positive number of seconds");
+            return bad("the frames' hop must be a positive number of seconds".into());
         }
         if !(params.drift_deg_per_sec >= 0.0 && params.drift_deg_per_sec <= 360.0) {
-            return bad("trk_driftDegPerSec must be between 0 and 360 deg/s");
+            return bad(format!(
+                "{} must be between 0 and 360 deg/s",
+                names.drift_deg_per_sec
+            ));
         }
         if !(params.sharpness > 0.0 && params.sharpness <= 100.0) {
-            return bad("trk_sharpness must be above 0 and at most 100");
+            return bad(format!(
+                "{} must be above 0 and at most 100",
+                names.sharpness
+            ));
         }
         if !(params.birth > 0.0 && params.birth < 1.0) {
-            return bad("trk_birth must be between 0 and 1");
+            return bad(format!("{} must be between 0 and 1", names.birth));
         }
         if !(params.hold_sec >= 0.0 && params.hold_sec.is_finite()) {
-            return bad("trk_holdSec must be a non-negative number of seconds");
+            return bad(format!(
+                "{} must be a non-negative number of seconds",
+                names.hold_sec
+            ));
         }
         if !(params.average_sec > 0.0 && params.average_sec <= 60.0) {
-            return bad("trk_averageSec must be above 0 and at most 60 s");
+            return bad(format!(
+                "{} must be above 0 and at most 60 s",
+                names.average_sec
+            ));
         }
         // a random walk of drift·√hop deg per frame (at least a tenth of a degree)
         let sigma = (params.drift_deg_per_sec * hop_s.sqrt()).max(0.1);
@@ -211,8 +271,9 @@ impl Tracker {
             order: vec![0.0; 360],
             kernel,
             share: (hop_s / params.average_sec).min(1.0),
-            tracks: Vec::new(),
-            mirrors: Vec::new(),
+            tracks: Vec::with_capacity(MAX_TRACKS),
+            mirrors: Vec::with_capacity(MAX_TRACKS),
+            work: Work::new(),
             next_id: 1,
             last_active_s: None,
         })
@@ -222,6 +283,15 @@ impl Tracker {
     /// share of it sums to 1, and the whole to 1 after the first `average_sec` of them.
     pub fn evidence(&self) -> &[f64] {
         &self.evidence
+    }
+
+    /// Forgets every frame: no evidence and no track, the next identity 1 again.
+    pub fn reset(&mut self) {
+        self.evidence.fill(0.0);
+        self.tracks.clear();
+        self.mirrors.clear();
+        self.next_id = 1;
+        self.last_active_s = None;
     }
 
     /// The sources tracked now, by identity.
@@ -303,46 +373,47 @@ impl Tracker {
                 .map(|j| e[(k + 360 + j - PEAK_HALF_WIDTH_DEG) % 360])
                 .sum()
         };
-        let peaks: Vec<(f64, f64)> = local_maxima(e)
-            .map(|k| (k, mass(k)))
-            .filter(|&(_, m)| m >= self.params.birth)
-            .map(|(k, m)| (refine(&GRID_DEG, e, k), m))
-            .collect();
+        let mut w = std::mem::take(&mut self.work);
+        w.clear();
+        w.peaks.extend(
+            local_maxima(e)
+                .map(|k| (k, mass(k)))
+                .filter(|&(_, m)| m >= self.params.birth)
+                .map(|(k, m)| (refine(&GRID_DEG, e, k), m)),
+        );
+        let peaks = &w.peaks;
         // tracks predicted this close to another have their peaks merged: they coast
-        let contested: Vec<bool> = (0..self.tracks.len())
-            .map(|i| {
-                let at = self.tracks[i].azimuth_deg;
-                self.tracks
-                    .iter()
-                    .enumerate()
-                    .any(|(k, t)| k != i && crate::turn_deg(at, t.azimuth_deg).abs() < MERGED_DEG)
-            })
-            .collect();
+        w.contested.extend((0..self.tracks.len()).map(|i| {
+            let at = self.tracks[i].azimuth_deg;
+            self.tracks
+                .iter()
+                .enumerate()
+                .any(|(k, t)| k != i && crate::turn_deg(at, t.azimuth_deg).abs() < MERGED_DEG)
+        }));
         let lag_s = LAG_SHARE * self.params.average_sec;
-        let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
         for (i, t) in self.tracks.iter().enumerate() {
             let behind = t.azimuth_deg - t.velocity_deg_s * lag_s;
             for (j, &(az, _)) in peaks.iter().enumerate() {
                 let d = crate::turn_deg(behind, az).abs();
                 if d <= ASSOCIATE_DEG {
-                    pairs.push((d, i, j));
+                    w.pairs.push((d, i, j));
                 }
             }
         }
-        pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let mut peak_of: Vec<Option<usize>> = vec![None; self.tracks.len()];
-        let mut taken = vec![false; peaks.len()];
-        for &(_, i, j) in &pairs {
-            if contested[i] {
-                taken[j] = true;
-            } else if peak_of[i].is_none() && !taken[j] {
-                peak_of[i] = Some(j);
-                taken[j] = true;
+        w.pairs.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+        w.peak_of.resize(self.tracks.len(), None);
+        w.taken.resize(peaks.len(), false);
+        for &(_, i, j) in &w.pairs {
+            if w.contested[i] {
+                w.taken[j] = true;
+            } else if w.peak_of[i].is_none() && !w.taken[j] {
+                w.peak_of[i] = Some(j);
+                w.taken[j] = true;
             }
         }
         let smoothing = (dt / VELOCITY_TAU_S).min(1.0);
         for (i, track) in self.tracks.iter_mut().enumerate() {
-            match peak_of[i] {
+            match w.peak_of[i] {
                 Some(j) => {
                     let (peak, m) = peaks[j];
                     let az = peak + track.velocity_deg_s * lag_s;
@@ -355,21 +426,22 @@ impl Tracker {
                     track.mass = m;
                     track.seen_s = t_s;
                 }
-                None if pairs.iter().any(|&(_, k, _)| k == i) => track.seen_s = t_s,
+                None if w.pairs.iter().any(|&(_, k, _)| k == i) => track.seen_s = t_s,
                 None => {}
             }
         }
-        let images: Vec<f64> = self
-            .tracks
-            .iter()
-            .filter(|t| t.resolved)
-            .map(|t| image_deg(t.azimuth_deg, yaw_deg))
-            .collect();
+        w.images.extend(
+            self.tracks
+                .iter()
+                .filter(|t| t.resolved)
+                .map(|t| image_deg(t.azimuth_deg, yaw_deg)),
+        );
         for (j, &(azimuth_deg, m)) in peaks.iter().enumerate() {
-            let an_image = images
+            let an_image = w
+                .images
                 .iter()
                 .any(|&i| crate::turn_deg(i, azimuth_deg).abs() <= ASSOCIATE_DEG);
-            if !taken[j] && !an_image {
+            if !w.taken[j] && !an_image && self.tracks.len() < MAX_TRACKS {
                 self.tracks.push(Track {
                     id: self.next_id,
                     azimuth_deg,
@@ -382,6 +454,7 @@ impl Tracker {
                 self.next_id += 1;
             }
         }
+        self.work = w;
         self.link_mirrors(yaw_deg);
     }
 
@@ -409,7 +482,7 @@ impl Tracker {
                     .mirrors
                     .iter()
                     .any(|m| m.ids.contains(&a.id) || m.ids.contains(&b.id));
-                if images && !linked {
+                if images && !linked && self.mirrors.len() < MAX_TRACKS {
                     self.mirrors.push(Mirror {
                         ids: [a.id, b.id],
                         at_deg: [a.azimuth_deg, b.azimuth_deg],
@@ -418,7 +491,8 @@ impl Tracker {
                 }
             }
         }
-        let mut told = Vec::new();
+        let mut told = std::mem::take(&mut self.work.ids);
+        told.clear();
         self.mirrors.retain(|m| {
             let turn = crate::turn_deg(m.yaw_deg, yaw_deg).abs();
             if turn < TELLING_TURN_DEG {
@@ -435,9 +509,10 @@ impl Tracker {
             told.push(if a < b { m.ids[0] } else { m.ids[1] });
             false
         });
-        for source in told {
+        for &source in &told {
             self.resolve(source, yaw_deg);
         }
+        self.work.ids = told;
     }
 
     /// Marks track `id` told from back, and ends the unresolved tracks at its front-back
@@ -450,9 +525,9 @@ impl Tracker {
         let image = image_deg(source.azimuth_deg, yaw_deg);
         self.tracks
             .retain(|t| t.resolved || crate::turn_deg(image, t.azimuth_deg).abs() > ASSOCIATE_DEG);
-        let live: Vec<usize> = self.tracks.iter().map(|t| t.id).collect();
+        let tracks = &self.tracks;
         self.mirrors
-            .retain(|m| m.ids.iter().all(|id| live.contains(id)));
+            .retain(|m| m.ids.iter().all(|&id| tracks.iter().any(|t| t.id == id)));
     }
 
     /// Ends the tracks unseen, in active frames, for `hold_sec`; a track whose linked image
@@ -461,17 +536,20 @@ impl Tracker {
     /// track ended otherwise is dropped.
     fn end_unseen(&mut self, t_s: f64, yaw_deg: f64) {
         let hold = self.params.hold_sec;
-        let ended: Vec<usize> = self
-            .tracks
-            .iter()
-            .filter(|t| t_s - t.seen_s > hold)
-            .map(|t| t.id)
-            .collect();
-        if ended.is_empty() {
+        if self.tracks.iter().all(|t| t_s - t.seen_s <= hold) {
             return;
         }
+        let mut ended = std::mem::take(&mut self.work.ids);
+        let mut resolved = std::mem::take(&mut self.work.more_ids);
+        ended.clear();
+        resolved.clear();
+        ended.extend(
+            self.tracks
+                .iter()
+                .filter(|t| t_s - t.seen_s > hold)
+                .map(|t| t.id),
+        );
         self.tracks.retain(|t| !ended.contains(&t.id));
-        let mut resolved = Vec::new();
         self.mirrors.retain(|m| {
             let [a, b] = m.ids;
             let gone = [ended.contains(&a), ended.contains(&b)];
@@ -484,9 +562,10 @@ impl Tracker {
             }
             false
         });
-        for id in resolved {
+        for &id in &resolved {
             self.resolve(id, yaw_deg);
         }
+        (self.work.ids, self.work.more_ids) = (ended, resolved);
     }
 }
 

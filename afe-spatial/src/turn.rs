@@ -2,7 +2,7 @@
 //! from back undecided (a source and its mirror image about the interaural axis both
 //! tracked) or the likeliest source is behind the head, a turn of [`TURN_STEP_DEG`]
 //! towards its side, within the neck's limits. A turn moves a source's image in the world
-//! by twice the turn, and the tracker lets it go (see [`crate::track`]).
+//! by twice the turn, and the tracker lets it go (see [`mod@crate::track`]).
 
 use serde::Serialize;
 

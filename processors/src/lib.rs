@@ -36,6 +36,7 @@ pub mod spectral_features;
 pub mod stft;
 #[cfg(test)]
 mod testing;
+pub mod tracking;
 pub mod transient;
 pub mod transient_map;
 

@@ -10,7 +10,7 @@ use afe_core::{Error, RequestDef, Result};
 use crate::{
     adaptation, ams_features, autocorrelation, butterworth, crosscorrelation, duet, filterbank,
     gabor, ic, ihc, ild, itd, localisation, moc, pitch, pre_proc, precedence, ratemap,
-    spectral_features, stft, transient, transient_map,
+    spectral_features, stft, tracking, transient, transient_map,
 };
 
 /// The requests this crate computes, in dependency order: one line per processor module.
@@ -39,6 +39,7 @@ static BUILT_IN: &[&RequestDef] = &[
     &stft::REQUEST,
     &duet::REQUEST,
     &localisation::REQUEST,
+    &tracking::REQUEST,
 ];
 
 /// Every request this build computes, in dependency order.
@@ -235,13 +236,13 @@ mod tests {
         }
     }
 
-    /// The AFE's 23 representations and the localisation, each with its chunking
+    /// The AFE's 23 representations, the localisation and its tracking, each with its chunking
     /// contract (spec 00-overview §11; `duet` buffers each ear from its own input, so it
     /// is invariant here) and the ratemap read beside a map's strength when
     /// `trm_minValuedB` is set.
     #[test]
     fn entries_carry_each_requests_chunking_and_inputs() {
-        assert_eq!(requests().len(), 24);
+        assert_eq!(requests().len(), 25);
         let per_chunk = ["pitch", "onsetMap", "offsetMap", "gabor"];
         for r in requests() {
             let defaults = (r.defaults)();
