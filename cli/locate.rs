@@ -46,7 +46,8 @@ pub(crate) struct LocateArgs {
     /// "uncertainty_deg", "mass", "velocity_deg_s", "seen_s", "resolved"}, ...],
     /// "suggested_turn": null or {"turn_deg", "target_yaw_deg", "why": "mirror", "ids"}
     /// or {..., "why": "behind", "id"}}, ...]
-    /// (the turn within the platform's neck limits, else ±90 deg).
+    /// (the turn within the platform's neck limits, none without a yaw joint; without a
+    /// platform, ±90 deg).
     #[arg(long)]
     track: bool,
     /// Print the sources and the frames as JSON: {"sources": [{"azimuth_deg",
@@ -112,7 +113,10 @@ impl LocateArgs {
             yaw.as_ref(),
         )?;
         let tracked = if self.track {
-            let neck = platform.as_ref().and_then(Neck::of).unwrap_or_default();
+            let neck = match &platform {
+                Some(p) => Neck::of(p).unwrap_or(Neck::STILL),
+                None => Neck::default(),
+            };
             Some(track(&found, &TrackerParams::default(), &neck)?)
         } else {
             None

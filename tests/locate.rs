@@ -308,9 +308,12 @@ fn active_run(follow: bool) -> (Option<usize>, Vec<afe_spatial::Track>) {
         tracker.step(t, yaw, localiser.azimuths_deg(), active.then_some(&row[..]));
         let tracks = tracker.tracks();
         let likeliest = tracks.iter().max_by(|a, b| a.mass.total_cmp(&b.mass));
-        let image = tracks
-            .iter()
-            .any(|t| gap(t.azimuth_deg, 20.0).abs() <= 10.0);
+        // the image, where it was with the head still and where the head's yaw puts it
+        let image = tracks.iter().any(|t| {
+            [20.0, 20.0 + 2.0 * yaw]
+                .iter()
+                .any(|&at| gap(t.azimuth_deg, at).abs() <= 10.0)
+        });
         if found.is_none()
             && !image
             && likeliest.is_some_and(|l| gap(l.azimuth_deg, 160.0).abs() <= 5.0)

@@ -70,14 +70,15 @@ afe_core::params! {
     /// use too.
     pub struct TrackerParams / TrackerNames {
         /// how far old evidence spreads, as a source may move: the random walk it is
-        /// blurred by between frames
-        #[afe = "trk_driftDegPerSec", unit = "deg/s"]
+        /// blurred by between frames, spreading this far in a second (drift·√t in t s)
+        #[afe = "trk_driftDegPerSec", unit = "deg/√s"]
         pub drift_deg_per_sec: f64 = 10.0,
         /// exponent of a frame's scores (above their median, over their range) in its
         /// evidence: how sharply one frame points
         #[afe = "trk_sharpness", unit = ""]
         pub sharpness: f64 = 4.0,
-        /// share of the evidence within ±10 deg of a peak for it to be a source
+        /// evidence within ±10 deg of a peak for it to be a source (of a whole that rises
+        /// to 1 over the first average_sec)
         #[afe = "trk_birth", unit = ""]
         pub birth: f64 = 0.08,
         /// how long a source lives on without its peak
@@ -130,7 +131,7 @@ pub struct Track {
     pub azimuth_deg: f64,
     /// Circular standard deviation of the evidence around it, deg.
     pub uncertainty_deg: f64,
-    /// Share of the evidence within ±10 deg of it.
+    /// The evidence within ±10 deg of it (of a whole of at most 1).
     pub mass: f64,
     /// How fast it moves in the world, deg/s (positive to the left), smoothed over about
     /// [`VELOCITY_TAU_S`]: between frames it is predicted to move on so, which keeps two
@@ -279,8 +280,9 @@ impl Tracker {
         })
     }
 
-    /// The evidence over world azimuth, one value per degree from 0: each active frame's
-    /// share of it sums to 1, and the whole to 1 after the first `average_sec` of them.
+    /// The evidence over world azimuth, one value per degree from 0: each active frame
+    /// adds its own (summing to 1) with the weight hop/`average_sec`, so the whole rises
+    /// from 0 towards 1 (0.63 after the first `average_sec` of active frames).
     pub fn evidence(&self) -> &[f64] {
         &self.evidence
     }
@@ -357,10 +359,12 @@ impl Tracker {
     /// The evidence's peaks with enough of it become or continue tracks: each track moves
     /// on by its velocity since the last active frame, then takes the nearest peak to
     /// that prediction (the nearest pairs first, each peak to one track). Two tracks
-    /// predicted within [`MERGED_DEG`] of each other, or one within reach of a peak that
-    /// another took, are seen there but keep their predictions and velocities: their peaks
-    /// have merged, and a peak between them would drag them together. A peak at the
-    /// front-back image of a resolved track is no source.
+    /// predicted within [`MERGED_DEG`] of each other take no peak: they coast on their
+    /// predictions and velocities (a merged peak between them would drag them together),
+    /// as does one whose nearest peak another took; each is seen while a peak lies within
+    /// reach of its prediction. A peak within
+    /// [`MERGED_DEG`] of a track (a side lobe of its source: two sources that close are
+    /// one peak) or at the front-back image of a resolved track is no new source.
     fn associate(&mut self, t_s: f64, yaw_deg: f64) {
         let dt = self.last_active_s.map_or(0.0, |last| (t_s - last).max(0.0));
         self.last_active_s = Some(t_s);
@@ -426,7 +430,14 @@ impl Tracker {
                     track.mass = m;
                     track.seen_s = t_s;
                 }
-                None if w.pairs.iter().any(|&(_, k, _)| k == i) => track.seen_s = t_s,
+                // coasting (through a merged peak, or beside one another track took):
+                // seen while a peak lies within reach of its prediction
+                None if w.pairs.iter().any(|&(_, k, _)| k == i) => {
+                    let at = (track.azimuth_deg.round() as usize) % 360;
+                    track.mass = mass(at);
+                    track.uncertainty_deg = spread(e, track.azimuth_deg);
+                    track.seen_s = t_s;
+                }
                 None => {}
             }
         }
@@ -441,7 +452,11 @@ impl Tracker {
                 .images
                 .iter()
                 .any(|&i| crate::turn_deg(i, azimuth_deg).abs() <= ASSOCIATE_DEG);
-            if !w.taken[j] && !an_image && self.tracks.len() < MAX_TRACKS {
+            let crowded = self
+                .tracks
+                .iter()
+                .any(|t| crate::turn_deg(t.azimuth_deg, azimuth_deg).abs() < MERGED_DEG);
+            if !w.taken[j] && !an_image && !crowded && self.tracks.len() < MAX_TRACKS {
                 self.tracks.push(Track {
                     id: self.next_id,
                     azimuth_deg,

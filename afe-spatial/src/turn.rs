@@ -47,6 +47,13 @@ impl Default for Neck {
 }
 
 impl Neck {
+    /// A head that cannot turn (a platform without a yaw joint).
+    pub const STILL: Neck = Neck {
+        min_deg: 0.0,
+        max_deg: 0.0,
+        speed_deg_s: 0.0,
+    };
+
     /// The platform's first yaw joint (`None` when it has none: the head cannot turn).
     pub fn of(platform: &Platform) -> Option<Neck> {
         platform
@@ -97,23 +104,34 @@ pub struct Suggestion {
     pub why: Ambiguity,
 }
 
-/// The turn that `tracks` (world azimuths) ask of a head at `yaw_deg` with `neck`, or
-/// `None` when front and back are told apart and no source is behind. The turn goes
-/// towards the side of the likeliest track of the pair (or of the one behind), left when
-/// it is straight ahead or behind; at a limit, the other way.
+/// The turn that `tracks` (world azimuths) ask of a head at `yaw_deg` (any turn: 330 is
+/// 30 deg to the right) with `neck`, or `None` when front and back are told apart and no
+/// source is behind. Mirror images are looked for among the unresolved tracks, the pair
+/// with the likeliest track first. The turn goes towards the side of the likeliest track
+/// of the pair (or of the one behind), left when it is straight ahead or behind; at a
+/// limit, the other way. Allocates nothing.
 pub fn suggest(tracks: &[Track], yaw_deg: f64, neck: &Neck) -> Option<Suggestion> {
+    let yaw_deg = crate::turn_deg(0.0, yaw_deg);
     let relative = |t: &Track| crate::wrap_deg(t.azimuth_deg - yaw_deg);
-    let mut by_mass: Vec<&Track> = tracks.iter().collect();
-    by_mass.sort_by(|a, b| b.mass.total_cmp(&a.mass));
-    let likeliest = by_mass.first()?;
-    let mirror = by_mass.iter().enumerate().find_map(|(i, a)| {
-        by_mass[i + 1..].iter().find_map(|b| {
-            let (ra, rb) = (relative(a), relative(b));
-            let images = (lateral_deg(ra) - lateral_deg(rb)).abs() <= MIRROR_DEG
-                && crate::turn_deg(ra, rb).abs() > 2.0 * MIRROR_DEG;
-            images.then_some((a, b))
+    let likelier = |a: &Track, b: &Track| a.mass.total_cmp(&b.mass).then(b.id.cmp(&a.id));
+    let likeliest = tracks.iter().max_by(|a, b| likelier(a, b))?;
+    let images = |a: &Track, b: &Track| {
+        let (ra, rb) = (relative(a), relative(b));
+        !a.resolved
+            && !b.resolved
+            && (lateral_deg(ra) - lateral_deg(rb)).abs() <= MIRROR_DEG
+            && crate::turn_deg(ra, rb).abs() > 2.0 * MIRROR_DEG
+    };
+    let mirror = tracks
+        .iter()
+        .enumerate()
+        .flat_map(|(i, a)| tracks[i + 1..].iter().map(move |b| (a, b)))
+        .filter(|&(a, b)| images(a, b))
+        .map(|(a, b)| match likelier(a, b) {
+            std::cmp::Ordering::Less => (b, a),
+            _ => (a, b),
         })
-    });
+        .max_by(|x, y| likelier(x.0, y.0).then(likelier(x.1, y.1)));
     let (towards, why) = match mirror {
         Some((a, b)) => (relative(a), Ambiguity::Mirror { ids: (a.id, b.id) }),
         None => {
@@ -171,6 +189,18 @@ mod tests {
         assert_eq!(s.map(|s| s.turn_deg), Some(-20.0));
         let s = suggest(&[track(1, 340.0, 0.5), track(2, 220.0, 0.4)], 10.0, &neck);
         assert_eq!(s.map(|s| s.target_yaw_deg), Some(-10.0));
+        // a head 30 deg to the right given as 330: images on its left, 40 and 140 deg
+        let s = suggest(&[track(1, 10.0, 0.5), track(2, 110.0, 0.4)], 330.0, &neck);
+        assert_eq!(
+            s.map(|s| (s.turn_deg, s.target_yaw_deg)),
+            Some((20.0, -10.0))
+        );
+        // a resolved track and its image are no ambiguity
+        let told = Track {
+            resolved: true,
+            ..track(1, 30.0, 0.5)
+        };
+        assert_eq!(suggest(&[told, track(2, 150.0, 0.2)], 0.0, &neck), None);
     }
 
     #[test]
@@ -211,6 +241,7 @@ mod tests {
             speed_deg_s: 45.0,
         };
         assert_eq!(suggest(&pair, 0.0, &still), None, "a head that cannot turn");
+        assert_eq!(suggest(&pair, 0.0, &Neck::STILL), None);
         assert_eq!(neck.step_towards(0.0, 20.0, 0.1), 4.5);
         assert_eq!(neck.step_towards(19.0, 20.0, 0.1), 20.0);
     }
