@@ -479,7 +479,6 @@ impl Tracker {
     /// moves by twice the turn, a source as it walks): the other is resolved and the
     /// image ends.
     fn link_mirrors(&mut self, yaw_deg: f64) {
-        let relative = |t: &Track| crate::wrap_deg(t.azimuth_deg - yaw_deg);
         let position = |tracks: &[Track], id: usize| {
             tracks
                 .iter()
@@ -488,11 +487,7 @@ impl Tracker {
         };
         for (i, a) in self.tracks.iter().enumerate() {
             for b in &self.tracks[i + 1..] {
-                let (ra, rb) = (relative(a), relative(b));
-                let images = !a.resolved
-                    && !b.resolved
-                    && (lateral_deg(ra) - lateral_deg(rb)).abs() <= MIRROR_DEG
-                    && crate::turn_deg(ra, rb).abs() > 2.0 * MIRROR_DEG;
+                let images = mirror_images(a, b, yaw_deg);
                 let linked = self
                     .mirrors
                     .iter()
@@ -582,6 +577,18 @@ impl Tracker {
         }
         (self.work.ids, self.work.more_ids) = (ended, resolved);
     }
+}
+
+/// Whether unresolved tracks `a` and `b` are a source and its front-back image for a head
+/// at `yaw_deg`: their head-relative lateral angles within [`MIRROR_DEG`], and they lie
+/// farther apart than twice that.
+pub(crate) fn mirror_images(a: &Track, b: &Track, yaw_deg: f64) -> bool {
+    let relative = |t: &Track| crate::wrap_deg(t.azimuth_deg - yaw_deg);
+    let (ra, rb) = (relative(a), relative(b));
+    !a.resolved
+        && !b.resolved
+        && (lateral_deg(ra) - lateral_deg(rb)).abs() <= MIRROR_DEG
+        && crate::turn_deg(ra, rb).abs() > 2.0 * MIRROR_DEG
 }
 
 /// Where the front-back image of a source at `world_deg` lies in the world for a head at

@@ -8,14 +8,10 @@ use serde::Serialize;
 
 use crate::locate::lateral_deg;
 use crate::platform::{JointKind, Platform};
-use crate::track::Track;
+use crate::track::{mirror_images, Track};
 
 /// The turn asked for, deg (binauloc's head rotation: ±20 degrees).
 pub const TURN_STEP_DEG: f64 = 20.0;
-
-/// Two tracks whose lateral angles are this close are taken for a source and its
-/// front-back image, deg.
-pub const MIRROR_DEG: f64 = 10.0;
 
 /// A source whose head-relative azimuth lies this far or farther from the front is
 /// behind the head, deg.
@@ -106,27 +102,20 @@ pub struct Suggestion {
 
 /// The turn that `tracks` (world azimuths) ask of a head at `yaw_deg` (any turn: 330 is
 /// 30 deg to the right) with `neck`, or `None` when front and back are told apart and no
-/// source is behind. Mirror images are looked for among the unresolved tracks, the pair
-/// with the likeliest track first. The turn goes towards the side of the likeliest track
-/// of the pair (or of the one behind), left when it is straight ahead or behind; at a
-/// limit, the other way. Allocates nothing.
+/// source is behind. Mirror images (as the tracker links them) are looked for among the
+/// unresolved tracks, the pair with the likeliest track first. The turn goes towards the
+/// side of the likeliest track of the pair (or of the one behind), left when it is
+/// straight ahead or behind; at a limit, the other way. Allocates nothing.
 pub fn suggest(tracks: &[Track], yaw_deg: f64, neck: &Neck) -> Option<Suggestion> {
     let yaw_deg = crate::turn_deg(0.0, yaw_deg);
     let relative = |t: &Track| crate::wrap_deg(t.azimuth_deg - yaw_deg);
     let likelier = |a: &Track, b: &Track| a.mass.total_cmp(&b.mass).then(b.id.cmp(&a.id));
     let likeliest = tracks.iter().max_by(|a, b| likelier(a, b))?;
-    let images = |a: &Track, b: &Track| {
-        let (ra, rb) = (relative(a), relative(b));
-        !a.resolved
-            && !b.resolved
-            && (lateral_deg(ra) - lateral_deg(rb)).abs() <= MIRROR_DEG
-            && crate::turn_deg(ra, rb).abs() > 2.0 * MIRROR_DEG
-    };
     let mirror = tracks
         .iter()
         .enumerate()
         .flat_map(|(i, a)| tracks[i + 1..].iter().map(move |b| (a, b)))
-        .filter(|&(a, b)| images(a, b))
+        .filter(|&(a, b)| mirror_images(a, b, yaw_deg))
         .map(|(a, b)| match likelier(a, b) {
             std::cmp::Ordering::Less => (b, a),
             _ => (a, b),
