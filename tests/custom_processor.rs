@@ -5,7 +5,7 @@
 //! plots or the page taught about it.
 #![cfg(all(feature = "plot", feature = "view"))]
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use afe::extract::{run_with, Job};
 use afe::stream::{run, StreamJob};
@@ -179,11 +179,17 @@ fn a_processor_defined_here_gets_metadata_a_figure_and_a_panel() {
         ..StreamJob::default()
     };
     let synth = Synth::parse("fs=16000,tone=500,seed=1").expect("synth");
-    let streamer = std::thread::spawn(move || run(synth, &stream_job, tap).expect("stream"));
     let page = std::thread::spawn({
         let url = format!("http://{}/", view.addr());
         move || chromium_dom(&url)
     });
+    // the stream starts once Chromium's page has connected beside this test's socket (a
+    // loaded host can take seconds to start a browser), or once there is no browser
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while view.pages() < 2 && !page.is_finished() && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let streamer = std::thread::spawn(move || run(synth, &stream_job, tap).expect("stream"));
     let mut layout: Option<Value> = None;
     let mut batches = 0;
     while let Ok(msg) = ws.read() {
@@ -232,9 +238,13 @@ fn a_processor_defined_here_gets_metadata_a_figure_and_a_panel() {
         .nth(1)
         .and_then(|r| r.split('"').next())
         .and_then(|n| n.parse::<usize>().ok());
+    // the page's status line (connection, frames received, lost) says why if none was
+    let status = dom
+        .find("id=\"frames\"")
+        .map_or("", |at| &dom[at..(at + 400).min(dom.len())]);
     assert!(
         drawn.is_some_and(|n| n > 0),
-        "the panel drew no frame: {panel}"
+        "the panel drew no frame: {panel}\nthe page's status: {status}"
     );
 }
 
