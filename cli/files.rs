@@ -5,7 +5,7 @@ use std::path::Path;
 
 use afe::output::OutputFile;
 use afe::wav::{Audio, WavBlocks};
-use afe_spatial::Platform;
+use afe_spatial::{HeadYaw, Platform};
 
 use crate::error::CliError;
 
@@ -34,6 +34,17 @@ pub(crate) fn read_platform(path: &Path) -> Result<Platform, CliError> {
     let folder = path.parent().unwrap_or(Path::new("."));
     Platform::parse(&text, folder)
         .map_err(|e| CliError::Message(format!("{}: {e}", path.display())))
+}
+
+/// Largest yaw track read, bytes: hours of a 100-Hz track, and a bound on what a wrong
+/// path (`/dev/zero`, a WAV file) can make the command read.
+const YAW_FILE_MAX_BYTES: u64 = 64 << 20;
+
+/// The head's yaw track at `path`: a CSV of `t_s,yaw_deg` rows (`--head-yaw`).
+pub(crate) fn read_head_yaw(path: &Path) -> Result<HeadYaw, CliError> {
+    let text = afe::bounded_read::read_text(path, YAW_FILE_MAX_BYTES)
+        .map_err(|e| CliError::Message(format!("cannot read {}: {e}", path.display())))?;
+    HeadYaw::parse_csv(&text).map_err(|e| CliError::Message(format!("{}: {e}", path.display())))
 }
 
 /// A platform descriptor as the JSON that `afe serve` publishes and the page shows.

@@ -2,18 +2,12 @@
 
 use std::path::PathBuf;
 
-use afe_spatial::{
-    locate, track, Head, HeadYaw, LocaliserParams, Located, Neck, Tracked, TrackerParams,
-};
+use afe_spatial::{locate, track, Head, LocaliserParams, Located, Neck, Tracked, TrackerParams};
 use serde_json::json;
 
 use crate::error::CliError;
-use crate::files::{read_capture, read_input, read_platform};
+use crate::files::{read_capture, read_head_yaw, read_input, read_platform};
 use crate::outln;
-
-/// Largest yaw track read, bytes: hours of a 100-Hz track, and a bound on what a wrong
-/// path (`/dev/zero`, a WAV file) can make the command read.
-const YAW_FILE_MAX_BYTES: u64 = 64 << 20;
 
 /// `afe locate IN.wav [--head kemar|sphere:radius=M[,ears=DEG]|FILE.sofa | --platform
 /// FILE.json] [--sources N] [--head-yaw FILE.csv] [--json]`.
@@ -68,17 +62,7 @@ impl LocateArgs {
             (None, Some(spec)) => Head::parse(spec)?,
             (None, None) => Head::parse("kemar")?,
         };
-        let yaw = match &self.head_yaw {
-            Some(path) => {
-                let text = afe::bounded_read::read_text(path, YAW_FILE_MAX_BYTES).map_err(|e| {
-                    CliError::Message(format!("cannot read {}: {e}", path.display()))
-                })?;
-                let track = HeadYaw::parse_csv(&text)
-                    .map_err(|e| CliError::Message(format!("{}: {e}", path.display())))?;
-                Some(track)
-            }
-            None => None,
-        };
+        let yaw = self.head_yaw.as_deref().map(read_head_yaw).transpose()?;
         let audio = match &platform {
             // a robot's capture may hold more than its ears: its descriptor says which
             Some(_) => read_capture(&self.input)?,

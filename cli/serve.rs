@@ -140,6 +140,8 @@ impl ServeArgs {
                 max_subscriptions: self.max_subscriptions as usize,
                 max_load: afe_net::MAX_LOAD,
                 platform: described,
+                head_pose: job.head_pose.clone(),
+                head_yaw_range_deg: platform.as_ref().map(afe_spatial::Platform::yaw_range_deg),
                 connect: self.connect,
                 #[cfg(feature = "ros2")]
                 ros2: self.ros2.then_some(afe_net::ros2::Ros2Options {

@@ -61,6 +61,11 @@ pub(crate) struct StreamArgs {
     /// channels and rate.
     #[arg(long, value_name = "FILE.json")]
     platform: Option<PathBuf>,
+    /// The head's yaw over time: a CSV of rows `t_s,yaw_deg` (s of the stream, yaw
+    /// positive to the left), which the `tracking` request turns its azimuths into the
+    /// world's by (checked against the platform's neck when one is given).
+    #[arg(long, value_name = "FILE.csv")]
+    head_yaw: Option<PathBuf>,
     /// Print the final report as one JSON object (and no status line).
     #[arg(long)]
     json: bool,
@@ -110,6 +115,13 @@ impl StreamArgs {
                 .map(afe_spatial::Platform::expected_source),
             ..StreamJob::default()
         };
+        if let Some(path) = &self.head_yaw {
+            let track = crate::files::read_head_yaw(path)?;
+            if let Some(p) = &platform {
+                p.check_yaw(&track)?;
+            }
+            job.head_pose.set_track(track.points())?;
+        }
         let pacing = match (self.realtime, self.fast) {
             (true, _) => Some(Pacing::Realtime),
             (_, true) => Some(Pacing::Fast),

@@ -587,3 +587,82 @@ fn a_platform_descriptor_gives_the_head_and_is_checked_against_the_file() {
         &none,
     );
 }
+
+/// The last frame of `afe stream`'s `tracking` output over `wav` with `options`, as
+/// (azimuth, resolved) per filled slot, and the head yaw it read, deg.
+fn streamed_tracks(wav: &Path, name: &str, options: &[&str]) -> (Vec<(f64, bool)>, f64) {
+    let out = tmp(&format!("stream-tracking-{name}.npz"));
+    let source = format!("wav:{}", wav.display());
+    let mut args = vec!["stream", "--source", &source, "-r", "tracking", "-o"];
+    args.push(out.to_str().expect("path"));
+    args.extend_from_slice(options);
+    let run = afe(&args);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let arrays = crate::common::npz_arrays(&out);
+    let (_, shape, data) = arrays
+        .iter()
+        .find(|(k, _, _)| k.starts_with("tracking"))
+        .unwrap_or_else(|| {
+            panic!(
+                "no tracking output in {:?}",
+                arrays.iter().map(|a| &a.0).collect::<Vec<_>>()
+            )
+        });
+    let width = shape[1];
+    let last = &data[data.len() - width..];
+    // four slots of (id, azimuth, uncertainty, mass, velocity, resolved), then the yaw
+    let tracks = last[..24]
+        .chunks_exact(6)
+        .filter(|s| !s[0].is_nan())
+        .map(|s| (s[1], s[5] == 1.0))
+        .collect();
+    (tracks, last[24])
+}
+
+#[test]
+fn afe_stream_tracks_in_the_world_by_the_head_yaw_it_is_given() {
+    // the `tracking` request live: a talker at 150 deg on the sphere, the head turning
+    // 30 deg and back; given the yaw track, the stream's tracker resolves the source in
+    // the world, and without it the head stays still and nothing is resolved
+    let turn = TurnAndBack::new("stream");
+    let (x, fs, yaw) = (&turn.x, turn.fs, |t: f64| turn.yaw(t));
+    let head = Head::parse("sphere").expect("sphere");
+    let ears = turning_render(&head, 150.0, yaw, x, fs);
+    let wav = tmp("stream-tracking.wav");
+    write_binaural(&wav, &ears, fs);
+    let track = turn.track.to_str().expect("path");
+    let (given, yaw_read) = streamed_tracks(&wav, "turning", &["--head-yaw", track]);
+    assert!(yaw_read.abs() < 1.0, "back at 0 at the end: {yaw_read}");
+    let first = given.first().expect("a track");
+    assert!(
+        gap(first.0, 150.0).abs() <= 5.0 && first.1,
+        "the likeliest track resolved at 150 deg: {given:?}"
+    );
+    let (still, yaw_read) = streamed_tracks(&wav, "still", &[]);
+    assert_eq!(yaw_read, 0.0);
+    assert!(
+        still.iter().all(|t| !t.1),
+        "resolved with no turn: {still:?}"
+    );
+    // a yaw track going back in time is refused before the stream starts
+    let back = tmp("stream-tracking-back.csv");
+    std::fs::write(&back, "t_s,yaw_deg\n0,0\n1,10\n0.5,20\n").expect("csv");
+    let source = format!("wav:{}", wav.display());
+    assert_clear_error(
+        &afe(&[
+            "stream",
+            "--source",
+            &source,
+            "-r",
+            "tracking",
+            "--head-yaw",
+            back.to_str().expect("path"),
+        ]),
+        "point 3 at t_s = 0.5 does not follow t_s = 1",
+        &tmp("stream-tracking-none.npz"),
+    );
+}

@@ -11,7 +11,7 @@
 use std::fmt;
 use std::marker::PhantomData;
 
-use crate::{ParamMap, ParamSpec, Params, Processor, Result, SignalInfo};
+use crate::{HeadPose, ParamMap, ParamSpec, Params, Processor, Result, SignalInfo};
 
 /// How a processor relates to the ears (the AFE's binaural flag).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -23,6 +23,18 @@ pub enum Ears {
     /// One instance combining the left and right parents, or the single binaural parent
     /// (flag 1).
     Binaural,
+}
+
+/// What the graph gives a processor it builds beside its inputs' descriptions: the
+/// world the processor hears in.
+#[derive(Debug, Clone, Default)]
+pub struct BuildContext {
+    /// The head's yaw over time, as its manager is told it.
+    pub head_pose: HeadPose,
+    /// When the node's first frame starts, s since the processors started (the stream's
+    /// start or the last reset; later than 0 for a node placed mid-stream). A reset
+    /// starts every node at 0.
+    pub started_s: f64,
 }
 
 /// A processor made for a graph node: the processor, its outputs and its parameters.
@@ -104,8 +116,8 @@ pub trait Configured: fmt::Debug + Send + Sync {
     fn canonical(&self) -> &ParamMap;
 
     /// Builds the processor for parent outputs `inputs` (the dependency's, then those of
-    /// the extra inputs; one per ear for preProc).
-    fn build(&self, inputs: &[SignalInfo]) -> Result<Built>;
+    /// the extra inputs; one per ear for preProc), in the graph's `context`.
+    fn build(&self, inputs: &[SignalInfo], context: &BuildContext) -> Result<Built>;
 
     /// Whether any chunking gives the output of one call (false where the AFE itself
     /// depends on chunk boundaries).
@@ -157,6 +169,16 @@ pub trait Descriptor: 'static {
     /// Builds the processor for the parents' outputs `inputs` (the dependency's, then
     /// those of the extra inputs).
     fn build(params: &Self::Params, inputs: &[SignalInfo]) -> Result<Built>;
+
+    /// Builds it in the graph's `context`, for a processor that needs more than its
+    /// inputs (the head's pose); the others are built by [`Descriptor::build`].
+    fn build_in(
+        params: &Self::Params,
+        inputs: &[SignalInfo],
+        _context: &BuildContext,
+    ) -> Result<Built> {
+        Self::build(params, inputs)
+    }
 
     /// The parameters that decide what the processor computes; two nodes with equal maps
     /// (and equal parents) are shared.
@@ -232,8 +254,8 @@ impl<D: Descriptor> Configured for Typed<D> {
         &self.canonical
     }
 
-    fn build(&self, inputs: &[SignalInfo]) -> Result<Built> {
-        D::build(&self.params, inputs)
+    fn build(&self, inputs: &[SignalInfo], context: &BuildContext) -> Result<Built> {
+        D::build_in(&self.params, inputs, context)
     }
 
     fn chunk_invariant(&self) -> bool {

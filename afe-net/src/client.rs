@@ -102,6 +102,22 @@ impl Client {
         &self.session
     }
 
+    /// Reports the robot head's yaw `yaw_deg` (deg, positive to the left) at `t_s` (s of
+    /// the server's stream) on `afe/<name>/head/yaw`, as a motor controller does; the
+    /// server refuses (and counts) a time that does not increase or a yaw beyond its neck.
+    pub fn set_head_yaw(&self, t_s: f64, yaw_deg: f64) -> Result<(), RemoteError> {
+        if !(t_s.is_finite() && yaw_deg.is_finite()) {
+            return Err(RemoteError::Options(format!(
+                "head yaw: the point ({t_s}, {yaw_deg}) is not finite"
+            )));
+        }
+        let point = serde_json::json!({ "t_s": t_s, "yaw_deg": yaw_deg }).to_string();
+        self.session
+            .put(key(&self.name, "head/yaw"), point)
+            .wait()?;
+        Ok(())
+    }
+
     /// Whether the server has gone.
     pub fn server_gone(&self) -> bool {
         self.gone.load(Ordering::Relaxed)

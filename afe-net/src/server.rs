@@ -19,6 +19,7 @@ use zenoh::query::Queryable;
 use zenoh::sample::SampleKind;
 use zenoh::{Session, Wait};
 
+mod head_yaw;
 mod publish;
 mod queries;
 #[cfg(feature = "ros2")]
@@ -61,6 +62,13 @@ pub struct ServeOptions {
     /// The robot's platform descriptor (its JSON form), published in the catalogue so
     /// that a client asks the robot what it is.
     pub platform: Option<Value>,
+    /// The stream's head pose, fed from `afe/<name>/head/yaw` as the robot's motor
+    /// controller publishes it (`{"t_s", "yaw_deg"}` samples; the same feed as the
+    /// stream job's).
+    pub head_pose: afe::HeadPose,
+    /// The yaws accepted on that key (lowest, highest, deg; a platform's neck): others are
+    /// refused.
+    pub head_yaw_range_deg: Option<(f64, f64)>,
     /// Zenoh endpoints to connect to as well, e.g. a ROS 2 robot's router
     /// (`tcp/localhost:7447`, rmw_zenohd's).
     pub connect: Vec<String>,
@@ -79,6 +87,8 @@ impl Default for ServeOptions {
             max_subscriptions: MAX_SUBSCRIPTIONS,
             max_load: MAX_LOAD,
             platform: None,
+            head_pose: afe::HeadPose::new(),
+            head_yaw_range_deg: None,
             connect: Vec::new(),
             #[cfg(feature = "ros2")]
             ros2: None,
@@ -132,6 +142,8 @@ pub struct Server {
     authenticated: bool,
     _queryables: Vec<Queryable<()>>,
     _clients: Subscriber<()>,
+    _head_yaw: Subscriber<()>,
+    head_yaw_counts: Arc<head_yaw::YawCounts>,
     _token: LivelinessToken,
     /// The thread answering queries, joined when the server goes; `stop` ends it.
     queries: Option<JoinHandle<()>>,
@@ -233,6 +245,12 @@ impl Server {
                     .wait()?,
             );
         }
+        let (head_yaw, head_yaw_counts) = head_yaw::subscribe(
+            &session,
+            key(&name, "head/yaw"),
+            options.head_pose.clone(),
+            options.head_yaw_range_deg,
+        )?;
         let token = session
             .liveliness()
             .declare_token(key(&name, "server"))
@@ -288,12 +306,23 @@ impl Server {
                 authenticated,
                 _queryables: queryables,
                 _clients: clients,
+                _head_yaw: head_yaw,
+                head_yaw_counts,
                 _token: token,
                 queries: Some(query_thread),
                 stop,
             },
             tap,
         ))
+    }
+
+    /// Head yaws taken from `afe/<name>/head/yaw` and refused, so far.
+    pub fn head_yaws(&self) -> (u64, u64) {
+        let c = &self.head_yaw_counts;
+        (
+            c.taken.load(Ordering::Relaxed),
+            c.refused.load(Ordering::Relaxed),
+        )
     }
 
     /// The server's name.

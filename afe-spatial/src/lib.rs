@@ -32,10 +32,7 @@ pub fn wrap_deg(azimuth_deg: f64) -> f64 {
     }
 }
 
-/// The shorter turn from `from_deg` to `to_deg`, deg in [−180, 180).
-pub(crate) fn turn_deg(from_deg: f64, to_deg: f64) -> f64 {
-    (to_deg - from_deg + 540.0).rem_euclid(360.0) - 180.0
-}
+pub(crate) use afe_core::head_pose::turn_deg;
 
 /// What went wrong with a head or a localisation.
 #[derive(Debug, Error)]

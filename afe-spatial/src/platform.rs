@@ -274,6 +274,17 @@ impl Platform {
         self.joints.iter().find(|j| j.kind == JointKind::Yaw)
     }
 
+    /// The yaws a report may give (deg, lowest and highest): the neck's limits widened by
+    /// [`YAW_LIMIT_SLACK_DEG`]; only 0 without a yaw joint.
+    pub fn yaw_range_deg(&self) -> (f64, f64) {
+        self.neck_yaw().map_or((0.0, 0.0), |neck| {
+            (
+                neck.min_deg - YAW_LIMIT_SLACK_DEG,
+                neck.max_deg + YAW_LIMIT_SLACK_DEG,
+            )
+        })
+    }
+
     /// Checks a yaw track against the neck's limits (within [`YAW_LIMIT_SLACK_DEG`]); a
     /// robot without a yaw joint cannot turn its head at all.
     pub fn check_yaw(&self, track: &HeadYaw) -> Result<(), SpatialError> {
@@ -283,11 +294,12 @@ impl Platform {
                 self.robot
             )));
         };
-        let (lo, hi) = (
-            neck.min_deg - YAW_LIMIT_SLACK_DEG,
-            neck.max_deg + YAW_LIMIT_SLACK_DEG,
-        );
-        match track.points().find(|&(_, yaw)| !(lo..=hi).contains(&yaw)) {
+        let (lo, hi) = self.yaw_range_deg();
+        match track
+            .points()
+            .iter()
+            .find(|&&(_, yaw)| !(lo..=hi).contains(&yaw))
+        {
             Some((t, yaw)) => Err(SpatialError::Platform(format!(
                 "the head yaw {yaw} deg at t_s = {t} is beyond '{}''s joint '{}' \
                  ({} to {} deg)",

@@ -7,8 +7,7 @@ use crate::SpatialError;
 /// A head's yaw track: times strictly increasing, s; yaw, deg (positive to the left).
 #[derive(Debug, Clone, PartialEq)]
 pub struct HeadYaw {
-    t_s: Vec<f64>,
-    yaw_deg: Vec<f64>,
+    points: Vec<(f64, f64)>,
 }
 
 impl HeadYaw {
@@ -32,8 +31,7 @@ impl HeadYaw {
             }
         }
         Ok(HeadYaw {
-            t_s: points.iter().map(|p| p.0).collect(),
-            yaw_deg: points.iter().map(|p| p.1).collect(),
+            points: points.to_vec(),
         })
     }
 
@@ -63,24 +61,15 @@ impl HeadYaw {
     }
 
     /// The track's points, `(t_s, yaw_deg)`, as given.
-    pub fn points(&self) -> impl Iterator<Item = (f64, f64)> + '_ {
-        self.t_s.iter().copied().zip(self.yaw_deg.iter().copied())
+    pub fn points(&self) -> &[(f64, f64)] {
+        &self.points
     }
 
     /// The yaw at `t_s`, deg in [0, 360): held before the first point and after the last,
-    /// and between two points along the shorter way from one to the other.
+    /// and between two points along the shorter way from one to the other (as the live
+    /// [`afe_core::HeadPose`] reads its points).
     pub fn at(&self, t_s: f64) -> f64 {
-        let next = self.t_s.partition_point(|&t| t <= t_s);
-        let yaw = if next == 0 {
-            self.yaw_deg[0]
-        } else if next == self.t_s.len() {
-            self.yaw_deg[next - 1]
-        } else {
-            let (t0, t1) = (self.t_s[next - 1], self.t_s[next]);
-            let (a, b) = (self.yaw_deg[next - 1], self.yaw_deg[next]);
-            a + crate::turn_deg(a, b) * (t_s - t0) / (t1 - t0)
-        };
-        yaw.rem_euclid(360.0)
+        afe_core::head_pose::yaw_at(&self.points, t_s)
     }
 }
 

@@ -42,7 +42,7 @@ pub mod wav;
 pub use afe_bass_source as bass_source;
 /// Stopping long work on request (SIGINT, Ctrl-C): see [`afe_core::interrupt`].
 pub use afe_core::interrupt;
-pub use afe_core::{Block, Error, ParamMap, Result, SignalInfo, SignalKind};
+pub use afe_core::{Block, Error, HeadPose, ParamMap, Result, SignalInfo, SignalKind};
 pub use afe_graph::{Channel, Manager, RequestHandle, Signal};
 pub use afe_processors::{find_request, requests, Registry, RequestDef};
 pub use recorder::{Recorded, Recorder};

@@ -132,6 +132,10 @@ pub struct StreamJob {
     /// The requests the stream's manager can place (the built-in ones by default; a
     /// program adds its own processors to it).
     pub registry: crate::Registry,
+    /// The head's yaw over time its processors read (`tracking`): a feed whose clones
+    /// the caller fills, from a CSV track or as a motor controller reports (times in s
+    /// of the stream).
+    pub head_pose: crate::HeadPose,
 }
 
 impl Default for StreamJob {
@@ -150,6 +154,7 @@ impl Default for StreamJob {
             rt: false,
             expect: None,
             registry: crate::Registry::default(),
+            head_pose: crate::HeadPose::new(),
         }
     }
 }
@@ -529,6 +534,7 @@ pub fn run<Src: Source>(
     let realtime = job.rt.then(crate::realtime::enable);
     let mut mgr = Manager::with_threads(fs, format.channels, job.threads)?;
     mgr.set_registry(job.registry.clone())?;
+    mgr.set_head_pose(job.head_pose.clone())?;
     mgr.set_keep_all(job.all);
     for r in &job.requests {
         mgr.add_request(r, &job.params)?;

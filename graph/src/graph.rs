@@ -3,7 +3,7 @@
 use std::sync::Arc;
 
 use afe_core::denormals::FlushDenormals;
-use afe_core::{Block, Configured, ParamMap, Processor, SignalInfo};
+use afe_core::{Block, BuildContext, Configured, ParamMap, Processor, SignalInfo};
 use afe_processors::RequestDef;
 
 /// Which ear a node output belongs to, named as in the AFE's output signals.
@@ -84,6 +84,8 @@ pub(crate) struct Node {
 /// Node 0 holds the input signals.
 pub(crate) struct Graph {
     pub nodes: Vec<Node>,
+    /// What nodes are built in (the head's pose, when a node starts).
+    pub context: BuildContext,
 }
 
 impl Graph {
@@ -110,7 +112,10 @@ impl Graph {
             channels,
             input_gain: 1.0,
         };
-        Graph { nodes: vec![input] }
+        Graph {
+            nodes: vec![input],
+            context: BuildContext::default(),
+        }
     }
 
     /// The node that raises the input's amplitude most, and by how much (the input

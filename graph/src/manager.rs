@@ -80,6 +80,9 @@ pub struct Manager {
     keep_all: bool,
     /// Samples per ear submitted since construction (never reset): the stream clock.
     stream_pos: u64,
+    /// The stream clock at the last reset (or whole-signal run): where the processors'
+    /// time, and the head pose's, starts.
+    reset_pos: u64,
     /// Where each node's outputs stand in the stream, per node and output.
     clocks: Vec<Vec<FrameClock>>,
     /// The stop request its whole-signal calls watch.
@@ -156,10 +159,39 @@ impl Manager {
             whole_shown: false,
             keep_all: false,
             stream_pos: 0,
+            reset_pos: 0,
             clocks: Vec::new(),
             cancel: CancelToken::new(),
             registry: Registry::default(),
         })
+    }
+
+    /// The head's yaw over time as this manager's processors read it (the `tracking`
+    /// request turns the localisation's head-relative azimuths into the world's by it):
+    /// a shared feed, so a clone given to a motor controller's thread feeds it live.
+    /// Times are s since the processors started: the stream's first sample, or the last
+    /// reset (a whole-signal run starts at 0).
+    pub fn head_pose(&self) -> &afe_core::HeadPose {
+        &self.graph.context.head_pose
+    }
+
+    /// Reads the head's yaw from `pose`, a feed shared with whoever reports it, instead of
+    /// its own; refused once a request is placed (its nodes read the feed they were built
+    /// with).
+    pub fn set_head_pose(&mut self, pose: afe_core::HeadPose) -> Result<()> {
+        if self.requests.iter().any(Option::is_some) {
+            return Err(Error::InvalidInput(
+                "the head pose is set before the first request is placed".into(),
+            ));
+        }
+        self.graph.context.head_pose = pose;
+        Ok(())
+    }
+
+    /// Reports the head's yaw `yaw_deg` (deg, positive to the left) at `t_s` (s since the
+    /// processors started, after the last point's time).
+    pub fn set_head_yaw(&self, t_s: f64, yaw_deg: f64) -> Result<()> {
+        self.head_pose().push(t_s, yaw_deg)
     }
 
     /// The requests this manager can place: the built-in ones unless
@@ -342,6 +374,7 @@ impl Manager {
         self.edit(|m| {
             m.graph.reset();
             m.position = 0;
+            m.reset_pos = m.stream_pos;
             for n in 0..m.clocks.len() {
                 m.restart_clocks(n);
             }

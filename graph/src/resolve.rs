@@ -176,7 +176,7 @@ impl Graph {
             .iter()
             .map(|p| self.nodes[p.node].infos[p.output].clone())
             .collect();
-        let built = config.build(&inputs)?;
+        let built = config.build(&inputs, &self.context)?;
         let channels = match def.ears {
             Ears::All => parents
                 .iter()
@@ -314,7 +314,7 @@ impl Graph {
                 .iter()
                 .map(|p| infos[p.node][p.output].clone())
                 .collect();
-            let b = config.build(&inputs)?;
+            let b = config.build(&inputs, &self.context)?;
             infos[i] = b.outputs.clone();
             built.push((i, b, request, config));
         }

@@ -92,7 +92,7 @@ mod tests {
             let grid = p.grid().expect("grid");
             assert!(grid.cf_hz[15] >= 22050.0, "{:?}", grid.cf_hz[15]);
             let built = (REQUEST.configure)(&p.to_map())
-                .and_then(|c| c.build(&[SignalInfo::time_domain(44100.0)]))
+                .and_then(|c| c.build(&[SignalInfo::time_domain(44100.0)], &Default::default()))
                 .expect("accepted, as in the AFE");
             let mut proc_ = built.processor;
             let x = Block::from_vec(
@@ -109,7 +109,7 @@ mod tests {
                 ..p
             };
             let e = (REQUEST.configure)(&beyond.to_map())
-                .and_then(|c| c.build(&[SignalInfo::time_domain(44100.0)]));
+                .and_then(|c| c.build(&[SignalInfo::time_domain(44100.0)], &Default::default()));
             assert!(e.is_err(), "{ty:?}");
         }
     }

@@ -356,6 +356,15 @@ class Manager:
         happens."""
         self._m.cancel()
 
+    def set_head_yaw(self, t_s: float, yaw_deg: float) -> None:
+        """Reports the head's yaw ``yaw_deg`` (deg, positive to the left) at ``t_s`` (s
+        since the processors started: the first chunk, or the last ``reset``; a
+        ``process_signal`` starts at 0). The ``tracking`` request reads it at each
+        frame's centre, between the reports along the shorter way round, the newest one
+        held until the next; times must increase (``ValueError`` otherwise). Callable
+        from any thread, also while a chunk or a whole signal runs."""
+        self._m.set_head_yaw(float(t_s), float(yaw_deg))
+
     def prepare(self, max_chunk: int) -> None:
         """Sizes every buffer for chunks of up to ``max_chunk`` samples before the first
         chunk, so that processing allocates nothing from the first chunk on (for live

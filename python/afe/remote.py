@@ -21,6 +21,7 @@ here too).
 from __future__ import annotations
 
 import json
+import math
 import re
 import threading
 import time
@@ -237,6 +238,18 @@ class Remote:
         the server was given none."""
         p = self.catalogue.get("platform")
         return dict(p) if isinstance(p, dict) else None
+
+    def set_head_yaw(self, t_s: float, yaw_deg: float) -> None:
+        """Reports the robot head's yaw ``yaw_deg`` (deg, positive to the left) at ``t_s``
+        (s of the server's stream) on ``afe/<name>/head/yaw``, as a motor controller
+        would: the server's ``tracking`` turns its azimuths into the world's by it. The
+        server refuses (and counts) a time that does not increase or a yaw beyond its
+        platform's neck; nothing is answered."""
+        self._check_open()
+        t, yaw = float(t_s), float(yaw_deg)
+        if not (math.isfinite(t) and math.isfinite(yaw)):
+            raise ValueError(f"head yaw: the point ({t}, {yaw}) is not finite")
+        self._session.put(self._key("head/yaw"), json.dumps({"t_s": t, "yaw_deg": yaw}))
 
     def _server_gone(self) -> bool:
         """Whether the server's liveliness token was withdrawn (reads the watch)."""

@@ -235,6 +235,9 @@ impl State {
 struct PyManager {
     state: Mutex<State>,
     cancel: afe::interrupt::CancelToken,
+    /// The head's yaw feed its processors read: fed without the state's lock, so that a
+    /// motor controller's thread reports while a whole signal runs.
+    head_pose: afe::HeadPose,
 }
 
 impl PyManager {
@@ -307,6 +310,7 @@ impl PyManager {
         let manager = Manager::with_threads(fs, channels, threads).map_err(to_py)?;
         Ok(PyManager {
             cancel: manager.cancel_token().clone(),
+            head_pose: manager.head_pose().clone(),
             state: Mutex::new(State {
                 manager,
                 history,
@@ -320,6 +324,12 @@ impl PyManager {
     /// KeyboardInterrupt; other managers run on. Without such a call, nothing happens.
     fn cancel(&self) {
         self.cancel.cancel();
+    }
+
+    /// Reports the head's yaw `yaw_deg` (deg, positive to the left) at `t_s` (s since the
+    /// processors started), from any thread.
+    fn set_head_yaw(&self, t_s: f64, yaw_deg: f64) -> PyResult<()> {
+        self.head_pose.push(t_s, yaw_deg).map_err(to_py)
     }
 
     #[getter]

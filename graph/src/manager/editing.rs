@@ -14,6 +14,7 @@ impl Manager {
         }
         self.pending = 0;
         self.whole_shown = false;
+        self.graph.context.started_s = (self.stream_pos - self.reset_pos) as f64 / self.fs;
         let r = f(self);
         if let Some(e) = self.engine.as_mut() {
             e.install(&mut self.graph);
