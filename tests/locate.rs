@@ -590,10 +590,16 @@ fn a_platform_descriptor_gives_the_head_and_is_checked_against_the_file() {
 
 /// The last frame of `afe stream`'s `tracking` output over `wav` with `options`, as
 /// (azimuth, resolved) per filled slot, and the head yaw it read, deg.
-fn streamed_tracks(wav: &Path, name: &str, options: &[&str]) -> (Vec<(f64, bool)>, f64) {
+fn streamed_tracks(source: &str, name: &str, options: &[&str]) -> (Vec<(f64, bool)>, f64) {
+    let (tracks, yaws) = streamed_tracking(source, name, options);
+    (tracks, *yaws.last().expect("frames"))
+}
+
+/// The tracks of the last frame of `afe stream -r tracking` on `source` (azimuth,
+/// resolved), and the head's yaw in each frame.
+fn streamed_tracking(source: &str, name: &str, options: &[&str]) -> (Vec<(f64, bool)>, Vec<f64>) {
     let out = tmp(&format!("stream-tracking-{name}.npz"));
-    let source = format!("wav:{}", wav.display());
-    let mut args = vec!["stream", "--source", &source, "-r", "tracking", "-o"];
+    let mut args = vec!["stream", "--source", source, "-r", "tracking", "-o"];
     args.push(out.to_str().expect("path"));
     args.extend_from_slice(options);
     let run = afe(&args);
@@ -620,7 +626,7 @@ fn streamed_tracks(wav: &Path, name: &str, options: &[&str]) -> (Vec<(f64, bool)
         .filter(|s| !s[0].is_nan())
         .map(|s| (s[1], s[5] == 1.0))
         .collect();
-    (tracks, last[24])
+    (tracks, data.chunks_exact(width).map(|f| f[24]).collect())
 }
 
 #[test]
@@ -635,14 +641,15 @@ fn afe_stream_tracks_in_the_world_by_the_head_yaw_it_is_given() {
     let wav = tmp("stream-tracking.wav");
     write_binaural(&wav, &ears, fs);
     let track = turn.track.to_str().expect("path");
-    let (given, yaw_read) = streamed_tracks(&wav, "turning", &["--head-yaw", track]);
+    let source = format!("wav:{}", wav.display());
+    let (given, yaw_read) = streamed_tracks(&source, "turning", &["--head-yaw", track]);
     assert!(yaw_read.abs() < 1.0, "back at 0 at the end: {yaw_read}");
     let first = given.first().expect("a track");
     assert!(
         gap(first.0, 150.0).abs() <= 5.0 && first.1,
         "the likeliest track resolved at 150 deg: {given:?}"
     );
-    let (still, yaw_read) = streamed_tracks(&wav, "still", &[]);
+    let (still, yaw_read) = streamed_tracks(&source, "still", &[]);
     assert_eq!(yaw_read, 0.0);
     assert!(
         still.iter().all(|t| !t.1),
@@ -651,7 +658,6 @@ fn afe_stream_tracks_in_the_world_by_the_head_yaw_it_is_given() {
     // a yaw track going back in time is refused before the stream starts
     let back = tmp("stream-tracking-back.csv");
     std::fs::write(&back, "t_s,yaw_deg\n0,0\n1,10\n0.5,20\n").expect("csv");
-    let source = format!("wav:{}", wav.display());
     assert_clear_error(
         &afe(&[
             "stream",
@@ -664,5 +670,53 @@ fn afe_stream_tracks_in_the_world_by_the_head_yaw_it_is_given() {
         ]),
         "point 3 at t_s = 0.5 does not follow t_s = 1",
         &tmp("stream-tracking-none.npz"),
+    );
+}
+
+#[test]
+fn a_synthetic_head_turns_reports_its_yaw_and_tells_front_from_back() {
+    // synth:...,az=150,turn=30: noise behind the head, which turns to 30 deg and back
+    // every 2 s and reports its yaw; the stream's tracker sees it turn and resolves the
+    // source in the world, where the same synth with a still head resolves nothing
+    let fast = ["--for", "4", "--fast"];
+    let turning = "synth:fs=16000,noise=0.1,az=150,turn=30";
+    let (tracks, yaws) = streamed_tracking(turning, "synth-turning", &fast);
+    let top = yaws.iter().copied().fold(0.0, f64::max);
+    assert!((top - 30.0).abs() < 0.5, "the head turned to 30 deg: {top}");
+    assert!(
+        yaws.last().expect("frames").abs() < 1.0,
+        "and back: {yaws:?}"
+    );
+    let first = tracks.first().expect("a track");
+    assert!(
+        gap(first.0, 150.0).abs() <= 5.0 && first.1,
+        "the likeliest track resolved at 150 deg: {tracks:?}"
+    );
+    let (still, yaws) = streamed_tracking("synth:fs=16000,noise=0.1,az=150", "synth-still", &fast);
+    assert!(
+        yaws.iter().all(|y| *y == 0.0),
+        "a still head reports no yaw"
+    );
+    assert!(
+        still.iter().all(|t| !t.1),
+        "resolved with no turn: {still:?}"
+    );
+    // the synthetic head reports its own yaw: a track besides it is refused
+    let csv = tmp("stream-synth-turning.csv");
+    std::fs::write(&csv, "t_s,yaw_deg\n0,0\n1,10\n").expect("csv");
+    assert_clear_error(
+        &afe(&[
+            "stream",
+            "--source",
+            turning,
+            "--for",
+            "1",
+            "-r",
+            "tracking",
+            "--head-yaw",
+            csv.to_str().expect("path"),
+        ]),
+        "the synthetic head reports its own yaw",
+        &tmp("stream-tracking-synth-none.npz"),
     );
 }

@@ -43,6 +43,6 @@ pub use expected_source::ExpectedSource;
 pub use head_pose::HeadPose;
 pub use interrupt::CancelToken;
 pub use params::{NoParams, ParamKind, ParamMap, ParamSpec, Params};
-pub use plan::{Panel, Plan, PlanAxis, Scale};
+pub use plan::{FromAbove, Panel, Plan, PlanAxis, Scale};
 pub use processor::{Part, Processor};
 pub use signal_info::{DrawAs, SignalInfo, SignalKind};

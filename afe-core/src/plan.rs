@@ -30,6 +30,32 @@ pub struct Plan {
     pub peaks: bool,
     /// Whether each value is complex: drawn by its magnitude.
     pub complex: bool,
+    /// For [`Panel::FromAbove`]: where a frame holds the sources and the head.
+    pub from_above: Option<FromAbove>,
+}
+
+/// Where a frame of sources tracked about a head holds what a view from above draws:
+/// `slots` groups of `slot_width` values from the frame's start, each with a source's
+/// values at the offsets given (NaN in an empty slot), then the head's values at their
+/// indices in the frame. Azimuths in deg, 0 ahead, 90 to the left, in the world.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct FromAbove {
+    /// Source slots per frame.
+    pub slots: usize,
+    /// Values per slot.
+    pub slot_width: usize,
+    /// A source's identity, within its slot.
+    pub id: usize,
+    /// Its azimuth, deg, within its slot.
+    pub azimuth: usize,
+    /// Its uncertainty (a spread), deg, within its slot.
+    pub uncertainty: usize,
+    /// 1 where front was told from back, within its slot.
+    pub resolved: usize,
+    /// The head's yaw, deg, in the frame.
+    pub head_yaw: usize,
+    /// The yaw a suggested turn ends at (NaN when none), deg, in the frame.
+    pub suggested_yaw: usize,
 }
 
 /// What a panel shows.
@@ -45,6 +71,9 @@ pub enum Panel {
     OverTime,
     /// One frame (by default the middle one; live, the latest) as an image.
     Frame,
+    /// Sources about a head seen from above (live, the latest frame), as the plan's
+    /// [`FromAbove`] places them; over a whole signal, their azimuths over time.
+    FromAbove,
 }
 
 /// The scale values are drawn on.
@@ -145,7 +174,16 @@ impl Plan {
             values: info.unit.to_string(),
             peaks: audio_rate,
             complex: info.is_complex(),
+            from_above: None,
         };
+        if let Some(scene) = info.from_above {
+            return Plan {
+                panel: Panel::FromAbove,
+                values: titled("azimuth", "deg"),
+                from_above: Some(scene),
+                ..plain
+            };
+        }
         match info.axes.as_slice() {
             _ if info.display == DrawAs::Trajectory => Plan {
                 panel: Panel::Line,
@@ -323,5 +361,32 @@ mod tests {
             (v["panel"].as_str(), v["scale"]["scale"].as_str()),
             (Some("over-time"), Some("amplitude-decibels"))
         );
+    }
+
+    #[test]
+    fn sources_about_a_head_are_drawn_from_above_as_their_description_places_them() {
+        let scene = FromAbove {
+            slots: 2,
+            slot_width: 3,
+            id: 0,
+            azimuth: 1,
+            uncertainty: 2,
+            resolved: 2,
+            head_yaw: 6,
+            suggested_yaw: 7,
+        };
+        let names = (0..8).map(|k| format!("v{k}")).collect();
+        let plan = SignalInfo::feature(50.0, 16000.0, names)
+            .drawn_from_above(scene)
+            .plan();
+        assert_eq!(
+            (plan.panel, plan.from_above, plan.values.as_str()),
+            (Panel::FromAbove, Some(scene), "azimuth (deg)")
+        );
+        let v = serde_json::to_value(&plan).expect("serialisable");
+        assert_eq!(v["panel"], "from-above");
+        assert_eq!(v["from_above"]["head_yaw"], 6);
+        let plain = serde_json::to_value(tf().plan()).expect("serialisable");
+        assert!(plain["from_above"].is_null());
     }
 }

@@ -145,6 +145,9 @@ pub struct SignalInfo {
     /// Where the values are NaN from finite input, as the AFE's are (docs/conformance.md),
     /// in a sentence a reader of the metadata sees; `None` where they never are.
     pub nan_where: Option<&'static str>,
+    /// For sources tracked about a head: where a frame holds them, drawn from above
+    /// ([`crate::plan::Panel::FromAbove`]); `None` otherwise.
+    pub from_above: Option<crate::plan::FromAbove>,
 }
 
 impl SignalInfo {
@@ -238,6 +241,14 @@ impl SignalInfo {
     /// The same signal, drawn as `display`.
     pub fn drawn_as(self, display: DrawAs) -> Self {
         SignalInfo { display, ..self }
+    }
+
+    /// The same signal drawn from above as sources about a head, laid out as `scene`.
+    pub fn drawn_from_above(self, scene: crate::plan::FromAbove) -> Self {
+        SignalInfo {
+            from_above: Some(scene),
+            ..self
+        }
     }
 
     /// Seconds between frames of a framed signal (`1 / fs_hz`), `None` for sample-rate

@@ -259,6 +259,10 @@ pub(crate) fn panel(s: &Recorded, layout: &Layout) -> Result<Panel, PlotError> {
         }
         (Shows::Waveforms | Shows::OverTime, _) => image_over_time(s, &plan),
         (Shows::Line, _) => trajectory(s, &plan),
+        (Shows::FromAbove, _) => match plan.from_above {
+            Some(scene) => azimuths_over_time(s, scene),
+            None => image_over_time(s, &plan),
+        },
         (Shows::Frame, _) => {
             let (k, when) = frame_at(s, layout.at_s)?;
             return Ok(Panel {
@@ -408,6 +412,27 @@ fn trajectory(s: &Recorded, plan: &Plan) -> Content {
         } else {
             plan.values.clone()
         },
+    }
+}
+
+/// Every tracked source's azimuth over time as dots: each a run of its own between NaN
+/// gaps, which the line drawing marks with a dot.
+fn azimuths_over_time(s: &Recorded, scene: afe_core::FromAbove) -> Content {
+    let (mut x, mut y) = (Vec::new(), Vec::new());
+    let width = s.data.width().max(1);
+    for (t, row) in times(s).zip(s.data.as_slice().chunks_exact(width)) {
+        for slot in row.chunks_exact(scene.slot_width).take(scene.slots) {
+            if slot[scene.azimuth].is_finite() {
+                x.extend([t, t]);
+                y.extend([slot[scene.azimuth], f64::NAN]);
+            }
+        }
+    }
+    Content::Line {
+        x,
+        y,
+        stroke: 2,
+        y_label: "azimuth (deg)".into(),
     }
 }
 

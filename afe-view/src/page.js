@@ -3,6 +3,7 @@
 // batches of frames (see afe-view/src/lib.rs for the protocol).
 const $ = (id) => document.getElementById(id);
 const COLUMNS = 600;                 // frames (or blocks) across a scrolling canvas
+const ABOVE = 240;                   // pixels across a view from above
 const state = { hello: null, layout: null, panels: new Map(), stats: { frames: 0, lost: 0, batches: 0, lagged: 0 } };
 window.afeStats = state.stats;
 
@@ -48,6 +49,7 @@ class Panel {
     const plan = d.plan;
     this.plan = plan;
     this.mode = plan.panel === "frame" ? "frame" : plan.panel === "line" ? "line"
+      : plan.panel === "from-above" ? "above"
       : plan.panel === "waveforms" && !plan.rows ? "envelope" : "scroll";
     // signed values on a diverging map; decibel scales (10·log10 of a power, 20·log10
     // of a magnitude) over their range below the running peak
@@ -68,8 +70,15 @@ class Panel {
       <div class="plot"><div class="axis"></div><canvas class="data"></canvas>
       <div class="bar"><canvas width="1" height="64"></canvas><div><span></span><span></span></div></div></div>`;
     this.canvas = this.el.querySelector("canvas.data");
-    this.canvas.width = this.mode === "frame" ? this.cols : COLUMNS;
-    this.canvas.height = this.mode === "line" ? 150 : this.rows;
+    this.canvas.width = this.mode === "frame" ? this.cols : this.mode === "above" ? ABOVE : COLUMNS;
+    this.canvas.height = this.mode === "line" ? 150 : this.mode === "above" ? ABOVE : this.rows;
+    if (this.mode === "above") {
+      // a square seen from above, no colour bar
+      this.canvas.style.flex = "none";
+      this.canvas.style.width = "150px";
+      this.canvas.style.imageRendering = "auto";
+      this.el.querySelector(".bar").style.display = "none";
+    }
     this.ctx = this.canvas.getContext("2d");
     this.ctx.fillStyle = "#000";
     this.ctx.fillRect(0, 0, this.canvas.width, this.canvas.height);
@@ -89,6 +98,10 @@ class Panel {
     const rows = this.plan.rows;
     if (this.mode === "line") {
       axis.innerHTML = `<span style="top:2%">${this.plan.values}</span>`;
+      return;
+    }
+    if (this.mode === "above") {
+      axis.innerHTML = `<span style="top:50%">from above</span>`;
       return;
     }
     if (!rows) {
@@ -180,8 +193,12 @@ class Panel {
     if (rows === 0) return;
     // frames drawn so far, on the panel's element (a test reads it from the DOM)
     this.el.dataset.drawn = (+this.el.dataset.drawn || 0) + rows;
-    this.rescale(values);
     const width = values.length / rows;
+    if (this.mode === "above") {
+      this.drawAbove(values.subarray((rows - 1) * width));
+      return;
+    }
+    this.rescale(values);
     if (this.mode === "frame") {
       // the latest frame: channels up, lags (or modulation channels, bins) across
       const last = values.subarray((rows - 1) * width);
@@ -238,6 +255,56 @@ class Panel {
     this.ctx.putImageData(img, this.canvas.width - n, 0);
   }
 }
+
+// Sources tracked about the head, seen from above (the plan's from_above says where a
+// frame holds them): the head turned by its yaw, each source on the ring at its world
+// azimuth (0 up, 90 to the left) with an arc of its uncertainty, filled once front is told
+// from back, and the suggested turn dashed; the same in words as the canvas's title.
+Panel.prototype.drawAbove = function (frame) {
+  const sc = this.plan.from_above, ctx = this.ctx;
+  const c = ABOVE / 2, ring = 0.4 * ABOVE;
+  const at = (deg, r) => {
+    const a = (deg * Math.PI) / 180;
+    return [c - r * Math.sin(a), c - r * Math.cos(a)];
+  };
+  const angle = (deg) => -(Math.PI / 2 + (deg * Math.PI) / 180);
+  ctx.fillStyle = "#000";
+  ctx.fillRect(0, 0, ABOVE, ABOVE);
+  ctx.strokeStyle = "#334";
+  ctx.lineWidth = 1;
+  ctx.beginPath(); ctx.arc(c, c, ring, 0, 2 * Math.PI); ctx.stroke();
+  const yaw = frame[sc.head_yaw], target = frame[sc.suggested_yaw];
+  ctx.fillStyle = "#556";
+  ctx.beginPath(); ctx.arc(c, c, 0.08 * ABOVE, 0, 2 * Math.PI); ctx.fill();
+  ctx.strokeStyle = "#fa4";
+  ctx.lineWidth = 3;
+  ctx.beginPath(); ctx.moveTo(c, c); ctx.lineTo(...at(yaw, 0.16 * ABOVE)); ctx.stroke();
+  const words = [`head ${fmt(yaw)}°`];
+  if (Number.isFinite(target)) {
+    ctx.strokeStyle = "#ee5";
+    ctx.lineWidth = 1;
+    ctx.setLineDash([4, 3]);
+    ctx.beginPath(); ctx.moveTo(c, c); ctx.lineTo(...at(target, 0.3 * ABOVE)); ctx.stroke();
+    ctx.setLineDash([]);
+    words.push(`turn to ${fmt(target)}°`);
+  }
+  for (let k = 0; k < sc.slots; k++) {
+    const slot = frame.subarray(k * sc.slot_width, (k + 1) * sc.slot_width);
+    const az = slot[sc.azimuth];
+    if (!Number.isFinite(az)) continue;
+    const id = slot[sc.id], spread = Math.max(2, slot[sc.uncertainty]);
+    const hue = (id * 137) % 360;
+    ctx.strokeStyle = ctx.fillStyle = `hsl(${hue},80%,60%)`;
+    ctx.lineWidth = 4;
+    ctx.beginPath(); ctx.arc(c, c, ring, angle(az + spread), angle(az - spread)); ctx.stroke();
+    ctx.lineWidth = 2;
+    ctx.beginPath(); ctx.arc(...at(az, ring), 6, 0, 2 * Math.PI);
+    if (slot[sc.resolved] === 1) ctx.fill(); else ctx.stroke();
+    words.push(`#${id} ${fmt(az)}±${fmt(slot[sc.uncertainty])}°${slot[sc.resolved] === 1 ? "" : " (or its mirror)"}`);
+  }
+  this.canvas.title = words.join(", ");
+  this.el.dataset.sources = words.length - (Number.isFinite(target) ? 2 : 1);
+};
 
 // The robot the stream comes from, from its platform descriptor: its name, its
 // microphones by role and its head model (the whole descriptor as the tooltip).

@@ -37,6 +37,7 @@ mod recorder;
 pub mod rss;
 pub mod stream;
 pub mod trial;
+mod turning;
 pub mod wav;
 
 pub use afe_bass_source as bass_source;

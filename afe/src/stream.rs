@@ -427,7 +427,24 @@ pub fn run_spec(
             WavSource::Int(replay) => run(replay, job, on_block),
             WavSource::Float(replay) => run(replay, job, on_block),
         },
-        SourceSpec::Synth(s) => run(afe_bass_source::Synth::new(s.clone()), job, on_block),
+        SourceSpec::Synth(s) => {
+            let synth = afe_bass_source::Synth::new(s.clone());
+            match s.placed.filter(|p| p.turn_deg != 0.0) {
+                Some(placed) => {
+                    if !job.head_pose.is_empty() {
+                        return Err(StreamError::Spec(format!(
+                            "synth turn={}: the synthetic head reports its own yaw; a head-yaw \
+                             track is not given with it",
+                            placed.turn_deg
+                        )));
+                    }
+                    let turning =
+                        crate::turning::Turning::new(synth, placed, job.head_pose.clone())?;
+                    run(turning, job, on_block)
+                }
+                None => run(synth, job, on_block),
+            }
+        }
         SourceSpec::Alsa(device) => alsa(device, job, on_block),
         SourceSpec::Zenoh { endpoint, name } => zenoh(endpoint, name.as_deref(), job, on_block),
     }

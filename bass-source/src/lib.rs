@@ -37,6 +37,7 @@
 mod alsa;
 mod error;
 mod feeder;
+mod placed;
 mod port;
 mod reader;
 mod replay;
@@ -50,6 +51,7 @@ mod wav_reader;
 pub use alsa::{list_devices, AlsaConfig, AlsaSource, CaptureDevice};
 pub use error::{Error, Result};
 pub use feeder::{Feeder, Pacing};
+pub use placed::Placed;
 pub use port::{Port, PortFormat, PortSnapshot, PortWriter};
 pub use reader::{get_audio_data, Fetch, Reader};
 pub use replay::Replay;

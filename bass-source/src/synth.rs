@@ -4,6 +4,7 @@
 use std::str::FromStr;
 
 use crate::error::{Error, Result};
+use crate::placed::{Ears, Placed};
 use crate::port::PortFormat;
 use crate::source::{Clock, Source};
 
@@ -24,10 +25,18 @@ pub const MAX_ILD_DB: f64 = 200.0;
 /// | `itd_ms` | interaural time difference, ms, with the sign of the AFE's `itd`: > 0 delays the left ear | 0 |
 /// | `ild_db` | level of the right ear relative to the left, dB (the AFE's `ild`) | 0 |
 /// | `silence` | (no value) zeros on both ears; no `tone` nor `noise` allowed | |
+/// | `az` | the source's azimuth in the world, deg (0 ahead, 90 to the left), heard by a rigid sphere; excludes `itd_ms` and `ild_db` | none |
+/// | `radius` | with `az`: the sphere's radius, m | 0.075 |
+/// | `turn` | with `az`: the head turns to this yaw, deg (positive to the left), and back | 0 |
+/// | `turn_s` | with `turn`: how long each turn out and back takes, s | 2 |
 ///
 /// With neither tones nor noise the signal is silence. The ITD is applied as a delay of
 /// `round(itd_ms · fs / 1000)` whole samples of the lagging ear (its first samples are
-/// zeros); the ILD as a gain of `10^(ild_db/20)` on the right ear.
+/// zeros); the ILD as a gain of `10^(ild_db/20)` on the right ear. With `az`, the ears
+/// differ by Woodworth's interaural delay for the azimuth relative to the head at each
+/// sample, a fractional delay and no level difference ([`Placed`]); with `turn` the head
+/// sweeps out and back again and again, and a stream reports its yaw to the processors
+/// (`afe stream`'s tracking sees the head turn).
 #[derive(Debug, Clone, PartialEq)]
 pub struct SynthSpec {
     /// Sampling rate in Hz.
@@ -44,6 +53,8 @@ pub struct SynthSpec {
     pub itd_ms: f64,
     /// Level of the right ear relative to the left, in dB.
     pub ild_db: f64,
+    /// Where the source is in the world, heard by a sphere that may turn (`az=`).
+    pub placed: Option<Placed>,
 }
 
 impl Default for SynthSpec {
@@ -56,6 +67,7 @@ impl Default for SynthSpec {
             seed: 1,
             itd_ms: 0.0,
             ild_db: 0.0,
+            placed: None,
         }
     }
 }
@@ -70,6 +82,8 @@ impl FromStr for SynthSpec {
         };
         let mut spec = SynthSpec::default();
         let mut silence = false;
+        let mut placed = Placed::at(0.0);
+        let mut placing = Vec::new();
         for item in text.split(',').map(str::trim).filter(|s| !s.is_empty()) {
             if item == "silence" {
                 silence = true;
@@ -109,7 +123,9 @@ impl FromStr for SynthSpec {
                         .parse::<u32>()
                         .ok()
                         .filter(|v| *v > 0)
-                        .ok_or_else(|| fail(format!("fs={value}: expected an integer rate in Hz > 0")))?;
+                        .ok_or_else(|| {
+                            fail(format!("fs={value}: expected an integer rate in Hz > 0"))
+                        })?;
                 }
                 "tone" => spec.tones_hz.push(positive(number()?)?),
                 "amp" => spec.amp = non_negative(number()?)?,
@@ -137,12 +153,48 @@ impl FromStr for SynthSpec {
                         )));
                     }
                 }
+                "az" => placed.azimuth_deg = number()?,
+                "radius" => {
+                    placed.radius_m = positive(number()?)?;
+                    if placed.radius_m > 1.0 {
+                        return Err(fail(format!(
+                            "radius={value}: a head's radius in m, at most 1"
+                        )));
+                    }
+                }
+                "turn" => {
+                    placed.turn_deg = number()?;
+                    if placed.turn_deg.abs() > 180.0 {
+                        return Err(fail(format!("turn={value}: a yaw in deg, within ±180")));
+                    }
+                }
+                "turn_s" => placed.turn_s = positive(number()?)?,
                 other => {
                     return Err(fail(format!(
-                        "unknown key '{other}' (keys: fs, tone, amp, noise, seed, itd_ms, ild_db, silence)"
+                        "unknown key '{other}' (keys: fs, tone, amp, noise, seed, itd_ms, ild_db, \
+                         silence, az, radius, turn, turn_s)"
                     )))
                 }
             }
+            if matches!(key.trim(), "az" | "radius" | "turn" | "turn_s") {
+                placing.push(key.trim());
+            }
+        }
+        if !placing.is_empty() {
+            if !placing.contains(&"az") {
+                return Err(fail(format!(
+                    "{} place a source heard by a sphere: give its azimuth too (az=DEG)",
+                    placing.join(", ")
+                )));
+            }
+            if spec.itd_ms != 0.0 || spec.ild_db != 0.0 {
+                return Err(fail(
+                    "az places the source, which gives the ears' differences: itd_ms and ild_db \
+                     are not given with it"
+                        .into(),
+                ));
+            }
+            spec.placed = Some(placed);
         }
         if silence && (!spec.tones_hz.is_empty() || spec.noise_rms > 0.0) {
             return Err(fail("'silence' excludes tone and noise".into()));
@@ -170,6 +222,8 @@ pub struct Synth {
     delay_pos: usize,
     right_lags: bool,
     right_gain: f64,
+    /// With `az`: the placed source and its ears.
+    placed: Option<(Placed, Ears)>,
 }
 
 impl Synth {
@@ -186,6 +240,9 @@ impl Synth {
             delay_pos: 0,
             right_lags: spec.itd_ms < 0.0,
             right_gain: 10f64.powf(spec.ild_db / 20.0),
+            placed: spec
+                .placed
+                .map(|p| (p, Ears::new(p.max_lag_s() * f64::from(spec.fs)))),
             spec,
         }
     }
@@ -253,6 +310,17 @@ impl Source for Synth {
         };
         left.clear();
         right.clear();
+        if let Some((placed, mut ears)) = self.placed.take() {
+            let fs = f64::from(self.spec.fs);
+            for _ in 0..max_frames {
+                let lag = placed.right_lag_s(self.t as f64 / fs) * fs;
+                let (l, r) = ears.hear(self.next_sample(), lag);
+                left.push(l);
+                right.push(r);
+            }
+            self.placed = Some((placed, ears));
+            return Ok(max_frames);
+        }
         for _ in 0..max_frames {
             let lead = self.next_sample();
             let lag = match self.delay.get_mut(self.delay_pos) {
@@ -310,6 +378,7 @@ mod tests {
                 seed: 1,
                 itd_ms: 0.4,
                 ild_db: -6.0,
+                placed: None,
             }
         );
     }
@@ -365,5 +434,63 @@ mod tests {
         assert!(err("tone").contains("not of the form key=value"));
         assert!(err("silence,tone=440").contains("excludes"));
         assert!(err("noise=-1").contains("≥ 0"));
+        assert!(err("turn=30").contains("give its azimuth too (az=DEG)"));
+        assert!(err("az=30,itd_ms=0.2").contains("not given with it"));
+        assert!(err("az=30,turn=200").contains("within ±180"));
+        assert!(err("az=30,radius=0").contains("> 0"));
+        assert!(err("az=30,turn_s=-1").contains("> 0"));
+    }
+
+    /// How much later the right ear hears a tone of `f_hz` than the left over `range`
+    /// (whole periods), s, from the tone's phase at each ear.
+    fn right_lag_s(l: &[f64], r: &[f64], f_hz: f64, fs: f64, range: std::ops::Range<usize>) -> f64 {
+        let w = std::f64::consts::TAU * f_hz / fs;
+        let phase = |x: &[f64]| {
+            let (re, im) = range.clone().fold((0.0, 0.0), |(re, im), t| {
+                (
+                    re + x[t] * (w * t as f64).cos(),
+                    im - x[t] * (w * t as f64).sin(),
+                )
+            });
+            f64::atan2(im, re)
+        };
+        let (pi, tau) = (std::f64::consts::PI, std::f64::consts::TAU);
+        ((phase(l) - phase(r) + pi).rem_euclid(tau) - pi) / (tau * f_hz)
+    }
+
+    #[test]
+    fn a_placed_source_reaches_the_far_ear_woodworths_delay_later() {
+        // at 48 kHz a source on the left of a 7.5-cm sphere: 0.562 ms, 27 samples
+        let spec: SynthSpec = "fs=48000,tone=500,az=90".parse().expect("spec");
+        let placed = spec.placed.expect("placed");
+        assert!((placed.max_lag_s() * 48000.0 - 26.98).abs() < 0.01);
+        let [l, r] = render("fs=48000,tone=500,az=90", 9600);
+        let lag = right_lag_s(&l, &r, 500.0, 48000.0, 96..9600);
+        assert!((lag - placed.max_lag_s()).abs() < 1e-7, "{lag}");
+        let [l, r] = render("fs=48000,tone=500,az=300,radius=0.0875", 9600);
+        let expected = -0.0875 / 343.0 * (60f64.to_radians() + 0.75f64.sqrt());
+        let lag = right_lag_s(&l, &r, 500.0, 48000.0, 96..9600);
+        assert!((lag - expected).abs() < 1e-7, "{lag} for {expected}");
+        let [l, r] = render("fs=48000,noise=0.1,az=0", 2000);
+        assert_eq!(l, r, "straight ahead both ears hear the same");
+    }
+
+    #[test]
+    fn a_turning_head_hears_the_source_move_the_other_way() {
+        // the source at 60 deg; the head turns to 60 at 1 s: the source is then ahead
+        let [l, r] = render("fs=16000,tone=250,az=60,turn=60,turn_s=2", 32000);
+        let lag = |from: usize| right_lag_s(&l, &r, 250.0, 16000.0, from..from + 320);
+        let start = Placed::at(60.0).right_lag_s(0.0);
+        assert!(
+            (lag(64) - start).abs() < 2e-6,
+            "the source on the left first: {}",
+            lag(64)
+        );
+        assert!(lag(15840).abs() < 2e-6, "ahead at 1 s: {}", lag(15840));
+        assert!(
+            (lag(31616) - start).abs() < 2e-6,
+            "back by 2 s: {}",
+            lag(31616)
+        );
     }
 }

@@ -11,7 +11,7 @@
 //! for bit, for the same pose.
 
 use afe_core::descriptor::{request_def, BuildContext, Built, Descriptor, Ears, RequestDef};
-use afe_core::{Axis, Block, DrawAs, Error, HeadPose, Processor, Result, SignalInfo};
+use afe_core::{Axis, Block, DrawAs, Error, FromAbove, HeadPose, Processor, Result, SignalInfo};
 use afe_spatial::{suggest, Neck, Tracker, TrackerParams};
 
 /// Parameters of the tracking (`trk_*`), declared with the tracker.
@@ -161,6 +161,16 @@ impl Descriptor for Tracking {
         features.extend(HEAD_FIELDS.iter().map(|f| f.to_string()));
         let info = SignalInfo::feature(posterior.fs_hz, posterior.audio_fs_hz, features)
             .drawn_as(DrawAs::Linear)
+            .drawn_from_above(FromAbove {
+                slots: SLOTS,
+                slot_width: SLOT_FIELDS.len(),
+                id: 0,
+                azimuth: 1,
+                uncertainty: 2,
+                resolved: 5,
+                head_yaw: WIDTH - 3,
+                suggested_yaw: WIDTH - 1,
+            })
             .with_unit(Self::OUTPUT_UNIT)
             .nan_where("slots without a track, and the suggested turn when none is asked for");
         let info = match posterior.window_s {
@@ -238,6 +248,13 @@ mod tests {
         assert_eq!(info.features().len(), WIDTH);
         assert_eq!(info.features()[1], "track1_azimuth_deg");
         assert_eq!(info.features()[WIDTH - 3], "head_yaw_deg");
+        let scene = info.from_above.expect("drawn from above");
+        assert_eq!(info.features()[scene.azimuth], "track1_azimuth_deg");
+        assert_eq!(
+            info.features()[scene.slot_width + scene.resolved],
+            "track2_resolved"
+        );
+        assert_eq!(info.features()[scene.suggested_yaw], "suggested_yaw_deg");
         assert_eq!(info.features()[WIDTH - 2], "suggested_turn_deg");
         assert!(info
             .nan_where

@@ -193,6 +193,17 @@ def draw(fig: Any, ax: Any, s: Signal, at: Optional[float] = None, waveforms: bo
     elif panel == "line":
         ax.plot(t, values.reshape(len(values), -1)[:, 0], ".", ms=2)
         ax.set_ylabel(plan["values"] or s.key)
+    elif panel == "from-above":
+        # over a whole signal: each tracked source's azimuth over time, and the head's yaw
+        scene = plan["from_above"]
+        rows = values.reshape(len(values), -1)
+        for k in range(scene["slots"]):
+            az = rows[:, k * scene["slot_width"] + scene["azimuth"]]
+            ax.plot(t, az, ".", ms=2, color=f"C{k}")
+        ax.plot(t, rows[:, scene["head_yaw"]] % 360.0, "-", lw=1, color="0.5", label="head yaw")
+        ax.set_ylim(0.0, 360.0)
+        ax.set_ylabel(plan["values"])
+        ax.legend(loc="upper right", fontsize=8)
     elif panel == "frame":
         k, when = _row_at(s, at)
         frame = values[k].reshape(len(plan["rows"]["values"]), -1)

@@ -225,3 +225,49 @@ def test_a_page_of_another_origin_in_the_same_browser_is_refused(cli):
         server.terminate()
         _, err = server.communicate(timeout=10)
     assert f"refused a WebSocket: origin http://127.0.0.1:{other} is not this server's page" in err, err
+
+
+def test_the_page_shows_the_tracked_sources_from_above_turned_by_the_reported_yaw(cli, root, tmp_path):
+    # the seed robot serving `tracking`; a motor controller (afe.connect) reports its head
+    # turned 20 deg to the left on afe/<name>/head/yaw, and the page draws the robot from
+    # above: the head's yaw, the tracked sources with their spread, the suggested turn
+    chromium, driver_path = _browser()
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.support.ui import WebDriverWait
+
+    import afe
+
+    with open(os.path.join(root, "data", "platforms", "ball-15cm.json")) as f:
+        platform = json.load(f)
+    platform["audio"]["sample_rate_hz"] = 16000.0
+    platform_file = tmp_path / "ball-16k.json"
+    platform_file.write_text(json.dumps(platform))
+    port, zport = free_port(), free_port()
+    server = subprocess.Popen(
+        [cli, "serve", "--source", SOURCE, "-r", "tracking", "--platform", str(platform_file),
+         "--http", f"127.0.0.1:{port}", "--listen", f"tcp/127.0.0.1:{zport}", "--for", "30", "--json"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    browser = None
+    try:
+        _wait_for_port(port, server)
+        robot = afe.connect(f"tcp/127.0.0.1:{zport}")
+        robot.set_head_yaw(0.0, 20.0)
+        with pytest.raises(ValueError, match="not finite"):
+            robot.set_head_yaw(1.0, float("nan"))
+        browser = _chrome(chromium, driver_path)
+        browser.get(f"http://127.0.0.1:{port}/")
+        wait = WebDriverWait(browser, 15)
+        panel = "document.querySelector('#panel-tracking_mono')"
+        wait.until(lambda b: b.execute_script(f"return {panel} && +{panel}.dataset.sources > 0"))
+        words = browser.execute_script(f"return {panel}.querySelector('canvas.data').title")
+        assert words.startswith("head 20°"), words
+        assert "#1 " in words or "#2 " in words, words
+        assert browser.execute_script(f"return getComputedStyle({panel}.querySelector('.bar')).display") == "none"
+        assert [e for e in browser.get_log("browser") if e["level"] == "SEVERE"] == []
+        robot.close()
+    finally:
+        if browser is not None:
+            browser.quit()
+        server.terminate()
+        server.communicate(timeout=10)
