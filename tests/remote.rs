@@ -536,3 +536,59 @@ fn hostile_subscriptions_get_error_replies_and_change_nothing_for_the_others() {
     assert_eq!(lost, 0);
     server.join().expect("server");
 }
+
+#[test]
+fn a_motor_controllers_head_yaw_reaches_the_servers_tracking_and_bad_ones_are_refused() {
+    // a robot serving `tracking` with a neck of +-90 deg; its motor controller reports the
+    // head at 25 deg over Zenoh (Client::set_head_yaw): the tracking frames carry that yaw,
+    // while a yaw beyond the neck, a time going back and a NaN change nothing
+    let port = 17616;
+    let pose = afe::HeadPose::new();
+    let options = ServeOptions {
+        listen: vec![endpoint(port)],
+        head_pose: pose.clone(),
+        head_yaw_range_deg: Some((-90.0, 90.0)),
+        ..ServeOptions::default()
+    };
+    let (server, tap) = Server::start(&options).expect("server starts");
+    let job = StreamJob {
+        requests: vec!["tracking".into()],
+        duration_s: Some(4.0),
+        pacing: Pacing::Realtime,
+        head_pose: pose.clone(),
+        ..StreamJob::default()
+    };
+    let source: SourceSpec = "synth:fs=16000,noise=0.1,az=60".parse().expect("spec");
+    let stream = std::thread::spawn(move || run_spec(&source, &job, tap).expect("stream"));
+    let client = connect(port);
+    let mut sub = subscribe(&client, &requests(&["tracking"], &ParamMap::new()));
+    let width = sub.reply()["signals"][0]["frame_shape"][0]
+        .as_u64()
+        .expect("frame width") as usize;
+    client.set_head_yaw(0.0, 25.0).expect("sent");
+    let deadline = Instant::now() + Duration::from_secs(3);
+    let mut seen = None;
+    while seen.is_none() && Instant::now() < deadline {
+        let Some(frames) = sub.recv(Duration::from_secs(2)).expect("recv") else {
+            continue;
+        };
+        seen = frames.signals[0]
+            .values
+            .chunks_exact(width)
+            .map(|f| f[width - 3])
+            .find(|yaw| *yaw != 0.0);
+    }
+    assert_eq!(seen, Some(25.0), "head_yaw_deg in the tracking frames");
+    client.set_head_yaw(1.0, 170.0).expect("sent");
+    client.set_head_yaw(-1.0, 10.0).expect("sent");
+    assert!(client.set_head_yaw(2.0, f64::NAN).is_err());
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while server.head_yaws() != (1, 2) && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert_eq!(server.head_yaws(), (1, 2), "(taken, refused)");
+    assert_eq!((pose.len(), pose.yaw_at(10.0)), (1, 25.0));
+    drop((sub, client));
+    stream.join().expect("stream");
+    drop(server);
+}

@@ -119,3 +119,33 @@ def test_tracking_keeps_a_source_and_its_image_apart_until_the_head_turns():
     assert turn["why"] == "mirror" and sorted(turn["ids"]) == sorted(t["id"] for t in last)
     assert (turn["turn_deg"], turn["target_yaw_deg"]) == (20.0, 20.0), turn
     assert "tracked" not in afe.locate(ears, FS, head="sphere")
+
+
+def test_a_manager_tracks_in_the_world_by_the_yaw_it_is_told():
+    # a talker at 150 deg on the sphere, the head turning 30 deg to the left and back over
+    # 2 s; Manager.set_head_yaw reports it, and the `tracking` frames carry the yaw and
+    # resolve the talker in the world; a yaw going back in time is refused
+    t = np.arange(2 * int(FS)) / FS
+    yaw = 15.0 * (1.0 - np.cos(np.pi * t))
+    x = noise(len(t))
+    hop = int(0.05 * FS)
+    ears = np.concatenate([
+        afe.render(x[k:k + hop], FS, 150.0 - yaw[k + hop // 2], head="sphere")
+        for k in range(0, len(t) - hop + 1, hop)
+    ])
+    m = afe.Manager(FS, 2)
+    m.add_request("tracking")
+    for k in range(0, len(t), hop):
+        m.set_head_yaw(k / FS, yaw[k])
+    with pytest.raises(ValueError, match="times must increase"):
+        m.set_head_yaw(0.5, 0.0)
+    for k in range(0, len(ears), 4096):
+        m.process_chunk(ears[k:k + 4096])
+    out = m.outputs()["tracking_mono"]
+    names = out.meta["features"]
+    rows = np.asarray(out)
+    head = rows[:, names.index("head_yaw_deg")]
+    assert head.max() == pytest.approx(30.0, abs=0.5) and abs(head[-1]) < 1.0
+    last = rows[-1]
+    az, resolved = last[names.index("track1_azimuth_deg")], last[names.index("track1_resolved")]
+    assert abs((az - 150.0 + 180.0) % 360.0 - 180.0) <= 5.0 and resolved == 1.0, last
