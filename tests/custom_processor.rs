@@ -5,6 +5,8 @@
 //! plots or the page taught about it.
 #![cfg(all(feature = "plot", feature = "view"))]
 
+use std::io::{BufRead, BufReader};
+use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use afe::extract::{run_with, Job};
@@ -181,7 +183,7 @@ fn a_processor_defined_here_gets_metadata_a_figure_and_a_panel() {
     let synth = Synth::parse("fs=16000,tone=500,seed=1").expect("synth");
     let page = std::thread::spawn({
         let url = format!("http://{}/", view.addr());
-        move || chromium_dom(&url)
+        move || chromium_dom(&url, "panel-testCentred_left")
     });
     // the stream starts once Chromium's page has connected beside this test's socket (a
     // loaded host can take seconds to start a browser), or once there is no browser
@@ -251,31 +253,141 @@ fn a_processor_defined_here_gets_metadata_a_figure_and_a_panel() {
 /// The axis title the plan gives the test's axis.
 const AXIS_LABEL: &str = "ERB-rate (Cam)";
 
-/// The DOM of the live page at `url` after headless Chromium ran it for 3 s of its time;
-/// `None` where no Chromium is installed, outside CI (which installs it).
-fn chromium_dom(url: &str) -> Option<String> {
-    let run = |binary: &str| {
-        std::process::Command::new(binary)
+/// The DOM of the live page at `url` once its element `#{panel}` has drawn a frame (its
+/// `data-drawn`), or as it is after 20 s, read in real time from headless Chromium through
+/// its DevTools protocol (a DOM dumped after a virtual-time budget raced the WebSocket's
+/// frames: Chromium's virtual time runs ahead of them); `None` where no Chromium is
+/// installed, outside CI (which installs it).
+fn chromium_dom(url: &str, panel: &str) -> Option<String> {
+    let profile = crate::common::tmp("custom-processor-chromium");
+    let spawn = |binary: &str| {
+        Command::new(binary)
             .args([
                 "--headless",
                 "--no-sandbox",
                 "--disable-gpu",
-                "--virtual-time-budget=3000",
-                "--dump-dom",
+                "--remote-debugging-port=0",
+                &format!("--user-data-dir={}", profile.display()),
                 url,
             ])
-            .output()
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
             .ok()
     };
-    let Some(out) = run("chromium").or_else(|| run("chromium-browser")) else {
+    let Some(mut browser) = spawn("chromium").or_else(|| spawn("chromium-browser")) else {
         assert!(std::env::var_os("CI").is_none(), "CI installs chromium");
         eprintln!("no chromium: the page is not rendered");
         return None;
     };
-    assert!(
-        out.status.success(),
-        "chromium: {}",
-        String::from_utf8_lossy(&out.stderr)
+    let dom = dom_when_drawn(&mut browser, panel);
+    let _ = browser.kill();
+    let _ = browser.wait();
+    Some(dom.unwrap_or_else(|e| panic!("chromium: {e}")))
+}
+
+/// The page's DOM from `browser`'s DevTools endpoint (the line it prints on stderr), once
+/// `#{panel}` has drawn a frame or after 20 s.
+fn dom_when_drawn(browser: &mut Child, panel: &str) -> Result<String, String> {
+    let stderr = browser.stderr.take().ok_or("no stderr")?;
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stderr)
+            .lines()
+            .map_while(std::io::Result::ok)
+        {
+            if let Some(at) = line.find("ws://") {
+                let _ = tx.send(line[at..].trim().to_string());
+            }
+        }
+    });
+    let endpoint = rx
+        .recv_timeout(Duration::from_secs(30))
+        .map_err(|_| "no DevTools endpoint within 30 s")?;
+    let (ws, _) = tungstenite::connect(endpoint.as_str()).map_err(|e| e.to_string())?;
+    let mut cdp = Cdp { ws, next: 0 };
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let page = loop {
+        let targets = cdp.call("Target.getTargets", json!({}), None)?;
+        let page = targets["targetInfos"]
+            .as_array()
+            .and_then(|t| t.iter().find(|t| t["type"] == "page"))
+            .and_then(|t| t["targetId"].as_str().map(str::to_string));
+        match page {
+            Some(page) => break page,
+            None if Instant::now() > deadline => return Err("no page within 20 s".into()),
+            None => std::thread::sleep(Duration::from_millis(100)),
+        }
+    };
+    let attached = cdp.call(
+        "Target.attachToTarget",
+        json!({"targetId": page, "flatten": true}),
+        None,
+    )?;
+    let session = attached["sessionId"]
+        .as_str()
+        .ok_or("no session")?
+        .to_string();
+    let drawn = format!(
+        "(() => {{ const p = document.getElementById('{panel}'); \
+         return p && +p.dataset.drawn > 0 ? document.documentElement.outerHTML : null; }})()"
     );
-    Some(String::from_utf8_lossy(&out.stdout).into_owned())
+    loop {
+        let late = Instant::now() > deadline;
+        let expression = if late {
+            "document.documentElement.outerHTML"
+        } else {
+            &drawn
+        };
+        let v = cdp.call(
+            "Runtime.evaluate",
+            json!({"expression": expression, "returnByValue": true}),
+            Some(&session),
+        )?;
+        if let Some(dom) = v["result"]["value"].as_str() {
+            return Ok(dom.to_string());
+        }
+        if late {
+            return Err(format!("no DOM: {v}"));
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+/// A DevTools protocol connection: numbered calls, each answered by its result.
+struct Cdp {
+    ws: tungstenite::WebSocket<tungstenite::stream::MaybeTlsStream<std::net::TcpStream>>,
+    next: u64,
+}
+
+impl Cdp {
+    /// Calls `method` (in `session`, if given) and returns its result; events between are
+    /// let go.
+    fn call(
+        &mut self,
+        method: &str,
+        params: Value,
+        session: Option<&str>,
+    ) -> Result<Value, String> {
+        self.next += 1;
+        let mut msg = json!({"id": self.next, "method": method, "params": params});
+        if let Some(s) = session {
+            msg["sessionId"] = json!(s);
+        }
+        self.ws
+            .send(Message::text(msg.to_string()))
+            .map_err(|e| e.to_string())?;
+        loop {
+            let Message::Text(t) = self.ws.read().map_err(|e| e.to_string())? else {
+                continue;
+            };
+            let v: Value = serde_json::from_str(t.as_str()).map_err(|e| e.to_string())?;
+            if v["id"] == self.next {
+                return match v.get("error") {
+                    Some(e) => Err(format!("{method}: {e}")),
+                    None => Ok(v["result"].clone()),
+                };
+            }
+        }
+    }
 }
