@@ -44,5 +44,5 @@ pub use head_pose::HeadPose;
 pub use interrupt::CancelToken;
 pub use params::{NoParams, ParamKind, ParamMap, ParamSpec, Params};
 pub use plan::{FromAbove, Panel, Plan, PlanAxis, Scale};
-pub use processor::{Part, Processor};
+pub use processor::{ChannelSplit, Feedback, Part, Processor, WholeSignal};
 pub use signal_info::{DrawAs, SignalInfo, SignalKind};

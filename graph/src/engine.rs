@@ -23,6 +23,7 @@ use std::thread::{self, JoinHandle, Thread};
 use std::time::{Duration, Instant};
 
 use afe_core::denormals::FlushDenormals;
+use afe_core::framing::FrameBuffer;
 use afe_core::{Block, Error, Part, Processor, Result};
 
 use crate::compile::{compile, Compiled, NodeShape};
@@ -76,9 +77,9 @@ struct NodeRt {
     /// [`crate::protocol`]).
     feedback: Option<OutputRef>,
     /// Where the node's processor is split: the table entries of its parts (after the
-    /// graph's nodes), whose outputs it joins (see [`Processor::split`]).
+    /// graph's nodes), whose outputs it joins (see [`afe_core::ChannelSplit`]).
     parts: Box<[usize]>,
-    /// Whether the node takes each chunk with [`Processor::absorb`] (a whole signal's
+    /// Whether the node takes each chunk with [`afe_core::WholeSignal::absorb`] (a whole signal's
     /// node that finishes once at its end) rather than processing it.
     absorbs: bool,
     /// Per output: a whole signal's buffer that the node appends each chunk's output to
@@ -294,14 +295,23 @@ impl Shared {
                     claim_lines(outputs);
                 }
                 if let Some(p) = processor.as_mut() {
-                    if let Some(f) = feedback.filter(|f| !f.is_empty()) {
-                        p.receive_feedback(f);
+                    if let (Some(f), Some(to)) = (feedback.filter(|f| !f.is_empty()), p.feedback())
+                    {
+                        to.receive_feedback(f);
                     }
                     let inputs = &inputs[..rt.inputs.len()];
                     match rt.parts.len() {
-                        _ if rt.absorbs => p.absorb(inputs),
+                        _ if rt.absorbs => {
+                            if let Some(whole) = p.whole_signal() {
+                                whole.absorb(inputs);
+                            }
+                        }
                         0 => p.process(inputs, outputs),
-                        n => p.join(inputs, &parts[..n], outputs),
+                        n => {
+                            if let Some(split) = p.channel_split() {
+                                split.join(inputs, &parts[..n], outputs);
+                            }
+                        }
                     }
                 }
             }))
@@ -780,18 +790,19 @@ impl Engine {
     }
 
     /// As [`Engine::install`], the nodes marked in `absorbs` taking each chunk with
-    /// [`Processor::absorb`] (a whole signal run in blocks; see [`Graph::run_whole`]).
+    /// [`afe_core::WholeSignal::absorb`] (a whole signal run in blocks; see [`Graph::run_whole`]).
     pub(crate) fn install_absorbing(&mut self, graph: &mut Graph, absorbs: &[bool]) {
         // a heavy node whose processor splits runs as parts, one per worker, appended
         // after the graph's nodes; the node joins them
         let parts_per_node = self.threads().min(MAX_PARTS);
         let mut split: Vec<(usize, Vec<Part>)> = Vec::new();
         if parts_per_node > 1 {
-            for (i, node) in graph.nodes.iter().enumerate() {
+            for (i, node) in graph.nodes.iter_mut().enumerate() {
                 if let Some(parts) = node
                     .processor
-                    .as_ref()
-                    .and_then(|p| p.split(parts_per_node))
+                    .as_mut()
+                    .and_then(|p| p.channel_split())
+                    .and_then(|s| s.split(parts_per_node))
                 {
                     split.push((i, parts));
                 }
@@ -930,17 +941,22 @@ impl Engine {
         let sources: Vec<OutputRef> = graph.nodes.iter().filter_map(|n| n.feedback_from).collect();
         let mut rt = old.rt;
         let n = graph.nodes.len().min(rt.len());
-        let parts: Vec<Option<Box<dyn Processor>>> =
+        let mut parts: Vec<Option<Box<dyn Processor>>> =
             rt.drain(n..).map(|r| r.processor.into_inner()).collect();
         for (node, rt) in graph.nodes.iter_mut().zip(rt) {
             let mut processor = rt.processor.into_inner();
-            if let Some(p) = processor.as_mut().filter(|_| !rt.parts.is_empty()) {
-                let shares: Vec<&dyn Processor> = rt
+            let split = processor.as_mut().and_then(|p| p.channel_split());
+            if let Some(split) = split.filter(|_| !rt.parts.is_empty()) {
+                let mut mine: Vec<Box<dyn Processor>> = rt
                     .parts
                     .iter()
-                    .filter_map(|&e| parts.get(e - n)?.as_deref())
+                    .filter_map(|&e| parts.get_mut(e - n)?.take())
                     .collect();
-                p.rejoin(&shares);
+                let shares: Vec<&[FrameBuffer]> = mine
+                    .iter_mut()
+                    .filter_map(|p| p.channel_split().map(|s| s.part_frames()))
+                    .collect();
+                split.rejoin(&shares);
             }
             node.processor = processor;
         }

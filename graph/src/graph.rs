@@ -67,7 +67,7 @@ pub(crate) struct Node {
     /// holds it).
     pub processor: Option<Box<dyn Processor>>,
     /// Whether the processor takes a whole signal block by block (see
-    /// [`Processor::absorbs_whole_signal`]), known while the executor holds it.
+    /// [`afe_core::WholeSignal`]), known while the executor holds it.
     pub absorbs: bool,
     /// New output of the last chunk, one block per output.
     pub outputs: Vec<Block>,
@@ -142,8 +142,9 @@ impl Graph {
             if let Some(f) = self.nodes[i].feedback_from {
                 let (below, above) = self.nodes.split_at_mut(f.node);
                 let block = &above[0].outputs[f.output];
-                if let (false, Some(p)) = (block.is_empty(), below[i].processor.as_mut()) {
-                    p.receive_feedback(block);
+                let to = below[i].processor.as_mut().and_then(|p| p.feedback());
+                if let (false, Some(to)) = (block.is_empty(), to) {
+                    to.receive_feedback(block);
                 }
             }
             self.run_node(i);

@@ -176,7 +176,7 @@ impl Graph {
             .iter()
             .map(|p| self.nodes[p.node].infos[p.output].clone())
             .collect();
-        let built = config.build(&inputs, &self.context)?;
+        let mut built = config.build(&inputs, &self.context)?;
         let channels = match def.ears {
             Ears::All => parents
                 .iter()
@@ -201,7 +201,7 @@ impl Graph {
             params: config.canonical().clone(),
             parents,
             feedback_from: None,
-            absorbs: built.processor.absorbs_whole_signal(),
+            absorbs: built.processor.whole_signal().is_some(),
             processor: Some(built.processor),
             outputs,
             infos: built.outputs,
@@ -328,8 +328,9 @@ impl Graph {
                 .collect();
             node.infos = b.outputs;
             node.input_gain = b.input_gain;
-            node.absorbs = b.processor.absorbs_whole_signal();
-            node.processor = Some(b.processor);
+            let mut processor = b.processor;
+            node.absorbs = processor.whole_signal().is_some();
+            node.processor = Some(processor);
             if let Some(request) = request {
                 node.params = config.canonical().clone();
                 node.request_params = request;

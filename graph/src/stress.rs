@@ -7,7 +7,7 @@
 
 use std::time::Duration;
 
-use afe_core::{Block, ParamMap, Part, Processor, SignalInfo};
+use afe_core::{Block, ChannelSplit, Feedback, ParamMap, Part, Processor, SignalInfo};
 
 use crate::engine::Engine;
 use crate::graph::{Channel, Graph, Node, OutputRef};
@@ -51,6 +51,12 @@ impl Processor for Mix {
         self.state = 0;
     }
 
+    fn feedback(&mut self) -> Option<&mut dyn Feedback> {
+        Some(self)
+    }
+}
+
+impl Feedback for Mix {
     fn receive_feedback(&mut self, feedback: &Block) {
         for v in feedback.as_slice() {
             self.state = (self.state ^ v.to_bits()).wrapping_mul(0xff51_afd7_ed55_8ccd);
@@ -98,6 +104,12 @@ impl Processor for Halves {
         self.states = [0; 2];
     }
 
+    fn channel_split(&mut self) -> Option<&mut dyn ChannelSplit> {
+        Some(self)
+    }
+}
+
+impl ChannelSplit for Halves {
     fn split(&self, parts: usize) -> Option<Vec<Part>> {
         (parts >= 2 && self.only.is_none()).then(|| {
             (0..2)
@@ -160,7 +172,7 @@ fn random_graph(seed: u64, nodes: usize) -> Graph {
             }
         }
         let (id, work) = (i as u64, rng.below(64) as u32);
-        let (processor, width): (Box<dyn Processor>, usize) = if rng.below(4) == 0 {
+        let (mut processor, width): (Box<dyn Processor>, usize) = if rng.below(4) == 0 {
             let states = [0; 2];
             (
                 Box::new(Halves {
@@ -183,7 +195,7 @@ fn random_graph(seed: u64, nodes: usize) -> Graph {
             params: ParamMap::new(),
             parents,
             feedback_from: None,
-            absorbs: processor.absorbs_whole_signal(),
+            absorbs: processor.whole_signal().is_some(),
             processor: Some(processor),
             outputs: vec![Block::new(width)],
             infos: vec![SignalInfo::time_domain(1000.0)],

@@ -90,7 +90,11 @@ impl Graph {
             self.load_input(&part);
             for i in 0..self.nodes.len() {
                 if plan.absorbing[i] {
-                    self.feed_node(i, |p, inputs, _| p.absorb(inputs));
+                    self.feed_node(i, |p, inputs, _| {
+                        if let Some(whole) = p.whole_signal() {
+                            whole.absorb(inputs);
+                        }
+                    });
                 } else if plan.invariant[i] {
                     if i > 0 {
                         self.run_node(i);
@@ -316,7 +320,11 @@ fn run_job(job: &mut Job<'_>, i: usize, joined: &[RwLock<&mut Vec<Option<Block>>
             .map(|(p, g)| g[p.output].as_ref())
             .collect();
         match (job.processor.as_deref_mut(), inputs) {
-            (Some(p), _) if job.absorbing => p.finish(job.outputs),
+            (Some(p), _) if job.absorbing => {
+                if let Some(whole) = p.whole_signal() {
+                    whole.finish(job.outputs);
+                }
+            }
             (Some(p), Some(inputs)) => p.process(&inputs, job.outputs),
             _ => {}
         }

@@ -7,7 +7,7 @@ use std::ops::Range;
 use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
 use afe_core::framing::FrameBuffer;
 use afe_core::window::{window, Window};
-use afe_core::{Block, Error, Part, Processor, Result, SignalInfo};
+use afe_core::{Block, ChannelSplit, Error, Part, Processor, Result, SignalInfo};
 
 use crate::framed::{check_framing, check_work, EarFrames};
 
@@ -221,6 +221,12 @@ impl Processor for Crosscorrelation {
         self.frames.reset();
     }
 
+    fn channel_split(&mut self) -> Option<&mut dyn ChannelSplit> {
+        Some(self)
+    }
+}
+
+impl ChannelSplit for Crosscorrelation {
     /// Splits the channels (whole groups of the direct method) into up to `parts` ranges.
     fn split(&self, parts: usize) -> Option<Vec<Part>> {
         let nc = self.frames.width();
@@ -247,7 +253,7 @@ impl Processor for Crosscorrelation {
     }
 
     /// Each output row is the parts' rows side by side. The parts keep the rows of their
-    /// channels, so the join only counts rows (what [`Processor::rejoin`] takes back).
+    /// channels, so the join only counts rows (what [`ChannelSplit::rejoin`] takes back).
     fn join(&mut self, inputs: &[&Block], parts: &[&[Block]], outputs: &mut [Block]) {
         self.frames.count_only();
         let ears = (inputs[0].as_slice(), inputs[1].as_slice());
@@ -265,13 +271,12 @@ impl Processor for Crosscorrelation {
         self.frames.advance(ears.0, ears.1, n);
     }
 
-    fn part_frames(&self) -> &[FrameBuffer] {
+    fn part_frames(&mut self) -> &[FrameBuffer] {
         self.frames.buffers()
     }
 
-    fn rejoin(&mut self, parts: &[&dyn Processor]) {
-        let held: Vec<&[FrameBuffer]> = parts.iter().map(|p| p.part_frames()).collect();
-        if let Some(frames) = EarFrames::joined(&held) {
+    fn rejoin(&mut self, parts: &[&[FrameBuffer]]) {
+        if let Some(frames) = EarFrames::joined(parts) {
             self.frames = frames;
         }
     }
@@ -348,9 +353,11 @@ mod tests {
                 }
                 // the parts dropped after four chunks, their state taken back
                 if k == 5 {
-                    if let Some(split) = split.take() {
-                        let shares: Vec<&dyn Processor> =
-                            split.iter().map(|p| p.processor.as_ref()).collect();
+                    if let Some(mut split) = split.take() {
+                        let shares: Vec<&[FrameBuffer]> = split
+                            .iter_mut()
+                            .filter_map(|p| p.processor.channel_split().map(|c| c.part_frames()))
+                            .collect();
                         joined.rejoin(&shares);
                     }
                 }

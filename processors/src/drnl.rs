@@ -15,7 +15,7 @@ use std::f64::consts::PI;
 use afe_core::filter::Df2t;
 use afe_core::lanes::vector_start;
 use afe_core::params::per_channel;
-use afe_core::{Block, Error, ParamMap, Processor, Result, SignalInfo};
+use afe_core::{Block, Error, Feedback, ParamMap, Processor, Result, SignalInfo};
 use serde_json::json;
 
 pub use crate::filterbank_params::DrnlModel;
@@ -326,6 +326,12 @@ impl Processor for Drnl {
         self.apply_moc();
     }
 
+    fn feedback(&mut self) -> Option<&mut dyn Feedback> {
+        Some(self)
+    }
+}
+
+impl Feedback for Drnl {
     /// The MOC's feedback (spec 28): row 0 the new `fb_mocIpsi`, row 1 the new
     /// `fb_mocContra`, one value per channel.
     fn receive_feedback(&mut self, feedback: &Block) {

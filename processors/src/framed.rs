@@ -129,7 +129,7 @@ impl EarFrames {
     }
 
     /// The left ear's buffer, then the right's (what a part of a split processor holds
-    /// of its state, [`afe_core::Processor::part_frames`]).
+    /// of its state, [`afe_core::ChannelSplit::part_frames`]).
     pub fn buffers(&self) -> &[FrameBuffer] {
         &self.ears
     }

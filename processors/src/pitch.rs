@@ -10,7 +10,7 @@ use std::cmp::Ordering;
 use std::collections::VecDeque;
 
 use afe_core::descriptor::{request_def, Built, Descriptor, Ears, RequestDef};
-use afe_core::{Block, DrawAs, Error, Processor, Result, SignalInfo, SignalKind};
+use afe_core::{Block, DrawAs, Error, Processor, Result, SignalInfo, SignalKind, WholeSignal};
 
 afe_core::params! {
     /// Parameters of the pitch estimator, under their AFE names.
@@ -203,10 +203,20 @@ impl Processor for Pitch {
         self.finish(outputs);
     }
 
-    fn absorbs_whole_signal(&self) -> bool {
-        true
+    fn whole_signal(&mut self) -> Option<&mut dyn WholeSignal> {
+        Some(self)
     }
 
+    /// Also forgets the past confidences (the AFE keeps them across resets, which mixes
+    /// an earlier run into the threshold of the next).
+    fn reset(&mut self) {
+        self.history.clear();
+        self.raw.clear();
+        self.conf.clear();
+    }
+}
+
+impl WholeSignal for Pitch {
     /// The per-frame part: the SACF's largest peak gives the raw pitch and confidence,
     /// and the confidence joins the history.
     fn absorb(&mut self, inputs: &[&Block]) {
@@ -255,14 +265,6 @@ impl Processor for Pitch {
             o[1] = self.raw[t];
             o[2] = self.conf[t];
         }
-        self.raw.clear();
-        self.conf.clear();
-    }
-
-    /// Also forgets the past confidences (the AFE keeps them across resets, which mixes
-    /// an earlier run into the threshold of the next).
-    fn reset(&mut self) {
-        self.history.clear();
         self.raw.clear();
         self.conf.clear();
     }
@@ -455,7 +457,7 @@ mod tests {
         let p = PitchParams::default();
         let whole = run(&p, std::slice::from_ref(&frames), nc, nl);
         let (mut pitch, _) = Pitch::new(&p, &acf_info(1000.0, nc, nl)).expect("valid");
-        assert!(pitch.absorbs_whole_signal());
+        assert!(pitch.whole_signal().is_some());
         for part in [&frames[..2], &frames[2..3], &frames[3..]] {
             pitch.absorb(&[&Block::from_vec(part.concat(), nc * nl)]);
         }
