@@ -111,6 +111,16 @@ def test_the_live_page_shows_the_stream_and_edits_the_graph(cli):
     assert report["lost_frames"] == 0, report
 
 
+def _seed_robot_at_16k(root, tmp_path):
+    """The file of the seed robot's descriptor at the synthetic source's rate."""
+    with open(os.path.join(root, "data", "platforms", "ball-15cm.json")) as f:
+        platform = json.load(f)
+    platform["audio"]["sample_rate_hz"] = 16000.0
+    platform_file = tmp_path / "ball-16k.json"
+    platform_file.write_text(json.dumps(platform))
+    return platform_file
+
+
 def _chrome(chromium, driver_path):
     from selenium import webdriver
     from selenium.webdriver.chrome.service import Service
@@ -129,12 +139,7 @@ def test_a_page_started_without_requests_says_so_and_draws_what_is_added(cli, ro
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support.ui import Select, WebDriverWait
 
-    # the seed robot's descriptor, at the synthetic source's rate
-    with open(os.path.join(root, "data", "platforms", "ball-15cm.json")) as f:
-        platform = json.load(f)
-    platform["audio"]["sample_rate_hz"] = 16000.0
-    platform_file = tmp_path / "ball-16k.json"
-    platform_file.write_text(json.dumps(platform))
+    platform_file = _seed_robot_at_16k(root, tmp_path)
     port = free_port()
     server = subprocess.Popen(
         [cli, "serve", "--source", SOURCE, "-p", "fb_nChannels=16", "--platform", str(platform_file),
@@ -237,11 +242,7 @@ def test_the_page_shows_the_tracked_sources_from_above_turned_by_the_reported_ya
 
     import afe
 
-    with open(os.path.join(root, "data", "platforms", "ball-15cm.json")) as f:
-        platform = json.load(f)
-    platform["audio"]["sample_rate_hz"] = 16000.0
-    platform_file = tmp_path / "ball-16k.json"
-    platform_file.write_text(json.dumps(platform))
+    platform_file = _seed_robot_at_16k(root, tmp_path)
     port, zport = free_port(), free_port()
     server = subprocess.Popen(
         [cli, "serve", "--source", SOURCE, "-r", "tracking", "--platform", str(platform_file),
