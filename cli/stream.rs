@@ -200,80 +200,21 @@ impl afe::stream::Observer for CliObserver<'_> {
 }
 
 pub(crate) fn stream(mut job: StreamJob, run: &StreamRun<'_>) -> Result<(), CliError> {
-    let source = run.source;
-    let (pacing, rate_given, as_json, output) =
-        (run.pacing, run.rate_given, run.as_json, run.output);
-    let spec: SourceSpec = source.parse()?;
-    match &spec {
-        SourceSpec::Wav(_) if job.looping && job.duration_s.is_none() && !run.endless => {
-            return Err("--loop replays the file forever: give --for SECONDS".into())
-        }
-        SourceSpec::Synth(_) | SourceSpec::Alsa(_) if job.duration_s.is_none() && !run.endless => {
-            return Err(format!("'{source}' never ends: give --for SECONDS").into())
-        }
-        SourceSpec::Synth(_) | SourceSpec::Alsa(_) | SourceSpec::Zenoh { .. } if job.looping => {
-            return Err("--loop replays wav files only".into())
-        }
-        SourceSpec::Wav(_) | SourceSpec::Synth(_) | SourceSpec::Zenoh { .. } if rate_given => {
-            return Err(
-                "--rate sets the ALSA capture rate (synth: fs= in the spec; wav: the file's rate; zenoh: the server's)"
-                    .into(),
-            )
-        }
-        _ => {}
-    }
-    let output = match (output, &spec) {
+    let spec: SourceSpec = run.source.parse()?;
+    check_source(&spec, &job, run)?;
+    let output = match (run.output, &spec) {
         (Some(o), SourceSpec::Wav(input)) => Some(checked_output(o, input)?),
         (Some(o), _) => Some(OutputFile::check(o)?),
         (None, _) => None,
     };
-    job.pacing = pacing.unwrap_or_else(|| spec.default_pacing());
+    job.pacing = run.pacing.unwrap_or_else(|| spec.default_pacing());
     #[cfg(feature = "view")]
-    let (view, tap) = match run.view {
-        Some(addr) => {
-            let options = afe_view::ViewOptions {
-                origins: afe_view::AllowedOrigins::parse(&run.view_origins)
-                    .map_err(afe_view::ViewError::from)?,
-                limits: afe_view::Limits::default(),
-                platform: run.platform.clone(),
-            };
-            let (view, tap) = afe_view::View::start(addr, job.block_ms, &options)?;
-            if !addr.ip().is_loopback() {
-                eprintln!(
-                    "warning: the live view on {addr} is open to the network, without \
-                     authentication: anyone reaching it can edit the graph"
-                );
-            }
-            eprintln!("live view: http://{}/", view.addr());
-            (Some(view), Some(tap))
-        }
-        None => (None, None),
-    };
+    let (view, tap) = start_view(run, job.block_ms)?.unzip();
     #[cfg(feature = "remote")]
-    let (server, remote) = match &run.serve {
-        Some(options) => {
-            let (server, tap) = afe_net::Server::start(options)?;
-            for endpoint in options.listen.iter().filter(|e| !afe_net::is_loopback(e)) {
-                if !server.authenticated() {
-                    eprintln!(
-                        "warning: Zenoh listens on {endpoint}, open to the network, without \
-                         authentication: anyone reaching it can subscribe (give --zenoh-config \
-                         with transport/auth/usrpwd)"
-                    );
-                }
-            }
-            eprintln!(
-                "zenoh: '{}' on {}",
-                server.name(),
-                options.listen.join(", ")
-            );
-            (Some(server), Some(tap))
-        }
-        None => (None, None),
-    };
+    let (server, remote) = start_server(run)?.unzip();
     // measured before the stream, whose thread `--rt` leaves at real-time priority
     let host = afe::host::Host::detect();
-    let mut status = Status::new(!as_json && std::io::stderr().is_terminal());
+    let mut status = Status::new(!run.as_json && std::io::stderr().is_terminal());
     let observer = CliObserver {
         status: &mut status,
         #[cfg(feature = "view")]
@@ -294,7 +235,95 @@ pub(crate) fn stream(mut job: StreamJob, run: &StreamRun<'_>) -> Result<(), CliE
     if let Some(path) = &output {
         save(&out.recorded, path)?;
     }
-    let r = &out.report;
+    print_report(&out.report, &job, run, &host)
+}
+
+/// Refuses a source that the run's options do not fit: one that never ends without
+/// `--for`, `--loop` beyond wav files, `--rate` beyond ALSA.
+fn check_source(spec: &SourceSpec, job: &StreamJob, run: &StreamRun<'_>) -> Result<(), CliError> {
+    let source = run.source;
+    match spec {
+        SourceSpec::Wav(_) if job.looping && job.duration_s.is_none() && !run.endless => {
+            Err("--loop replays the file forever: give --for SECONDS".into())
+        }
+        SourceSpec::Synth(_) | SourceSpec::Alsa(_) if job.duration_s.is_none() && !run.endless => {
+            Err(format!("'{source}' never ends: give --for SECONDS").into())
+        }
+        SourceSpec::Synth(_) | SourceSpec::Alsa(_) | SourceSpec::Zenoh { .. } if job.looping => {
+            Err("--loop replays wav files only".into())
+        }
+        SourceSpec::Wav(_) | SourceSpec::Synth(_) | SourceSpec::Zenoh { .. } if run.rate_given => {
+            Err(
+                "--rate sets the ALSA capture rate (synth: fs= in the spec; wav: the file's rate; zenoh: the server's)"
+                    .into(),
+            )
+        }
+        _ => Ok(()),
+    }
+}
+
+/// The live view the run asks for (`--view`), started, with its tap; a warning where it
+/// is open to the network.
+#[cfg(feature = "view")]
+fn start_view(
+    run: &StreamRun<'_>,
+    block_ms: f64,
+) -> Result<Option<(afe_view::View, afe_view::Tap)>, CliError> {
+    let Some(addr) = run.view else {
+        return Ok(None);
+    };
+    let options = afe_view::ViewOptions {
+        origins: afe_view::AllowedOrigins::parse(&run.view_origins)
+            .map_err(afe_view::ViewError::from)?,
+        limits: afe_view::Limits::default(),
+        platform: run.platform.clone(),
+    };
+    let (view, tap) = afe_view::View::start(addr, block_ms, &options)?;
+    if !addr.ip().is_loopback() {
+        eprintln!(
+            "warning: the live view on {addr} is open to the network, without \
+             authentication: anyone reaching it can edit the graph"
+        );
+    }
+    eprintln!("live view: http://{}/", view.addr());
+    Ok(Some((view, tap)))
+}
+
+/// The Zenoh server the run asks for (`afe serve`), started, with its tap; a warning for
+/// each endpoint open to the network without authentication.
+#[cfg(feature = "remote")]
+fn start_server(
+    run: &StreamRun<'_>,
+) -> Result<Option<(afe_net::Server, afe_net::ServeTap)>, CliError> {
+    let Some(options) = &run.serve else {
+        return Ok(None);
+    };
+    let (server, tap) = afe_net::Server::start(options)?;
+    for endpoint in options.listen.iter().filter(|e| !afe_net::is_loopback(e)) {
+        if !server.authenticated() {
+            eprintln!(
+                "warning: Zenoh listens on {endpoint}, open to the network, without \
+                 authentication: anyone reaching it can subscribe (give --zenoh-config \
+                 with transport/auth/usrpwd)"
+            );
+        }
+    }
+    eprintln!(
+        "zenoh: '{}' on {}",
+        server.name(),
+        options.listen.join(", ")
+    );
+    Ok(Some((server, tap)))
+}
+
+/// The stream's final report: one JSON object with `--json`, else a line; and how
+/// `--rt` went, on stderr.
+fn print_report(
+    r: &StreamReport,
+    job: &StreamJob,
+    run: &StreamRun<'_>,
+    host: &afe::host::Host,
+) -> Result<(), CliError> {
     if let Some(rt) = &r.realtime {
         if rt.complete() {
             eprintln!("real time: {}", rt.describe());
@@ -302,10 +331,10 @@ pub(crate) fn stream(mut job: StreamJob, run: &StreamRun<'_>) -> Result<(), CliE
             eprintln!("warning: --rt: {}", rt.describe());
         }
     }
-    if as_json {
+    if run.as_json {
         let mut result = serde_json::to_value(r).map_err(|e| e.to_string())?;
         let extra = json!({
-            "source": source,
+            "source": run.source,
             "requests": job.requests,
             "pacing": if job.pacing == Pacing::Realtime { "realtime" } else { "fast" },
             "threads": job.threads,
@@ -318,45 +347,49 @@ pub(crate) fn stream(mut job: StreamJob, run: &StreamRun<'_>) -> Result<(), CliE
             all.extend(extra);
         }
         outln!("{result}");
-    } else {
-        outln!(
-            "{} frames ({:.2} s at {} Hz) in {} blocks of {} frames: compute per block p50 {:.3} ms, \
-             p99 {:.3} ms, max {:.3} ms (block {}), budget {:.2} ms ({:.1}x real time on {}); \
-             {} deadline miss(es){}; {} frame(s) lost{}{}",
-            r.frames,
-            r.frames as f64 / r.fs,
-            r.fs,
-            r.blocks,
-            r.block_frames,
-            r.compute_ms_p50,
-            r.compute_ms_p99,
-            r.compute_ms_max,
-            r.slowest_block,
-            r.budget_ms,
-            r.x_realtime,
-            host.describe(),
-            r.deadline_misses,
-            match r.missed_blocks.as_slice() {
-                [] => String::new(),
-                m => format!(
-                    " (blocks {}{})",
-                    m.iter().map(u64::to_string).collect::<Vec<_>>().join(", "),
-                    if r.deadline_misses > m.len() as u64 { ", ..." } else { "" }
-                ),
-            },
-            r.lost_frames,
-            if r.device_overruns > 0 {
-                format!("; {} device overrun(s)", r.device_overruns)
-            } else {
-                String::new()
-            },
-            if r.interrupted {
-                "; interrupted: what was computed until then is reported (and saved with -o)"
+        return Ok(());
+    }
+    let missed = match r.missed_blocks.as_slice() {
+        [] => String::new(),
+        m => format!(
+            " (blocks {}{})",
+            m.iter().map(u64::to_string).collect::<Vec<_>>().join(", "),
+            if r.deadline_misses > m.len() as u64 {
+                ", ..."
             } else {
                 ""
             }
-        );
-    }
+        ),
+    };
+    let overruns = if r.device_overruns > 0 {
+        format!("; {} device overrun(s)", r.device_overruns)
+    } else {
+        String::new()
+    };
+    let interrupted = if r.interrupted {
+        "; interrupted: what was computed until then is reported (and saved with -o)"
+    } else {
+        ""
+    };
+    outln!(
+        "{} frames ({:.2} s at {} Hz) in {} blocks of {} frames: compute per block p50 {:.3} ms, \
+         p99 {:.3} ms, max {:.3} ms (block {}), budget {:.2} ms ({:.1}x real time on {}); \
+         {} deadline miss(es){missed}; {} frame(s) lost{overruns}{interrupted}",
+        r.frames,
+        r.frames as f64 / r.fs,
+        r.fs,
+        r.blocks,
+        r.block_frames,
+        r.compute_ms_p50,
+        r.compute_ms_p99,
+        r.compute_ms_max,
+        r.slowest_block,
+        r.budget_ms,
+        r.x_realtime,
+        host.describe(),
+        r.deadline_misses,
+        r.lost_frames,
+    );
     Ok(())
 }
 
