@@ -15,6 +15,8 @@
 //! need, and a kept whole output growing past the length it was sized for) or free: the
 //! node table is built and dropped by the caller, and swapped only while the pool is idle.
 
+mod layout;
+
 use std::cell::UnsafeCell;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::atomic::AtomicUsize;
@@ -24,7 +26,7 @@ use std::time::{Duration, Instant};
 
 use afe_core::denormals::FlushDenormals;
 use afe_core::framing::FrameBuffer;
-use afe_core::{Block, Error, Part, Processor, Result};
+use afe_core::{Block, Error, Processor, Result};
 
 use crate::compile::{compile, Compiled, NodeShape};
 use crate::graph::{Graph, OutputRef, MAX_INPUTS};
@@ -33,6 +35,7 @@ use crate::protocol::{consumed, is_ready, next_chunk, release, Links, NodeSync};
 use crate::sync::{AtomicBool, AtomicU64, Ordering};
 use crate::trace::{TraceEvent, Tracer};
 use crate::wakeup::{ReadySet, Wakeup, WAIT_CHUNK, WAIT_IDLE, WAIT_SOURCE};
+use layout::{mark_readers, node_runtimes, part_runtimes, split_nodes};
 
 /// How long an idle worker (or the waiting caller, itself a computing thread) spins before
 /// parking: long enough to bridge the gaps between the nodes of a chunk without a futex
@@ -794,20 +797,7 @@ impl Engine {
     pub(crate) fn install_absorbing(&mut self, graph: &mut Graph, absorbs: &[bool]) {
         // a heavy node whose processor splits runs as parts, one per worker, appended
         // after the graph's nodes; the node joins them
-        let parts_per_node = self.threads().min(MAX_PARTS);
-        let mut split: Vec<(usize, Vec<Part>)> = Vec::new();
-        if parts_per_node > 1 {
-            for (i, node) in graph.nodes.iter_mut().enumerate() {
-                if let Some(parts) = node
-                    .processor
-                    .as_mut()
-                    .and_then(|p| p.channel_split())
-                    .and_then(|s| s.split(parts_per_node))
-                {
-                    split.push((i, parts));
-                }
-            }
-        }
+        let split = split_nodes(graph, self.threads().min(MAX_PARTS));
         let shapes: Vec<NodeShape> = graph
             .nodes
             .iter()
@@ -829,68 +819,16 @@ impl Engine {
             labels,
         } = compile(&shapes, self.threads());
         let total = links.len();
-        let mut rt: Vec<NodeRt> = graph
-            .nodes
-            .iter_mut()
-            .zip(&part_entries)
-            .enumerate()
-            .map(|(i, (node, parts))| {
-                // slot 1 stands for chunk −1: a feedback source's last output before the
-                // table was built, which its targets take with their chunk 0
-                let last = node
-                    .outputs
-                    .iter()
-                    .map(|b| {
-                        let mut slot = b.empty_like();
-                        slot.extend_from(b);
-                        slot
-                    })
-                    .collect();
-                let mut r = NodeRt::new(
-                    labels[i].clone(),
-                    node.processor.take(),
-                    [node.outputs.iter().map(Block::empty_like).collect(), last],
-                    &node.parents,
-                );
-                r.feedback = node.feedback_from;
-                r.parts = parts.clone().into();
-                r.absorbs = absorbs.get(i).copied().unwrap_or(false);
-                r
-            })
-            .collect();
+        let mut rt = node_runtimes(graph, &part_entries, &labels, absorbs);
         for (i, parts) in split {
-            // room for as many rows as the node's own blocks (see `Manager::prepare`)
-            let rows = graph.nodes[i]
-                .outputs
-                .iter()
-                .map(Block::room)
-                .max()
-                .unwrap_or(0);
-            for (part, &entry) in parts.into_iter().zip(&part_entries[i]) {
-                let blocks = || {
-                    part.widths
-                        .iter()
-                        .map(|&w| Block::with_room(w, rows))
-                        .collect()
-                };
-                rt.push(NodeRt::new(
-                    labels[entry].clone(),
-                    Some(part.processor),
-                    [blocks(), blocks()],
-                    &graph.nodes[i].parents,
-                ));
-            }
+            rt.extend(part_runtimes(
+                &graph.nodes[i],
+                parts,
+                &part_entries[i],
+                &labels,
+            ));
         }
-        // (a child without a processor, one that waits aside, reads nothing)
-        let reads: Vec<bool> = rt
-            .iter_mut()
-            .map(|r| r.processor.get_mut().is_some())
-            .collect();
-        for (e, r) in rt.iter_mut().enumerate() {
-            let readers = || links[e].children.iter().filter(|&&c| reads[c]);
-            r.read = readers().next().is_some() || !links[e].feedback_to.is_empty();
-            r.claims = readers().any(|&c| home[c] != home[e]);
-        }
+        mark_readers(&mut rt, &links, &home);
         let sync: Vec<NodeSync> = (0..total).map(|_| NodeSync::new()).collect();
         for (s, l) in sync.iter().zip(&links) {
             s.readers_left[1].store(l.feedback_to.len() as u32, Ordering::Relaxed);
