@@ -125,65 +125,9 @@ impl AmsFeatures {
     /// Builds the modulation spectrogram for the IHC signal `input`.
     pub fn new(params: &AmsParams, input: &SignalInfo) -> Result<(Self, SignalInfo)> {
         let p = params;
-        if p.ds_ratio == 0 {
-            return Err(Error::invalid(
-                AmsParams::NAMES.ds_ratio,
-                0,
-                "must be a positive integer",
-            ));
-        }
-        if p.cf_hz.len() > MAX_FILTERS {
-            return Err(Error::invalid(
-                AmsParams::NAMES.cf_hz,
-                format!("{} frequencies", p.cf_hz.len()),
-                format!("at most {MAX_FILTERS} modulation centre frequencies"),
-            ));
-        }
-        if p.n_filters == 0 || p.n_filters > MAX_FILTERS {
-            return Err(Error::invalid(
-                AmsParams::NAMES.n_filters,
-                p.n_filters,
-                format!("must be a positive integer, at most {MAX_FILTERS}"),
-            ));
-        }
-        if p.low_freq_hz <= 0.0 {
-            return Err(Error::invalid(
-                AmsParams::NAMES.low_freq_hz,
-                p.low_freq_hz,
-                "must be > 0 Hz",
-            ));
-        }
-        if p.high_freq_hz <= p.low_freq_hz {
-            return Err(Error::invalid(
-                AmsParams::NAMES.high_freq_hz,
-                p.high_freq_hz,
-                format!("must be above ams_lowFreqHz = {} Hz", p.low_freq_hz),
-            ));
-        }
+        check_bank(p)?;
         let fs_ds = input.fs_hz / p.ds_ratio as f64;
-        let w = (2.0 * (p.w_size_sec * fs_ds / 2.0).round()).max(0.0) as usize;
-        if p.w_size_sec <= 0.0 || !(2..=MAX_WINDOW).contains(&w) {
-            return Err(Error::invalid(
-                AmsParams::NAMES.w_size_sec,
-                p.w_size_sec,
-                format!(
-                    "the frame must span between 2 and {MAX_WINDOW} samples at the decimated \
-                     rate {fs_ds} Hz"
-                ),
-            ));
-        }
-        let h = (w as f64 / (p.w_size_sec / p.h_size_sec)).round();
-        if p.h_size_sec <= 0.0 || !(1.0..=MAX_WINDOW as f64).contains(&h) {
-            return Err(Error::invalid(
-                AmsParams::NAMES.h_size_sec,
-                p.h_size_sec,
-                format!(
-                    "the hop must span between 1 and {MAX_WINDOW} samples at the decimated \
-                     rate {fs_ds} Hz"
-                ),
-            ));
-        }
-        let h = h as usize;
+        let (w, h) = framing(p, fs_ds)?;
         let win = window(p.wname, w);
         let ones_over_two_hops = w == 2 * h && win.iter().all(|v| *v == 1.0);
         let channels = input.channels();
@@ -196,38 +140,7 @@ impl AmsFeatures {
             AmsFbType::Lin => channels,
         };
         check_frame_values((AmsParams::NAMES.w_size_sec, p.w_size_sec), w, framed_width)?;
-        let (mod_cf_hz, kind, width, hidden_work) = match p.fb_type {
-            AmsFbType::Log => {
-                let (mf, filters) = log_bank(p, fs_ds, channels)?;
-                let width = channels * mf.len();
-                // every band filters every channel at the decimated rate
-                (mf, Bands::Log { filters }, width, fs_ds * width as f64)
-            }
-            AmsFbType::Lin => {
-                if !p.cf_hz.is_empty() {
-                    return Err(Error::invalid(
-                        AmsParams::NAMES.cf_hz,
-                        format!("{:?}", p.cf_hz),
-                        "explicit centre frequencies need ams_fbType = 'log'",
-                    ));
-                }
-                let nfft = (2 * w).next_power_of_two();
-                let (centres, weights) =
-                    lin_weights(p.n_filters, p.low_freq_hz, p.high_freq_hz, fs_ds, nfft);
-                let fft = afe_fft::real_forward(nfft);
-                let kind = Bands::Lin {
-                    weights,
-                    time: fft.make_input_vec(),
-                    spectrum: fft.make_output_vec(),
-                    magnitude: vec![0.0; nfft / 2 + 1],
-                    scratch: fft.make_scratch_vec(),
-                    fft,
-                };
-                // one transform of every channel per frame
-                let work = fs_ds / h as f64 * nfft as f64 * channels as f64;
-                (centres, kind, channels, work)
-            }
-        };
+        let (mod_cf_hz, kind, width, hidden_work) = bands(p, fs_ds, (w, h), channels)?;
         let hop_sums =
             (ones_over_two_hops && p.fb_type == AmsFbType::Log).then(|| HopSums::new(width, h));
         // the framing path's buffers, empty where the hop sums replace it
@@ -255,6 +168,118 @@ impl AmsFeatures {
             .with_axes(SignalKind::Modulation, [Axis::Modulation(mod_cf_hz)]);
         Ok((ams, info))
     }
+}
+
+/// Refuses a modulation bank the parameters cannot give: no decimation, too many
+/// filters, a band that is empty or starts at 0 Hz.
+fn check_bank(p: &AmsParams) -> Result<()> {
+    if p.ds_ratio == 0 {
+        return Err(Error::invalid(
+            AmsParams::NAMES.ds_ratio,
+            0,
+            "must be a positive integer",
+        ));
+    }
+    if p.cf_hz.len() > MAX_FILTERS {
+        return Err(Error::invalid(
+            AmsParams::NAMES.cf_hz,
+            format!("{} frequencies", p.cf_hz.len()),
+            format!("at most {MAX_FILTERS} modulation centre frequencies"),
+        ));
+    }
+    if p.n_filters == 0 || p.n_filters > MAX_FILTERS {
+        return Err(Error::invalid(
+            AmsParams::NAMES.n_filters,
+            p.n_filters,
+            format!("must be a positive integer, at most {MAX_FILTERS}"),
+        ));
+    }
+    if p.low_freq_hz <= 0.0 {
+        return Err(Error::invalid(
+            AmsParams::NAMES.low_freq_hz,
+            p.low_freq_hz,
+            "must be > 0 Hz",
+        ));
+    }
+    if p.high_freq_hz <= p.low_freq_hz {
+        return Err(Error::invalid(
+            AmsParams::NAMES.high_freq_hz,
+            p.high_freq_hz,
+            format!("must be above ams_lowFreqHz = {} Hz", p.low_freq_hz),
+        ));
+    }
+    Ok(())
+}
+
+/// The frame and hop, samples at the decimated rate `fs_ds` (Hz), refused beyond
+/// [`MAX_WINDOW`] or below a sample.
+fn framing(p: &AmsParams, fs_ds: f64) -> Result<(usize, usize)> {
+    let w = (2.0 * (p.w_size_sec * fs_ds / 2.0).round()).max(0.0) as usize;
+    if p.w_size_sec <= 0.0 || !(2..=MAX_WINDOW).contains(&w) {
+        return Err(Error::invalid(
+            AmsParams::NAMES.w_size_sec,
+            p.w_size_sec,
+            format!(
+                "the frame must span between 2 and {MAX_WINDOW} samples at the decimated \
+                 rate {fs_ds} Hz"
+            ),
+        ));
+    }
+    let h = (w as f64 / (p.w_size_sec / p.h_size_sec)).round();
+    if p.h_size_sec <= 0.0 || !(1.0..=MAX_WINDOW as f64).contains(&h) {
+        return Err(Error::invalid(
+            AmsParams::NAMES.h_size_sec,
+            p.h_size_sec,
+            format!(
+                "the hop must span between 1 and {MAX_WINDOW} samples at the decimated \
+                 rate {fs_ds} Hz"
+            ),
+        ));
+    }
+    Ok((w, h as usize))
+}
+
+/// The modulation bands of `channels` channels at the decimated rate `fs_ds` (Hz), framed
+/// by `(w, h)` samples: their centre frequencies, the bank, the output's width and the
+/// values the bank computes per second that the output does not show.
+fn bands(
+    p: &AmsParams,
+    fs_ds: f64,
+    (w, h): (usize, usize),
+    channels: usize,
+) -> Result<(Vec<f64>, Bands, usize, f64)> {
+    Ok(match p.fb_type {
+        AmsFbType::Log => {
+            let (mf, filters) = log_bank(p, fs_ds, channels)?;
+            let width = channels * mf.len();
+            // every band filters every channel at the decimated rate
+            (mf, Bands::Log { filters }, width, fs_ds * width as f64)
+        }
+        AmsFbType::Lin => {
+            if !p.cf_hz.is_empty() {
+                return Err(Error::invalid(
+                    AmsParams::NAMES.cf_hz,
+                    format!("{:?}", p.cf_hz),
+                    "explicit centre frequencies need ams_fbType = 'log'",
+                ));
+            }
+            let nfft = (2 * w).next_power_of_two();
+            let (centres, weights) =
+                lin_weights(p.n_filters, p.low_freq_hz, p.high_freq_hz, fs_ds, nfft);
+            let fft = afe_fft::real_forward(nfft);
+            let kind = Bands::Lin {
+                weights,
+                time: fft.make_input_vec(),
+                spectrum: fft.make_output_vec(),
+                magnitude: vec![0.0; nfft / 2 + 1],
+                scratch: fft.make_scratch_vec(),
+                fft,
+            };
+            // one transform of every channel per frame
+            let work = fs_ds / h as f64 * nfft as f64 * channels as f64;
+            (centres, kind, channels, work)
+        }
+    })
 }
 
 /// Rows of the decimated signal filtered by every band before the next rows.

@@ -118,7 +118,42 @@ impl Precedence {
             &format!("this window over {nc} channels"),
             "shorten the window or use fewer channels",
         )?;
-        let ear = Ear {
+        let ear = Ear::zeros(nc, w, bins, ac_lag, longest);
+        let model = Model {
+            tail_peaks: [vec![0.0; nc], vec![0.0; nc]],
+            win: window(Window::Hanning, w),
+            nc,
+            max_lag,
+            ac_lag,
+            main_peak_width,
+            cc_lag,
+            fs,
+            decay: decay_table(fr),
+            ac_weight: input.cf_hz().iter().map(|cf| 1.0 / cf.max(100.0)).collect(),
+            cc_weight: cc_weights(input.cf_hz()),
+            ears: [ear.clone(), ear],
+            first: true,
+            cc_modes: std::array::from_fn(|_| vec![0.0; 2 * cc_lag + 1]),
+            xcorr: vec![0.0; 2 * w - 1],
+            icc: vec![0.0; 2 * max_lag.max(cc_lag) + 1],
+            fft: RealFft::new(nfft),
+            ifft: RealIfft::new(nfft),
+            even: EvenInverse::new(nfft),
+        };
+        let p = Precedence {
+            frames: EarFrames::new(nc, w, h),
+            model,
+        };
+        let infos = output_infos(input, params, max_lag);
+        Ok((p, infos))
+    }
+}
+
+impl Ear {
+    /// An ear's buffers for `nc` channels, `w`-sample windows, `bins` spectrum bins, lags
+    /// up to `ac_lag` and the lag removal's `longest` samples.
+    fn zeros(nc: usize, w: usize, bins: usize, ac_lag: usize, longest: usize) -> Ear {
+        Ear {
             cols: vec![0.0; nc * w],
             spectra: Spectra::zeros(nc * bins),
             power: vec![0.0; nc * bins],
@@ -133,65 +168,49 @@ impl Precedence {
             variant: vec![0.0; nc * longest],
             energy: vec![0.0; nc],
             lag: LagRemoval::default(),
-        };
-        let (b1, b2, b3) = (-0.0938272, 0.000112586, -0.0000000399154);
-        let cc_weight = input
-            .cf_hz()
-            .iter()
-            .map(|&cf| {
-                let f = cf.min(1200.0);
-                10f64.powf((-b1 * f - b2 * f * f - b3 * f * f * f) / 10.0) / 276.0
-            })
-            .collect();
-        let model = Model {
-            tail_peaks: [vec![0.0; nc], vec![0.0; nc]],
-            win: window(Window::Hanning, w),
-            nc,
-            max_lag,
-            ac_lag,
-            main_peak_width,
-            cc_lag,
-            fs,
-            decay: decay_table(fr),
-            ac_weight: input.cf_hz().iter().map(|cf| 1.0 / cf.max(100.0)).collect(),
-            cc_weight,
-            ears: [ear.clone(), ear],
-            first: true,
-            cc_modes: std::array::from_fn(|_| vec![0.0; 2 * cc_lag + 1]),
-            xcorr: vec![0.0; 2 * w - 1],
-            icc: vec![0.0; 2 * max_lag.max(cc_lag) + 1],
-            fft: RealFft::new(nfft),
-            ifft: RealIfft::new(nfft),
-            even: EvenInverse::new(nfft),
-        };
-        let p = Precedence {
-            frames: EarFrames::new(nc, w, h),
-            model,
-        };
-        let rate = 1.0 / params.h_size_sec;
-        let lags_s = (0..=2 * max_lag)
-            .map(|i| (i as f64 - max_lag as f64) / fs)
-            .collect();
-        let framed = input.framed(rate).with_window_s(params.w_size_sec);
-        let infos = [
-            framed
-                .clone()
-                .named("precedence_itd")
-                .with_unit("s")
-                .drawn_as(DrawAs::Signed),
-            framed
-                .clone()
-                .named("precedence_ild")
-                .with_unit("dB")
-                .drawn_as(DrawAs::Signed)
-                .nan_where("in a window whose input is all zero in both ears: 0/0, as in the AFE"),
-            framed
-                .correlation(rate, lags_s)
-                .named("precedence_cc")
-                .with_unit(""),
-        ];
-        Ok((p, infos))
+        }
     }
+}
+
+/// The cross-correlation's weight of each channel (centre frequencies `cf_hz`, Hz): the
+/// spec's cubic in dB over frequency, flat above 1200 Hz.
+fn cc_weights(cf_hz: &[f64]) -> Vec<f64> {
+    let (b1, b2, b3) = (-0.0938272, 0.000112586, -0.0000000399154);
+    cf_hz
+        .iter()
+        .map(|&cf| {
+            let f = cf.min(1200.0);
+            10f64.powf((-b1 * f - b2 * f * f - b3 * f * f * f) / 10.0) / 276.0
+        })
+        .collect()
+}
+
+/// The descriptions of the three outputs (ITD in s, ILD in dB, the cross-correlation over
+/// lags up to `max_lag` samples) of the precedence model framed as `params` say.
+fn output_infos(input: &SignalInfo, params: &PrecedenceParams, max_lag: usize) -> [SignalInfo; 3] {
+    let fs = input.fs_hz;
+    let rate = 1.0 / params.h_size_sec;
+    let lags_s = (0..=2 * max_lag)
+        .map(|i| (i as f64 - max_lag as f64) / fs)
+        .collect();
+    let framed = input.framed(rate).with_window_s(params.w_size_sec);
+    [
+        framed
+            .clone()
+            .named("precedence_itd")
+            .with_unit("s")
+            .drawn_as(DrawAs::Signed),
+        framed
+            .clone()
+            .named("precedence_ild")
+            .with_unit("dB")
+            .drawn_as(DrawAs::Signed)
+            .nan_where("in a window whose input is all zero in both ears: 0/0, as in the AFE"),
+        framed
+            .correlation(rate, lags_s)
+            .named("precedence_cc")
+            .with_unit(""),
+    ]
 }
 
 impl Processor for Precedence {
