@@ -140,7 +140,7 @@ impl ServeArgs {
                 max_subscriptions: self.max_subscriptions as usize,
                 max_load: afe_net::MAX_LOAD,
                 platform: described,
-                head_pose: job.head_pose.clone(),
+                head_pose: head_pose_fed(&self.source).then(|| job.head_pose.clone()),
                 head_yaw_range_deg: platform.as_ref().map(afe_spatial::Platform::yaw_range_deg),
                 connect: self.connect,
                 #[cfg(feature = "ros2")]
@@ -154,4 +154,21 @@ impl ServeArgs {
         };
         stream(job, &run)
     }
+}
+
+/// Whether the motor controller's yaws on `afe/<name>/head/yaw` feed the stream's head
+/// pose: not where the source is a synthetic head that reports its own yaw (said on
+/// stderr, so that a controller publishing anyway is not left wondering).
+#[cfg(feature = "remote")]
+fn head_pose_fed(source: &str) -> bool {
+    let turning = source
+        .parse::<afe::stream::SourceSpec>()
+        .is_ok_and(|s| s.turning_head().is_some());
+    if turning {
+        eprintln!(
+            "the synthetic head reports its own yaw: yaws published on afe/<name>/head/yaw \
+             are not listened to"
+        );
+    }
+    !turning
 }

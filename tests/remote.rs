@@ -546,7 +546,7 @@ fn a_motor_controllers_head_yaw_reaches_the_servers_tracking_and_bad_ones_are_re
     let pose = afe::HeadPose::new();
     let options = ServeOptions {
         listen: vec![endpoint(port)],
-        head_pose: pose.clone(),
+        head_pose: Some(pose.clone()),
         head_yaw_range_deg: Some((-90.0, 90.0)),
         ..ServeOptions::default()
     };
@@ -591,4 +591,27 @@ fn a_motor_controllers_head_yaw_reaches_the_servers_tracking_and_bad_ones_are_re
     drop((sub, client));
     stream.join().expect("stream");
     drop(server);
+}
+
+#[test]
+fn a_served_synthetic_head_that_turns_does_not_listen_for_yaws() {
+    // its yaw is its own: a motor controller's sample could only contradict it
+    let out = common::afe(&[
+        "serve",
+        "--source",
+        "synth:fs=16000,noise=0.1,az=150,turn=30",
+        "-r",
+        "tracking",
+        "--listen",
+        &endpoint(17617),
+        "--for",
+        "0.5",
+        "--json",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("yaws published on afe/<name>/head/yaw are not listened to"),
+        "{err}"
+    );
 }

@@ -36,6 +36,9 @@ import numpy as np
 
 import afe
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import cue_templates  # noqa: E402
+
 if not hasattr(np, "in1d"):  # pyroomacoustics 0.10.1's peak finder calls it; numpy 2.4 removed it
     np.in1d = np.isin  # type: ignore[attr-defined]
 
@@ -284,10 +287,11 @@ def main() -> int:
     heads = [("kemar", "kemar", 16000.0, 0.18), ("kemar", "kemar", 44100.0, 0.18),
              ("sphere", "sphere", 24414.0, 0.15)]
     rows = []
-    totals: Dict[str, List[float]] = {"afe": [], "SRP": [], "NormMUSIC": []}
+    totals: Dict[str, List[float]] = {"afe": [], "cues": [], "SRP": [], "NormMUSIC": []}
     t0 = time.time()
     for label, head, fs, spacing in heads:
-        methods = {"afe": afe_estimate(head, 1), "SRP": pra_estimate("SRP", spacing, 1),
+        methods = {"afe": afe_estimate(head, 1), "cues": cue_templates.estimate(head, fs),
+                   "SRP": pra_estimate("SRP", spacing, 1),
                    "NormMUSIC": pra_estimate("NormMUSIC", spacing, 1)}
         for cond, render in conditions(head, fs, args.quick):
             ears = [render(az) for az in azimuths]
@@ -311,13 +315,15 @@ def main() -> int:
             hits += ok
         two.append((f"{label} {fs / 1000:g} kHz", 100.0 * hits / len(PAIRS)))
     if args.markdown:
-        print("| head | condition | afe: within 5° | MAE | front-back | SRP-PHAT: within 5° | MAE |"
-              " NormMUSIC: within 5° | MAE |")
-        print("|---|---|---|---|---|---|---|---|---|")
-        for head, cond, a, s, m in rows:
+        print("| head | condition | afe: within 5° | MAE | front-back | cue templates: within 5° | MAE |"
+              " front-back | SRP-PHAT: within 5° | MAE | NormMUSIC: within 5° | MAE |")
+        print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+        for head, cond, a, c, s, m in rows:
             print(f"| {head} | {cond} | {a['within5']:.0f} % | {a['mae']:.1f}° | {a['fb']:.0f} % |"
+                  f" {c['within5']:.0f} % | {c['mae']:.1f}° | {c['fb']:.0f} % |"
                   f" {s['within5']:.0f} % | {s['mae']:.1f}° | {m['within5']:.0f} % | {m['mae']:.1f}° |")
-        print(f"| all | single talkers | {np.mean(totals['afe']):.0f} % | | | {np.mean(totals['SRP']):.0f} % | |"
+        print(f"| all | single talkers | {np.mean(totals['afe']):.0f} % | | |"
+              f" {np.mean(totals['cues']):.0f} % | | | {np.mean(totals['SRP']):.0f} % | |"
               f" {np.mean(totals['NormMUSIC']):.0f} % | |")
         for head, pct in two:
             print(f"\nTwo talkers 40° or more apart, anechoic, {head}: both within 10° in {pct:.0f} % of"

@@ -64,8 +64,9 @@ pub struct ServeOptions {
     pub platform: Option<Value>,
     /// The stream's head pose, fed from `afe/<name>/head/yaw` as the robot's motor
     /// controller publishes it (`{"t_s", "yaw_deg"}` samples; the same feed as the
-    /// stream job's).
-    pub head_pose: afe::HeadPose,
+    /// stream job's); `None`: the key is not listened to (a synthetic head reports its
+    /// own yaw).
+    pub head_pose: Option<afe::HeadPose>,
     /// The yaws accepted on that key (lowest, highest, deg; a platform's neck): others are
     /// refused.
     pub head_yaw_range_deg: Option<(f64, f64)>,
@@ -87,7 +88,7 @@ impl Default for ServeOptions {
             max_subscriptions: MAX_SUBSCRIPTIONS,
             max_load: MAX_LOAD,
             platform: None,
-            head_pose: afe::HeadPose::new(),
+            head_pose: Some(afe::HeadPose::new()),
             head_yaw_range_deg: None,
             connect: Vec::new(),
             #[cfg(feature = "ros2")]
@@ -142,7 +143,7 @@ pub struct Server {
     authenticated: bool,
     _queryables: Vec<Queryable<()>>,
     _clients: Subscriber<()>,
-    _head_yaw: Subscriber<()>,
+    _head_yaw: Option<Subscriber<()>>,
     head_yaw_counts: Arc<head_yaw::YawCounts>,
     _token: LivelinessToken,
     /// The thread answering queries, joined when the server goes; `stop` ends it.
@@ -245,12 +246,18 @@ impl Server {
                     .wait()?,
             );
         }
-        let (head_yaw, head_yaw_counts) = head_yaw::subscribe(
-            &session,
-            key(&name, "head/yaw"),
-            options.head_pose.clone(),
-            options.head_yaw_range_deg,
-        )?;
+        let (head_yaw, head_yaw_counts) = match &options.head_pose {
+            Some(pose) => {
+                let (subscriber, counts) = head_yaw::subscribe(
+                    &session,
+                    key(&name, "head/yaw"),
+                    pose.clone(),
+                    options.head_yaw_range_deg,
+                )?;
+                (Some(subscriber), counts)
+            }
+            None => (None, Arc::default()),
+        };
         let token = session
             .liveliness()
             .declare_token(key(&name, "server"))

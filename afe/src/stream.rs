@@ -98,6 +98,15 @@ impl SourceSpec {
             }
         }
     }
+
+    /// The synthetic head that turns (`synth:...,turn=DEG`), which reports its own yaw to
+    /// the stream's head pose; `None` for any other source.
+    pub fn turning_head(&self) -> Option<afe_bass_source::Placed> {
+        match self {
+            SourceSpec::Synth(s) => s.placed.filter(|p| p.turn_deg != 0.0),
+            _ => None,
+        }
+    }
 }
 
 /// What to compute, and how to run the stream.
@@ -429,7 +438,7 @@ pub fn run_spec(
         },
         SourceSpec::Synth(s) => {
             let synth = afe_bass_source::Synth::new(s.clone());
-            match s.placed.filter(|p| p.turn_deg != 0.0) {
+            match spec.turning_head() {
                 Some(placed) => {
                     if !job.head_pose.is_empty() {
                         return Err(StreamError::Spec(format!(
