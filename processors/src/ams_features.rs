@@ -214,27 +214,28 @@ fn check_bank(p: &AmsParams) -> Result<()> {
 /// The frame and hop, samples at the decimated rate `fs_ds` (Hz), refused beyond
 /// [`MAX_WINDOW`] or below a sample.
 fn framing(p: &AmsParams, fs_ds: f64) -> Result<(usize, usize)> {
+    let beyond = |name, value, what, least| {
+        Error::invalid(
+            name,
+            value,
+            format!(
+                "the {what} must span between {least} and {MAX_WINDOW} samples at the \
+                 decimated rate {fs_ds} Hz"
+            ),
+        )
+    };
     let w = (2.0 * (p.w_size_sec * fs_ds / 2.0).round()).max(0.0) as usize;
     if p.w_size_sec <= 0.0 || !(2..=MAX_WINDOW).contains(&w) {
-        return Err(Error::invalid(
+        return Err(beyond(
             AmsParams::NAMES.w_size_sec,
             p.w_size_sec,
-            format!(
-                "the frame must span between 2 and {MAX_WINDOW} samples at the decimated \
-                 rate {fs_ds} Hz"
-            ),
+            "frame",
+            2,
         ));
     }
     let h = (w as f64 / (p.w_size_sec / p.h_size_sec)).round();
     if p.h_size_sec <= 0.0 || !(1.0..=MAX_WINDOW as f64).contains(&h) {
-        return Err(Error::invalid(
-            AmsParams::NAMES.h_size_sec,
-            p.h_size_sec,
-            format!(
-                "the hop must span between 1 and {MAX_WINDOW} samples at the decimated \
-                 rate {fs_ds} Hz"
-            ),
-        ));
+        return Err(beyond(AmsParams::NAMES.h_size_sec, p.h_size_sec, "hop", 1));
     }
     Ok((w, h as usize))
 }
