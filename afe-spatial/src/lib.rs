@@ -9,13 +9,15 @@ pub mod platform;
 pub mod sofa;
 pub mod sphere;
 pub mod track;
+pub mod tracked;
 pub mod turn;
 pub mod yaw;
 
 pub use head::Head;
 pub use locate::{locate, Localiser, LocaliserParams, Located, Scored, Source};
 pub use platform::Platform;
-pub use track::{track, Track, Tracked, Tracker, TrackerParams};
+pub use track::{Track, Tracker, TrackerParams};
+pub use tracked::{track, Tracked};
 pub use turn::{suggest, Neck, Suggestion};
 pub use yaw::HeadYaw;
 
