@@ -19,6 +19,7 @@ pub mod expected_source;
 pub mod filter;
 pub mod fir2;
 pub mod framing;
+pub mod from_above;
 pub mod head_pose;
 pub mod hilbert;
 mod huge_pages;

@@ -6,6 +6,7 @@
 use serde::Serialize;
 
 use crate::axis::Axis;
+pub use crate::from_above::FromAbove;
 use crate::signal_info::{DrawAs, SignalInfo, SignalKind};
 
 /// Range in dB below the peak of spectra that give none of their own.
@@ -32,30 +33,6 @@ pub struct Plan {
     pub complex: bool,
     /// For [`Panel::FromAbove`]: where a frame holds the sources and the head.
     pub from_above: Option<FromAbove>,
-}
-
-/// Where a frame of sources tracked about a head holds what a view from above draws:
-/// `slots` groups of `slot_width` values from the frame's start, each with a source's
-/// values at the offsets given (NaN in an empty slot), then the head's values at their
-/// indices in the frame. Azimuths in deg, 0 ahead, 90 to the left, in the world.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-pub struct FromAbove {
-    /// Source slots per frame.
-    pub slots: usize,
-    /// Values per slot.
-    pub slot_width: usize,
-    /// A source's identity, within its slot.
-    pub id: usize,
-    /// Its azimuth, deg, within its slot.
-    pub azimuth: usize,
-    /// Its uncertainty (a spread), deg, within its slot.
-    pub uncertainty: usize,
-    /// 1 where front was told from back, within its slot.
-    pub resolved: usize,
-    /// The head's yaw, deg, in the frame.
-    pub head_yaw: usize,
-    /// The yaw a suggested turn ends at (NaN when none), deg, in the frame.
-    pub suggested_yaw: usize,
 }
 
 /// What a panel shows.
@@ -159,6 +136,13 @@ fn tick(v: f64, unit: &str) -> String {
         format!("{v:.0}")
     } else {
         format!("{v:.2}")
+    }
+}
+
+impl SignalInfo {
+    /// How the signal is drawn, from this description alone (see [`Plan`]).
+    pub fn plan(&self) -> Plan {
+        Plan::of(self)
     }
 }
 

@@ -4,7 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::axis::Axis;
-use crate::plan::Plan;
+use crate::from_above::FromAbove;
 
 /// What a signal's frames contain (the AFE's signal classes, spec 00-overview §7); the
 /// axes of a frame are the description's own ([`SignalInfo::axes`]).
@@ -147,7 +147,7 @@ pub struct SignalInfo {
     pub nan_where: Option<&'static str>,
     /// For sources tracked about a head: where a frame holds them, drawn from above
     /// ([`crate::plan::Panel::FromAbove`]); `None` otherwise.
-    pub from_above: Option<crate::plan::FromAbove>,
+    pub from_above: Option<FromAbove>,
 }
 
 impl SignalInfo {
@@ -244,7 +244,7 @@ impl SignalInfo {
     }
 
     /// The same signal drawn from above as sources about a head, laid out as `scene`.
-    pub fn drawn_from_above(self, scene: crate::plan::FromAbove) -> Self {
+    pub fn drawn_from_above(self, scene: FromAbove) -> Self {
         SignalInfo {
             from_above: Some(scene),
             ..self
@@ -332,11 +332,6 @@ impl SignalInfo {
         std::iter::once(self.kind.time_axis())
             .chain(self.axes.iter().map(Axis::name))
             .collect()
-    }
-
-    /// How the signal is drawn, from this description alone (see [`Plan`]).
-    pub fn plan(&self) -> Plan {
-        Plan::of(self)
     }
 }
 
