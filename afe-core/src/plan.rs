@@ -6,7 +6,7 @@
 use serde::Serialize;
 
 use crate::axis::Axis;
-pub use crate::from_above::FromAbove;
+use crate::from_above::FromAbove;
 use crate::signal_info::{DrawAs, SignalInfo, SignalKind};
 
 /// Range in dB below the peak of spectra that give none of their own.

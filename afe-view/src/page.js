@@ -288,6 +288,7 @@ Panel.prototype.drawAbove = function (frame) {
     ctx.setLineDash([]);
     words.push(`turn to ${fmt(target)}°`);
   }
+  let sources = 0;
   for (let k = 0; k < sc.slots; k++) {
     const slot = frame.subarray(k * sc.slot_width, (k + 1) * sc.slot_width);
     const az = slot[sc.azimuth];
@@ -300,10 +301,11 @@ Panel.prototype.drawAbove = function (frame) {
     ctx.lineWidth = 2;
     ctx.beginPath(); ctx.arc(...at(az, ring), 6, 0, 2 * Math.PI);
     if (slot[sc.resolved] === 1) ctx.fill(); else ctx.stroke();
+    sources += 1;
     words.push(`#${id} ${fmt(az)}±${fmt(slot[sc.uncertainty])}°${slot[sc.resolved] === 1 ? "" : " (or its mirror)"}`);
   }
   this.canvas.title = words.join(", ");
-  this.el.dataset.sources = words.length - (Number.isFinite(target) ? 2 : 1);
+  this.el.dataset.sources = sources;
 };
 
 // The robot the stream comes from, from its platform descriptor: its name, its

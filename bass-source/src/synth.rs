@@ -222,8 +222,8 @@ pub struct Synth {
     delay_pos: usize,
     right_lags: bool,
     right_gain: f64,
-    /// With `az`: the placed source and its ears.
-    placed: Option<(Placed, Ears)>,
+    /// With `az` (the spec's `placed`): the ears of the placed source.
+    ears: Option<Ears>,
 }
 
 impl Synth {
@@ -240,9 +240,9 @@ impl Synth {
             delay_pos: 0,
             right_lags: spec.itd_ms < 0.0,
             right_gain: 10f64.powf(spec.ild_db / 20.0),
-            placed: spec
+            ears: spec
                 .placed
-                .map(|p| (p, Ears::new(p.max_lag_s() * f64::from(spec.fs)))),
+                .map(|p| Ears::new(p.max_lag_s() * f64::from(spec.fs))),
             spec,
         }
     }
@@ -310,7 +310,7 @@ impl Source for Synth {
         };
         left.clear();
         right.clear();
-        if let Some((placed, mut ears)) = self.placed.take() {
+        if let (Some(placed), Some(mut ears)) = (self.spec.placed, self.ears.take()) {
             let fs = f64::from(self.spec.fs);
             for _ in 0..max_frames {
                 let lag = placed.right_lag_s(self.t as f64 / fs) * fs;
@@ -318,7 +318,7 @@ impl Source for Synth {
                 left.push(l);
                 right.push(r);
             }
-            self.placed = Some((placed, ears));
+            self.ears = Some(ears);
             return Ok(max_frames);
         }
         for _ in 0..max_frames {
