@@ -4,6 +4,7 @@ import shutil
 import socket
 import subprocess
 import sys
+import time
 
 import pytest
 import wave
@@ -55,6 +56,22 @@ def under_address_limit(setup, call, headroom_bytes, timeout):
     env = {k: v for k, v in os.environ.items() if k != "AFE_MEMORY_AVAILABLE_GB"}
     return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           env=env, timeout=timeout)
+
+
+def connect(endpoint, deadline_s=15.0):
+    """afe.connect, retried until the server answers (its Zenoh side may start after its
+    other ports)."""
+    import afe
+    from afe.remote import RemoteError
+
+    start = time.monotonic()
+    while True:
+        try:
+            return afe.connect(endpoint, timeout=5.0)
+        except (ConnectionError, RemoteError):
+            if time.monotonic() - start > deadline_s:
+                raise
+            time.sleep(0.05)
 
 
 def free_port():

@@ -18,7 +18,7 @@ import pytest
 import afe
 from afe.frames import request_list
 from afe.remote import RemoteError, _Meta, _read_audio, _read_frames
-from conftest import free_port, zenoh_peer
+from conftest import connect, free_port, zenoh_peer
 
 zenoh = pytest.importorskip("zenoh")
 
@@ -50,18 +50,6 @@ def serve(cli):
     for p in started:
         p.kill()
         p.wait()
-
-
-def connect(endpoint, deadline_s=15.0):
-    """afe.connect, retried until the server answers."""
-    start = time.monotonic()
-    while True:
-        try:
-            return afe.connect(endpoint, timeout=5.0)
-        except (ConnectionError, RemoteError):
-            if time.monotonic() - start > deadline_s:
-                raise
-            time.sleep(0.05)
 
 
 @contextlib.contextmanager

@@ -13,7 +13,7 @@ import time
 
 import pytest
 
-from conftest import free_port
+from conftest import connect, free_port
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 SOURCE = "synth:fs=16000,tone=440,noise=0.1,itd_ms=0.3,ild_db=-6,seed=1"
@@ -237,10 +237,7 @@ def test_the_page_shows_the_tracked_sources_from_above_turned_by_the_reported_ya
     # turned 20 deg to the left on afe/<name>/head/yaw, and the page draws the robot from
     # above: the head's yaw, the tracked sources with their spread, the suggested turn
     chromium, driver_path = _browser()
-    from selenium.webdriver.common.by import By
     from selenium.webdriver.support.ui import WebDriverWait
-
-    import afe
 
     platform_file = _seed_robot_at_16k(root, tmp_path)
     port, zport = free_port(), free_port()
@@ -252,7 +249,7 @@ def test_the_page_shows_the_tracked_sources_from_above_turned_by_the_reported_ya
     browser = None
     try:
         _wait_for_port(port, server)
-        robot = afe.connect(f"tcp/127.0.0.1:{zport}")
+        robot = connect(f"tcp/127.0.0.1:{zport}")
         robot.set_head_yaw(0.0, 20.0)
         with pytest.raises(ValueError, match="not finite"):
             robot.set_head_yaw(1.0, float("nan"))
