@@ -196,7 +196,7 @@ fn a_turning_head_tells_front_from_back_given_its_yaw() {
     let track = turn.track.to_str().expect("path");
     for name in ["sphere", "kemar"] {
         let head = Head::parse(name).unwrap_or_else(|e| panic!("{e}"));
-        let mut unaware = Vec::new();
+        let mut pinnae_decide = 0;
         for world in [30.0, 150.0, 210.0, 330.0] {
             let ears = turning_render(&head, world, yaw, x, fs);
             let wav = format!("turning-{name}-{world}");
@@ -205,18 +205,30 @@ fn a_turning_head_tells_front_from_back_given_its_yaw() {
                 gap(found, world).abs() <= 5.0,
                 "{name}, {world} deg in the world: found {found}"
             );
-            // a user who ignores the turn: head-relative, the head's mean yaw off
-            let fixed = located_with(&wav, &ears, fs, &["--head", name]);
-            unaware.push((world, fixed + 15.0));
+            // a user who ignores the turn: head-relative azimuths
+            let v = locate_json(&wav, &ears, fs, &["--head", name]);
+            let relative: Vec<f64> = v["sources"]
+                .as_array()
+                .expect("sources")
+                .iter()
+                .map(|s| s["azimuth_deg"].as_f64().expect("azimuth"))
+                .collect();
+            if name == "sphere" {
+                // its static cues are symmetric front to back: without the turn, the
+                // first source's front-back image is reported as well, alike salient
+                let image = 180.0 - relative[0];
+                assert!(
+                    relative[1..].iter().any(|r| gap(*r, image).abs() <= 5.0),
+                    "{world} deg without the yaw track: {relative:?}, no front-back image"
+                );
+            } else if gap(relative[0] + 15.0, world).abs() <= 5.0 {
+                // (the head's mean yaw is 15 deg)
+                pinnae_decide += 1;
+            }
         }
-        eprintln!("{name}: without the yaw track (mean yaw added): {unaware:?}");
-        // the same renders taken head-relative are right by chance at best: the turn
-        // decides, for the sphere whose static cues are symmetric front to back
-        let confused = unaware.iter().filter(|(w, f)| gap(*f, *w).abs() > 5.0);
-        assert!(
-            confused.count() >= 1,
-            "{name}: every render right without its yaw track: {unaware:?}"
-        );
+        if name == "kemar" {
+            eprintln!("without the yaw track, KEMAR's pinnae told front from back for {pinnae_decide} of 4");
+        }
     }
 }
 

@@ -47,8 +47,8 @@ KEMAR_SOFA = os.environ.get("AFE_KEMAR_SOFA", "/usr/share/libmysofa/MIT_KEMAR_no
 C = 343.0
 AZIMUTHS = [0.0, 30.0, 60.0, 90.0, 120.0, 150.0, 180.0, 210.0, 240.0, 270.0, 300.0, 330.0,
             17.0, 112.5, 203.0, 287.0]
-PAIRS = [(20.0, 70.0), (330.0, 30.0), (60.0, 120.0), (250.0, 300.0), (0.0, 300.0),
-         (45.0, 135.0), (200.0, 260.0), (90.0, 150.0)]
+CHOSEN_PAIRS = [(20.0, 70.0), (330.0, 30.0), (60.0, 120.0), (250.0, 300.0), (0.0, 300.0),
+                (45.0, 135.0), (200.0, 260.0), (90.0, 150.0)]
 ROOM = [6.0, 4.5, 3.0]
 HEAD_AT = np.array([2.6, 2.1, 1.5])
 DISTANCE_M = 1.5
@@ -62,6 +62,19 @@ def folded(az: float) -> float:
 
 def circular(a: float, b: float) -> float:
     return abs((a - b + 180.0) % 360.0 - 180.0)
+
+
+def two_talker_pairs(count: int = 32, seed: int = 5) -> List[Tuple[float, float]]:
+    """The chosen pairs, then pairs drawn at random (to 0.1 degree) whose lateral angles
+    are 40 degrees or more apart, until ``count`` (the chosen eight alone were all found
+    on KEMAR by the estimator before its coherence weights, which found 21 of these 32)."""
+    rng = np.random.default_rng(seed)
+    pairs = list(CHOSEN_PAIRS)
+    while len(pairs) < count:
+        a, b = (float(v) for v in rng.uniform(0.0, 360.0, 2).round(1))
+        if abs(folded(a) - folded(b)) >= 40.0:
+            pairs.append((a, b))
+    return pairs
 
 
 def speech(fs: float, seconds: float = 2.0) -> np.ndarray:
@@ -308,12 +321,12 @@ def main() -> int:
     for label, head, fs, _ in heads[::2]:
         x1, x2 = speech(fs), np.roll(speech(fs), int(0.7 * fs))
         hits = 0
-        for a, b in PAIRS:
+        for a, b in two_talker_pairs():
             ears = afe.render(x1, fs, a, head=head) + afe.render(x2, fs, b, head=head)
             found = afe_estimate(head, 2)(ears, fs)
             ok = all(any(abs(folded(f) - folded(t)) <= 10.0 for f in found) for t in (a, b))
             hits += ok
-        two.append((f"{label} {fs / 1000:g} kHz", 100.0 * hits / len(PAIRS)))
+        two.append((f"{label} {fs / 1000:g} kHz", 100.0 * hits / len(two_talker_pairs())))
     if args.markdown:
         print("| head | condition | afe: within 5° | MAE | front-back | cue templates: within 5° | MAE |"
               " front-back | SRP-PHAT: within 5° | MAE | NormMUSIC: within 5° | MAE |")
@@ -327,7 +340,7 @@ def main() -> int:
               f" {np.mean(totals['NormMUSIC']):.0f} % | |")
         for head, pct in two:
             print(f"\nTwo talkers 40° or more apart, anechoic, {head}: both within 10° in {pct:.0f} % of"
-                  f" {len(PAIRS)} pairs.")
+                  f" {len(two_talker_pairs())} pairs.")
     return 0
 
 

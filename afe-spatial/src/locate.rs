@@ -1,10 +1,12 @@
 //! Localisation by projection on the head's transfer functions, without training: per
 //! frame and frequency bin, how much of the binaural spectrum lies along a direction's
 //! steering vector V = [H_L, H_R] (the energy of the projection V V^H / V^H V over the
-//! bin's energy, 1 for a single source from there in a free field), averaged over the
-//! bins of the band with each bin's onset weight (its rise in log energy over two frames,
-//! squared: where the direct sound leads its reflections); per frame a score over
-//! azimuth, and the sources as the peaks of its weighted average over the active frames.
+//! bin's energy, 1 for a single source from there in a free field), raised to the 8th
+//! power and averaged over the bins of the band with each bin's weight: its onset (its
+//! rise in log energy over two frames, squared: where the direct sound leads its
+//! reflections) times its interaural coherence (where one source dominates); per frame a
+//! score over azimuth, and the sources as the peaks of its weighted average over the
+//! active frames.
 
 use afe_core::real_fft::RealFft;
 use num_complex::Complex64;
@@ -200,6 +202,13 @@ pub struct Localiser {
     previous: Vec<f64>,
     /// Frames scored since the start or [`Localiser::reset`], up to [`ONSET_LAG`].
     primed: usize,
+    /// Per bin of the band, the ears' powers |l|², |r|² and the real and imaginary parts
+    /// of l·conj(r), smoothed over frames (time constant [`COHERENCE_TAU_S`]).
+    smoothed: Vec<f64>,
+    /// The smoothing's weight of the frames before, `exp(−hop/τ)`.
+    keep: f64,
+    /// Each bin's weight in the current frame: onset times coherence.
+    bin_weights: Vec<f64>,
     fft: RealFft,
     /// The two ears' spectra, real and imaginary parts.
     spectra: [(Vec<f64>, Vec<f64>); 2],
@@ -297,6 +306,9 @@ impl Localiser {
             weights: vec![0.0; 4 * bins],
             previous: vec![0.0; ONSET_LAG * bins],
             primed: 0,
+            smoothed: vec![0.0; 4 * bins],
+            keep: (-(hop as f64 / fs_hz) / COHERENCE_TAU_S).exp(),
+            bin_weights: vec![0.0; bins],
             fft: RealFft::new(n),
             spectra: [half(), half()],
         })
@@ -328,8 +340,9 @@ impl Localiser {
     }
 
     /// Scores one frame of each ear (`frame_len` samples) into `row`: per azimuth, the
-    /// share of each bin's energy along its steering vector (0 to 1), averaged over the
-    /// band's bins with each bin's onset weight (see [`ONSET_FLOOR`]); returns the band's
+    /// share of each bin's energy along its steering vector (0 to 1) to the 8th power
+    /// ([`SHARE_SQUARINGS`]), averaged over the band's bins with each bin's onset weight (see
+    /// [`ONSET_FLOOR`]) times its coherence (see [`COHERENCE_POWER`]); returns the band's
     /// energy and the frame's weight (the sum of its bins').
     pub fn score(&mut self, left: &[f64], right: &[f64], row: &mut [f64]) -> Scored {
         let w = self.window.len();
@@ -360,25 +373,42 @@ impl Localiser {
                 self.previous[(lag - 1) * self.bins + b] = self.previous[lag * self.bins + b];
             }
             self.previous[(ONSET_LAG - 1) * self.bins + b] = level;
+            let cross = l * r.conj();
+            let now = [l.norm_sqr(), r.norm_sqr(), cross.re, cross.im];
+            let keep = if self.primed == 0 { 0.0 } else { self.keep };
+            let smoothed = &mut self.smoothed[4 * b..4 * b + 4];
+            for (s, v) in smoothed.iter_mut().zip(now) {
+                *s = keep * *s + (1.0 - keep) * v;
+            }
             let w = &mut self.weights[4 * b..4 * b + 4];
             if e <= 0.0 {
                 w.fill(0.0);
+                self.bin_weights[b] = 0.0;
                 continue;
             }
             energy += e;
-            let onset = rise * rise + ONSET_FLOOR;
-            weight += onset;
-            let inv = onset / e;
-            let cross = l * r.conj() * inv;
+            // |γ|² = |⟨l·conj(r)⟩|² / (⟨|l|²⟩·⟨|r|²⟩), in [0, 1]
+            let [sl, sr, sc, ss] = [smoothed[0], smoothed[1], smoothed[2], smoothed[3]];
+            // (a bin only one ear hears has a single direction: coherent)
+            let both = sl * sr;
+            let coherence = if both > 0.0 {
+                ((sc * sc + ss * ss) / both).min(1.0)
+            } else {
+                1.0
+            };
+            let bin_weight = (rise * rise + ONSET_FLOOR) * coherence.powi(COHERENCE_POWER);
+            self.bin_weights[b] = bin_weight;
+            weight += bin_weight;
+            let inv = 1.0 / e;
             w.copy_from_slice(&[
-                l.norm_sqr() * inv,
-                r.norm_sqr() * inv,
-                2.0 * cross.re,
-                -2.0 * cross.im,
+                now[0] * inv,
+                now[1] * inv,
+                2.0 * cross.re * inv,
+                -2.0 * cross.im * inv,
             ]);
         }
         self.primed = (self.primed + 1).min(ONSET_LAG);
-        project(row, &self.gains, &self.weights);
+        project(row, &self.gains, &self.weights, &self.bin_weights);
         if weight > 0.0 {
             row.iter_mut().for_each(|s| *s /= weight);
         }
@@ -417,18 +447,49 @@ pub const ONSET_FLOOR: f64 = 1e-6;
 /// and 94 % of 16 talkers within 5 degrees against 100 % over two.
 pub const ONSET_LAG: usize = 2;
 
+/// Time constant of the smoothing of each bin's powers and cross power, over which its
+/// interaural coherence |γ|² is measured, s (two frames at the default hop).
+pub const COHERENCE_TAU_S: f64 = 0.04;
+
+/// A bin's onset weight is multiplied by its coherence |γ|² to this power: a bin that one
+/// source dominates is coherent between the ears, while reverberation, diffuse noise and
+/// two talkers mixed in it are not. Measured on the 336 single-talker renders of
+/// tools/eval_localisation.py (with [`SHARE_SQUARINGS`]): 91 % within 5 degrees without it,
+/// 98 % with it; 0.9 s rooms on KEMAR 69-75 % → 88-94 %, the sphere in 0-dB diffuse noise
+/// 50 % → 94 %.
+pub const COHERENCE_POWER: i32 = 2;
+
+/// Each bin's share of energy along a direction is squared this many times (raised to the
+/// 8th power) before the bins are added: 1 only along the bin's own direction, so a bin that two
+/// talkers share no longer votes for the directions between them. Two talkers 40 degrees
+/// or more apart (32 anechoic pairs, KEMAR): both found within 10 degrees in 21 without
+/// sharpening or coherence, 25 with the coherence alone, 31 with both.
+pub const SHARE_SQUARINGS: u32 = 3;
+
 afe_core::simd_kernel!(
     fma,
-    /// `row[a] = Σ_k weights[k]·gains[k·A + a]` over the `A = row.len()` azimuths: one
-    /// pass over the gains, each row added across all azimuths (weights of 0 skipped).
-    fn project(row: &mut [f64], gains: &[f64], weights: &[f64]) {
+    /// `row[a] = Σ_b bin_weights[b]·s_b[a]^(2^SHARE_SQUARINGS)` over the `A = row.len()` azimuths, with the
+    /// share `s_b[a] = Σ_k weights[4b + k]·gains[(4b + k)·A + a]` of bin `b`: one pass over
+    /// the gains, four rows per bin across all azimuths (bins of weight 0 skipped).
+    fn project(row: &mut [f64], gains: &[f64], weights: &[f64], bin_weights: &[f64]) {
         row.fill(0.0);
-        for (g, &w) in gains.chunks_exact(row.len()).zip(weights) {
-            if w == 0.0 {
+        let na = row.len();
+        let bins = gains.chunks_exact(4 * na).zip(weights.chunks_exact(4));
+        for ((g, w), &bin_weight) in bins.zip(bin_weights) {
+            if bin_weight == 0.0 {
                 continue;
             }
-            for (s, &v) in row.iter_mut().zip(g) {
-                *s = w.mul_add(v, *s);
+            let (g0, rest) = g.split_at(na);
+            let (g1, rest) = rest.split_at(na);
+            let (g2, g3) = rest.split_at(na);
+            let rows = g0.iter().zip(g1).zip(g2.iter().zip(g3));
+            for (s, ((a, b), (c, d))) in row.iter_mut().zip(rows) {
+                let share = w[3].mul_add(*d, w[2].mul_add(*c, w[1].mul_add(*b, w[0] * a)));
+                let mut sharp = share;
+                for _ in 0..SHARE_SQUARINGS {
+                    sharp *= sharp;
+                }
+                *s = bin_weight.mul_add(sharp, *s);
             }
         }
     }
@@ -441,8 +502,8 @@ fn argmax(v: &[f64]) -> usize {
 }
 
 /// Salience, as a share of the first source's, that another source needs to be reported
-/// by default: a single source's side lobes reach 0.8 of its peak on the sphere, and its
-/// front-back image (a head without pinnae) equals it.
+/// by default: a single anechoic talker's side lobes reach 0.2 of its peak on the sphere
+/// and 0.4 on KEMAR, while its front-back image on a head without pinnae equals it.
 const SALIENT_SHARE: f64 = 0.9;
 
 /// The lateral angle of `azimuth_deg`, deg in [−90, 90] (positive to the left): the same
