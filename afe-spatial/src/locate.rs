@@ -454,23 +454,24 @@ pub const COHERENCE_TAU_S: f64 = 0.04;
 /// A bin's onset weight is multiplied by its coherence |γ|² to this power: a bin that one
 /// source dominates is coherent between the ears, while reverberation, diffuse noise and
 /// two talkers mixed in it are not. Measured on the 336 single-talker renders of
-/// tools/eval_localisation.py (with [`SHARE_SQUARINGS`]): 91 % within 5 degrees without it,
-/// 98 % with it; 0.9 s rooms on KEMAR 69-75 % → 88-94 %, the sphere in 0-dB diffuse noise
-/// 50 % → 94 %.
+/// tools/eval_localisation.py: the onset weights alone placed 91 % within 5 degrees, with
+/// the coherence and [`SHARE_SQUARINGS`] 98 % (0.9-s rooms on KEMAR 69-75 % → 88-94 %, the
+/// sphere in 0-dB diffuse noise 50 % → 94 %).
 pub const COHERENCE_POWER: i32 = 2;
 
 /// Each bin's share of energy along a direction is squared this many times (raised to the
-/// 8th power) before the bins are added: 1 only along the bin's own direction, so a bin that two
-/// talkers share no longer votes for the directions between them. Two talkers 40 degrees
+/// 8th power) before the bins are added: 1 only along the bin's own direction, so a bin
+/// that two talkers share no longer votes for the directions between them. Two talkers 40 degrees
 /// or more apart (32 anechoic pairs, KEMAR): both found within 10 degrees in 21 without
 /// sharpening or coherence, 25 with the coherence alone, 31 with both.
 pub const SHARE_SQUARINGS: u32 = 3;
 
 afe_core::simd_kernel!(
     fma,
-    /// `row[a] = Σ_b bin_weights[b]·s_b[a]^(2^SHARE_SQUARINGS)` over the `A = row.len()` azimuths, with the
-    /// share `s_b[a] = Σ_k weights[4b + k]·gains[(4b + k)·A + a]` of bin `b`: one pass over
-    /// the gains, four rows per bin across all azimuths (bins of weight 0 skipped).
+    /// `row[a] = Σ_b bin_weights[b]·s_b[a]^(2^SHARE_SQUARINGS)` over the `A = row.len()`
+    /// azimuths, with the share `s_b[a] = Σ_k weights[4b + k]·gains[(4b + k)·A + a]` of
+    /// bin `b`: one pass over the gains, four rows per bin across all azimuths (bins of
+    /// weight 0 skipped).
     fn project(row: &mut [f64], gains: &[f64], weights: &[f64], bin_weights: &[f64]) {
         row.fill(0.0);
         let na = row.len();
