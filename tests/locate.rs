@@ -71,6 +71,24 @@ fn locate_json(name: &str, ears: &[Vec<f64>; 2], fs: u32, options: &[&str]) -> V
     serde_json::from_slice(&out.stdout).expect("json")
 }
 
+/// `afe locate --json` of `ears` at `fs` with `options`: every source's azimuth, the most
+/// salient first.
+fn sources_located(name: &str, ears: &[Vec<f64>; 2], fs: u32, options: &[&str]) -> Vec<f64> {
+    let v = locate_json(name, ears, fs, options);
+    v["sources"]
+        .as_array()
+        .expect("sources")
+        .iter()
+        .map(|s| s["azimuth_deg"].as_f64().expect("azimuth"))
+        .collect()
+}
+
+/// Two renders heard together: each ear's sum.
+fn together([al, ar]: [Vec<f64>; 2], [bl, br]: [Vec<f64>; 2]) -> [Vec<f64>; 2] {
+    let sum = |x: Vec<f64>, y: Vec<f64>| x.iter().zip(&y).map(|(p, q)| p + q).collect();
+    [sum(al, bl), sum(ar, br)]
+}
+
 /// `afe locate --json` of `ears` at `fs` with `options`: the first source's azimuth.
 fn located_with(name: &str, ears: &[Vec<f64>; 2], fs: u32, options: &[&str]) -> f64 {
     let v = locate_json(name, ears, fs, options);
@@ -207,13 +225,7 @@ fn a_turning_head_tells_front_from_back_given_its_yaw() {
                 "{name}, {world} deg in the world: found {found}"
             );
             // a user who ignores the turn: head-relative azimuths
-            let v = locate_json(&wav, &ears, fs, &["--head", name]);
-            let relative: Vec<f64> = v["sources"]
-                .as_array()
-                .expect("sources")
-                .iter()
-                .map(|s| s["azimuth_deg"].as_f64().expect("azimuth"))
-                .collect();
+            let relative = sources_located(&wav, &ears, fs, &["--head", name]);
             if name == "sphere" {
                 // its static cues are symmetric front to back: without the turn, the
                 // first source's front-back image is reported as well, alike salient
@@ -228,7 +240,7 @@ fn a_turning_head_tells_front_from_back_given_its_yaw() {
             }
         }
         if name == "kemar" {
-            eprintln!("without the yaw track, KEMAR's pinnae told front from back for {pinnae_decide} of 4");
+            eprintln!("without the yaw track, KEMAR's pinnae decided {pinnae_decide} of 4");
         }
     }
 }
@@ -265,22 +277,12 @@ fn two_talkers_on_kemar_are_both_found_within_10_degrees() {
     let head = Head::parse("kemar").unwrap_or_else(|e| panic!("{e}"));
     let mut missed = Vec::new();
     for (a, b) in PAIRS {
-        let [al, ar] = head.render(a, &first, f64::from(fs)).expect("render");
-        let [bl, br] = head.render(b, &second, f64::from(fs)).expect("render");
-        let sum = |x: Vec<f64>, y: Vec<f64>| x.iter().zip(&y).map(|(p, q)| p + q).collect();
-        let ears = [sum(al, bl), sum(ar, br)];
-        let v = locate_json(
-            &format!("two-{a}-{b}"),
-            &ears,
-            fs,
-            &["--head", "kemar", "--sources", "2"],
+        let ears = together(
+            head.render(a, &first, f64::from(fs)).expect("render"),
+            head.render(b, &second, f64::from(fs)).expect("render"),
         );
-        let found: Vec<f64> = v["sources"]
-            .as_array()
-            .expect("sources")
-            .iter()
-            .map(|s| s["azimuth_deg"].as_f64().expect("azimuth"))
-            .collect();
+        let options = ["--head", "kemar", "--sources", "2"];
+        let found = sources_located(&format!("two-{a}-{b}"), &ears, fs, &options);
         let near = |t: f64| {
             found
                 .iter()
@@ -445,12 +447,10 @@ fn two_walking_talkers_keep_their_identities_through_a_crossing() {
     let seconds = forwards.len() as f64 / f64::from(fs);
     let head = Head::parse("sphere").expect("sphere");
     let (a, b) = (|t: f64| 20.0 * t, move |t: f64| 20.0 * (seconds - t));
-    let [al, ar] = moving_render(&head, a, &forwards, fs);
-    let [bl, br] = moving_render(&head, b, &backwards, fs);
-    let ears = [
-        al.iter().zip(&bl).map(|(x, y)| x + y).collect(),
-        ar.iter().zip(&br).map(|(x, y)| x + y).collect(),
-    ];
+    let ears = together(
+        moving_render(&head, a, &forwards, fs),
+        moving_render(&head, b, &backwards, fs),
+    );
     let v = locate_json("walkers", &ears, fs, &["--head", "sphere", "--track"]);
     let reports = v["tracked"].as_array().expect("reports");
     // the track nearest each talker at a time, its id and gap

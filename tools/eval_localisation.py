@@ -318,15 +318,16 @@ def main() -> int:
                 f"{n} {r['within5']:.0f}% ({r['mae']:.1f} deg, fb {r['fb']:.0f}%)"
                 for n, r in zip(methods, row[2:])), file=sys.stderr)
     two = []
+    pairs = two_talker_pairs()
     for label, head, fs, _ in heads[::2]:
         x1, x2 = speech(fs), np.roll(speech(fs), int(0.7 * fs))
         hits = 0
-        for a, b in two_talker_pairs():
+        for a, b in pairs:
             ears = afe.render(x1, fs, a, head=head) + afe.render(x2, fs, b, head=head)
             found = afe_estimate(head, 2)(ears, fs)
             ok = all(any(abs(folded(f) - folded(t)) <= 10.0 for f in found) for t in (a, b))
             hits += ok
-        two.append((f"{label} {fs / 1000:g} kHz", 100.0 * hits / len(two_talker_pairs())))
+        two.append((f"{label} {fs / 1000:g} kHz", 100.0 * hits / len(pairs)))
     if args.markdown:
         print("| head | condition | afe: within 5° | MAE | front-back | cue templates: within 5° | MAE |"
               " front-back | SRP-PHAT: within 5° | MAE | NormMUSIC: within 5° | MAE |")
@@ -340,7 +341,7 @@ def main() -> int:
               f" {np.mean(totals['NormMUSIC']):.0f} % | |")
         for head, pct in two:
             print(f"\nTwo talkers 40° or more apart, anechoic, {head}: both within 10° in {pct:.0f} % of"
-                  f" {len(two_talker_pairs())} pairs.")
+                  f" {len(pairs)} pairs.")
     return 0
 
 

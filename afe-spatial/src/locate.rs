@@ -204,7 +204,7 @@ pub struct Localiser {
     primed: usize,
     /// Per bin of the band, the ears' powers |l|², |r|² and the real and imaginary parts
     /// of l·conj(r), smoothed over frames (time constant [`COHERENCE_TAU_S`]).
-    smoothed: Vec<f64>,
+    smoothed: Vec<[f64; 4]>,
     /// The smoothing's weight of the frames before, `exp(−hop/τ)`.
     keep: f64,
     /// Each bin's weight in the current frame: onset times coherence.
@@ -306,7 +306,7 @@ impl Localiser {
             weights: vec![0.0; 4 * bins],
             previous: vec![0.0; ONSET_LAG * bins],
             primed: 0,
-            smoothed: vec![0.0; 4 * bins],
+            smoothed: vec![[0.0; 4]; bins],
             keep: (-(hop as f64 / fs_hz) / COHERENCE_TAU_S).exp(),
             bin_weights: vec![0.0; bins],
             fft: RealFft::new(n),
@@ -341,9 +341,9 @@ impl Localiser {
 
     /// Scores one frame of each ear (`frame_len` samples) into `row`: per azimuth, the
     /// share of each bin's energy along its steering vector (0 to 1) to the 8th power
-    /// ([`SHARE_SQUARINGS`]), averaged over the band's bins with each bin's onset weight (see
-    /// [`ONSET_FLOOR`]) times its coherence (see [`COHERENCE_POWER`]); returns the band's
-    /// energy and the frame's weight (the sum of its bins').
+    /// ([`SHARE_SQUARINGS`]), averaged over the band's bins with each bin's onset weight
+    /// (see [`ONSET_FLOOR`]) times its coherence (see [`COHERENCE_POWER`]); returns the
+    /// band's energy and the frame's weight (the sum of its bins').
     pub fn score(&mut self, left: &[f64], right: &[f64], row: &mut [f64]) -> Scored {
         let w = self.window.len();
         for (x, (re, im)) in [left, right].into_iter().zip(&mut self.spectra) {
@@ -376,10 +376,11 @@ impl Localiser {
             let cross = l * r.conj();
             let now = [l.norm_sqr(), r.norm_sqr(), cross.re, cross.im];
             let keep = if self.primed == 0 { 0.0 } else { self.keep };
-            let smoothed = &mut self.smoothed[4 * b..4 * b + 4];
+            let smoothed = &mut self.smoothed[b];
             for (s, v) in smoothed.iter_mut().zip(now) {
                 *s = keep * *s + (1.0 - keep) * v;
             }
+            let [sl, sr, sc, ss] = *smoothed;
             let w = &mut self.weights[4 * b..4 * b + 4];
             if e <= 0.0 {
                 w.fill(0.0);
@@ -388,7 +389,6 @@ impl Localiser {
             }
             energy += e;
             // |γ|² = |⟨l·conj(r)⟩|² / (⟨|l|²⟩·⟨|r|²⟩), in [0, 1]
-            let [sl, sr, sc, ss] = [smoothed[0], smoothed[1], smoothed[2], smoothed[3]];
             // (a bin only one ear hears has a single direction: coherent)
             let both = sl * sr;
             let coherence = if both > 0.0 {
@@ -461,9 +461,9 @@ pub const COHERENCE_POWER: i32 = 2;
 
 /// Each bin's share of energy along a direction is squared this many times (raised to the
 /// 8th power) before the bins are added: 1 only along the bin's own direction, so a bin
-/// that two talkers share no longer votes for the directions between them. Two talkers 40 degrees
-/// or more apart (32 anechoic pairs, KEMAR): both found within 10 degrees in 21 without
-/// sharpening or coherence, 25 with the coherence alone, 31 with both.
+/// that two talkers share no longer votes for the directions between them. Two talkers
+/// 40 degrees or more apart (32 anechoic pairs, KEMAR): both found within 10 degrees in 21
+/// without sharpening or coherence, 25 with the coherence alone, 31 with both.
 pub const SHARE_SQUARINGS: u32 = 3;
 
 afe_core::simd_kernel!(
