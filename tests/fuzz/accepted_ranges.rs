@@ -115,6 +115,34 @@ fn accepted_params(rng: &mut Rng, request: &str) -> ParamMap {
     params
 }
 
+/// Most values the processors of a case's chain may write over its input (2^23, 64 MiB
+/// of f64): an autocorrelation with a hop of 2 samples writes 60 million over 0.2 s of
+/// audio, seconds of work (10.7 s on a loaded CI host) that test no more than the first
+/// tenth of it.
+const VALUE_BUDGET: f64 = (1u64 << 23) as f64;
+
+/// Frames of its slowest output a case gets, whatever [`VALUE_BUDGET`] allows.
+const FEWEST_FRAMES: f64 = 4.0;
+
+/// The longest input in samples that keeps the chain of `name` within [`VALUE_BUDGET`]
+/// (every output of every processor in it at its own rate, read from a second manager
+/// that requests each of them) yet gives its slowest output [`FEWEST_FRAMES`].
+fn longest_input(name: &str, fs: f64, ears: usize, params: &ParamMap) -> Result<usize, String> {
+    let mut probe = Manager::with_threads(fs, ears, 0).map_err(|e| e.to_string())?;
+    let links = afe::catalog::chain(name);
+    for link in links.into_iter().filter(|n| afe::find_request(n).is_ok()) {
+        probe
+            .add_request(link, params)
+            .map_err(|e| format!("{link} of the chain of {name}: {e}"))?;
+    }
+    let signals = probe.signals(false);
+    let per_sample: f64 = (signals.iter())
+        .map(|s| s.info.fs_hz / fs * s.info.width() as f64)
+        .sum();
+    let slowest = (signals.iter()).fold(fs, |r, s| r.min(s.info.fs_hz));
+    Ok((VALUE_BUDGET / per_sample).max(FEWEST_FRAMES * fs / slowest) as usize)
+}
+
 /// Checks that every requested output shown holds finite values, from an input that is
 /// not silent: NaN only in the representations whose description says where the AFE
 /// gives it (`nan_where`: an unvoiced pitch frame, an autocorrelation frame of zeros, the
@@ -157,8 +185,9 @@ fn accepted_ranges() {
             return check_error(&e);
         }
         // a quarter of a second at most (at the output limit, 0.5 GB of blocks in one
-        // chunk): noise or a tone, at full scale or 40 dB below
+        // chunk), within the value budget: noise or a tone, at full scale or 40 dB below
         let len = 1 + rng.below(fs as usize / 4);
+        let len = len.min(longest_input(name, fs, ears, &params)?.max(1));
         let gain = *rng.pick(&[1.0, 0.01]);
         let f = 0.001 + rng.unit() * 0.2;
         let x: Vec<f64> = (0..len)
