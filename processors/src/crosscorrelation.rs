@@ -148,6 +148,13 @@ pub(crate) fn in_subnormal_band(left: f64, right: f64) -> bool {
         && afe_core::denormals::flushing()
 }
 
+/// Whether the largest magnitudes `left` and `right` lie above [`in_subnormal_band`]'s
+/// band, where larger maxima keep them (with a factor 2 to spare, so that the product's
+/// rounding cannot disagree with the band's sum of logarithms).
+pub(crate) fn above_subnormal_band(left: f64, right: f64) -> bool {
+    left * right >= 2.0 * SUBNORMAL_PRODUCT_LOG2.exp2()
+}
+
 /// log2 of the largest product below which a frame pair is correlated in IEEE
 /// arithmetic (1e−280: its products a window's edge away, 1e−10 smaller, stay normal).
 const SUBNORMAL_PRODUCT_LOG2: f64 = -930.1;

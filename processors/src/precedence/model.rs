@@ -15,6 +15,10 @@ use super::kernels::{
 use super::lag_removal::{peak_ratio, LagRemoval, TAPS};
 use crate::even_inverse::EvenInverse;
 
+/// Rows of a frame pair scanned between two looks at whether every channel's maxima
+/// already lie above the subnormal band.
+const ROWS_PER_CHECK: usize = 8;
+
 /// Lag-removal variants and which one each ear uses in each LLAR mode (spec step B):
 /// `false` = `S` (short), `true` = `L` (long).
 const MODES: [(bool, bool); 4] = [(false, false), (true, true), (false, true), (true, false)];
@@ -240,13 +244,26 @@ impl Model {
 
     /// Whether some channel's largest magnitudes in the two frames lie where flushing
     /// subnormals would change the cues (the cross-correlation's `in_subnormal_band`).
+    /// The maxima only grow row by row, and their products with them: the scan stops
+    /// once every channel's lies above the band (a speech frame's first rows), the answer
+    /// the whole frame gives.
     pub(super) fn in_subnormal_band(&mut self, left: Frame<'_>, right: Frame<'_>) -> bool {
-        for (peaks, frame) in self.tail_peaks.iter_mut().zip([left, right]) {
-            peaks.fill(0.0);
-            for row in frame.rows() {
-                for (p, v) in peaks.iter_mut().zip(row) {
+        use crate::crosscorrelation::above_subnormal_band;
+        let [l, r] = &mut self.tail_peaks;
+        l.fill(0.0);
+        r.fill(0.0);
+        let mut rows = left.rows().zip(right.rows()).peekable();
+        while rows.peek().is_some() {
+            for (row_l, row_r) in rows.by_ref().take(ROWS_PER_CHECK) {
+                for (p, v) in l.iter_mut().zip(row_l).chain(r.iter_mut().zip(row_r)) {
                     *p = p.max(v.abs());
                 }
+            }
+            if l.iter()
+                .zip(r.iter())
+                .all(|(&a, &b)| above_subnormal_band(a, b))
+            {
+                return false;
             }
         }
         let [l, r] = &self.tail_peaks;
