@@ -312,6 +312,30 @@ mod tests {
     use super::*;
     use crate::testing::noise;
 
+    /// Maxima above the subnormal band stay out of it as they grow (what lets precedence
+    /// stop its scan early), and maxima in the band are not taken for above it.
+    #[test]
+    fn maxima_above_the_subnormal_band_stay_above_it() {
+        let _flush = afe_core::denormals::FlushDenormals::enable();
+        let magnitudes: Vec<f64> = (-330..=10).map(|e| 10f64.powf(e as f64 * 0.97)).collect();
+        let (mut above, mut inside) = (0, 0);
+        for &a in &magnitudes {
+            for &b in &magnitudes {
+                if in_subnormal_band(a, b) {
+                    inside += 1;
+                    assert!(!above_subnormal_band(a, b), "{a:e}·{b:e} is in the band");
+                }
+                if above_subnormal_band(a, b) {
+                    above += 1;
+                    for (ga, gb) in [(1.0, 1.0), (1.0, 3.0), (7.0, 1.0), (1e30, 1e10)] {
+                        assert!(!in_subnormal_band(a * ga, b * gb), "{a:e}·{b:e} grown");
+                    }
+                }
+            }
+        }
+        assert!(above > 0 && inside > 0, "{above} above, {inside} inside");
+    }
+
     /// Parts over channel ranges, joined, give the unsplit output bit for bit, for the
     /// direct method (groups cut where they do not overlap) and the FFT, over chunks
     /// with and without complete frames, and so does the processor after it took its
