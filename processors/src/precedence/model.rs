@@ -13,6 +13,7 @@ use super::kernels::{
     window_columns, xcorr,
 };
 use super::lag_removal::{peak_ratio, LagRemoval, TAPS};
+use crate::crosscorrelation::{above_subnormal_band, in_subnormal_band};
 use crate::even_inverse::EvenInverse;
 
 /// Rows of a frame pair scanned between two looks at whether every channel's maxima
@@ -248,26 +249,25 @@ impl Model {
     /// once every channel's lies above the band (a speech frame's first rows), the answer
     /// the whole frame gives.
     pub(super) fn in_subnormal_band(&mut self, left: Frame<'_>, right: Frame<'_>) -> bool {
-        use crate::crosscorrelation::above_subnormal_band;
         let [l, r] = &mut self.tail_peaks;
         l.fill(0.0);
         r.fill(0.0);
-        let mut rows = left.rows().zip(right.rows()).peekable();
-        while rows.peek().is_some() {
-            for (row_l, row_r) in rows.by_ref().take(ROWS_PER_CHECK) {
-                for (p, v) in l.iter_mut().zip(row_l).chain(r.iter_mut().zip(row_r)) {
-                    *p = p.max(v.abs());
-                }
+        for (n, (row_l, row_r)) in left.rows().zip(right.rows()).enumerate() {
+            for (p, v) in l.iter_mut().zip(row_l).chain(r.iter_mut().zip(row_r)) {
+                *p = p.max(v.abs());
             }
-            if l.iter()
-                .zip(r.iter())
-                .all(|(&a, &b)| above_subnormal_band(a, b))
+            let checkpoint = (n + 1).is_multiple_of(ROWS_PER_CHECK);
+            if checkpoint
+                && l.iter()
+                    .zip(r.iter())
+                    .all(|(&a, &b)| above_subnormal_band(a, b))
             {
                 return false;
             }
         }
-        let [l, r] = &self.tail_peaks;
-        (l.iter().zip(r)).any(|(&a, &b)| crate::crosscorrelation::in_subnormal_band(a, b))
+        l.iter()
+            .zip(r.iter())
+            .any(|(&a, &b)| in_subnormal_band(a, b))
     }
 
     /// Steps B and C on the analysed frame pair: the LLAR mode, then each channel's
